@@ -1,0 +1,19 @@
+"""Exceptions of the ``levels`` package.
+
+One root, :class:`LevelsError`; each subclass also inherits the builtin a caller would
+expect (the rasterio habit), so ``except ValueError`` still works.
+"""
+
+__all__ = ["DimapError", "GeometryError", "LevelsError"]
+
+
+class LevelsError(Exception):
+    """Root of every error raised by ``levels``."""
+
+
+class GeometryError(LevelsError, ValueError):
+    """A geometric model was built from inconsistent or out-of-range inputs."""
+
+
+class DimapError(LevelsError, ValueError):
+    """A DIMAP metadata file is not DIMAP, lacks a needed element, or is inconsistent."""

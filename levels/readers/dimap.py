@@ -1,0 +1,358 @@
+"""Reader of SPOT 1–5 level-1A DIMAP v1 metadata (``METADATA.DIM``).
+
+It turns the XML into the geometry core's model objects: an :class:`~levels.geometry.ephemeris.
+Ephemeris`, attitudes, a :class:`~levels.geometry.sensor.LookAngleTable` and a
+:class:`~levels.geometry.model.LineClock`, exactly what the emulated station builds from its
+own L0 data, so that a real scene and an emulated one are located by the same code.
+
+Conventions of the files (SPOT Geometry Handbook S-NT-73-12-SI, and
+``../shared/refdata/README.md``): rows and columns 1-based; a line's time is
+``SCENE_CENTER_TIME + (row − SCENE_CENTER_LINE) · LINE_PERIOD`` (UTC); ``PSI_Y`` includes
+the mirror; the Dataset_Frame corners lie on the ellipsoid (height 0). The reader converts
+rows and columns to the 0-based convention of ``levels.geometry.model`` once, here.
+
+Attitude: which one reproduces the producer's own scene location
+    SPOT 5 files carry ``Corrected_Attitudes`` (star-tracker corrected yaw, pitch, roll):
+    with them the frame corners are reproduced to centimetres. SPOT 1–4 files carry two
+    absolute AOCS angle samples and gyro angular speeds every 0.125 s. Their frame corners
+    are reproduced to 0.4–2.5 m with the *null* attitude, and are made worse by applying the
+    AOCS angles, alone or carried on by the integrated rates (up to 24 m on the SPOT 4
+    scene), or the rates integrated from a null attitude and zeroed at scene centre, INPE's
+    rule (up to 10 m): the producer located SPOT 1–4 level-1A frames from the
+    ephemeris and the look angles alone, the gyro data serving the relative (1B) geometry.
+    Hence ``attitude="auto"`` selects the corrected attitude when present and the null
+    attitude otherwise; every other choice stays available.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from levels.errors import DimapError, GeometryError
+from levels.geometry.attitude import (
+    Attitude,
+    ConstantAttitude,
+    SampledAttitude,
+    integrate_rates,
+)
+from levels.geometry.ephemeris import Ephemeris
+from levels.geometry.model import LineClock, PushbroomModel
+from levels.geometry.sensor import LookAngleTable
+from levels.geometry.times import Epoch, parse_utc
+
+__all__ = ["AttitudeChoice", "DimapScene", "read_dimap"]
+
+AttitudeChoice = Literal["auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed"]
+_ATTITUDE_CHOICES = ("auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed")
+
+_STRIP = "Data_Strip"
+_EPHEMERIS_POINTS = f"{_STRIP}/Ephemeris/Points/Point"
+_AOCS = f"{_STRIP}/Satellite_Attitudes/Raw_Attitudes/Aocs_Attitude"
+_CORRECTED = f"{_STRIP}/Satellite_Attitudes/Corrected_Attitudes/Corrected_Attitude/Angles"
+_TIME_STAMP = f"{_STRIP}/Sensor_Configuration/Time_Stamp"
+_LOOK_ANGLES = f"{_STRIP}/Sensor_Configuration/Instrument_Look_Angles_List/Instrument_Look_Angles"
+_MIRROR = f"{_STRIP}/Sensor_Configuration/Mirror_Position/STEP_COUNT"
+_SOURCE = "Dataset_Sources/Source_Information/Scene_Source"
+
+
+@dataclass(frozen=True, eq=False)
+class DimapScene:
+    """What a level-1A DIMAP file says about the geometry of its scene.
+
+    Rows and columns of the frame are kept 1-based as in the file (``frame_row``,
+    ``frame_col``); everything handed to the model is 0-based. Elements absent from the file
+    are ``None`` (a frame-only file has no ephemeris); :meth:`model` says what it lacks.
+    Angles are radians; ``frame_lat_deg``/``frame_lon_deg`` degrees as in the file.
+    """
+
+    path: Path
+    mission: str
+    mission_index: int | None
+    instrument: str
+    instrument_index: int | None
+    sensor_code: str
+    n_rows: int
+    n_cols: int
+    frame_row: NDArray[np.int64]
+    frame_col: NDArray[np.int64]
+    frame_lat_deg: NDArray[np.float64]
+    frame_lon_deg: NDArray[np.float64]
+    center_row: int
+    center_col: int
+    center_lat_deg: float
+    center_lon_deg: float
+    epoch: Epoch | None
+    line_period_s: float | None
+    scene_center_line: float | None
+    scene_center_col: float | None
+    ephemeris: Ephemeris | None
+    aocs_attitude: SampledAttitude | None
+    angular_speeds_t_s: NDArray[np.float64] | None
+    angular_speeds_rad_per_s: NDArray[np.float64] | None
+    corrected_attitude: SampledAttitude | None
+    look_angles: dict[int, LookAngleTable]
+    mirror_step: int | None
+
+    @property
+    def name(self) -> str:
+        idx = "" if self.mission_index is None else str(self.mission_index)
+        ins = "" if self.instrument_index is None else str(self.instrument_index)
+        return f"{self.mission} {idx} {self.instrument}{ins} {self.sensor_code}".strip()
+
+    def attitude(self, choice: AttitudeChoice = "auto") -> Attitude:
+        """The attitude model of ``choice`` (see the module docstring for ``"auto"``).
+
+        ``"corrected"``: SPOT 5 corrected attitudes; ``"none"``: null attitude; ``"aocs"``:
+        the absolute AOCS samples interpolated; ``"integrated"``: gyro rates integrated
+        from the first AOCS sample; ``"integrated_zeroed"``: rates integrated from a null
+        attitude and zeroed at scene-centre time (INPE's rule, paper ``004_…`` §2.1).
+        """
+        if choice not in _ATTITUDE_CHOICES:
+            raise DimapError(f"attitude choice {choice!r}: expected one of {_ATTITUDE_CHOICES}")
+        if choice == "auto":
+            choice = "corrected" if self.corrected_attitude is not None else "none"
+        if choice == "none":
+            return ConstantAttitude()
+        if choice == "corrected":
+            return self._need(self.corrected_attitude, "Corrected_Attitudes", choice)
+        if choice == "aocs":
+            return self._need(self.aocs_attitude, "Raw_Attitudes/Aocs_Attitude/Angles_List", choice)
+        rates = self._need(self.angular_speeds_rad_per_s, "Angular_Speeds_List", choice)
+        t = self.angular_speeds_t_s
+        if choice == "integrated":
+            aocs = self._need(self.aocs_attitude, "Raw_Attitudes/Aocs_Attitude/Angles_List", choice)
+            return integrate_rates(
+                t, rates, start_t_s=float(aocs.t_s[0]), start_angles_rad=aocs.angles_rad_samples[0]
+            )
+        return integrate_rates(t, rates).zeroed_at(0.0)
+
+    def _need(self, value, element: str, what: str):
+        if value is None:
+            raise DimapError(f"{self.path}: no {element} element, needed for {what!r} attitude")
+        return value
+
+    def model(self, *, band: int | None = None, attitude: AttitudeChoice = "auto") -> PushbroomModel:
+        """The rigorous model of the scene (band ``band``, default the first tabulated)."""
+        missing = [
+            name
+            for name, value in (
+                ("Ephemeris/Points", self.ephemeris),
+                ("Sensor_Configuration/Time_Stamp", self.epoch),
+                ("Instrument_Look_Angles", self.look_angles or None),
+            )
+            if value is None
+        ]
+        if missing:
+            raise DimapError(
+                f"{self.path}: cannot build a geometric model, missing {', '.join(missing)} "
+                "(a frame-only DIMAP file has corners but no model)"
+            )
+        if band is None:
+            band = min(self.look_angles)
+        if band not in self.look_angles:
+            raise DimapError(
+                f"{self.path}: band {band} has no look angles; bands: {sorted(self.look_angles)}"
+            )
+        assert self.epoch is not None and self.ephemeris is not None
+        clock = LineClock(0.0, self.scene_center_line - 1.0, self.line_period_s)
+        return PushbroomModel(
+            epoch=self.epoch,
+            clock=clock,
+            ephemeris=self.ephemeris,
+            attitude=self.attitude(attitude),
+            look_angles=self.look_angles[band],
+            n_lines=self.n_rows,
+        )
+
+
+def _find(root: ET.Element, path: str, source: Path) -> ET.Element:
+    elem = root.find(path)
+    if elem is None:
+        raise DimapError(f"{source}: missing element {path}")
+    return elem
+
+
+def _text(root: ET.Element, path: str, source: Path) -> str:
+    text = _find(root, path, source).text
+    if text is None or not text.strip():
+        raise DimapError(f"{source}: element {path} is empty")
+    return text.strip()
+
+
+def _number(root: ET.Element, path: str, source: Path, kind: type = float):
+    text = _text(root, path, source)
+    try:
+        return kind(float(text)) if kind is int else kind(text)
+    except ValueError:
+        raise DimapError(f"{source}: element {path} = {text!r} is not a number") from None
+
+
+def _optional(root: ET.Element, path: str, kind: type = str):
+    text = root.findtext(path)
+    if text is None or not text.strip():
+        return None
+    return kind(text.strip()) if kind is not int else int(float(text))
+
+
+def _frame_point(elem: ET.Element, where: str, source: Path) -> tuple[int, int, float, float]:
+    return (
+        _number(elem, "FRAME_ROW", source, int),
+        _number(elem, "FRAME_COL", source, int),
+        _number(elem, "FRAME_LAT", source),
+        _number(elem, "FRAME_LON", source),
+    )
+
+
+def _times(elems: list[ET.Element], tag: str, epoch: Epoch, where: str, source: Path) -> NDArray:
+    try:
+        return epoch.seconds(parse_utc([_text(e, tag, source) for e in elems]))
+    except GeometryError as exc:
+        raise DimapError(f"{source}: {where}: {exc}") from None
+
+
+def _angles(elems: list[ET.Element], source: Path) -> NDArray[np.float64]:
+    """(n, 3) roll, pitch, yaw from elements holding YAW, PITCH, ROLL."""
+    return np.array(
+        [[_number(e, k, source) for k in ("ROLL", "PITCH", "YAW")] for e in elems], dtype=np.float64
+    )
+
+
+def read_dimap(path: str | Path) -> DimapScene:
+    """Read a SPOT level-1A ``METADATA.DIM`` (DIMAP v1).
+
+    Raises
+    ------
+    DimapError
+        If the file is not XML, not a DIMAP document, lacks a needed element, or has
+        inconsistent sizes; the message names the file and the element.
+    FileNotFoundError
+        If ``path`` does not exist.
+    """
+    source = Path(path)
+    try:
+        root = ET.parse(source).getroot()
+    except ET.ParseError as exc:
+        raise DimapError(f"{source}: not an XML document ({exc}); expected a DIMAP METADATA.DIM") from None
+    fmt = root.findtext("Metadata_Id/METADATA_FORMAT")
+    if root.tag != "Dimap_Document" or (fmt or "").strip() != "DIMAP":
+        raise DimapError(
+            f"{source}: not a DIMAP document (root <{root.tag}>, METADATA_FORMAT {fmt!r}); "
+            "expected <Dimap_Document> with METADATA_FORMAT DIMAP"
+        )
+
+    n_cols = _number(root, "Raster_Dimensions/NCOLS", source, int)
+    n_rows = _number(root, "Raster_Dimensions/NROWS", source, int)
+    vertices = root.findall("Dataset_Frame/Vertex")
+    if len(vertices) != 4:
+        raise DimapError(f"{source}: Dataset_Frame has {len(vertices)} Vertex elements, expected 4")
+    frame = np.array([_frame_point(v, "Vertex", source) for v in vertices])
+    center = _frame_point(_find(root, "Dataset_Frame/Scene_Center", source), "Scene_Center", source)
+
+    epoch = line_period = center_line = center_col = None
+    if root.find(_TIME_STAMP) is not None:
+        ts = _find(root, _TIME_STAMP, source)
+        try:
+            epoch = Epoch(parse_utc(_text(ts, "SCENE_CENTER_TIME", source)), name="SCENE_CENTER_TIME")
+        except GeometryError as exc:
+            raise DimapError(f"{source}: SCENE_CENTER_TIME: {exc}") from None
+        line_period = _number(ts, "LINE_PERIOD", source)
+        center_line = _number(ts, "SCENE_CENTER_LINE", source)
+        center_col = _number(ts, "SCENE_CENTER_COL", source)
+        if not line_period > 0:
+            raise DimapError(f"{source}: LINE_PERIOD = {line_period}: must be > 0 (seconds)")
+
+    ephemeris = None
+    points = root.findall(_EPHEMERIS_POINTS)
+    if points:
+        if epoch is None:
+            raise DimapError(f"{source}: ephemeris present but no Time_Stamp to date the lines")
+        t = _times(points, "TIME", epoch, "Ephemeris", source)
+        pos = np.array([[_number(p, f"Location/{k}", source) for k in "XYZ"] for p in points])
+        vel = np.array([[_number(p, f"Velocity/{k}", source) for k in "XYZ"] for p in points])
+        try:
+            ephemeris = Ephemeris(t, pos, vel)
+        except GeometryError as exc:
+            raise DimapError(f"{source}: Ephemeris: {exc}") from None
+
+    aocs = speeds_t = speeds = corrected = None
+    if epoch is not None:
+        aocs_angles = root.findall(f"{_AOCS}/Angles_List/Angles")
+        if len(aocs_angles) >= 2:
+            aocs = _sampled(aocs_angles, epoch, "Aocs_Attitude/Angles_List", source)
+        speed_elems = root.findall(f"{_AOCS}/Angular_Speeds_List/Angular_Speeds")
+        if speed_elems:
+            speeds_t = _times(speed_elems, "TIME", epoch, "Angular_Speeds_List", source)
+            speeds = _angles(speed_elems, source)
+            if np.any(np.diff(speeds_t) <= 0):
+                raise DimapError(f"{source}: Angular_Speeds_List times do not increase strictly")
+        corrected_elems = root.findall(_CORRECTED)
+        if corrected_elems:
+            corrected = _sampled(corrected_elems, epoch, "Corrected_Attitudes", source)
+
+    look_angles = {}
+    for block in root.findall(_LOOK_ANGLES):
+        band = _number(block, "BAND_INDEX", source, int)
+        entries = block.findall("Look_Angles_List/Look_Angles")
+        det = np.array([_number(e, "DETECTOR_ID", source, int) for e in entries])
+        psi_x = np.array([_number(e, "PSI_X", source) for e in entries])
+        psi_y = np.array([_number(e, "PSI_Y", source) for e in entries])
+        if det.size < 2:
+            raise DimapError(f"{source}: band {band} has {det.size} look angles, need at least 2")
+        if det.min() < 1 or det.max() > n_cols:
+            raise DimapError(
+                f"{source}: band {band} look angles for detectors {det.min()}..{det.max()}, "
+                f"but NCOLS = {n_cols}"
+            )
+        if det.size > 2 and det.size != n_cols:
+            raise DimapError(
+                f"{source}: band {band} has {det.size} look angles: expected 2 (first and last "
+                f"detector) or one per detector ({n_cols})"
+            )
+        try:
+            look_angles[band] = LookAngleTable(det - 1.0, psi_x, psi_y, n_cols)
+        except GeometryError as exc:
+            raise DimapError(f"{source}: band {band} look angles: {exc}") from None
+
+    return DimapScene(
+        path=source,
+        mission=(root.findtext(f"{_SOURCE}/MISSION") or "").strip(),
+        mission_index=_optional(root, f"{_SOURCE}/MISSION_INDEX", int),
+        instrument=(root.findtext(f"{_SOURCE}/INSTRUMENT") or "").strip(),
+        instrument_index=_optional(root, f"{_SOURCE}/INSTRUMENT_INDEX", int),
+        sensor_code=(root.findtext(f"{_SOURCE}/SENSOR_CODE") or "").strip(),
+        n_rows=n_rows,
+        n_cols=n_cols,
+        frame_row=frame[:, 0].astype(np.int64),
+        frame_col=frame[:, 1].astype(np.int64),
+        frame_lat_deg=frame[:, 2],
+        frame_lon_deg=frame[:, 3],
+        center_row=int(center[0]),
+        center_col=int(center[1]),
+        center_lat_deg=center[2],
+        center_lon_deg=center[3],
+        epoch=epoch,
+        line_period_s=line_period,
+        scene_center_line=center_line,
+        scene_center_col=center_col,
+        ephemeris=ephemeris,
+        aocs_attitude=aocs,
+        angular_speeds_t_s=speeds_t,
+        angular_speeds_rad_per_s=speeds,
+        corrected_attitude=corrected,
+        look_angles=look_angles,
+        mirror_step=_optional(root, _MIRROR, int),
+    )
+
+
+def _sampled(elems: list[ET.Element], epoch: Epoch, where: str, source: Path) -> SampledAttitude:
+    t = _times(elems, "TIME", epoch, where, source)
+    try:
+        return SampledAttitude(t, _angles(elems, source))
+    except GeometryError as exc:
+        raise DimapError(f"{source}: {where}: {exc}") from None
