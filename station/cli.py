@@ -23,8 +23,10 @@ def _cmd_locate(args: argparse.Namespace) -> int:
         print(json.dumps(check.as_dict(), indent=2))
         return 0
     print(f"{check.scene}  (attitude: {check.attitude})")
-    print(f"{'point':>12} {'lat °':>12} {'lon °':>12} {'pred lat °':>12} {'pred lon °':>12} "
-          f"{'error m':>8} {'closure px':>10}")
+    print(
+        f"{'point':>12} {'lat °':>12} {'lon °':>12} {'pred lat °':>12} {'pred lon °':>12} "
+        f"{'error m':>8} {'closure px':>10}"
+    )
     labels = ["corner 1", "corner 2", "corner 3", "corner 4", "centre"]
     for i, label in enumerate(labels):
         print(

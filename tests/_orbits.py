@@ -33,7 +33,9 @@ SPOT_I_RAD = np.radians(98.7)
 EPOCH = Epoch(np.datetime64("1998-02-20T09:16:00", "ns"), name="test epoch")
 
 
-def kepler_eci(t_s, a_m=SPOT_A_M, e=SPOT_E, i_rad=SPOT_I_RAD, raan_rad=1.2, argp_rad=0.4, m0_rad=0.3):
+def kepler_eci(
+    t_s, a_m=SPOT_A_M, e=SPOT_E, i_rad=SPOT_I_RAD, raan_rad=1.2, argp_rad=0.4, m0_rad=0.3
+):
     """Exact two-body position and velocity (ECI), shape (N, 3) each."""
     t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
     n = np.sqrt(GM_M3_PER_S2 / a_m**3)
@@ -45,13 +47,21 @@ def kepler_eci(t_s, a_m=SPOT_A_M, e=SPOT_E, i_rad=SPOT_I_RAD, raan_rad=1.2, argp
     r_pf = np.stack([a_m * (cos_e - e), a_m * np.sqrt(1 - e * e) * sin_e, 0 * t], axis=-1)
     edot = n / (1.0 - e * cos_e)
     v_pf = np.stack([-a_m * sin_e * edot, a_m * np.sqrt(1 - e * e) * cos_e * edot, 0 * t], axis=-1)
-    cw, sw, ci, si, co, so = (np.cos(argp_rad), np.sin(argp_rad), np.cos(i_rad), np.sin(i_rad),
-                              np.cos(raan_rad), np.sin(raan_rad))
-    rot = np.array([
-        [co * cw - so * sw * ci, -co * sw - so * cw * ci, so * si],
-        [so * cw + co * sw * ci, -so * sw + co * cw * ci, -co * si],
-        [sw * si, cw * si, ci],
-    ])
+    cw, sw, ci, si, co, so = (
+        np.cos(argp_rad),
+        np.sin(argp_rad),
+        np.cos(i_rad),
+        np.sin(i_rad),
+        np.cos(raan_rad),
+        np.sin(raan_rad),
+    )
+    rot = np.array(
+        [
+            [co * cw - so * sw * ci, -co * sw - so * cw * ci, so * si],
+            [so * cw + co * sw * ci, -so * sw + co * cw * ci, -co * si],
+            [sw * si, cw * si, ci],
+        ]
+    )
     return r_pf @ rot.T, v_pf @ rot.T
 
 
@@ -67,8 +77,15 @@ def j2_eci(t_s, r0_m, v0_m_per_s):
         return np.concatenate([y[3:], acc])
 
     t = np.asarray(t_s, dtype=np.float64)
-    sol = solve_ivp(rhs, (0.0, float(t.max())), np.concatenate([r0_m, v0_m_per_s]),
-                    method="DOP853", t_eval=t, rtol=1e-13, atol=1e-7)
+    sol = solve_ivp(
+        rhs,
+        (0.0, float(t.max())),
+        np.concatenate([r0_m, v0_m_per_s]),
+        method="DOP853",
+        t_eval=t,
+        rtol=1e-13,
+        atol=1e-7,
+    )
     return sol.y[:3].T, sol.y[3:].T
 
 
@@ -87,13 +104,18 @@ def hrv_model(mirror_step=48, n_lines=6000, n_columns=6000, jitter=True, step_s=
     clock = LineClock(t_centre, 0.5 * (n_lines - 1), 1.504e-3 * 6000 / n_lines)
     t_att = np.arange(t_centre - 6.0, t_centre + 6.0, 0.125)
     s = t_att - t_centre
-    angles = np.stack([
-        2e-4 + 1e-6 * s + (3e-6 * np.sin(2 * np.pi * s / 0.9) if jitter else 0),  # roll
-        -1.5e-4 + 2e-6 * s + (2e-6 * np.sin(2 * np.pi * s / 1.3) if jitter else 0),  # pitch
-        3e-4 - 1e-6 * s,  # yaw
-    ], axis=-1)
+    angles = np.stack(
+        [
+            2e-4 + 1e-6 * s + (3e-6 * np.sin(2 * np.pi * s / 0.9) if jitter else 0),  # roll
+            -1.5e-4 + 2e-6 * s + (2e-6 * np.sin(2 * np.pi * s / 1.3) if jitter else 0),  # pitch
+            3e-4 - 1e-6 * s,  # yaw
+        ],
+        axis=-1,
+    )
     att = SampledAttitude(t_att, angles)
     half_swath_rad = 0.0361 * 6000 / 6000
     psi_y = np.array([-half_swath_rad, half_swath_rad]) + mirror_angle_rad(mirror_step)
-    table = LookAngleTable(np.array([0.0, n_columns - 1.0]), np.array([1.07e-2, 1.11e-2]), psi_y, n_columns)
+    table = LookAngleTable(
+        np.array([0.0, n_columns - 1.0]), np.array([1.07e-2, 1.11e-2]), psi_y, n_columns
+    )
     return PushbroomModel(EPOCH, clock, eph, att, table, n_lines)

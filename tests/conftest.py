@@ -8,7 +8,9 @@ from pathlib import Path
 import pytest
 
 #: ../shared/refdata beside the repository, or $SPOT_REFDATA.
-REFDATA = Path(os.environ.get("SPOT_REFDATA", Path(__file__).resolve().parents[2] / "shared" / "refdata"))
+REFDATA = Path(
+    os.environ.get("SPOT_REFDATA", Path(__file__).resolve().parents[2] / "shared" / "refdata")
+)
 
 
 @pytest.fixture(scope="session")

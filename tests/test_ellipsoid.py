@@ -81,7 +81,9 @@ def test_intersection_lies_on_the_ray_at_the_height(h_m: float) -> None:
     up = WGS84.up(lat0, lon0)
     tilt = rng.normal(size=(n, 3))
     tilt -= np.einsum("ni,ni->n", tilt, up)[:, None] * up  # horizontal
-    tilt *= (np.tan(np.radians(30.0)) * rng.uniform(0, 1, n) / np.linalg.norm(tilt, axis=1))[:, None]
+    tilt *= (np.tan(np.radians(30.0)) * rng.uniform(0, 1, n) / np.linalg.norm(tilt, axis=1))[
+        :, None
+    ]
     origin = ground + 830e3 * (up + tilt)
     direction = ground - origin
     point, ok = WGS84.intersect(origin, direction, np.full(n, h_m))

@@ -36,7 +36,9 @@ def test_j2_orbit_to_a_millimetre_at_60_s() -> None:
     def states(t):
         t = np.asarray(t, dtype=float)
         order = np.argsort(t)
-        r, v = j2_eci(np.concatenate([[0.0], t[order]])[1:] if t[order][0] > 0 else t[order], r0[0], v0[0])
+        r, v = j2_eci(
+            np.concatenate([[0.0], t[order]])[1:] if t[order][0] > 0 else t[order], r0[0], v0[0]
+        )
         out_r, out_v = np.empty_like(r), np.empty_like(v)
         out_r[order], out_v[order] = r, v
         return out_r, out_v
@@ -74,7 +76,7 @@ def test_fewer_than_eight_samples_use_all_of_them() -> None:
 def test_outside_the_span_is_nan_not_extrapolated() -> None:
     t_nodes = np.arange(8) * 60.0
     eph = Ephemeris(t_nodes, *ecef_states(t_nodes))
-    r, v = eph.interpolate(np.array([-0.1, 200.0, 420.1]))
+    r, _ = eph.interpolate(np.array([-0.1, 200.0, 420.1]))
     assert np.isnan(r[[0, 2]]).all() and np.isfinite(r[1]).all()
 
 

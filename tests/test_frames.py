@@ -49,6 +49,13 @@ def test_attitude_signs_are_spot_s() -> None:
     assert orbital_from_body(0.0, 0.0, 0.03) == pytest.approx(rot_z(0.03))
 
 
+def test_attitude_rotation_is_the_product_it_documents() -> None:
+    rng = np.random.default_rng(3)
+    roll, pitch, yaw = rng.uniform(-0.3, 0.3, (3, 50))
+    expected = rot_x(-pitch) @ rot_y(-roll) @ rot_z(yaw)
+    assert np.abs(orbital_from_body(roll, pitch, yaw) - expected).max() < ROUND_OFF
+
+
 def test_eci_ecef_round_trip_and_earth_fixed_velocity() -> None:
     t = np.linspace(0.0, 60.0, 601)
     r_eci, v_eci = kepler_eci(t)

@@ -43,7 +43,9 @@ def test_levels_never_imports_station(path: Path) -> None:
 )
 def test_geometry_is_the_bottom_layer(path: Path) -> None:
     forbidden = ("h5py", "levels.readers", "levels.geo", "levels.cor", "xml", "rasterio")
-    bad = sorted(n for n in _imports(path) if any(n == f or n.startswith(f + ".") for f in forbidden))
+    bad = sorted(
+        n for n in _imports(path) if any(n == f or n.startswith(f + ".") for f in forbidden)
+    )
     assert not bad, f"{path.relative_to(ROOT)} imports {bad}: geometry is numerical and lowest"
 
 

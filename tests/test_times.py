@@ -52,4 +52,6 @@ def test_era_is_the_same_from_any_epoch() -> None:
     a = Epoch(J2000_UTC)
     b = Epoch(np.datetime64("1998-02-20T09:16:40.045", "ns"))
     t = np.datetime64("1998-02-20T09:17:00", "ns")
-    assert float(a.era_rad(a.seconds(t))) == pytest.approx(float(b.era_rad(b.seconds(t))), abs=ERA_TOL_RAD)
+    assert float(a.era_rad(a.seconds(t))) == pytest.approx(
+        float(b.era_rad(b.seconds(t))), abs=ERA_TOL_RAD
+    )

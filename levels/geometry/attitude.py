@@ -163,5 +163,7 @@ def integrate_rates(
     t_start = t[0] if start_t_s is None else start_t_s
     if t_start > t[-1]:
         raise GeometryError(f"start_t_s={start_t_s} after the last rate sample {t[-1]}")
-    offset = np.asarray(start_angles_rad, dtype=np.float64) - sampled.angles_rad(np.array([t_start]))[0]
+    offset = (
+        np.asarray(start_angles_rad, dtype=np.float64) - sampled.angles_rad(np.array([t_start]))[0]
+    )
     return SampledAttitude(t, angles + offset, sampled.hold_s)

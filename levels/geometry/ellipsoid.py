@@ -34,7 +34,9 @@ class Ellipsoid:
 
     def __post_init__(self) -> None:
         if not (self.a_m > 0 and self.inv_f > 1):
-            raise GeometryError(f"ellipsoid a_m={self.a_m}, inv_f={self.inv_f}: need a_m > 0, inv_f > 1")
+            raise GeometryError(
+                f"ellipsoid a_m={self.a_m}, inv_f={self.inv_f}: need a_m > 0, inv_f > 1"
+            )
 
     @property
     def f(self) -> float:
@@ -69,8 +71,9 @@ class Ellipsoid:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Geodetic latitude, longitude (rad) and height (m) of ECEF points ``(..., 3)``.
 
-        Bowring's parametric-latitude iteration, three passes: better than 1e-12 rad and
-        1e-6 m from the Earth's surface to geostationary height (tested against pyproj).
+        Bowring's parametric-latitude iteration, two passes: 3e-16 rad and 5e-9 m from 500 m
+        below the ellipsoid to 1000 km above it (one pass leaves 1e-9 rad; tested against
+        pyproj).
         """
         r = np.asarray(r_ecef_m, dtype=np.float64)
         x, y, z = r[..., 0], r[..., 1], r[..., 2]
@@ -79,7 +82,7 @@ class Ellipsoid:
         p = np.hypot(x, y)
         lon = np.arctan2(y, x)
         beta = np.arctan2(a * z, b * p)  # parametric latitude, first guess
-        for _ in range(3):
+        for _ in range(2):
             sb, cb = np.sin(beta), np.cos(beta)
             lat = np.arctan2(z + ep2 * b * sb**3, p - e2 * a * cb**3)
             beta = np.arctan2((1.0 - self.f) * np.sin(lat), np.cos(lat))
@@ -137,7 +140,9 @@ class Ellipsoid:
         b = self.b_m + h
         # Quadratic |(P + d u) / (a, a, b)|² = 1 for the inflated ellipsoid.
         qa = (u[..., 0] ** 2 + u[..., 1] ** 2) / a**2 + u[..., 2] ** 2 / b**2
-        qb = 2.0 * ((p[..., 0] * u[..., 0] + p[..., 1] * u[..., 1]) / a**2 + p[..., 2] * u[..., 2] / b**2)
+        qb = 2.0 * (
+            (p[..., 0] * u[..., 0] + p[..., 1] * u[..., 1]) / a**2 + p[..., 2] * u[..., 2] / b**2
+        )
         qc = (p[..., 0] ** 2 + p[..., 1] ** 2) / a**2 + p[..., 2] ** 2 / b**2 - 1.0
         disc = qb * qb - 4.0 * qa * qc
         hit = disc >= 0.0

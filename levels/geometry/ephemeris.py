@@ -35,8 +35,11 @@ def lagrange_interpolate(
 ) -> NDArray[np.float64]:
     """Interpolate ``y_nodes`` (shape ``(n, k)``) at ``t_s`` with ``n_points``-point Lagrange.
 
-    Vectorised over ``t_s``; loops run only over the ``n_points`` window. Instants outside
-    ``[t_nodes_s[0], t_nodes_s[-1]]`` give NaN.
+    Instants are grouped by their window of nodes (at most ``n − n_points + 1`` windows, a
+    handful for an ephemeris): within a window the nodes are scalars, the Lagrange weights
+    are built from prefix and suffix products of ``t − x_m`` (exact at the nodes, no division
+    by ``t − x_j``) and applied to the window's values with one matrix product. Instants
+    outside ``[t_nodes_s[0], t_nodes_s[-1]]`` give NaN.
 
     Returns
     -------
@@ -47,28 +50,23 @@ def lagrange_interpolate(
     t = t.ravel()
     n = t_nodes_s.size
     m = min(n_points, n)
+    out = np.full((t.size, y_nodes.shape[-1]), np.nan)
+    inside = (t >= t_nodes_s[0]) & (t <= t_nodes_s[-1])
     # Window of m nodes centred on t, shifted inwards at the ends.
-    right = np.searchsorted(t_nodes_s, t, side="right")
-    start = np.clip(right - m // 2, 0, n - m)
-    idx = start[:, None] + np.arange(m)  # (N, m)
-    x = t_nodes_s[idx]
-    diff = t[:, None] - x  # (N, m)
-    # Products over m' != j of (t - x_m') via prefix and suffix products (exact at nodes).
-    prefix = np.ones_like(diff)
-    suffix = np.ones_like(diff)
-    for j in range(1, m):
-        prefix[:, j] = prefix[:, j - 1] * diff[:, j - 1]
-        suffix[:, m - 1 - j] = suffix[:, m - j] * diff[:, m - j]
-    numer = prefix * suffix
-    denom = np.ones_like(diff)
-    for j in range(m):
-        for k in range(m):
-            if k != j:
-                denom[:, j] *= x[:, j] - x[:, k]
-    weights = numer / denom  # (N, m)
-    out = np.einsum("nm,nmk->nk", weights, y_nodes[idx])
-    outside = (t < t_nodes_s[0]) | (t > t_nodes_s[-1]) | ~np.isfinite(t)
-    out[outside] = np.nan
+    start = np.clip(np.searchsorted(t_nodes_s, t, side="right") - m // 2, 0, n - m)
+    for s0 in np.unique(start[inside]):  # loop over windows, not over instants
+        sel = np.flatnonzero(inside & (start == s0))
+        x = t_nodes_s[s0 : s0 + m]
+        diff = t[sel] - x[:, None]  # (m, k): rows contiguous
+        prefix = np.ones_like(diff)
+        suffix = np.ones_like(diff)
+        for j in range(1, m):
+            np.multiply(prefix[j - 1], diff[j - 1], out=prefix[j])
+            np.multiply(suffix[m - j], diff[m - j], out=suffix[m - 1 - j])
+        denom = np.array([np.prod(np.delete(x[j] - x, j)) for j in range(m)])
+        prefix *= suffix
+        prefix /= denom[:, None]
+        out[sel] = prefix.T @ y_nodes[s0 : s0 + m]
     return out.reshape(*shape, y_nodes.shape[-1])
 
 
@@ -133,6 +131,7 @@ class Ephemeris:
 
     def interpolate(self, t_s: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Positions (m) and velocities (m/s), shape ``(*t_s.shape, 3)``; NaN outside the span."""
-        r = lagrange_interpolate(self.t_s, self.r_ecef_m, t_s, self.n_points)
-        v = lagrange_interpolate(self.t_s, self.v_ecef_m_per_s, t_s, self.n_points)
-        return r, v
+        states = lagrange_interpolate(
+            self.t_s, np.hstack([self.r_ecef_m, self.v_ecef_m_per_s]), t_s, self.n_points
+        )
+        return states[..., :3], states[..., 3:]

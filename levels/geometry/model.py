@@ -161,9 +161,16 @@ class PushbroomModel:
             np.atleast_1d(np.asarray(line, dtype=np.float64)),
             np.atleast_1d(np.asarray(column, dtype=np.float64)),
         )
-        r, rot = self.ecef_from_sensor(self.clock.time_s(line_a.ravel()))
+        t = self.clock.time_s(line_a.ravel())
+        r, v = self.ephemeris.interpolate(t)
+        angles = self.attitude.angles_rad(t)
         u = self.look_angles.directions(col_a.ravel())
-        los = np.einsum("nij,nj->ni", rot, u)
+        # ecef_from_orbital · (orbital_from_body · u), without forming the product matrix.
+        u_orbital = np.einsum(
+            "nij,nj->ni", orbital_from_body(angles[:, 0], angles[:, 1], angles[:, 2]), u
+        )
+        axes = ecef_from_orbital(r, v)
+        los = np.einsum("nij,nj->ni", axes, u_orbital)
         return r, los
 
     def image_to_ground(

@@ -107,7 +107,7 @@ class LookAngleTable:
         return look_direction(psi_x, psi_y)
 
     def column_of_psi_y(self, psi_y_rad: ArrayLike) -> NDArray[np.float64]:
-        """Inverse of ``psi_y(column)``: the fractional column seeing across-track angle ``psi_y``."""
+        """Inverse of ``psi_y(column)``: the fractional column that sees across-track ``psi_y``."""
         py = np.asarray(psi_y_rad, dtype=np.float64)
         if self.psi_y_rad[-1] > self.psi_y_rad[0]:
             return _interp_linear_extrapolated(py, self.psi_y_rad, self.column)
@@ -115,7 +115,9 @@ class LookAngleTable:
 
     def with_mirror(self, mirror_rad: float) -> LookAngleTable:
         """The table seen through the mirror: ``psi_y`` shifted by the mirror angle."""
-        return LookAngleTable(self.column, self.psi_x_rad, self.psi_y_rad + mirror_rad, self.n_columns)
+        return LookAngleTable(
+            self.column, self.psi_x_rad, self.psi_y_rad + mirror_rad, self.n_columns
+        )
 
 
 def look_direction(psi_x_rad: ArrayLike, psi_y_rad: ArrayLike) -> NDArray[np.float64]:

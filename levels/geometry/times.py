@@ -44,7 +44,9 @@ def parse_utc(iso: str | Sequence[str] | NDArray) -> NDArray[np.datetime64]:
         if text.endswith("Z"):
             text = text[:-1]
         if "+" in text[10:] or text[10:].count("-") > 0:
-            raise GeometryError(f"time {s!r} has a zone offset; give UTC, e.g. 2005-03-13T05:21:07.33")
+            raise GeometryError(
+                f"time {s!r} has a zone offset; give UTC, e.g. 2005-03-13T05:21:07.33"
+            )
         cleaned.append(text)
     try:
         out = np.array(cleaned, dtype="datetime64[ns]")
@@ -91,10 +93,14 @@ class Epoch:
     def era_rad(self, t_s: ArrayLike, dut1_s: float = 0.0) -> NDArray[np.float64]:
         """Earth rotation angle at ``t_s`` seconds since the epoch (see module docstring)."""
         days0 = (self.t0_utc - J2000_UTC).astype(np.int64) / (_NS_PER_S * 86400.0)
-        return earth_rotation_angle_rad(days0, (np.asarray(t_s, dtype=np.float64) + dut1_s) / 86400.0)
+        return earth_rotation_angle_rad(
+            days0, (np.asarray(t_s, dtype=np.float64) + dut1_s) / 86400.0
+        )
 
 
-def earth_rotation_angle_rad(tu_days: ArrayLike, extra_days: ArrayLike = 0.0) -> NDArray[np.float64]:
+def earth_rotation_angle_rad(
+    tu_days: ArrayLike, extra_days: ArrayLike = 0.0
+) -> NDArray[np.float64]:
     """Earth rotation angle in [0, 2π) for UT1 days since J2000 (``tu_days + extra_days``).
 
     The argument is split in two so that a large day count and a small offset keep full

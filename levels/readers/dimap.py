@@ -137,7 +137,9 @@ class DimapScene:
             raise DimapError(f"{self.path}: no {element} element, needed for {what!r} attitude")
         return value
 
-    def model(self, *, band: int | None = None, attitude: AttitudeChoice = "auto") -> PushbroomModel:
+    def model(
+        self, *, band: int | None = None, attitude: AttitudeChoice = "auto"
+    ) -> PushbroomModel:
         """The rigorous model of the scene (band ``band``, default the first tabulated)."""
         missing = [
             name
@@ -238,7 +240,9 @@ def read_dimap(path: str | Path) -> DimapScene:
     try:
         root = ET.parse(source).getroot()
     except ET.ParseError as exc:
-        raise DimapError(f"{source}: not an XML document ({exc}); expected a DIMAP METADATA.DIM") from None
+        raise DimapError(
+            f"{source}: not an XML document ({exc}); expected a DIMAP METADATA.DIM"
+        ) from None
     fmt = root.findtext("Metadata_Id/METADATA_FORMAT")
     if root.tag != "Dimap_Document" or (fmt or "").strip() != "DIMAP":
         raise DimapError(
@@ -258,7 +262,9 @@ def read_dimap(path: str | Path) -> DimapScene:
     if root.find(_TIME_STAMP) is not None:
         ts = _find(root, _TIME_STAMP, source)
         try:
-            epoch = Epoch(parse_utc(_text(ts, "SCENE_CENTER_TIME", source)), name="SCENE_CENTER_TIME")
+            epoch = Epoch(
+                parse_utc(_text(ts, "SCENE_CENTER_TIME", source)), name="SCENE_CENTER_TIME"
+            )
         except GeometryError as exc:
             raise DimapError(f"{source}: SCENE_CENTER_TIME: {exc}") from None
         line_period = _number(ts, "LINE_PERIOD", source)

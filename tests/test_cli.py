@@ -1,0 +1,35 @@
+"""The ``station`` command: one line on stderr and exit 2 on bad input, never a traceback."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from station.cli import main
+
+
+def test_locate_prints_the_frame_check(refdata: Path, capsys) -> None:
+    code = main(
+        ["locate", str(refdata / "dimap" / "spot5_hrg1_A_20050313_altai_METADATA.DIM"), "--json"]
+    )
+    assert code == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["scene"] == "SPOT 5 HRG1 A" and len(report["points"]) == 5
+    assert report["max_error_m"] < 0.1
+
+
+def test_bad_inputs_exit_2_with_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.DIM"
+    bad.write_text("<?xml version='1.0'?><Landsat/>")
+    for target in (bad, tmp_path / "missing.DIM"):
+        run = subprocess.run(
+            [sys.executable, "-m", "station.cli", "locate", str(target)],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        assert run.returncode == 2
+        assert run.stderr.startswith("station: error:") and run.stderr.count("\n") == 1
+        assert "Traceback" not in run.stderr
