@@ -203,12 +203,15 @@ def _optional(root: ET.Element, path: str, kind: type = str):
 
 
 def _frame_point(elem: ET.Element, where: str, source: Path) -> tuple[int, int, float, float]:
-    return (
-        _number(elem, "FRAME_ROW", source, int),
-        _number(elem, "FRAME_COL", source, int),
-        _number(elem, "FRAME_LAT", source),
-        _number(elem, "FRAME_LON", source),
-    )
+    try:
+        return (
+            _number(elem, "FRAME_ROW", source, int),
+            _number(elem, "FRAME_COL", source, int),
+            _number(elem, "FRAME_LAT", source),
+            _number(elem, "FRAME_LON", source),
+        )
+    except DimapError as exc:
+        raise DimapError(f"{exc} (in Dataset_Frame/{where})") from None
 
 
 def _times(elems: list[ET.Element], tag: str, epoch: Epoch, where: str, source: Path) -> NDArray:
@@ -255,7 +258,7 @@ def read_dimap(path: str | Path) -> DimapScene:
     vertices = root.findall("Dataset_Frame/Vertex")
     if len(vertices) != 4:
         raise DimapError(f"{source}: Dataset_Frame has {len(vertices)} Vertex elements, expected 4")
-    frame = np.array([_frame_point(v, "Vertex", source) for v in vertices])
+    frame = np.array([_frame_point(v, f"Vertex[{i + 1}]", source) for i, v in enumerate(vertices)])
     center = _frame_point(_find(root, "Dataset_Frame/Scene_Center", source), "Scene_Center", source)
 
     epoch = line_period = center_line = center_col = None
