@@ -113,7 +113,7 @@ def hrv_model(mirror_step=48, n_lines=6000, n_columns=6000, jitter=True, step_s=
         axis=-1,
     )
     att = SampledAttitude(t_att, angles)
-    half_swath_rad = 0.0361 * 6000 / 6000
+    half_swath_rad = 0.0361  # ±30 km from 830 km: 60 km at nadir, whatever n_columns is
     psi_y = np.array([-half_swath_rad, half_swath_rad]) + mirror_angle_rad(mirror_step)
     table = LookAngleTable(
         np.array([0.0, n_columns - 1.0]), np.array([1.07e-2, 1.11e-2]), psi_y, n_columns

@@ -139,19 +139,18 @@ class PushbroomModel:
     def n_columns(self) -> int:
         return self.look_angles.n_columns
 
-    def ecef_from_sensor(self, t_s: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Satellite position (m) and rotation sensor → ECEF at instants ``t_s``.
+    def _orientation(
+        self, t_s: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Position ``(N, 3)``, ``ecef_from_orbital`` and ``orbital_from_body`` ``(N, 3, 3)``.
 
-        Returns ``r_ecef_m`` of shape ``(N, 3)`` and ``ecef_from_sensor`` of shape ``(N, 3, 3)``;
-        NaN outside the ephemeris or attitude span.
+        The one place where ephemeris and attitude meet; callers apply the two rotations in
+        turn rather than forming their product.
         """
-        t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
-        r, v = self.ephemeris.interpolate(t)
-        angles = self.attitude.angles_rad(t)
-        rot = ecef_from_orbital(r, v) @ orbital_from_body(
-            angles[..., 0], angles[..., 1], angles[..., 2]
-        )
-        return r, rot
+        r, v = self.ephemeris.interpolate(t_s)
+        angles = self.attitude.angles_rad(t_s)
+        body = orbital_from_body(angles[:, 0], angles[:, 1], angles[:, 2])
+        return r, ecef_from_orbital(r, v), body
 
     def sight(
         self, line: ArrayLike, column: ArrayLike
@@ -161,16 +160,9 @@ class PushbroomModel:
             np.atleast_1d(np.asarray(line, dtype=np.float64)),
             np.atleast_1d(np.asarray(column, dtype=np.float64)),
         )
-        t = self.clock.time_s(line_a.ravel())
-        r, v = self.ephemeris.interpolate(t)
-        angles = self.attitude.angles_rad(t)
+        r, axes, body = self._orientation(self.clock.time_s(line_a.ravel()))
         u = self.look_angles.directions(col_a.ravel())
-        # ecef_from_orbital · (orbital_from_body · u), without forming the product matrix.
-        u_orbital = np.einsum(
-            "nij,nj->ni", orbital_from_body(angles[:, 0], angles[:, 1], angles[:, 2]), u
-        )
-        axes = ecef_from_orbital(r, v)
-        los = np.einsum("nij,nj->ni", axes, u_orbital)
+        los = np.einsum("nij,nj->ni", axes, np.einsum("nij,nj->ni", body, u))
         return r, los
 
     def image_to_ground(
@@ -207,8 +199,9 @@ class PushbroomModel:
         self, line: NDArray[np.float64], g_ecef_m: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Along-track angle residual and column of ground points seen from ``line``."""
-        r, rot = self.ecef_from_sensor(self.clock.time_s(line))
-        w = np.einsum("nji,nj->ni", rot, g_ecef_m - r)  # sensor_from_ecef = rotᵀ
+        r, axes, body = self._orientation(self.clock.time_s(line))
+        # sensor_from_ecef = bodyᵀ · axesᵀ, applied in turn
+        w = np.einsum("nji,nj->ni", body, np.einsum("nji,nj->ni", axes, g_ecef_m - r))
         with np.errstate(invalid="ignore", divide="ignore"):
             # Look direction ∝ (−tan ψy, tan ψx, −1): divide by −w_z (> 0 below the sensor).
             depth = -w[:, 2]
