@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
 
-__all__ = ["J2000_UTC", "Epoch", "earth_rotation_angle_rad", "parse_utc"]
+__all__ = ["J2000_UTC", "Epoch", "earth_rotation_angle_rad", "gmst_rad", "parse_utc"]
 
 #: 2000-01-01T12:00:00 (JD 2451545.0), treated as UTC.
 J2000_UTC = np.datetime64("2000-01-01T12:00:00", "ns")
@@ -90,6 +90,15 @@ class Epoch:
         ns = np.rint(np.asarray(t_s, dtype=np.float64) * _NS_PER_S).astype(np.int64)
         return self.t0_utc + ns.astype("timedelta64[ns]")
 
+    def days_since_j2000(self, t_s: ArrayLike) -> NDArray[np.float64]:
+        """Days since J2000 (UTC) of ``t_s`` seconds since the epoch."""
+        days0 = (self.t0_utc - J2000_UTC).astype(np.int64) / (_NS_PER_S * 86400.0)
+        return days0 + np.asarray(t_s, dtype=np.float64) / 86400.0
+
+    def gmst_rad(self, t_s: ArrayLike, dut1_s: float = 0.0) -> NDArray[np.float64]:
+        """Greenwich mean sidereal time (IAU 1982) at ``t_s`` seconds since the epoch."""
+        return gmst_rad(self.days_since_j2000(np.asarray(t_s, dtype=np.float64) + dut1_s))
+
     def era_rad(self, t_s: ArrayLike, dut1_s: float = 0.0) -> NDArray[np.float64]:
         """Earth rotation angle at ``t_s`` seconds since the epoch (see module docstring)."""
         days0 = (self.t0_utc - J2000_UTC).astype(np.int64) / (_NS_PER_S * 86400.0)
@@ -117,3 +126,27 @@ def earth_rotation_angle_rad(
     # ERA = 2π (0.7790572732640 + 0.00273781191135448 Tu + frac(Tu))   IERS (5.15), rearranged
     turns = 0.7790572732640 + 0.00273781191135448 * (whole + frac) + frac
     return 2.0 * np.pi * np.mod(turns, 1.0)
+
+
+def gmst_rad(tu_days: ArrayLike) -> NDArray[np.float64]:
+    """Greenwich mean sidereal time (IAU 1982) in [0, 2π) for UT1 days since J2000.
+
+    Needed where a frame is defined on the mean equinox rather than the CIO: the TEME frame
+    of two-line elements (``ecef = R3(GMST) teme``), and the right ascension of the mean Sun.
+
+    References
+    ----------
+    Aoki et al. (1982); Vallado, *Fundamentals of Astrodynamics*, 4th ed., eq. (3-47):
+    GMST = 67310.54841 s + (876600 h + 8640184.812866 s) T + 0.093104 T² − 6.2e-6 T³.
+    """
+    tu = np.asarray(tu_days, dtype=np.float64)
+    t = tu / 36525.0
+    whole = np.floor(tu)
+    seconds = (
+        67310.54841
+        + 86400.0 * (tu - whole)  # 876600 h · T is one turn per UT1 day: keep its fraction
+        + 8640184.812866 * t
+        + 0.093104 * t**2
+        - 6.2e-6 * t**3
+    )
+    return 2.0 * np.pi * np.mod(seconds / 86400.0, 1.0)
