@@ -189,6 +189,7 @@ class InstrumentConfig:
 
     hrv: int = _key(1, "hrv", "which HRV (the twins look 3.926° apart)", lo=1, hi=2)
     mode: str = _key("P", "mode", "panchromatic or multispectral", choices=("P", "XS"))
+    twin: bool = _key(False, "twin", "twin configuration: the HRVs look 3.926° apart")
     mirror_step: int = _key(48, "mirror_step", "mirror step (48 = nadir, 0.6° per step)",
                             lo=3, hi=93)
     n_detectors: int = _key(0, "n_detectors", "detectors across the swath (0: 6000 P, 3000 XS)",
@@ -237,9 +238,9 @@ class WorldConfig:
     kind: str = _key("fractal", "kind", "synthetic world or a DEM file",
                      choices=("fractal", "dem"))
     dem_path: str = _key("", "dem_path", "DEM file (kind = 'dem'), relative to the scenario")
-    base_height_m: float = _key(300.0, "base_height_m", "mean terrain height", 1.0,
+    base_height_m: float = _key(450.0, "base_height_m", "mean terrain height", 1.0,
                                 -400.0, 6000.0)
-    relief_m: float = _key(600.0, "relief_m", "relief amplitude (std of the fractal)", 1.0,
+    relief_m: float = _key(250.0, "relief_m", "relief amplitude (std of the fractal)", 1.0,
                            0.0, 3000.0)
     seed: int = _key(7, "seed", "seed of the world's noise", lo=0, hi=2**31 - 1)
 
@@ -329,7 +330,8 @@ class Scenario:
 def _describe(meta: dict[str, Any], typ: Any) -> str:
     if meta["choices"]:
         return "one of " + ", ".join(repr(c) for c in meta["choices"])
-    kind = {int: "an integer", float: "a number", str: "a string"}.get(typ, "")
+    kind = {int: "an integer", float: "a number", str: "a string", bool: "true or false"}.get(
+        typ, "")
     if typing.get_origin(typ) is tuple:
         kind = f"a list of {len(typing.get_args(typ))} numbers"
     lo, hi = meta["lo"], meta["hi"]
@@ -354,6 +356,10 @@ def _convert(section: str, f: Any, typ: Any, value: Any) -> Any:
             raise bad()
         return float(v) * meta["scale"]
 
+    if typ is bool:
+        if not isinstance(value, bool):
+            raise bad()
+        return value
     if typ is str:
         if not isinstance(value, str):
             raise bad()

@@ -1,0 +1,248 @@
+"""The spacecraft emulator: a scenario in, the raw lines of a pass and their truth out.
+
+:func:`emulate` sets up, in order, the truth orbit (placed so that the strip's centre falls
+on the scenario's target), the truth attitude and its gyro record, the HRV, the world, and
+renders every band; then it prepares what the station is handed besides telemetry:
+ephemeris bulletins with errors, the nominal look-angle and calibration tables (in
+:class:`~station.spacecraft.instrument.BandModel`), and control points.
+
+All randomness comes from one ``numpy.random.Generator`` seeded with the scenario's seed,
+spawned into independent streams per component, so that changing, say, the GCP count does
+not change the attitude drift.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from levels.geometry.ellipsoid import WGS84
+from levels.geometry.ephemeris import Ephemeris
+from levels.geometry.frames import ecef_from_orbital
+from levels.geometry.model import LineClock, PushbroomModel
+from levels.geometry.sensor import look_direction, mirror_angle_rad
+from levels.geometry.times import Epoch
+from station.scenario import Scenario
+from station.spacecraft.attitude import GyroRecord, TruthAttitude, sample_gyros
+from station.spacecraft.imaging import RenderedBand, render_band, trace_pixels
+from station.spacecraft.instrument import TWIN_SEPARATION_RAD, Hrv, build_hrv
+from station.spacecraft.orbit import (
+    OrbitError,
+    TruthOrbit,
+    node_state,
+    phased_targets,
+    place_orbit,
+    read_tle,
+    secular_targets,
+    tle_state_eci,
+)
+from station.spacecraft.passes import Pass, find_passes
+from station.spacecraft.sun import sun_direction_ecef
+from station.spacecraft.world import World
+
+__all__ = ["Acquisition", "ControlPoints", "emulate", "make_bulletins", "truth_model"]
+
+_ATTITUDE_MARGIN_S = 3.0  # truth attitude and gyros beyond the strip's ends
+
+
+@dataclass(frozen=True)
+class ControlPoints:
+    """Ground control points: map coordinates with map-like errors, and where they were
+    measured in the raw image; the truth is kept beside them for evaluation.
+
+    Arrays of shape (N,): ``line``, ``column`` (measured, 0-based), ``lat_rad``,
+    ``lon_rad``, ``h_m`` (map); ``true_line``, ``true_column``, ``true_lat_rad``,
+    ``true_lon_rad``, ``true_h_m``.
+    """
+
+    line: NDArray[np.float64]
+    column: NDArray[np.float64]
+    lat_rad: NDArray[np.float64]
+    lon_rad: NDArray[np.float64]
+    h_m: NDArray[np.float64]
+    true_line: NDArray[np.float64]
+    true_column: NDArray[np.float64]
+    true_lat_rad: NDArray[np.float64]
+    true_lon_rad: NDArray[np.float64]
+    true_h_m: NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Acquisition:
+    """Everything the emulator produced for one strip (times in s since ``epoch``)."""
+
+    scenario: Scenario
+    epoch: Epoch
+    orbit: TruthOrbit
+    attitude: TruthAttitude
+    hrv: Hrv
+    world: World
+    t_centre_s: float
+    line_times_s: NDArray[np.float64]
+    bands: tuple[RenderedBand, ...]
+    gyros: GyroRecord
+    bulletins: Ephemeris
+    gcps: ControlPoints
+    passes: tuple[Pass, ...]
+    sun_ecef: NDArray[np.float64]
+
+
+def _view_of(hrv_mirror_rad: float, height_m: float):  # noqa: ANN202
+    """The point seen by the centre of the swath at null attitude (for aiming the orbit)."""
+    u = look_direction(0.0, hrv_mirror_rad)
+
+    def view(orbit: TruthOrbit, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        r, v = orbit.state_ecef(t_s)
+        los = np.einsum("nij,j->ni", ecef_from_orbital(r, v), u)
+        point, _ok = WGS84.intersect(r, los, height_m)
+        lat, lon, _h = WGS84.to_geodetic(point)
+        return lat, lon
+
+    return view
+
+
+def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], mirror_rad: float,
+           ) -> tuple[TruthOrbit, float]:
+    oc, pc = scn.orbit, scn.pass_
+    view = _view_of(mirror_rad if pc.aim == "view" else 0.0, scn.world.base_height_m)
+    if oc.kind in ("phased", "elements"):
+        if oc.kind == "phased":
+            period, raan_rate = phased_targets(oc.repeat_revs, oc.repeat_days)
+        else:
+            period, raan_rate = secular_targets(
+                WGS84.a_m + oc.altitude_m, oc.eccentricity, oc.inclination_rad)
+        a, i = node_state(period, raan_rate, oc.eccentricity)
+        return place_orbit(epoch, a, i, oc.eccentricity, oc.descending_node_local_time_h,
+                           pc.target_lat_rad, pc.target_lon_rad, span, view)
+    tle = read_tle(scn.path(oc.tle_path))
+    if oc.tle_index >= len(tle):
+        raise OrbitError(f"{oc.tle_path} has {len(tle)} element sets; tle_index = "
+                         f"{oc.tle_index} is out of range")
+    t0, r0, v0 = tle_state_eci(tle[oc.tle_index], epoch)
+    search = TruthOrbit(epoch, t0, r0, v0, t0, t0 + pc.search_days * 86400.0)
+    t = np.arange(t0, t0 + pc.search_days * 86400.0, 5.0)
+    lat, lon = view(search, t)
+    crossing = np.flatnonzero((np.diff(np.sign(lat - pc.target_lat_rad)) < 0))
+    if crossing.size == 0:
+        raise OrbitError("the TLE's orbit never crosses the target latitude southward")
+    miss = np.abs(np.angle(np.exp(1j * (lon[crossing] - pc.target_lon_rad))))
+    k = crossing[np.argmin(miss)]
+    frac = (lat[k] - pc.target_lat_rad) / (lat[k] - lat[k + 1])
+    t_c = float(t[k] + frac * 5.0)
+    lo, hi = min(span[0] + t_c, t0), max(span[1] + t_c, t0)
+    return TruthOrbit(epoch, t0, r0, v0, lo, hi), t_c
+
+
+def make_bulletins(
+    orbit: TruthOrbit, t_from_s: float, t_to_s: float, period_s: float,
+    bias_m: NDArray[np.float64], drift_m_per_s: NDArray[np.float64], t_ref_s: float,
+) -> Ephemeris:
+    """Bulletin points every ``period_s`` (on multiples of it) covering [from, to], with a
+    position error ``bias + drift (t − t_ref)`` along, across track and radially (the local
+    orbital axes Y, X, Z) and the matching velocity error ``drift``."""
+    k0 = np.floor(t_from_s / period_s)
+    k1 = np.ceil(t_to_s / period_s)
+    t = period_s * np.arange(k0, k1 + 1)
+    r, v = orbit.state_ecef(t)
+    axes = ecef_from_orbital(r, v)  # columns X (across), Y (along), Z (radial)
+    along_across_radial = np.asarray(bias_m, float) + np.outer(t - t_ref_s, drift_m_per_s)
+    local = along_across_radial[:, [1, 0, 2]]  # to (X, Y, Z) order
+    dr = np.einsum("nij,nj->ni", axes, local)
+    dv = np.einsum("nij,j->ni", axes, np.asarray(drift_m_per_s, float)[[1, 0, 2]])
+    return Ephemeris(t, r + dr, v + dv)
+
+
+def truth_model(acq: Acquisition, band: int = 0, step_s: float = 1.0) -> PushbroomModel:
+    """The geometry core's model built on the truth (orbit sampled every ``step_s``, truth
+    attitude, truth look angles): it must see every raw pixel where the emulator put it."""
+    t0, t1 = acq.line_times_s[0] - 10 * step_s, acq.line_times_s[-1] + 10 * step_s
+    t = np.arange(t0, t1 + step_s, step_s)
+    r, v = acq.orbit.state_ecef(t)
+    clock = LineClock(float(acq.line_times_s[0]), 0.0, acq.hrv.line_period_s)
+    return PushbroomModel(acq.epoch, clock, Ephemeris(t, r, v), acq.attitude,
+                          acq.hrv.bands[band].look_true, acq.line_times_s.size)
+
+
+def _control_points(acq_parts: dict, scn: Scenario, rng: np.random.Generator) -> ControlPoints:
+    cfg = scn.gcps
+    hrv: Hrv = acq_parts["hrv"]
+    times = acq_parts["line_times_s"]
+    n = cfg.count
+    line = rng.uniform(0.05, 0.95, n) * (times.size - 1)
+    col = rng.uniform(0.05, 0.95, n) * (hrv.n_columns - 1)
+    t = times[0] + line * hrv.line_period_s
+    pts, _ok = trace_pixels(acq_parts["orbit"], acq_parts["attitude"], hrv.bands[0],
+                            acq_parts["world"], t, col)
+    lat, lon, h = pts.T
+    east, north = cfg.horizontal_error_m * rng.standard_normal((2, n))
+    radius = WGS84.a_m
+    return ControlPoints(
+        line=line + cfg.pointing_error_px * rng.standard_normal(n),
+        column=col + cfg.pointing_error_px * rng.standard_normal(n),
+        lat_rad=lat + north / radius,
+        lon_rad=lon + east / (radius * np.cos(lat)),
+        h_m=h + cfg.vertical_error_m * rng.standard_normal(n),
+        true_line=line, true_column=col, true_lat_rad=lat, true_lon_rad=lon, true_h_m=h,
+    )
+
+
+def emulate(scn: Scenario, render: bool = True) -> Acquisition:
+    """Run the spacecraft emulator on a scenario (module docstring).
+
+    With ``render=False`` the bands are left empty (geometry, gyros, bulletins and control
+    points only): the fast path for geometry tests and pass planning.
+    """
+    streams = np.random.default_rng(scn.seed).spawn(6)
+    rng_att, rng_hrv, rng_gyro, rng_noise, rng_gcp, _spare = streams
+    hrv = build_hrv(scn.instrument, scn.calibration, rng_hrv)
+    epoch = Epoch(np.datetime64(scn.pass_.date_utc, "ns"), name="00:00 UTC of the pass day")
+    strip_s = hrv.n_lines * hrv.line_period_s
+    margin = max(scn.bulletins.margin_s, 8 * scn.bulletins.period_s) + strip_s / 2
+    mirror = float(mirror_angle_rad(hrv.mirror_step))
+    if hrv.twin:
+        mirror += (-0.5 if hrv.number == 1 else 0.5) * TWIN_SEPARATION_RAD
+    day = (0.0, max(scn.pass_.ground_pass_days, 1.0) * 86400.0)
+    span = (min(day[0], -margin), day[1] + margin)
+    orbit, t_c = _orbit(scn, epoch, span, mirror)
+    line_times = t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s
+    ac = scn.attitude
+    attitude = TruthAttitude.generate(
+        line_times[0] - _ATTITUDE_MARGIN_S, line_times[-1] + _ATTITUDE_MARGIN_S, rng_att,
+        offsets_rad=(ac.roll0_rad, ac.pitch0_rad, ac.yaw0_rad), drift_scale=ac.drift_scale,
+        jitter_amplitude_rad=ac.jitter_amplitude_rad,
+        jitter_frequency_hz=ac.jitter_frequency_hz,
+    )
+    g0 = np.ceil((line_times[0] - 2.0) / ac.gyro_period_s) * ac.gyro_period_s
+    n_gyro = int((line_times[-1] + 2.0 - g0) / ac.gyro_period_s) + 1
+    gyros = sample_gyros(attitude, g0, n_gyro, ac.gyro_period_s, ac.gyro_noise_rad_per_s,
+                         ac.gyro_lsb_rad_per_s, rng_gyro)
+    wc = scn.world
+    if wc.kind != "fractal":
+        raise OrbitError("[world] kind = 'dem' is not available yet: use kind = 'fractal'")
+    world = World(scn.pass_.target_lon_rad, wc.base_height_m, wc.relief_m, wc.seed)
+    sun = sun_direction_ecef(epoch, [t_c])[0]
+    bands: tuple[RenderedBand, ...] = ()
+    if render:
+        bands = tuple(
+            render_band(orbit, attitude, hrv, b, world, line_times, sun, rng_noise)
+            for b in hrv.bands
+        )
+    bc = scn.bulletins
+    bulletins = make_bulletins(
+        orbit, line_times[0] - bc.margin_s, line_times[-1] + bc.margin_s, bc.period_s,
+        np.asarray(bc.bias_m), np.asarray(bc.drift_m_per_s), t_c,
+    )
+    gcps = _control_points(
+        {"hrv": hrv, "line_times_s": line_times, "orbit": orbit, "attitude": attitude,
+         "world": world}, scn, rng_gcp)
+    gs = scn.ground_station
+    passes = tuple(find_passes(orbit, gs.lat_rad, gs.lon_rad, gs.height_m,
+                               gs.elevation_mask_rad, day[0], day[1])) \
+        if scn.pass_.ground_pass_days > 0 else ()
+    return Acquisition(
+        scenario=scn, epoch=epoch, orbit=orbit, attitude=attitude, hrv=hrv, world=world,
+        t_centre_s=t_c, line_times_s=line_times, bands=bands, gyros=gyros,
+        bulletins=bulletins, gcps=gcps, passes=passes, sun_ecef=sun,
+    )
