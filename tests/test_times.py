@@ -55,3 +55,12 @@ def test_era_is_the_same_from_any_epoch() -> None:
     assert float(a.era_rad(a.seconds(t))) == pytest.approx(
         float(b.era_rad(b.seconds(t))), abs=ERA_TOL_RAD
     )
+
+
+def test_gmst_vallado_example_3_5() -> None:
+    # Vallado, Fundamentals of Astrodynamics, example 3-5: 1992-08-20 12:14 UT1
+    # → GMST = 152.578787810°
+    from levels.geometry.times import gmst_rad
+
+    days = (np.datetime64("1992-08-20T12:14:00", "ns") - J2000_UTC).astype(np.int64) / 86400e9
+    assert np.degrees(gmst_rad(days)) == pytest.approx(152.578787810, abs=1e-7)

@@ -1,0 +1,93 @@
+"""Scenario files: defaults, SI conversion once, and clear rejections naming key and value."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from station.scenario import (
+    Scenario,
+    ScenarioError,
+    describe_keys,
+    load_scenario,
+    scenario_from_dict,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_three_lines_are_a_scenario(tmp_path: Path) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text('name = "izmit"\n[instrument]\nmirror_step = 93\n')
+    scn = load_scenario(f)
+    assert scn.name == "izmit"
+    assert scn.instrument.mirror_step == 93
+    assert scn.orbit == Scenario().orbit  # every other section defaults
+    assert scn.base_dir == str(tmp_path)
+
+
+def test_units_converted_once_to_si() -> None:
+    scn = scenario_from_dict(
+        {"orbit": {"kind": "elements", "altitude_km": 830.0, "inclination_deg": 98.0},
+         "attitude": {"roll_offset_urad": 100, "jitter_amplitude_urad": [1, 2, 3]}}
+    )
+    assert scn.orbit.altitude_m == 830e3
+    assert scn.orbit.inclination_rad == pytest.approx(math.radians(98.0), rel=1e-15)
+    assert scn.attitude.roll0_rad == pytest.approx(100e-6, rel=1e-15)
+    assert scn.attitude.jitter_amplitude_rad == pytest.approx((1e-6, 2e-6, 3e-6), rel=1e-15)
+    # defaults are in SI too
+    assert Scenario().ground_station.elevation_mask_rad == pytest.approx(math.radians(5.0))
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ({"orbit": {"altitude": 800}}, "[orbit] unknown key 'altitude'; allowed: altitude_km"),
+        ({"orbits": {}}, "unknown key 'orbits'"),
+        ({"orbit": {"altitude_km": "822"}}, "[orbit] altitude_km = '822': expected a number"),
+        ({"orbit": {"altitude_km": 5000}}, "expected a number in [200, 2000]"),
+        ({"orbit": {"kind": "sgp4"}}, "one of 'phased', 'elements', 'tle'"),
+        ({"orbit": {"kind": "tle"}}, "needs tle_path"),
+        ({"instrument": {"mirror_step": 2.0}}, "mirror_step = 2.0: expected an integer"),
+        ({"instrument": {"twin": "yes"}}, "twin = 'yes': expected true or false"),
+        ({"instrument": {"mode": "XS", "n_detectors": 6000}}, "XS has at most 3000"),
+        ({"instrument": {"first_detector": 5990, "detector_count": 20}}, "within the 6000"),
+        ({"attitude": {"jitter_amplitude_urad": [1, 2]}}, "a list of 3 numbers"),
+        ({"attitude": {"drift_scale": math.nan}}, "drift_scale = nan"),
+        ({"pass": {"date_utc": "20 Feb 1998"}}, "expected a UTC day"),
+        ({"seed": -1}, "seed = -1"),
+        ({"seed": True}, "seed = True"),
+        ({"world": []}, "[world] must be a table"),
+    ],
+)
+def test_bad_values_are_rejected_by_name(table: dict, message: str) -> None:
+    with pytest.raises(ScenarioError) as err:
+        scenario_from_dict(table)
+    assert message in str(err.value)
+
+
+def test_file_errors(tmp_path: Path) -> None:
+    with pytest.raises(ScenarioError, match="not found"):
+        load_scenario(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[orbit\n")
+    with pytest.raises(ScenarioError, match="not valid TOML"):
+        load_scenario(bad)
+
+
+def test_relative_paths_resolve_from_the_scenario(tmp_path: Path) -> None:
+    scn = scenario_from_dict({"orbit": {"kind": "tle", "tle_path": "a.tle"}}, tmp_path)
+    assert scn.path(scn.orbit.tle_path) == tmp_path / "a.tle"
+
+
+def test_every_key_is_described() -> None:
+    text = describe_keys()
+    for key in ("altitude_km", "roll_offset_urad", "mirror_step", "period_s", "relief_m"):
+        assert f"  {key} = " in text
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "scenarios").glob("*.toml")), ids=str)
+def test_shipped_scenarios_load(path: Path) -> None:
+    assert isinstance(load_scenario(path), Scenario)
