@@ -95,7 +95,6 @@ def test_orbit_is_placed_on_the_target_at_1030(spot_orbit) -> None:
 
 def test_ground_track_repeats_after_26_days(spot_orbit) -> None:
     orbit, _ = spot_orbit
-    r0, _ = orbit.state_ecef([0.0])
     crossings = []
     for start in (0.0, 26 * DAY_S):
         t = np.linspace(start, start + 6200, 6201)
@@ -153,7 +152,7 @@ def test_tle_errors(tmp_path) -> None:
     )
     f = tmp_path / "bad.tle"
     f.write_text(good[0] + "\n" + good[1].replace("98.7490", "98.7491") + "\n")
-    with pytest.raises(OrbitError, match="line 2 .* fails its checksum"):
+    with pytest.raises(OrbitError, match=r"line 2 .* fails its checksum"):
         read_tle(f)
     f.write_text("no elements here\n")
     with pytest.raises(OrbitError, match="no two-line element set"):

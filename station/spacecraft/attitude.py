@@ -43,8 +43,8 @@ __all__ = [
     "GyroRecord",
     "TruthAttitude",
     "fractional_brownian",
-    "sample_gyros",
     "random_harmonic",
+    "sample_gyros",
     "westin_variogram_rad2",
 ]
 

@@ -89,7 +89,7 @@ class Acquisition:
     sun_ecef: NDArray[np.float64]
 
 
-def _view_of(hrv_mirror_rad: float, height_m: float):  # noqa: ANN202
+def _view_of(hrv_mirror_rad: float, height_m: float):
     """The point seen by the centre of the swath at null attitude (for aiming the orbit)."""
     u = look_direction(0.0, hrv_mirror_rad)
 
@@ -124,7 +124,7 @@ def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], mirror_rad: f
     search = TruthOrbit(epoch, t0, r0, v0, t0, t0 + pc.search_days * 86400.0)
     t = np.arange(t0, t0 + pc.search_days * 86400.0, 5.0)
     lat, lon = view(search, t)
-    crossing = np.flatnonzero((np.diff(np.sign(lat - pc.target_lat_rad)) < 0))
+    crossing = np.flatnonzero(np.diff(np.sign(lat - pc.target_lat_rad)) < 0)
     if crossing.size == 0:
         raise OrbitError("the TLE's orbit never crosses the target latitude southward")
     miss = np.abs(np.angle(np.exp(1j * (lon[crossing] - pc.target_lon_rad))))

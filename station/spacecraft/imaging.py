@@ -112,7 +112,7 @@ def _geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
 
 
 @nb.njit(cache=True)
-def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed):  # noqa: ANN001, ANN202
+def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed):
     """Ray ``P + s d`` met with the terrain: (lat, lon, h, x, y, ∂H/∂x, ∂H/∂y, iterations).
 
     ``iterations`` is −1 if the ray misses or Newton does not converge.
@@ -147,7 +147,7 @@ def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed):  # no
 
 
 @nb.njit(cache=True, parallel=True)
-def _trace_grid(pos, rot, look, lon0, base, relief, seed, lat, lon, h, x, y, gx, gy, iters):  # noqa: ANN001, ANN202
+def _trace_grid(pos, rot, look, lon0, base, relief, seed, lat, lon, h, x, y, gx, gy, iters):
     n_lines, n_det = lat.shape
     for li in nb.prange(n_lines):
         r = rot[li]
@@ -167,7 +167,7 @@ def _trace_grid(pos, rot, look, lon0, base, relief, seed, lat, lon, h, x, y, gx,
 
 
 @nb.njit(cache=True, parallel=True)
-def _trace_rays(pos, dirs, lon0, base, relief, seed):  # noqa: ANN001, ANN202
+def _trace_rays(pos, dirs, lon0, base, relief, seed):
     n = pos.shape[0]
     out = np.empty((n, 3))
     iters = np.empty(n, dtype=np.int64)
@@ -179,7 +179,7 @@ def _trace_rays(pos, dirs, lon0, base, relief, seed):  # noqa: ANN001, ANN202
 
 
 @nb.njit(cache=True, parallel=True)
-def _radiance(lat, lon, x, y, gx, gy, sun, band, seed, offsets, weights, out):  # noqa: ANN001, ANN202
+def _radiance(lat, lon, x, y, gx, gy, sun, band, seed, offsets, weights, out):
     """Radiance of the interior lines 1..L of a traced block (lines 0 and L+1 are halo)."""
     n_lines, n_det = out.shape
     n_s = offsets.size

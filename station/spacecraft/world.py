@@ -157,7 +157,7 @@ def _reflectance(x: float, y: float, band: np.int64, seed: np.int64) -> float:
 
 
 @nb.njit(cache=True, parallel=True)
-def _height_many(lat, lon, lon0, base, relief, seed):  # noqa: ANN001, ANN202
+def _height_many(lat, lon, lon0, base, relief, seed):
     out = np.empty(lat.size)
     gx = np.empty(lat.size)
     gy = np.empty(lat.size)
@@ -168,7 +168,7 @@ def _height_many(lat, lon, lon0, base, relief, seed):  # noqa: ANN001, ANN202
 
 
 @nb.njit(cache=True, parallel=True)
-def _reflectance_many(lat, lon, lon0, band, seed):  # noqa: ANN001, ANN202
+def _reflectance_many(lat, lon, lon0, band, seed):
     out = np.empty(lat.size)
     for k in nb.prange(lat.size):
         x, y = _to_xy(lat[k], lon[k], lon0)
