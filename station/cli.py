@@ -11,6 +11,7 @@ import sys
 from collections.abc import Sequence
 
 from levels.errors import LevelsError
+from station.errors import StationError
 
 __all__ = ["main"]
 
@@ -38,6 +39,45 @@ def _cmd_locate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_emulate(args: argparse.Namespace) -> int:
+    import time
+
+    from station.scenario import load_scenario
+    from station.spacecraft.emulator import emulate
+    from station.spacecraft.summary import summarize
+
+    start = time.perf_counter()
+    acq = emulate(load_scenario(args.scenario), render=not args.no_render)
+    summary = summarize(acq)
+    summary["elapsed_s"] = round(time.perf_counter() - start, 3)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    s, f = summary["strip"], summary["footprint"]
+    print(f"{summary['scenario']}: HRV{s['hrv']} {s['mode']}, mirror step {s['mirror_step']}"
+          f"{' (twin)' if s['twin'] else ''}, {s['lines']} lines x {s['detectors']} detectors")
+    print(f"strip centre {s['centre_utc']} UTC at {f['centre_lat_lon_deg'][0]:.5f}°, "
+          f"{f['centre_lat_lon_deg'][1]:.5f}° ({f['centre_height_m']:.0f} m); "
+          f"satellite at {s['satellite_altitude_km']:.1f} km")
+    print(f"footprint {f['width_first_line_km']:.2f} km across x "
+          f"{f['length_first_column_km']:.2f} km along")
+    for b in summary["bands"]:
+        print(f"band {b['name']}: mean {b['mean_counts']:.1f} counts, {b['saturated']} "
+              f"saturated, {b['failed_rays']} rays lost, Newton <= {b['newton_iterations_max']}")
+    ps = summary["passes"]
+    if ps:
+        print(f"{len(ps)} passes over {acq.scenario.ground_station.name} "
+              f"(median {sorted(p['duration_min'] for p in ps)[len(ps) // 2]:.1f} min):")
+        for p in ps:
+            print(f"  AOS {p['aos_utc']}  {p['duration_min']:6.2f} min  max el "
+                  f"{p['max_elevation_deg']:5.1f}°  {'day' if p['daylight'] else 'night'}")
+    h = summary["handover"]
+    print(f"handed to the station: {h['gyro_samples']} gyro samples, {h['bulletin_points']} "
+          f"bulletin points, {h['control_points']} control points")
+    print(f"elapsed {summary['elapsed_s']:.1f} s")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="station",
@@ -57,6 +97,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     locate.add_argument("--json", action="store_true", help="print JSON instead of a table")
     locate.set_defaults(func=_cmd_locate)
+    emul = sub.add_parser(
+        "emulate", help="run the spacecraft emulator on a scenario file and summarise it"
+    )
+    emul.add_argument("scenario", help="path to a scenario .toml (see scenarios/)")
+    emul.add_argument("--no-render", action="store_true", help="geometry only, no image")
+    emul.add_argument("--json", action="store_true", help="print JSON instead of text")
+    emul.set_defaults(func=_cmd_emulate)
     return parser
 
 
@@ -69,7 +116,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     try:
         return args.func(args)
-    except (LevelsError, OSError) as exc:
+    except (LevelsError, StationError, OSError) as exc:
         print(f"station: error: {exc}", file=sys.stderr)
         return 2
 

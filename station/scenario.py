@@ -21,6 +21,8 @@ from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from station.errors import ScenarioError
+
 __all__ = [
     "AttitudeConfig",
     "BulletinConfig",
@@ -40,10 +42,6 @@ __all__ = [
 
 _DEG = math.pi / 180.0
 _URAD = 1e-6
-
-
-class ScenarioError(ValueError):
-    """A scenario file or table that cannot be used as given."""
 
 
 def _key(

@@ -33,3 +33,27 @@ def test_bad_inputs_exit_2_with_one_line(tmp_path: Path) -> None:
         assert run.returncode == 2
         assert run.stderr.startswith("station: error:") and run.stderr.count("\n") == 1
         assert "Traceback" not in run.stderr
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_emulate_summarises_a_scenario(capsys) -> None:
+    code = main(["emulate", str(ROOT / "scenarios" / "small_test.toml"), "--json"])
+    assert code == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["strip"]["lines"] == 300 and report["strip"]["detectors"] == 300
+    assert report["bands"][0]["failed_rays"] == 0
+    assert 59.0 < report["footprint"]["width_first_line_km"] < 61.0
+    code = main(["emulate", str(ROOT / "scenarios" / "small_test.toml"), "--no-render"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "footprint" in text and "passes over Cuiabá" in text
+
+
+def test_emulate_bad_scenario_exits_2(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[instrument]\nmirror_step = 120\n")
+    assert main(["emulate", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["station: error: [instrument] mirror_step = 120: expected an integer in [3, 93]"]

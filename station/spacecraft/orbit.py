@@ -49,6 +49,7 @@ from levels.geometry.frames import (
     rot_z,
 )
 from levels.geometry.times import Epoch
+from station.errors import OrbitError
 
 __all__ = [
     "GM_M3_PER_S2",
@@ -75,10 +76,6 @@ RE_M = WGS84.a_m
 MEAN_SUN_RATE_RAD_PER_S = 2.0 * np.pi / (365.2421897 * 86400.0)
 _RTOL = 1e-11
 _ATOL_M = 1e-5
-
-
-class OrbitError(ValueError):
-    """An orbit that cannot be set up as asked (no solution, a bad TLE)."""
 
 
 def j2_acceleration(r_m: NDArray[np.float64]) -> NDArray[np.float64]:
