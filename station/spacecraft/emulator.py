@@ -26,6 +26,7 @@ from levels.geometry.sensor import look_direction, mirror_angle_rad
 from levels.geometry.times import Epoch
 from station.scenario import Scenario
 from station.spacecraft.attitude import GyroRecord, TruthAttitude, sample_gyros
+from station.spacecraft.dem import read_hgt
 from station.spacecraft.imaging import RenderedBand, render_band, trace_pixels
 from station.spacecraft.instrument import TWIN_SEPARATION_RAD, Hrv, build_hrv
 from station.spacecraft.orbit import (
@@ -101,6 +102,12 @@ def _view_of(hrv_mirror_rad: float, height_m: float):
         return lat, lon
 
     return view
+
+
+def _world(scn: Scenario) -> World:
+    wc = scn.world
+    grid = read_hgt(scn.path(wc.dem_path)) if wc.kind == "dem" else None
+    return World(scn.pass_.target_lon_rad, wc.base_height_m, wc.relief_m, wc.seed, grid)
 
 
 def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], mirror_rad: float,
@@ -218,10 +225,7 @@ def emulate(scn: Scenario, render: bool = True) -> Acquisition:
     n_gyro = int((line_times[-1] + 2.0 - g0) / ac.gyro_period_s) + 1
     gyros = sample_gyros(attitude, g0, n_gyro, ac.gyro_period_s, ac.gyro_noise_rad_per_s,
                          ac.gyro_lsb_rad_per_s, rng_gyro)
-    wc = scn.world
-    if wc.kind != "fractal":
-        raise OrbitError("[world] kind = 'dem' is not available yet: use kind = 'fractal'")
-    world = World(scn.pass_.target_lon_rad, wc.base_height_m, wc.relief_m, wc.seed)
+    world = _world(scn)
     sun = sun_direction_ecef(epoch, [t_c])[0]
     bands: tuple[RenderedBand, ...] = ()
     if render:

@@ -38,7 +38,7 @@ from levels.geometry.ellipsoid import WGS84
 from levels.geometry.frames import ecef_from_orbital, orbital_from_body
 from station.spacecraft.instrument import COUNTS_PER_RADIANCE, BandModel, Hrv
 from station.spacecraft.orbit import TruthOrbit
-from station.spacecraft.world import BANDS, World, _reflectance, _terrain, _to_xy
+from station.spacecraft.world import BANDS, World, _reflectance, _surface, _to_xy
 
 __all__ = [
     "HEIGHT_TOL_M",
@@ -112,7 +112,7 @@ def _geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
 
 
 @nb.njit(cache=True)
-def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed):
+def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed, grid, geo):
     """Ray ``P + s d`` met with the terrain: (lat, lon, h, x, y, ∂H/∂x, ∂H/∂y, iterations).
 
     ``iterations`` is −1 if the ray misses or Newton does not converge.
@@ -130,7 +130,7 @@ def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed):
     for it in range(_MAX_NEWTON):
         lat, lon, h = _geodetic(px + s * dx, py + s * dy, pz + s * dz)
         x, y = _to_xy(lat, lon, lon0)
-        hh, gx, gy = _terrain(x, y, base, relief, seed)
+        hh, gx, gy = _surface(lat, lon, x, y, base, relief, seed, grid, geo)
         g = h - hh
         if abs(g) < HEIGHT_TOL_M:
             return lat, lon, h, x, y, gx, gy, it
@@ -147,7 +147,8 @@ def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed):
 
 
 @nb.njit(cache=True, parallel=True)
-def _trace_grid(pos, rot, look, lon0, base, relief, seed, lat, lon, h, x, y, gx, gy, iters):
+def _trace_grid(pos, rot, look, lon0, base, relief, seed, grid, geo, lat, lon, h, x, y, gx, gy,
+                iters):
     n_lines, n_det = lat.shape
     for li in nb.prange(n_lines):
         r = rot[li]
@@ -158,7 +159,7 @@ def _trace_grid(pos, rot, look, lon0, base, relief, seed, lat, lon, h, x, y, gx,
             dy = r[1, 0] * u0 + r[1, 1] * u1 + r[1, 2] * u2
             dz = r[2, 0] * u0 + r[2, 1] * u1 + r[2, 2] * u2
             out = _intersect(pos[li, 0], pos[li, 1], pos[li, 2], dx, dy, dz, hg, lon0, base,
-                             relief, seed)
+                             relief, seed, grid, geo)
             lat[li, d], lon[li, d], h[li, d] = out[0], out[1], out[2]
             x[li, d], y[li, d], gx[li, d], gy[li, d], iters[li, d] = (
                 out[3], out[4], out[5], out[6], out[7])
@@ -167,13 +168,13 @@ def _trace_grid(pos, rot, look, lon0, base, relief, seed, lat, lon, h, x, y, gx,
 
 
 @nb.njit(cache=True, parallel=True)
-def _trace_rays(pos, dirs, lon0, base, relief, seed):
+def _trace_rays(pos, dirs, lon0, base, relief, seed, grid, geo):
     n = pos.shape[0]
     out = np.empty((n, 3))
     iters = np.empty(n, dtype=np.int64)
     for k in nb.prange(n):
         r = _intersect(pos[k, 0], pos[k, 1], pos[k, 2], dirs[k, 0], dirs[k, 1], dirs[k, 2],
-                       base, lon0, base, relief, seed)
+                       base, lon0, base, relief, seed, grid, geo)
         out[k, 0], out[k, 1], out[k, 2], iters[k] = r[0], r[1], r[2], r[7]
     return out, iters
 
@@ -226,10 +227,6 @@ class RenderedBand:
     newton_max: int
 
 
-def _world_args(world: World) -> tuple[float, float, float, np.int64]:
-    return world.lon0_rad, world.base_height_m, world.relief_m, np.int64(world.seed)
-
-
 def trace_pixels(
     orbit: TruthOrbit,
     attitude: Attitude,
@@ -244,7 +241,7 @@ def trace_pixels(
                                  np.atleast_1d(np.asarray(column, float)))
     geo = line_geometry(orbit, attitude, t)
     dirs = np.einsum("nij,nj->ni", geo.ecef_from_sensor, band.look_true.directions(col))
-    out, iters = _trace_rays(geo.position_ecef_m, dirs, *_world_args(world))
+    out, iters = _trace_rays(geo.position_ecef_m, dirs, *world.terrain_args())
     return out, iters >= 0
 
 
@@ -268,7 +265,7 @@ def render_band(
     radiance = np.empty((n_lines, n_det), dtype=np.float32)
     newton_max = 0
     band_index = np.int64(BANDS.index(band.name))
-    wargs = _world_args(world)
+    wargs = world.terrain_args()
     for l0 in range(0, n_lines, block_lines):
         l1 = min(l0 + block_lines, n_lines)
         t = np.concatenate([[line_times_s[l0] - period], line_times_s[l0:l1],

@@ -156,14 +156,42 @@ def _reflectance(x: float, y: float, band: np.int64, seed: np.int64) -> float:
     return _REFLECTANCE[cls, band] * (1.0 + 0.08 * tex)
 
 
+@nb.njit(cache=True, inline="always")
+def _grid_height(lat, lon, grid, geo):
+    """Bilinear height of a lat/lon grid (rows: lat from geo[0] by geo[2]; columns: lon from
+    geo[1] by geo[3]) and its slopes in metres per metre east and north; NaN outside."""
+    n_rows, n_cols = grid.shape
+    fr = (lat - geo[0]) / geo[2]
+    fc = (lon - geo[1]) / geo[3]
+    if not (0.0 <= fr <= n_rows - 1 and 0.0 <= fc <= n_cols - 1):
+        return np.nan, 0.0, 0.0
+    r = min(np.int64(fr), n_rows - 2)
+    c = min(np.int64(fc), n_cols - 2)
+    tr, tc = fr - r, fc - c
+    h00, h01 = grid[r, c], grid[r, c + 1]
+    h10, h11 = grid[r + 1, c], grid[r + 1, c + 1]
+    h = (1 - tr) * ((1 - tc) * h00 + tc * h01) + tr * ((1 - tc) * h10 + tc * h11)
+    d_row = (1 - tc) * (h10 - h00) + tc * (h11 - h01)
+    d_col = (1 - tr) * (h01 - h00) + tr * (h11 - h10)
+    return h, d_col / (geo[3] * _A_M * np.cos(lat)), d_row / (geo[2] * _A_M)
+
+
+@nb.njit(cache=True)
+def _surface(lat, lon, x, y, base, relief, seed, grid, geo):
+    """The world's terrain at a point: the DEM grid if there is one, else the fractal."""
+    if grid.shape[0] > 1:
+        return _grid_height(lat, lon, grid, geo)
+    return _terrain(x, y, base, relief, seed)
+
+
 @nb.njit(cache=True, parallel=True)
-def _height_many(lat, lon, lon0, base, relief, seed):
+def _height_many(lat, lon, lon0, base, relief, seed, grid, geo):
     out = np.empty(lat.size)
     gx = np.empty(lat.size)
     gy = np.empty(lat.size)
     for k in nb.prange(lat.size):
         x, y = _to_xy(lat[k], lon[k], lon0)
-        out[k], gx[k], gy[k] = _terrain(x, y, base, relief, seed)
+        out[k], gx[k], gy[k] = _surface(lat[k], lon[k], x, y, base, relief, seed, grid, geo)
     return out, gx, gy
 
 
@@ -190,24 +218,40 @@ class DemGrid:
     error_rms_m: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class World:
-    """The synthetic world (module docstring). ``lon0_rad`` is its central meridian."""
+    """The emulated world (module docstring). ``lon0_rad`` is its central meridian.
+
+    With ``terrain_grid`` given, the terrain is that grid, interpolated bilinearly (a real DEM:
+    :func:`station.spacecraft.dem.read_hgt`); outside it, or on its voids, heights are NaN
+    and rays there are flagged. The reflectance is the synthetic one either way.
+    """
 
     lon0_rad: float
-    base_height_m: float = 300.0
-    relief_m: float = 600.0
+    base_height_m: float = 450.0
+    relief_m: float = 250.0
     seed: int = 7
+    terrain_grid: DemGrid | None = None
+
+    def terrain_args(self) -> tuple:
+        """The world as the numba kernels take it:
+        (lon0, base, relief, seed, grid, grid georeference)."""
+        if self.terrain_grid is None:
+            grid, geo = np.zeros((1, 1)), np.zeros(4)
+        else:
+            d = self.terrain_grid
+            grid = np.ascontiguousarray(d.height_m, dtype=np.float64)
+            geo = np.array([d.lat_rad[0], d.lon_rad[0], d.lat_rad[1] - d.lat_rad[0],
+                            d.lon_rad[1] - d.lon_rad[0]])
+        return (self.lon0_rad, float(self.base_height_m), float(self.relief_m),
+                np.int64(self.seed), grid, geo)
 
     def height(
         self, lat_rad: ArrayLike, lon_rad: ArrayLike
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Terrain height (m) and its slopes ∂H/∂x (east), ∂H/∂y (north) at (φ, λ)."""
         lat, lon = np.broadcast_arrays(np.asarray(lat_rad, float), np.asarray(lon_rad, float))
-        h, gx, gy = _height_many(
-            lat.ravel(), lon.ravel(), self.lon0_rad, self.base_height_m, self.relief_m,
-            np.int64(self.seed),
-        )
+        h, gx, gy = _height_many(lat.ravel(), lon.ravel(), *self.terrain_args())
         return h.reshape(lat.shape), gx.reshape(lat.shape), gy.reshape(lat.shape)
 
     def reflectance(self, lat_rad: ArrayLike, lon_rad: ArrayLike, band: str) -> NDArray:
