@@ -105,7 +105,8 @@ class PassConfig:
     For a phased or elements orbit the orbit's phase is chosen so that the strip's centre
     is seen at the target on ``date_utc`` (nadir track there, or the mirror's view there with
     ``aim = "view"``); for a TLE the strip is centred where the track passes closest to the
-    target within ``search_days`` after the TLE epoch.
+    target within ``search_days`` after the TLE epoch (``date_utc`` is then unused: the day
+    is the TLE's, and the strip lies where that orbit's track crosses the target latitude).
     """
 
     date_utc: str = _key("1998-02-20", "date_utc", "day of the pass (UTC, YYYY-MM-DD)")

@@ -223,3 +223,27 @@ def test_dem_export(nadir) -> None:
     assert np.std(noisy.height_m - exact.height_m) == pytest.approx(5.0, rel=0.15)
     with pytest.raises(ValueError, match="needs an rng"):
         nadir.world.dem(*box, spacing, error_rms_m=1.0)
+
+
+def test_orbit_from_a_tle_of_refdata(refdata) -> None:
+    tle = refdata / "tle" / "spot5_27421_20020504_orekit.tle"
+    scn = scenario_from_dict({
+        "orbit": {"kind": "tle", "tle_path": str(tle)},
+        "pass": {"target_lat_deg": 45.0, "target_lon_deg": 5.0, "ground_pass_days": 1.0},
+        "instrument": {"n_detectors": 60, "n_lines": 60},
+        "ground_station": {"lat_deg": 43.56, "lon_deg": 1.48},  # Toulouse
+    })
+    acq = emulate(scn, render=False)
+    assert str(acq.epoch.t0_utc)[:10] == "2002-05-04"
+    # the strip is on the target latitude, southbound, within the 3 days searched
+    t = acq.t_centre_s
+    pts, _ = trace_pixels(acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world, [t], [30.0])
+    assert np.degrees(pts[0, 0]) == pytest.approx(45.0, abs=0.05)
+    _, v = acq.orbit.state_ecef([t])
+    assert v[0, 2] < 0
+    assert 0 < t - float(acq.epoch.seconds(np.datetime64("2002-05-04T11:45:15.695", "ns"))) \
+        < 3 * 86400
+    # bulletins cover the strip; a launch-day orbit at ~800 km passes over Toulouse
+    assert acq.bulletins.t_s[0] < acq.line_times_s[0] < acq.line_times_s[-1] < \
+        acq.bulletins.t_s[-1]
+    assert len(acq.passes) >= 2

@@ -110,7 +110,8 @@ def _world(scn: Scenario) -> World:
     return World(scn.pass_.target_lon_rad, wc.base_height_m, wc.relief_m, wc.seed, grid)
 
 
-def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], mirror_rad: float,
+def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], margin_s: float,
+           mirror_rad: float,
            ) -> tuple[TruthOrbit, float]:
     oc, pc = scn.orbit, scn.pass_
     view = _view_of(mirror_rad if pc.aim == "view" else 0.0, scn.world.base_height_m)
@@ -138,7 +139,7 @@ def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], mirror_rad: f
     k = crossing[np.argmin(miss)]
     frac = (lat[k] - pc.target_lat_rad) / (lat[k] - lat[k + 1])
     t_c = float(t[k] + frac * 5.0)
-    lo, hi = min(span[0] + t_c, t0), max(span[1] + t_c, t0)
+    lo, hi = min(span[0], t0, t_c - margin_s), max(span[1], t_c + margin_s)
     return TruthOrbit(epoch, t0, r0, v0, lo, hi), t_c
 
 
@@ -204,7 +205,12 @@ def emulate(scn: Scenario, render: bool = True) -> Acquisition:
     streams = np.random.default_rng(scn.seed).spawn(6)
     rng_att, rng_hrv, rng_gyro, rng_noise, rng_gcp, _spare = streams
     hrv = build_hrv(scn.instrument, scn.calibration, rng_hrv)
-    epoch = Epoch(np.datetime64(scn.pass_.date_utc, "ns"), name="00:00 UTC of the pass day")
+    if scn.orbit.kind == "tle":  # the TLE's day: its orbit is where it is
+        tle = read_tle(scn.path(scn.orbit.tle_path))
+        day0 = tle[min(scn.orbit.tle_index, len(tle) - 1)].epoch_utc.astype("datetime64[D]")
+        epoch = Epoch(day0, name="00:00 UTC of the TLE's day")
+    else:
+        epoch = Epoch(np.datetime64(scn.pass_.date_utc, "ns"), name="00:00 UTC of the pass day")
     strip_s = hrv.n_lines * hrv.line_period_s
     margin = max(scn.bulletins.margin_s, 8 * scn.bulletins.period_s) + strip_s / 2
     mirror = float(mirror_angle_rad(hrv.mirror_step))
@@ -212,7 +218,7 @@ def emulate(scn: Scenario, render: bool = True) -> Acquisition:
         mirror += (-0.5 if hrv.number == 1 else 0.5) * TWIN_SEPARATION_RAD
     day = (0.0, max(scn.pass_.ground_pass_days, 1.0) * 86400.0)
     span = (min(day[0], -margin), day[1] + margin)
-    orbit, t_c = _orbit(scn, epoch, span, mirror)
+    orbit, t_c = _orbit(scn, epoch, span, margin, mirror)
     line_times = t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s
     ac = scn.attitude
     attitude = TruthAttitude.generate(
