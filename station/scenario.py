@@ -8,8 +8,8 @@ converted here once. An unknown key, a wrong type or a value out of range is rej
 a :class:`ScenarioError` naming the key, the value and what is allowed.
 
 Every field of every section is declared once with :func:`_key`: its TOML name, the factor
-to SI, its allowed range and a one-line meaning. ``station scenario --keys`` style listings
-and the error messages are generated from those declarations, so they cannot drift apart.
+to SI, its allowed range and a one-line meaning. The error messages and the listing of
+:func:`describe_keys` are generated from those declarations, so they cannot drift apart.
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ import typing
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from station.errors import ScenarioError
 
@@ -124,8 +126,6 @@ class PassConfig:
 
     def __post_init__(self) -> None:
         try:
-            import numpy as np
-
             np.datetime64(self.date_utc, "D")
         except ValueError:
             raise ScenarioError(

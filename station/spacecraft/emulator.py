@@ -24,13 +24,14 @@ from levels.geometry.frames import ecef_from_orbital
 from levels.geometry.model import LineClock, PushbroomModel
 from levels.geometry.sensor import look_direction, mirror_angle_rad
 from levels.geometry.times import Epoch
-from station.scenario import Scenario
+from station.scenario import GcpConfig, Scenario
 from station.spacecraft.attitude import GyroRecord, TruthAttitude, sample_gyros
 from station.spacecraft.dem import read_hgt
 from station.spacecraft.imaging import RenderedBand, render_band, trace_pixels
 from station.spacecraft.instrument import TWIN_SEPARATION_RAD, Hrv, build_hrv
 from station.spacecraft.orbit import (
     OrbitError,
+    Tle,
     TruthOrbit,
     node_state,
     phased_targets,
@@ -110,9 +111,18 @@ def _world(scn: Scenario) -> World:
     return World(scn.pass_.target_lon_rad, wc.base_height_m, wc.relief_m, wc.seed, grid)
 
 
+def _tle(scn: Scenario) -> Tle:
+    """The scenario's element set, read once."""
+    oc = scn.orbit
+    sets = read_tle(scn.path(oc.tle_path))
+    if oc.tle_index >= len(sets):
+        raise OrbitError(f"{oc.tle_path} has {len(sets)} element sets; tle_index = "
+                         f"{oc.tle_index} is out of range")
+    return sets[oc.tle_index]
+
+
 def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], margin_s: float,
-           mirror_rad: float,
-           ) -> tuple[TruthOrbit, float]:
+           mirror_rad: float, tle: Tle | None) -> tuple[TruthOrbit, float]:
     oc, pc = scn.orbit, scn.pass_
     view = _view_of(mirror_rad if pc.aim == "view" else 0.0, scn.world.base_height_m)
     if oc.kind in ("phased", "elements"):
@@ -124,11 +134,8 @@ def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], margin_s: flo
         a, i = node_state(period, raan_rate, oc.eccentricity)
         return place_orbit(epoch, a, i, oc.eccentricity, oc.descending_node_local_time_h,
                            pc.target_lat_rad, pc.target_lon_rad, span, view)
-    tle = read_tle(scn.path(oc.tle_path))
-    if oc.tle_index >= len(tle):
-        raise OrbitError(f"{oc.tle_path} has {len(tle)} element sets; tle_index = "
-                         f"{oc.tle_index} is out of range")
-    t0, r0, v0 = tle_state_eci(tle[oc.tle_index], epoch)
+    assert tle is not None  # kind == "tle": emulate() read it
+    t0, r0, v0 = tle_state_eci(tle, epoch)
     search = TruthOrbit(epoch, t0, r0, v0, t0, t0 + pc.search_days * 86400.0)
     t = np.arange(t0, t0 + pc.search_days * 86400.0, 5.0)
     lat, lon = view(search, t)
@@ -173,16 +180,15 @@ def truth_model(acq: Acquisition, band: int = 0, step_s: float = 1.0) -> Pushbro
                           acq.hrv.bands[band].look_true, acq.line_times_s.size)
 
 
-def _control_points(acq_parts: dict, scn: Scenario, rng: np.random.Generator) -> ControlPoints:
-    cfg = scn.gcps
-    hrv: Hrv = acq_parts["hrv"]
-    times = acq_parts["line_times_s"]
+def _control_points(
+    cfg: GcpConfig, hrv: Hrv, times: NDArray[np.float64], orbit: TruthOrbit,
+    attitude: TruthAttitude, world: World, rng: np.random.Generator,
+) -> ControlPoints:
     n = cfg.count
     line = rng.uniform(0.05, 0.95, n) * (times.size - 1)
     col = rng.uniform(0.05, 0.95, n) * (hrv.n_columns - 1)
     t = times[0] + line * hrv.line_period_s
-    pts, _ok = trace_pixels(acq_parts["orbit"], acq_parts["attitude"], hrv.bands[0],
-                            acq_parts["world"], t, col)
+    pts, _ok = trace_pixels(orbit, attitude, hrv.bands[0], world, t, col)
     lat, lon, h = pts.T
     east, north = cfg.horizontal_error_m * rng.standard_normal((2, n))
     radius = WGS84.a_m
@@ -205,10 +211,9 @@ def emulate(scn: Scenario, render: bool = True) -> Acquisition:
     streams = np.random.default_rng(scn.seed).spawn(6)
     rng_att, rng_hrv, rng_gyro, rng_noise, rng_gcp, _spare = streams
     hrv = build_hrv(scn.instrument, scn.calibration, rng_hrv)
-    if scn.orbit.kind == "tle":  # the TLE's day: its orbit is where it is
-        tle = read_tle(scn.path(scn.orbit.tle_path))
-        day0 = tle[min(scn.orbit.tle_index, len(tle) - 1)].epoch_utc.astype("datetime64[D]")
-        epoch = Epoch(day0, name="00:00 UTC of the TLE's day")
+    tle = _tle(scn) if scn.orbit.kind == "tle" else None
+    if tle is not None:  # the TLE's day: its orbit is where it is
+        epoch = Epoch(tle.epoch_utc.astype("datetime64[D]"), name="00:00 UTC of the TLE's day")
     else:
         epoch = Epoch(np.datetime64(scn.pass_.date_utc, "ns"), name="00:00 UTC of the pass day")
     strip_s = hrv.n_lines * hrv.line_period_s
@@ -218,7 +223,7 @@ def emulate(scn: Scenario, render: bool = True) -> Acquisition:
         mirror += (-0.5 if hrv.number == 1 else 0.5) * TWIN_SEPARATION_RAD
     day = (0.0, max(scn.pass_.ground_pass_days, 1.0) * 86400.0)
     span = (min(day[0], -margin), day[1] + margin)
-    orbit, t_c = _orbit(scn, epoch, span, margin, mirror)
+    orbit, t_c = _orbit(scn, epoch, span, margin, mirror, tle)
     line_times = t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s
     ac = scn.attitude
     attitude = TruthAttitude.generate(
@@ -244,9 +249,7 @@ def emulate(scn: Scenario, render: bool = True) -> Acquisition:
         orbit, line_times[0] - bc.margin_s, line_times[-1] + bc.margin_s, bc.period_s,
         np.asarray(bc.bias_m), np.asarray(bc.drift_m_per_s), t_c,
     )
-    gcps = _control_points(
-        {"hrv": hrv, "line_times_s": line_times, "orbit": orbit, "attitude": attitude,
-         "world": world}, scn, rng_gcp)
+    gcps = _control_points(scn.gcps, hrv, line_times, orbit, attitude, world, rng_gcp)
     gs = scn.ground_station
     passes = tuple(find_passes(orbit, gs.lat_rad, gs.lon_rad, gs.height_m,
                                gs.elevation_mask_rad, day[0], day[1])) \

@@ -58,7 +58,6 @@ __all__ = [
     "OrbitError",
     "Tle",
     "TruthOrbit",
-    "j2_acceleration",
     "nadir_point",
     "node_state",
     "phased_targets",
@@ -78,17 +77,8 @@ _RTOL = 1e-11
 _ATOL_M = 1e-5
 
 
-def j2_acceleration(r_m: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Gravity of a J2 Earth at positions ``r_m`` (ECI, shape (..., 3)), m/s²."""
-    rn2 = np.sum(r_m * r_m, axis=-1, keepdims=True)
-    rn = np.sqrt(rn2)
-    z2 = r_m[..., 2:3] ** 2 / rn2
-    k = 1.5 * J2 * (RE_M**2 / rn2)
-    factor = np.concatenate([1 + k * (1 - 5 * z2), 1 + k * (1 - 5 * z2), 1 + k * (3 - 5 * z2)], -1)
-    return -GM_M3_PER_S2 * r_m / (rn2 * rn) * factor
-
-
 def _rhs(_t: float, y: NDArray[np.float64]) -> NDArray[np.float64]:
+    """State derivative under a J2 Earth (ECI), scalar code: scipy calls it per step."""
     r = y[:3]
     rn2 = r @ r
     rn = np.sqrt(rn2)
@@ -160,13 +150,12 @@ def _node_to_node(a_m: float, i_rad: float, e: float) -> tuple[float, float]:
         _rhs, (0.0, 1.2 * period_guess), np.concatenate([r0, v0]), method="DOP853",
         rtol=_RTOL, atol=_ATOL_M, events=ascending,
     )
-    times = sol.t_events[0]
-    times = times[times > 0.5 * period_guess]
-    if times.size == 0:
+    later = np.flatnonzero(sol.t_events[0] > 0.5 * period_guess)  # not the start node
+    if later.size == 0:
         raise OrbitError(f"no ascending node within a revolution for a = {a_m:.0f} m")
-    y1 = sol.y_events[0][np.flatnonzero(sol.t_events[0] > 0.5 * period_guess)[0]]
+    t1, y1 = sol.t_events[0][later[0]], sol.y_events[0][later[0]]
     d_raan = np.angle(np.exp(1j * (_raan_rad(y1[:3], y1[3:]) - _raan_rad(r0, v0))))
-    return float(times[0]), float(d_raan)
+    return float(t1), float(d_raan)
 
 
 def secular_targets(a_m: float, e: float, i_rad: float) -> tuple[float, float]:
