@@ -29,6 +29,8 @@ __all__ = [
     "AttitudeConfig",
     "BulletinConfig",
     "CalibrationConfig",
+    "ChannelConfig",
+    "DownlinkConfig",
     "GcpConfig",
     "GroundStationConfig",
     "InstrumentConfig",
@@ -286,6 +288,54 @@ class GcpConfig:
                                     "1σ error of the image measurement per axis", 1.0, 0.0, 10.0)
 
 
+@dataclass(frozen=True)
+class DownlinkConfig:
+    """The sender on board: bit rate and framing of the X-band session (docs/telemetry.md)."""
+
+    bit_rate_bit_per_s: float = _key(25.0, "bit_rate_mbps", "channel bit rate per HRV",
+                                     1e6, 0.1, 1000.0)
+    preamble_s: float = _key(0.2, "preamble_s", "fill frames sent before the first data",
+                             1.0, 0.0, 60.0)
+    postamble_s: float = _key(0.2, "postamble_s", "fill frames sent after the last data",
+                              1.0, 0.0, 60.0)
+    first_frame_count: int = _key(-1, "first_frame_count",
+                                  "first frame count of the data channel (-1: drawn)",
+                                  lo=-1, hi=2**24 - 1)
+    first_line_counter: int = _key(-1, "first_line_counter",
+                                   "line counter of the strip's first line (-1: drawn)",
+                                   lo=-1, hi=2**31)
+
+
+@dataclass(frozen=True)
+class ChannelConfig:
+    """The impairments between the sender and the station's recorder.
+
+    Random bit errors at ``ber``; Gilbert–Elliott bursts (a bad state entered at
+    ``burst_rate_per_s`` at zenith, rising as 1/sin²(elevation) towards the horizon, lasting
+    ``burst_length_bits`` on average, with ``burst_ber`` inside); fades that replace whole
+    stretches with noise and slip the bit clock; stretches of frames replayed twice (tape
+    replay overlap); frames displaced by a few places.
+    """
+
+    ber: float = _key(1e-7, "ber", "random bit error rate", 1.0, 0.0, 0.01)
+    burst_rate_per_s: float = _key(0.2, "burst_rate_per_s", "bursts per second at zenith",
+                                   1.0, 0.0, 1e4)
+    burst_length_bits: float = _key(300.0, "burst_length_bits", "mean burst length", 1.0,
+                                    1.0, 1e7)
+    burst_ber: float = _key(0.05, "burst_ber", "bit error rate inside a burst", 1.0, 0.0, 0.5)
+    fade_rate_per_min: float = _key(0.0, "fade_rate_per_min", "fades per minute", 1.0,
+                                    0.0, 600.0)
+    fade_duration_s: float = _key(20.0, "fade_duration_ms", "mean duration of a fade", 1e-3,
+                                  0.001, 60000.0)
+    replay_runs: int = _key(0, "replay_runs", "stretches of frames sent twice", lo=0, hi=10000)
+    replay_frames: int = _key(50, "replay_frames", "frames in each replayed stretch", lo=1,
+                              hi=10**6)
+    reorder_fraction: float = _key(0.0, "reorder_fraction", "fraction of frames displaced",
+                                   1.0, 0.0, 0.5)
+    reorder_distance: int = _key(3, "reorder_distance", "largest displacement, in frames",
+                                 lo=1, hi=1000)
+
+
 _SECTIONS = {
     "orbit": OrbitConfig,
     "pass": PassConfig,
@@ -296,6 +346,8 @@ _SECTIONS = {
     "bulletins": BulletinConfig,
     "calibration": CalibrationConfig,
     "gcps": GcpConfig,
+    "downlink": DownlinkConfig,
+    "channel": ChannelConfig,
 }
 
 
@@ -318,6 +370,8 @@ class Scenario:
     bulletins: BulletinConfig = field(default_factory=BulletinConfig)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
     gcps: GcpConfig = field(default_factory=GcpConfig)
+    downlink: DownlinkConfig = field(default_factory=DownlinkConfig)
+    channel: ChannelConfig = field(default_factory=ChannelConfig)
     base_dir: str = "."
 
     def path(self, relative: str) -> Path:
