@@ -4,7 +4,7 @@ One root, :class:`LevelsError`; each subclass also inherits the builtin a caller
 expect (the rasterio habit), so ``except ValueError`` still works.
 """
 
-__all__ = ["DimapError", "GeometryError", "LevelsError"]
+__all__ = ["DimapError", "GeometryError", "L0Error", "LevelsError"]
 
 
 class LevelsError(Exception):
@@ -17,3 +17,7 @@ class GeometryError(LevelsError, ValueError):
 
 class DimapError(LevelsError, ValueError):
     """A DIMAP metadata file is not DIMAP, lacks a needed element, or is inconsistent."""
+
+
+class L0Error(LevelsError, ValueError):
+    """An L0 pass archive that is missing, truncated, of another format, or inconsistent."""

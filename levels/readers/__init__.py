@@ -1,5 +1,6 @@
-"""Readers of metadata and data files made outside this project (DIMAP, DEM formats)."""
+"""Readers of files made outside ``levels``: DIMAP metadata, and the station's L0 archive."""
 
 from levels.readers.dimap import DimapScene, read_dimap
+from levels.readers.l0 import L0Archive, L0Band, read_l0
 
-__all__ = ["DimapScene", "read_dimap"]
+__all__ = ["DimapScene", "L0Archive", "L0Band", "read_dimap", "read_l0"]

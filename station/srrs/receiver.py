@@ -99,7 +99,22 @@ class DecodedPass:
     segment_first_detector: NDArray[np.int64]
     line_counter: NDArray[np.int64]
     aux: NDArray
+    epoch_utc: np.datetime64  # 00:00 UTC of the day of the first time code
+    line_t_s: NDArray[np.float64]  # fitted line times, s since epoch_utc
+    line_period_s: float
+    line_fit_rms_s: float
     packets: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def aux_t_s(self) -> NDArray[np.float64]:
+        """Time codes of the aux records, s since ``epoch_utc`` (1 ms resolution)."""
+        day0 = (self.epoch_utc - tf.CNES_EPOCH).astype("timedelta64[ms]").astype(np.int64)
+        return (self.aux["time_ms"].astype(np.int64) - day0) / 1e3
+
+    @property
+    def gyro_rates_rad_per_s(self) -> NDArray[np.float64]:
+        lsb = self.aux["gyro_lsb_prad_per_s"].astype(np.float64)[:, None] * 1e-12
+        return self.aux["gyro_counts"].astype(np.float64) * lsb
 
     @property
     def status_counts(self) -> dict[str, int]:
@@ -368,10 +383,36 @@ def _lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
                     count[sane], enc[sane], value, 6 + hdr_size, images)
     valid[band[sane], row[sane], seg[sane]] = True
     stats["other"] = int(starts.size - stats["idle"] - is_aux.sum() - is_img.sum())
+    epoch_utc, line_t, period, rms = _line_times(aux, first_line, n_lines)
     return {
+        "epoch_utc": epoch_utc, "line_t_s": line_t, "line_period_s": period,
+        "line_fit_rms_s": rms,
         "hrv": hrv, "mode": "P" if int(ref["mode"]) == 0 else "XS",
         "mirror_step": int(ref["mirror_step"]), "twin": bool(int(ref["status"]) & 2),
         "first_line_counter": first_line, "images": tuple(images), "valid": tuple(valid),
         "segment_first_detector": seg_first,
         "line_counter": first_line + np.arange(n_lines), "aux": aux, "packets": stats,
     }
+
+
+def _line_times(aux: NDArray, first_line: int, n_lines: int) -> tuple[
+        np.datetime64, NDArray[np.float64], float, float]:
+    """Line times from the (line counter, time code) pairs of the aux records.
+
+    A time code is latched, truncated to the millisecond, at the start of its line, so it
+    lies 0–1 ms before the true start: the line clock is the least-squares line through
+    the codes + 0.5 ms. Over a scene's ~70 records the fit recovers the line times to a
+    few tens of µs, far below the 1 ms resolution (Westin's sub-millisecond recovery);
+    the residual RMS is ≈ 1 ms/√12 = 0.29 ms when all is well.
+    """
+    ms = aux["line_time_ms"].astype(np.int64)
+    day_ms = 86_400_000
+    day0 = int(aux["time_ms"].astype(np.int64).min()) // day_ms * day_ms
+    epoch_utc = tf.CNES_EPOCH + np.timedelta64(day0, "ms")
+    x = aux["line"].astype(np.float64) - first_line
+    y = (ms - day0) / 1e3 + 0.5e-3
+    if np.unique(x).size < 2:
+        raise ReceiverError("fewer than two auxiliary records: the line clock is unknown")
+    period, t0 = np.polyfit(x, y, 1)
+    rms = float(np.sqrt(np.mean((y - (t0 + period * x)) ** 2)))
+    return epoch_utc, t0 + period * np.arange(n_lines), float(period), rms

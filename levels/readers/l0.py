@@ -1,0 +1,194 @@
+"""Reader of the L0 pass archive: the contract between the station and the processing centre.
+
+The layout is documented in ``docs/l0.md``. :func:`read_l0` checks, before handing
+anything over, that the file is an HDF5 L0 archive of a version it knows, that every
+dataset the processing needs is there, and that their shapes agree with each other and with
+the root attributes; anything else is an :class:`~levels.errors.L0Error` that says what is
+wrong. A truncated file fails to open and is reported as such.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+from numpy.typing import NDArray
+
+from levels.errors import L0Error
+from levels.geometry.ephemeris import Ephemeris
+from levels.geometry.sensor import LookAngleTable
+from levels.geometry.times import Epoch
+
+__all__ = ["L0_FORMAT", "L0_VERSION", "L0Archive", "L0Band", "read_l0"]
+
+L0_FORMAT = "SPOT-L0"
+L0_VERSION = 1
+
+
+@dataclass(frozen=True, eq=False)
+class L0Band:
+    """One band of the pass: counts (lines, detectors), segment validity (lines, segments),
+    the nominal look-angle table and the calibration table."""
+
+    name: str
+    counts: NDArray[np.uint8]
+    valid: NDArray[np.bool_]
+    look: LookAngleTable
+    gain: NDArray[np.float64]
+    offset_counts: NDArray[np.float64]
+    segment_first_detector: NDArray[np.int64]
+
+    def pixel_valid(self) -> NDArray[np.bool_]:
+        """The segment mask expanded to every pixel (lines, detectors)."""
+        seg = np.searchsorted(self.segment_first_detector, np.arange(self.counts.shape[1]),
+                              side="right") - 1
+        return self.valid[:, seg]
+
+    @property
+    def line_valid(self) -> NDArray[np.bool_]:
+        """Lines whose every segment arrived."""
+        return self.valid.all(axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class L0Archive:
+    """A whole L0 pass archive in memory (times in s since ``epoch``)."""
+
+    path: Path
+    epoch: Epoch
+    hrv: int
+    mode: str
+    mirror_step: int
+    twin: bool
+    bands: dict[str, L0Band]
+    line_counter: NDArray[np.int64]
+    line_t_s: NDArray[np.float64]
+    line_period_s: float
+    aux_t_s: NDArray[np.float64]
+    aux_line_counter: NDArray[np.int64]
+    gyro_rates_rad_per_s: NDArray[np.float64]
+    ephemeris: Ephemeris
+    decode: dict = field(default_factory=dict)
+    attrs: dict = field(default_factory=dict)
+
+    @property
+    def n_lines(self) -> int:
+        return int(self.line_counter.size)
+
+
+_REQUIRED = {
+    "bands/segment_first_detector": 1,
+    "lines/line_counter": 1,
+    "lines/t_s": 1,
+    "aux/t_s": 1,
+    "aux/line_counter": 1,
+    "aux/gyro_rates_rad_per_s": 2,
+    "ephemeris/t_s": 1,
+    "ephemeris/r_ecef_m": 2,
+    "ephemeris/v_ecef_m_per_s": 2,
+}
+_BAND = {"counts": 2, "valid": 2, "look_angles/column": 1, "look_angles/psi_x_rad": 1,
+         "look_angles/psi_y_rad": 1, "calibration/gain": 1, "calibration/offset_counts": 1}
+
+
+def _get(f: h5py.File, name: str, ndim: int, where: Path) -> np.ndarray:
+    if name not in f or not isinstance(f[name], h5py.Dataset):
+        raise L0Error(f"{where}: dataset '{name}' is missing; not a complete L0 archive")
+    try:
+        data = f[name][()]
+    except (OSError, RuntimeError) as exc:  # a chunk cut off or damaged
+        raise L0Error(f"{where}: dataset '{name}' cannot be read ({exc}); "
+                      "the file is damaged or truncated") from None
+    if np.ndim(data) != ndim:
+        raise L0Error(f"{where}: dataset '{name}' has {np.ndim(data)} dimensions, "
+                      f"expected {ndim}")
+    return data
+
+
+def _need(cond: bool, where: Path, what: str) -> None:
+    if not cond:
+        raise L0Error(f"{where}: inconsistent L0 archive: {what}")
+
+
+def read_l0(path: str | Path) -> L0Archive:
+    """Read and check an L0 pass archive (module docstring)."""
+    where = Path(path)
+    if not where.is_file():
+        raise L0Error(f"{where}: no such L0 file")
+    try:
+        f = h5py.File(where, "r")
+    except OSError as exc:
+        raise L0Error(f"{where}: not a readable HDF5 file ({exc}); is it truncated?") from None
+    with f:
+        attrs = dict(f.attrs)
+        if attrs.get("format") != L0_FORMAT:
+            raise L0Error(f"{where}: format attribute is {attrs.get('format')!r}, "
+                          f"expected {L0_FORMAT!r}; not an L0 archive")
+        if int(attrs.get("format_version", -1)) != L0_VERSION:
+            raise L0Error(f"{where}: L0 format version {attrs.get('format_version')!r}; "
+                          f"this reader knows version {L0_VERSION}")
+        for key in ("epoch_utc", "hrv", "mode", "mirror_step", "twin", "n_lines",
+                    "n_detectors", "band_names"):
+            _need(key in attrs, where, f"root attribute '{key}' is missing")
+        d = {name: _get(f, name, ndim, where) for name, ndim in _REQUIRED.items()}
+        n_lines, n_det = int(attrs["n_lines"]), int(attrs["n_detectors"])
+        seg = d["bands/segment_first_detector"].astype(np.int64)
+        _need(seg.size >= 1 and seg[0] == 0 and np.all(np.diff(seg) > 0)
+              and seg[-1] < n_det, where, "segment_first_detector is not increasing from 0")
+        _need(d["lines/line_counter"].shape == (n_lines,), where,
+              f"lines/line_counter has {d['lines/line_counter'].shape[0]} entries, "
+              f"n_lines = {n_lines}")
+        _need(d["lines/t_s"].shape == (n_lines,), where, "lines/t_s does not match n_lines")
+        _need(d["aux/gyro_rates_rad_per_s"].shape == (d["aux/t_s"].size, 3), where,
+              "aux/gyro_rates_rad_per_s is not (records, 3)")
+        n_eph = d["ephemeris/t_s"].size
+        _need(d["ephemeris/r_ecef_m"].shape == (n_eph, 3)
+              and d["ephemeris/v_ecef_m_per_s"].shape == (n_eph, 3), where,
+              "ephemeris arrays are not (points, 3) with one time each")
+        try:
+            names = json.loads(attrs["band_names"])
+        except (TypeError, ValueError):
+            raise L0Error(f"{where}: band_names is not a JSON list") from None
+        bands = {}
+        for name in names:
+            b = {k: _get(f, f"bands/{name}/{k}", nd, where) for k, nd in _BAND.items()}
+            _need(b["counts"].shape == (n_lines, n_det), where,
+                  f"bands/{name}/counts is {b['counts'].shape}, expected {(n_lines, n_det)}")
+            _need(b["valid"].shape == (n_lines, seg.size), where,
+                  f"bands/{name}/valid is {b['valid'].shape}, expected {(n_lines, seg.size)}")
+            look = LookAngleTable(b["look_angles/column"], b["look_angles/psi_x_rad"],
+                                  b["look_angles/psi_y_rad"],
+                                  int(f[f"bands/{name}/look_angles"].attrs["n_columns"]))
+            _need(b["calibration/gain"].shape == (n_det,), where,
+                  f"bands/{name}/calibration/gain does not have {n_det} entries")
+            bands[name] = L0Band(name, b["counts"], b["valid"].astype(bool), look,
+                                 b["calibration/gain"], b["calibration/offset_counts"], seg)
+        decode = {}
+        if "decode" in f:
+            dec = f["decode"]
+            decode = {k: (json.loads(v) if k in ("packets", "status_counts", "status_names")
+                          else v) for k, v in dec.attrs.items()}
+            if "channels" in dec:
+                decode["channels"] = {k: {a: v.item() if hasattr(v, "item") else v
+                                          for a, v in g.attrs.items()}
+                                      for k, g in dec["channels"].items()}
+        t_attrs = dict(f["lines/t_s"].attrs)
+    try:
+        epoch = Epoch(np.datetime64(str(attrs["epoch_utc"]), "ns"), name="00:00 UTC, pass day")
+        ephemeris = Ephemeris(d["ephemeris/t_s"], d["ephemeris/r_ecef_m"],
+                              d["ephemeris/v_ecef_m_per_s"])
+    except ValueError as exc:
+        raise L0Error(f"{where}: {exc}") from None
+    return L0Archive(
+        path=where, epoch=epoch, hrv=int(attrs["hrv"]), mode=str(attrs["mode"]),
+        mirror_step=int(attrs["mirror_step"]), twin=bool(attrs["twin"]), bands=bands,
+        line_counter=d["lines/line_counter"].astype(np.int64), line_t_s=d["lines/t_s"],
+        line_period_s=float(t_attrs.get("line_period_s", np.nan)),
+        aux_t_s=d["aux/t_s"], aux_line_counter=d["aux/line_counter"].astype(np.int64),
+        gyro_rates_rad_per_s=d["aux/gyro_rates_rad_per_s"], ephemeris=ephemeris,
+        decode=decode, attrs={k: (v.item() if hasattr(v, "item") else v)
+                              for k, v in attrs.items()},
+    )

@@ -1,0 +1,160 @@
+"""The recorder: a decoded pass and what came with it → the L0 pass archive (HDF5).
+
+The layout is the contract between the station and the processing centre, documented in
+``docs/l0.md`` and read back by :func:`levels.readers.l0.read_l0`. The file is written
+under a temporary name in the target directory and renamed into place only once complete
+(``os.replace`` is atomic on POSIX), so that a reader never sees half an archive.
+Nothing depends on the clock: the same pass gives the same bytes of data.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+from numpy.typing import NDArray
+
+from levels.geometry.ephemeris import Ephemeris
+from levels.geometry.sensor import LookAngleTable
+from levels.readers.l0 import L0_FORMAT, L0_VERSION
+from station import __version__
+from station.srrs.receiver import STATUS_NAMES, DecodedPass
+
+__all__ = ["BandAncillary", "write_l0"]
+
+_CHUNK_LINES = 256
+
+
+@dataclass(frozen=True, eq=False)
+class BandAncillary:
+    """What the station is handed for one band besides telemetry: the nominal look-angle
+    table and the calibration table (gains, dark offsets in counts), per detector."""
+
+    name: str
+    look: LookAngleTable
+    gain: NDArray[np.float64]
+    offset_counts: NDArray[np.float64]
+
+
+def _dataset(group: h5py.Group, name: str, data: np.ndarray, units: str, long_name: str,
+             **kwargs) -> h5py.Dataset:
+    ds = group.create_dataset(name, data=data, **kwargs)
+    ds.attrs["units"] = units
+    ds.attrs["long_name"] = long_name
+    return ds
+
+
+def write_l0(path: str | Path, decoded: DecodedPass, bulletins: Ephemeris,
+             bulletin_epoch_utc: np.datetime64, ancillary: list[BandAncillary],
+             scenario_name: str = "", provenance: dict | None = None) -> Path:
+    """Write the L0 archive of a pass atomically; returns the path written.
+
+    ``bulletins`` carry times in seconds since ``bulletin_epoch_utc``; they are stored on
+    the archive's own epoch (00:00 UTC of the pass day, ``decoded.epoch_utc``).
+    """
+    path = Path(path)
+    names = [a.name for a in ancillary]
+    if len(names) != len(decoded.images):
+        raise ValueError(f"{len(decoded.images)} bands decoded but ancillary for {names}")
+    shift_s = float((np.datetime64(bulletin_epoch_utc, "ns")
+                     - np.datetime64(decoded.epoch_utc, "ns")).astype(np.int64)) / 1e9
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with h5py.File(tmp, "w") as f:
+            _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _write(f: h5py.File, d: DecodedPass, bulletins: Ephemeris, shift_s: float,
+           ancillary: list[BandAncillary], scenario_name: str, provenance: dict) -> None:
+    n_lines, n_det = d.images[0].shape
+    a = f.attrs
+    a["format"] = L0_FORMAT
+    a["format_version"] = L0_VERSION
+    a["epoch_utc"] = str(np.datetime64(d.epoch_utc, "ms"))
+    a["hrv"] = d.hrv
+    a["mode"] = d.mode
+    a["mirror_step"] = d.mirror_step
+    a["twin"] = d.twin
+    a["first_line_counter"] = d.first_line_counter
+    a["n_lines"] = n_lines
+    a["n_detectors"] = n_det
+    a["band_names"] = json.dumps([b.name for b in ancillary])
+    a["scenario"] = scenario_name
+    a["software"] = f"spot-station {__version__}"
+    a["provenance"] = json.dumps(provenance, sort_keys=True)
+
+    bands = f.create_group("bands")
+    _dataset(bands, "segment_first_detector", d.segment_first_detector, "1",
+             "first detector of each image segment (one packet per band, line, segment)")
+    chunks = (min(_CHUNK_LINES, n_lines), n_det)
+    for anc, img, ok in zip(ancillary, d.images, d.valid, strict=True):
+        g = bands.create_group(anc.name)
+        _dataset(g, "counts", img, "1", f"raw counts of band {anc.name}",
+                 chunks=chunks, compression="gzip", compression_opts=1, shuffle=True)
+        _dataset(g, "valid", ok, "1", "segment received complete (per line, segment)",
+                 compression="gzip")
+        look = g.create_group("look_angles")
+        look.attrs["n_columns"] = anc.look.n_columns
+        _dataset(look, "column", anc.look.column, "1", "detector column of each entry")
+        _dataset(look, "psi_x_rad", anc.look.psi_x_rad, "rad", "nominal along-track angle")
+        _dataset(look, "psi_y_rad", anc.look.psi_y_rad, "rad", "nominal across-track angle")
+        cal = g.create_group("calibration")
+        _dataset(cal, "gain", anc.gain, "1", "relative gain of each detector (table)")
+        _dataset(cal, "offset_counts", anc.offset_counts, "1",
+                 "dark offset of each detector (table), counts")
+
+    lines = f.create_group("lines")
+    _dataset(lines, "line_counter", d.line_counter, "1", "instrument line counter")
+    t = _dataset(lines, "t_s", d.line_t_s, "s", "line time, s since epoch_utc (fitted)")
+    t.attrs["line_period_s"] = d.line_period_s
+    t.attrs["fit_rms_s"] = d.line_fit_rms_s
+    t.attrs["fit_records"] = int(d.aux.size)
+
+    aux = f.create_group("aux")
+    _dataset(aux, "time_ms", d.aux["time_ms"].astype(np.int64), "ms",
+             "time code of the gyro sample, ms since 1950-01-01 (CNES day 0)")
+    _dataset(aux, "t_s", d.aux_t_s, "s", "time code, s since epoch_utc")
+    _dataset(aux, "line_counter", d.aux["line"].astype(np.int64), "1",
+             "first line starting at or after the time code")
+    _dataset(aux, "line_time_ms", d.aux["line_time_ms"].astype(np.int64), "ms",
+             "time code latched at that line's start, ms since 1950-01-01")
+    _dataset(aux, "gyro_rates_rad_per_s", d.gyro_rates_rad_per_s, "rad s-1",
+             "gyro rates about roll, pitch, yaw")
+    _dataset(aux, "mirror_step", d.aux["mirror_step"].astype(np.int64), "1", "mirror step")
+    _dataset(aux, "status", d.aux["status"].astype(np.int64), "1",
+             "bit 0 imaging, bit 1 twin configuration")
+
+    eph = f.create_group("ephemeris")
+    eph.attrs["source"] = "ephemeris bulletins handed to the station"
+    _dataset(eph, "t_s", bulletins.t_s + shift_s, "s", "bulletin time, s since epoch_utc")
+    _dataset(eph, "r_ecef_m", bulletins.r_ecef_m, "m", "position, ECEF")
+    _dataset(eph, "v_ecef_m_per_s", bulletins.v_ecef_m_per_s, "m s-1", "velocity, ECEF")
+
+    dec = f.create_group("decode")
+    dec.attrs["status_names"] = json.dumps(list(STATUS_NAMES))
+    dec.attrs["bits_in"] = d.bits_in
+    dec.attrs["bits_searched"] = d.bits_searched
+    dec.attrs["sync_losses"] = d.sync_losses
+    dec.attrs["packets"] = json.dumps(d.packets, sort_keys=True)
+    dec.attrs["status_counts"] = json.dumps(d.status_counts)
+    fr = dec.create_group("frames")
+    _dataset(fr, "bit_offset", d.frame_bit_offset, "bit", "start of the CADU in the recording")
+    _dataset(fr, "status", d.frame_status.astype(np.int8), "1", "index into status_names")
+    _dataset(fr, "vc", d.frame_vc.astype(np.int8), "1", "virtual channel (−1: unknown)")
+    _dataset(fr, "count", d.frame_count, "1", "unwrapped frame count (−1: unknown)")
+    _dataset(fr, "symbols_corrected", d.frame_symbols_corrected.astype(np.int16), "1",
+             "Reed–Solomon symbols corrected")
+    ch = dec.create_group("channels")
+    for vc, acc in sorted(d.accounts.items()):
+        g = ch.create_group(f"vc{vc:02d}")
+        for k, v in acc.as_dict().items():
+            g.attrs[k] = v
