@@ -61,7 +61,7 @@ def _find(stream: NDArray[np.uint8], n_bits: int, asm: int, search_tol: int, loc
     pos = 0
     locked = False
     last = -1
-    while True:
+    while n < offsets.size:
         if locked:
             expected = last + _CADU_BITS
             if expected + _CADU_BITS > n_bits:
@@ -102,12 +102,15 @@ def find_cadus(stream: NDArray[np.uint8], n_bits: int, search_tolerance: int = 3
     while searching and the number of times the lock was lost (module docstring)."""
     stream = np.ascontiguousarray(stream, np.uint8)
     n_bits = min(int(n_bits), stream.size * 8)
-    cap = n_bits // _CADU_BITS + n_bits // (_CADU_BITS // 2) + 1
-    offsets = np.zeros(cap, np.int64)
-    confirmed = np.zeros(cap, np.bool_)
-    n, searched, losses = _find(stream, n_bits, tf.ASM_WORD, search_tolerance, lock_tolerance,
-                                offsets, confirmed)
-    return offsets[:n], confirmed[:n], int(searched), int(losses)
+    cap = 2 * (n_bits // _CADU_BITS) + 16
+    while True:  # false markers can be 32 bits apart in noise: grow if ever needed
+        offsets = np.zeros(cap, np.int64)
+        confirmed = np.zeros(cap, np.bool_)
+        n, searched, losses = _find(stream, n_bits, tf.ASM_WORD, search_tolerance,
+                                    lock_tolerance, offsets, confirmed)
+        if n < cap:
+            return offsets[:n], confirmed[:n], int(searched), int(losses)
+        cap *= 4
 
 
 @numba.njit(cache=True, nogil=True)

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.lib.recfunctions import repack_fields
 from numpy.typing import NDArray
 
+from station.errors import StationError
 from station.srrs.frames import decode_cadus, find_cadus
 from station.telemetry import dpcm
 from station.telemetry import format as tf
@@ -47,11 +48,14 @@ STATUS_NAMES = ("ok", "corrected", "uncorrectable", "duplicate", "out_of_order",
                 "false_sync")
 OK, CORRECTED, UNCORRECTABLE, DUPLICATE, OUT_OF_ORDER, FILL, FALSE_SYNC = range(7)
 _HALF = tf.VC_FRAME_COUNT_MODULUS // 2
+_MAX_LINES = 10**6  # sanity limits on what the aux data may announce
+_MAX_DETECTORS = 12000
+_MAX_BANDS = 4
 ZONE_BYTES = tf.ZONE_BYTES  # plain ints for the compiled kernels
 ENCODING_RAW8 = tf.ENCODING_RAW8
 
 
-class ReceiverError(ValueError):
+class ReceiverError(StationError, ValueError):
     """The stream holds no usable pass (no frame, or no auxiliary data to place lines)."""
 
 
@@ -143,7 +147,8 @@ def _status_tables(frames: NDArray[np.uint8], rows: NDArray[np.int64]) -> dict[i
     good = rows[np.all(frames[rows, z0:z0 + 4] == magic, axis=1)]
     if good.size == 0:
         return out
-    n_entries = frames[good, z0 + 4].astype(np.int64)
+    most = (tf.ZONE_BYTES - 5) // tf.STATUS_ENTRY_DTYPE.itemsize
+    n_entries = np.minimum(frames[good, z0 + 4].astype(np.int64), most)
     width = tf.STATUS_ENTRY_DTYPE.itemsize
     for k in range(int(n_entries.max(initial=0))):  # a handful of channels
         has = good[n_entries > k]
@@ -358,8 +363,12 @@ def _lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
     n_det, n_bands, hrv = int(ref["n_detectors"]), int(ref["n_bands"]), int(ref["hrv"])
     seg_first = np.arange(0, n_det, tf.SEGMENT_DETECTORS)
 
+    if not (1 <= n_lines <= _MAX_LINES and 1 <= n_det <= _MAX_DETECTORS
+            and 1 <= n_bands <= _MAX_BANDS):
+        raise ReceiverError(f"the auxiliary data describe an impossible strip: {n_lines} lines "
+                            f"of {n_bands} bands × {n_det} detectors")
     hdr_size = tf.IMAGE_HEADER_DTYPE.itemsize
-    is_img = pid == tf.APID_IMAGE + hrv
+    is_img = (pid == tf.APID_IMAGE + hrv) & (lengths >= 6 + hdr_size + 1)
     idx = starts[is_img][:, None] + 6 + np.arange(hdr_size)
     hdr = np.ascontiguousarray(zone[idx]).view(tf.IMAGE_HEADER_DTYPE).ravel()
     row = hdr["line"].astype(np.int64) - first_line
