@@ -1,0 +1,277 @@
+"""The downlink end to end: sender → impaired channel → receiver → L0 archive → reader.
+
+The sender's truth says which data frames each image packet occupies; the receiver must
+account for every frame sent, mask exactly the segments whose packets touched a lost frame,
+and deliver every other segment as sent (bit for bit in XS; the DPCM reconstruction in P).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import h5py
+import numpy as np
+import pytest
+
+from levels.errors import L0Error
+from levels.readers.l0 import read_l0
+from station.scenario import scenario_from_dict
+from station.spacecraft.channel import impair
+from station.spacecraft.downlink import transmit
+from station.spacecraft.emulator import emulate
+from station.srrs.frames import find_cadus
+from station.srrs.receiver import (
+    CORRECTED,
+    OK,
+    OUT_OF_ORDER,
+    ReceiverError,
+    receive,
+)
+from station.srrs.session import downlink, record
+from station.telemetry import dpcm
+from station.telemetry import format as tf
+
+#: Line times come from 1 ms time codes fitted over the strip: the fit is good to a small
+#: fraction of a millisecond (Westin's sub-millisecond recovery); 0.1 ms is 0.2 µrad of
+#: pitch-equivalent along-track motion... i.e. 0.7 m on the ground at 7 km/s.
+LINE_TIME_TOL_S = 1e-4
+ELEVATION_RAD = np.radians(40.0)
+
+_DOWN = {"bit_rate_mbps": 0.25, "preamble_s": 0.05, "postamble_s": 0.05}
+_P = {"name": "p", "seed": 11, "instrument": {"n_detectors": 300, "n_lines": 240},
+      "downlink": _DOWN, "gcps": {"count": 2}}
+_XS = {"name": "xs", "seed": 12,
+       "instrument": {"mode": "XS", "n_detectors": 160, "n_lines": 120, "hrv": 2},
+       "downlink": {**_DOWN, "first_frame_count": 2**24 - 40}, "gcps": {"count": 2}}
+
+
+@pytest.fixture(scope="module")
+def acq_p():
+    return emulate(scenario_from_dict(_P))
+
+
+@pytest.fixture(scope="module")
+def acq_xs():
+    return emulate(scenario_from_dict(_XS))
+
+
+def _send(acq, seed: int = 1, **channel):
+    scn = acq.scenario
+    tx = transmit(acq, scn.downlink, np.random.default_rng(seed))
+    cfg = dataclasses.replace(scn.channel, **channel)
+    elev = np.full(tx.slot_t_s.size, ELEVATION_RAD)
+    rx = impair(tx.cadus, tx.slot_t_s, elev, cfg, tx.bit_rate_bit_per_s,
+                np.random.default_rng(seed + 1))
+    return tx, rx, receive(rx.stream, rx.n_bits)
+
+
+def _lost_data_frames(tx, d) -> np.ndarray:
+    """Indices (0-based in the session) of the data frames the receiver did not deliver."""
+    acc = d.accounts[tx.data_vc]
+    got = (d.frame_vc == tx.data_vc) & np.isin(d.frame_status, [OK, CORRECTED, OUT_OF_ORDER])
+    delivered = np.unique(d.frame_count[got]) - acc.first_count
+    return np.setdiff1d(np.arange(tx.sent[tx.data_vc]), delivered)
+
+
+def _expected_valid(tx, lost: np.ndarray, n_bands: int, n_lines: int) -> np.ndarray:
+    is_lost = np.zeros(tx.sent[tx.data_vc] + 1, bool)
+    is_lost[lost] = True
+    touched = np.cumsum(np.concatenate([[0], is_lost]))
+    hit = touched[tx.packet_last_frame + 1] - touched[tx.packet_first_frame] > 0
+    valid = np.zeros((n_bands, n_lines, tx.segment_first_detector.size), bool)
+    valid[tx.packet_band, tx.packet_row, tx.packet_segment] = ~hit
+    return valid
+
+
+# --- clean channel ---------------------------------------------------------------------------
+
+def test_clean_channel_xs_is_bit_for_bit(acq_xs) -> None:
+    _tx, _rx, d = _send(acq_xs, ber=0.0, burst_rate_per_s=0.0)
+    assert d.status_counts["uncorrectable"] == 0 and d.status_counts["false_sync"] == 0
+    for b, band in enumerate(acq_xs.bands):
+        assert np.array_equal(d.images[b], band.counts)  # XS is sent raw
+        assert d.valid[b].all()
+    assert d.mode == "XS" and d.hrv == 2 and len(d.images) == 3
+
+
+def test_clean_channel_p_is_the_dpcm_reconstruction(acq_p) -> None:
+    tx, _rx, d = _send(acq_p, ber=0.0, burst_rate_per_s=0.0)
+    raw = acq_p.bands[0].counts
+    assert np.array_equal(d.images[0], tx.ground_bands[0])
+    assert np.abs(d.images[0].astype(int) - raw).max() <= dpcm.MAX_ERROR_COUNTS
+    assert d.valid[0].all()
+
+
+def test_frame_counts_wrap_at_24_bits(acq_xs) -> None:
+    tx, _rx, d = _send(acq_xs, ber=0.0, burst_rate_per_s=0.0)
+    assert tx.count[tx.vc == tx.data_vc].min() == 0  # it did wrap
+    acc = d.accounts[tx.data_vc]
+    assert (acc.sent, acc.lost, acc.gaps) == (tx.sent[tx.data_vc], 0, 0)
+
+
+def test_line_times_and_gyros_come_back(acq_p) -> None:
+    _tx, _rx, d = _send(acq_p, ber=0.0, burst_rate_per_s=0.0)
+    assert d.epoch_utc == acq_p.epoch.t0_utc
+    assert np.abs(d.line_t_s - acq_p.line_times_s).max() < LINE_TIME_TOL_S
+    assert d.line_period_s == pytest.approx(acq_p.hrv.line_period_s, rel=1e-4)
+    assert np.array_equal(d.aux_t_s, np.floor(acq_p.gyros.t_s * 1e3 + 1e-6) / 1e3)
+    assert np.allclose(d.gyro_rates_rad_per_s, acq_p.gyros.rates_rad_per_s, rtol=0,
+                       atol=1e-15)  # quantised on board, sent as counts of the LSB
+
+
+# --- impaired channel: accounting and masks ---------------------------------------------------
+
+HARSH = dict(burst_rate_per_s=4.0, burst_length_bits=600.0, burst_ber=0.1,
+             fade_rate_per_min=40.0, fade_duration_s=0.03, replay_runs=3, replay_frames=8,
+             reorder_fraction=0.05, reorder_distance=3)
+
+
+@pytest.mark.parametrize("ber", [1e-7, 1e-6, 1e-5, 1e-4, 1e-3])
+@pytest.mark.parametrize("which", ["p", "xs"])
+def test_every_frame_accounted_and_every_lost_segment_masked(acq_p, acq_xs, which, ber):
+    acq = acq_p if which == "p" else acq_xs
+    tx, rx, d = _send(acq, seed=int(ber * 1e9) % 97, ber=ber, **HARSH)
+    for vc, sent in tx.sent.items():
+        acc = d.accounts[vc]
+        assert acc.head_known and acc.tail_known
+        assert acc.sent == sent
+        assert acc.delivered + acc.lost == sent
+    lost = _lost_data_frames(tx, d)
+    assert lost.size == d.accounts[tx.data_vc].lost
+    n_lines = acq.line_times_s.size
+    expected = _expected_valid(tx, lost, len(acq.bands), n_lines)
+    assert np.array_equal(np.stack(d.valid), expected)  # masked exactly where touched
+    for b in range(len(acq.bands)):
+        seg = np.searchsorted(tx.segment_first_detector, np.arange(d.images[b].shape[1]),
+                              side="right") - 1
+        ok = d.valid[b][:, seg]
+        assert np.array_equal(d.images[b][ok], tx.ground_bands[b][ok])  # nothing silent
+        assert not d.images[b][~ok].any()  # nothing invented
+    counts = d.status_counts
+    assert sum(counts.values()) == d.frame_status.size
+    assert rx.n_fades > 0 and counts["duplicate"] > 0
+
+
+def test_no_decodable_frame_is_lost_without_fades(acq_p) -> None:
+    tx, rx, d = _send(acq_p, seed=5, ber=2e-4, burst_rate_per_s=3.0, fade_rate_per_min=0.0)
+    decodable = np.zeros(tx.cadus.shape[0], bool)
+    decodable[rx.copy_slot[rx.copy_max_symbol_errors <= 16]] = True
+    data_slots = np.flatnonzero(tx.vc == tx.data_vc)
+    lost = _lost_data_frames(tx, d)
+    assert not decodable[data_slots[lost]].any()
+    assert (~decodable[data_slots]).sum() == lost.size
+
+
+def test_markers_are_found_at_any_bit_offset(acq_xs) -> None:
+    tx = transmit(acq_xs, acq_xs.scenario.downlink, np.random.default_rng(1))
+    rng = np.random.default_rng(9)
+    cadus = tx.cadus[:6].ravel()
+    for shift in range(8):
+        noise_bits = 8 * 37 + shift
+        bits = np.concatenate([rng.integers(0, 2, noise_bits, dtype=np.uint8),
+                               np.unpackbits(cadus)])
+        offsets, confirmed, _searched, _losses = find_cadus(np.packbits(bits), bits.size)
+        assert offsets.tolist() == [noise_bits + 8192 * k for k in range(6)]
+        assert confirmed[:5].all()
+
+
+# --- bad input --------------------------------------------------------------------------------
+
+def test_noise_alone_is_an_error_not_a_crash() -> None:
+    noise = np.random.default_rng(0).integers(0, 256, 200_000, dtype=np.uint8)
+    with pytest.raises(ReceiverError, match="no data frame"):
+        receive(noise)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_fuzz_mutated_streams(acq_xs, seed: int) -> None:
+    """Random cuts, splices, byte flips and bit slips: a result or a ReceiverError."""
+    tx = transmit(acq_xs, acq_xs.scenario.downlink, np.random.default_rng(1))
+    rng = np.random.default_rng(seed)
+    s = tx.cadus.ravel().copy()
+    ops = rng.integers(0, 4, 6)
+    for op in ops:
+        a, b = np.sort(rng.integers(0, s.size, 2))
+        if op == 0:
+            s[a:b] = rng.integers(0, 256, b - a, dtype=np.uint8)
+        elif op == 1:
+            s = np.concatenate([s[:a], s[b:]])
+        elif op == 2:
+            s = np.concatenate([s[:b], s[a:b], s[b:]])
+        else:
+            s = np.packbits(np.unpackbits(s)[rng.integers(1, 8):])
+    try:
+        d = receive(s)
+    except ReceiverError:
+        return
+    for acc in d.accounts.values():
+        assert acc.delivered + acc.lost == acc.sent
+
+
+# --- L0 archive -------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def l0_path(acq_xs, tmp_path_factory):
+    res = downlink(acq_xs)
+    return record(acq_xs, res, tmp_path_factory.mktemp("l0") / "pass.h5"), res
+
+
+def test_l0_round_trip(acq_xs, l0_path) -> None:
+    path, res = l0_path
+    l0 = read_l0(path)
+    d = res.decoded
+    assert list(l0.bands) == ["XS1", "XS2", "XS3"]
+    for b, name in enumerate(l0.bands):
+        band = l0.bands[name]
+        assert np.array_equal(band.counts, d.images[b])
+        assert np.array_equal(band.valid, d.valid[b])
+        assert band.pixel_valid().shape == band.counts.shape
+        nominal = acq_xs.hrv.bands[b].look_nominal
+        assert np.array_equal(band.look.psi_y_rad, nominal.psi_y_rad)
+    assert np.array_equal(l0.line_t_s, d.line_t_s)
+    assert l0.epoch.t0_utc == acq_xs.epoch.t0_utc
+    assert np.allclose(l0.ephemeris.r_ecef_m, acq_xs.bulletins.r_ecef_m, rtol=0, atol=0)
+    assert np.array_equal(l0.ephemeris.t_s, acq_xs.bulletins.t_s)
+    ch = l0.decode["channels"][f"vc{tf.vc_of_hrv(2):02d}"]
+    assert ch["sent"] == res.transmission.sent[2]
+    assert sum(l0.decode["status_counts"].values()) == d.frame_status.size
+    assert not any(p.name.endswith(".tmp") for p in path.parent.iterdir())
+
+
+def test_l0_truncated_is_rejected(l0_path, tmp_path) -> None:
+    path, _res = l0_path
+    cut = tmp_path / "cut.h5"
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    with pytest.raises(L0Error, match="truncated|damaged"):
+        read_l0(cut)
+
+
+def test_l0_other_files_are_rejected(l0_path, tmp_path) -> None:
+    _path, _res = l0_path
+    with pytest.raises(L0Error, match="no such"):
+        read_l0(tmp_path / "missing.h5")
+    text = tmp_path / "text.h5"
+    text.write_text("not hdf5")
+    with pytest.raises(L0Error, match="not a readable HDF5"):
+        read_l0(text)
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as f:
+        f.attrs["format"] = "something else"
+    with pytest.raises(L0Error, match="not an L0 archive"):
+        read_l0(other)
+
+
+def test_l0_inconsistent_shapes_are_rejected(l0_path, tmp_path) -> None:
+    path, _res = l0_path
+    short_times, no_mask = tmp_path / "short.h5", tmp_path / "nomask.h5"
+    for p in (short_times, no_mask):
+        p.write_bytes(path.read_bytes())
+    with h5py.File(short_times, "a") as f:
+        del f["lines/t_s"]
+        f["lines/t_s"] = np.zeros(3)
+    with pytest.raises(L0Error, match="lines/t_s"):
+        read_l0(short_times)
+    with h5py.File(no_mask, "a") as f:
+        del f["bands/XS2/valid"]
+    with pytest.raises(L0Error, match="XS2/valid"):
+        read_l0(no_mask)
