@@ -32,8 +32,8 @@ from station.telemetry import dpcm
 from station.telemetry import format as tf
 
 #: Line times come from 1 ms time codes fitted over the strip: the fit is good to a small
-#: fraction of a millisecond (Westin's sub-millisecond recovery); 0.1 ms is 0.2 µrad of
-#: pitch-equivalent along-track motion... i.e. 0.7 m on the ground at 7 km/s.
+#: fraction of a millisecond (Westin's sub-millisecond recovery). 0.1 ms is 0.66 m of
+#: along-track ground motion at 6.6 km/s, a fifteenth of a P pixel.
 LINE_TIME_TOL_S = 1e-4
 ELEVATION_RAD = np.radians(40.0)
 
@@ -242,7 +242,7 @@ def test_l0_truncated_is_rejected(l0_path, tmp_path) -> None:
     path, _res = l0_path
     cut = tmp_path / "cut.h5"
     cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
-    with pytest.raises(L0Error, match="truncated|damaged"):
+    with pytest.raises(L0Error, match=r"truncated|damaged"):
         read_l0(cut)
 
 
