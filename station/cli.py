@@ -78,6 +78,60 @@ def _cmd_emulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_downlink(args: argparse.Namespace) -> int:
+    import time
+    from pathlib import Path
+
+    from station.scenario import load_scenario
+    from station.spacecraft.emulator import emulate
+    from station.srrs.report import downlink_report
+    from station.srrs.session import downlink, record
+
+    start = time.perf_counter()
+    scn = load_scenario(args.scenario)
+    acq = emulate(scn)
+    t_emulate = time.perf_counter() - start
+    result = downlink(acq)
+    out = Path(args.out) if args.out else Path(f"{scn.name}.l0.h5")
+    t0 = time.perf_counter()
+    record(acq, result, out)
+    result.timings_s.update(emulate=t_emulate, record=time.perf_counter() - t0)
+    rep = downlink_report(acq, result)
+    rep["l0"] = {"path": str(out), "size_mb": round(out.stat().st_size / 1e6, 2)}
+    if args.json:
+        print(json.dumps(rep, indent=2))
+        return 0
+    link = rep["link"]
+    print(f"{rep['scenario']}: HRV{rep['hrv']} {rep['mode']}, {rep['lines']} lines x "
+          f"{rep['detectors']} detectors")
+    print(f"link: {link['cadus_sent']} CADUs in {link['duration_s']:.2f} s at "
+          f"{link['bit_rate_mbps']:g} Mbit/s; {link['bit_errors']} bit errors, "
+          f"{link['bursts']} bursts, {link['fades']} fades")
+    print("CADUs: " + ", ".join(f"{k} {v}" for k, v in rep["cadus"].items()))
+    print(f"{'channel':>8} {'sent':>7} {'deliv.':>7} {'lost':>6} {'gaps':>5} {'dupl.':>6} "
+          f"{'o-o-o':>6} {'corr.':>6} {'symbols':>8}  ends known")
+    for name, c in rep["channels"].items():
+        print(f"{name:>8} {c['sent']:7d} {c['delivered']:7d} {c['lost']:6d} {c['gaps']:5d} "
+              f"{c['duplicates']:6d} {c['out_of_order']:6d} {c['corrected']:6d} "
+              f"{c['symbols_corrected']:8d}  {'yes' if c['head_known'] else 'no'}/"
+              f"{'yes' if c['tail_known'] else 'no'}")
+    for b in rep["bands"]:
+        print(f"band {b['name']}: {b['lines_complete']} lines complete, {b['lines_partial']} "
+              f"partial, {b['lines_missing']} missing; valid pixels "
+              f"{'as sent' if b['valid_pixels_as_sent'] else 'DIFFER FROM WHAT WAS SENT'}, "
+              f"error vs raw counts max {b['max_error_vs_raw_counts']} rms "
+              f"{b['rms_error_vs_raw_counts']:.2f}")
+    lc = rep["line_clock"]
+    print(f"line clock: period {lc['period_s'] * 1e3:.6f} ms, fit rms {lc['fit_rms_ms']:.3f} "
+          f"ms, max error vs truth {lc['max_error_vs_truth_us']:.1f} µs")
+    t = rep["timings_s"]
+    print(f"L0: {rep['l0']['path']} ({rep['l0']['size_mb']:.1f} MB); emulate {t['emulate']:.1f} "
+          f"s, send {t['transmit']:.2f} s, channel {t['channel']:.2f} s, receive "
+          f"{t['receive']:.2f} s ({rep['receive_speed_x_real_time']:.1f}x real time at 50 "
+          f"Mbit/s), record {t['record']:.2f} s")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="station",
@@ -104,6 +158,14 @@ def _parser() -> argparse.ArgumentParser:
     emul.add_argument("--no-render", action="store_true", help="geometry only, no image")
     emul.add_argument("--json", action="store_true", help="print JSON instead of text")
     emul.set_defaults(func=_cmd_emulate)
+    down = sub.add_parser(
+        "downlink",
+        help="emulate a pass, send it through the channel, receive it and record the L0",
+    )
+    down.add_argument("scenario", help="path to a scenario .toml (see scenarios/)")
+    down.add_argument("--out", help="L0 file to write (default: <scenario name>.l0.h5)")
+    down.add_argument("--json", action="store_true", help="print JSON instead of text")
+    down.set_defaults(func=_cmd_downlink)
     return parser
 
 
