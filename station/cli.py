@@ -122,8 +122,9 @@ def _cmd_downlink(args: argparse.Namespace) -> int:
               f"error vs raw counts max {b['max_error_vs_raw_counts']} rms "
               f"{b['rms_error_vs_raw_counts']:.2f}")
     lc = rep["line_clock"]
-    print(f"line clock: period {lc['period_s'] * 1e3:.6f} ms, fit rms {lc['fit_rms_ms']:.3f} "
-          f"ms, max error vs truth {lc['max_error_vs_truth_us']:.1f} µs")
+    print(f"line clock: period {lc['period_s'] * 1e3:.6f} ms, time of the middle line "
+          f"±{lc['uncertainty_us']:.1f} µs; max error vs truth {lc['max_error_vs_truth_us']:.1f} "
+          "µs")
     t = rep["timings_s"]
     print(f"L0: {rep['l0']['path']} ({rep['l0']['size_mb']:.1f} MB); emulate {t['emulate']:.1f} "
           f"s, send {t['transmit']:.2f} s, channel {t['channel']:.2f} s, receive "

@@ -57,3 +57,28 @@ def test_emulate_bad_scenario_exits_2(tmp_path: Path, capsys) -> None:
     assert main(["emulate", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["station: error: [instrument] mirror_step = 120: expected an integer in [3, 93]"]
+
+
+def test_downlink_writes_l0_and_reports(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "pass.l0.h5"
+    code = main(["downlink", str(ROOT / "scenarios" / "small_test.toml"), "--out", str(out),
+                 "--json"])
+    assert code == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert out.is_file() and rep["l0"]["path"] == str(out)
+    for ch in rep["channels"].values():
+        assert ch["sent"] == ch["truth_sent"] == ch["delivered"] + ch["lost"]
+    band = rep["bands"][0]
+    assert band["valid_pixels_as_sent"]
+    assert sum(rep["cadus"].values()) >= rep["link"]["cadus_sent"] - 5
+    code = main(["downlink", str(ROOT / "scenarios" / "small_test.toml"), "--out", str(out)])
+    assert code == 0
+    assert "vc01" in capsys.readouterr().out
+
+
+def test_downlink_bad_scenario_exits_2(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[channel]\nber = 2.0\n")
+    assert main(["downlink", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("station: error: [channel] ber = 2.0") and err.count("\n") == 1

@@ -30,6 +30,7 @@ import numba
 import numpy as np
 from numpy.lib.recfunctions import repack_fields
 from numpy.typing import NDArray
+from scipy.optimize import linprog
 
 from station.errors import StationError
 from station.srrs.frames import decode_cadus, find_cadus
@@ -106,7 +107,7 @@ class DecodedPass:
     epoch_utc: np.datetime64  # 00:00 UTC of the day of the first time code
     line_t_s: NDArray[np.float64]  # fitted line times, s since epoch_utc
     line_period_s: float
-    line_fit_rms_s: float
+    line_clock_uncertainty_s: float
     packets: dict[str, int] = field(default_factory=dict)
 
     @property
@@ -395,7 +396,7 @@ def _lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
     epoch_utc, line_t, period, rms = _line_times(aux, first_line, n_lines)
     return {
         "epoch_utc": epoch_utc, "line_t_s": line_t, "line_period_s": period,
-        "line_fit_rms_s": rms,
+        "line_clock_uncertainty_s": rms,
         "hrv": hrv, "mode": "P" if int(ref["mode"]) == 0 else "XS",
         "mirror_step": int(ref["mirror_step"]), "twin": bool(int(ref["status"]) & 2),
         "first_line_counter": first_line, "images": tuple(images), "valid": tuple(valid),
@@ -408,20 +409,46 @@ def _line_times(aux: NDArray, first_line: int, n_lines: int) -> tuple[
         np.datetime64, NDArray[np.float64], float, float]:
     """Line times from the (line counter, time code) pairs of the aux records.
 
-    A time code is latched, truncated to the millisecond, at the start of its line, so it
-    lies 0–1 ms before the true start: the line clock is the least-squares line through
-    the codes + 0.5 ms. Over a scene's ~70 records the fit recovers the line times to a
-    few tens of µs, far below the 1 ms resolution (Westin's sub-millisecond recovery);
-    the residual RMS is ≈ 1 ms/√12 = 0.29 ms when all is well.
+    A time code is latched, truncated to the millisecond, at the start of its line: the
+    true start t = a + P·x (x the line counter from the strip's first line) satisfies
+    T ≤ t < T + 1 ms for every record. Those constraints bound (a, P) to a small polygon;
+    its extent in a and in P is found by four linear programmes, and the clock is the
+    middle of it (Westin's sub-millisecond recovery). A least-squares line through the
+    codes + 0.5 ms would be biased by the deterministic pattern of the truncation (the
+    codes sample t mod 1 ms on a coarse lattice): up to 0.1 ms on a full scene. If the
+    constraints cannot all hold (a record damaged on board), the least-squares line is
+    used. Returns the epoch, the line times, the period and half the feasible range of the
+    time of the middle line (the clock's uncertainty, s), or the least-squares residual
+    RMS when it fell back.
     """
     ms = aux["line_time_ms"].astype(np.int64)
     day_ms = 86_400_000
     day0 = int(aux["time_ms"].astype(np.int64).min()) // day_ms * day_ms
     epoch_utc = tf.CNES_EPOCH + np.timedelta64(day0, "ms")
     x = aux["line"].astype(np.float64) - first_line
-    y = (ms - day0) / 1e3 + 0.5e-3
     if np.unique(x).size < 2:
         raise ReceiverError("fewer than two auxiliary records: the line clock is unknown")
-    period, t0 = np.polyfit(x, y, 1)
-    rms = float(np.sqrt(np.mean((y - (t0 + period * x)) ** 2)))
-    return epoch_utc, t0 + period * np.arange(n_lines), float(period), rms
+    x_mid = (n_lines - 1) / 2.0
+    xc = x - x_mid
+    y_ms = (ms - ms.min()).astype(np.float64)
+    slope, icept = np.polyfit(xc, y_ms + 0.5, 1)
+    a_ms, p_ms, spread = icept, slope, float(np.sqrt(np.mean(
+        (y_ms + 0.5 - icept - slope * xc) ** 2))) * 1e-3
+    # T <= a + P x < T + 1  as  A z <= b, z = (a, P)
+    a_ub = np.concatenate([np.stack([-np.ones_like(xc), -xc], 1),
+                           np.stack([np.ones_like(xc), xc], 1)])
+    b_ub = np.concatenate([-y_ms, y_ms + 1.0 - 1e-9])
+    ext = []
+    for c in ([1, 0], [-1, 0], [0, 1], [0, -1]):
+        r = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=[(None, None), (None, None)],
+                    method="highs")
+        if r.status != 0:
+            break
+        ext.append(r.x)
+    if len(ext) == 4:
+        a_ms = (ext[0][0] + ext[1][0]) / 2
+        p_ms = (ext[2][1] + ext[3][1]) / 2
+        spread = (ext[1][0] - ext[0][0]) / 2 * 1e-3
+    t0_s = (ms.min() - day0) / 1e3 + a_ms * 1e-3
+    t = t0_s + p_ms * 1e-3 * (np.arange(n_lines) - x_mid)
+    return epoch_utc, t, float(p_ms * 1e-3), spread

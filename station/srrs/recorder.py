@@ -116,7 +116,7 @@ def _write(f: h5py.File, d: DecodedPass, bulletins: Ephemeris, shift_s: float,
     _dataset(lines, "line_counter", d.line_counter, "1", "instrument line counter")
     t = _dataset(lines, "t_s", d.line_t_s, "s", "line time, s since epoch_utc (fitted)")
     t.attrs["line_period_s"] = d.line_period_s
-    t.attrs["fit_rms_s"] = d.line_fit_rms_s
+    t.attrs["uncertainty_s"] = d.line_clock_uncertainty_s
     t.attrs["fit_records"] = int(d.aux.size)
 
     aux = f.create_group("aux")
