@@ -58,7 +58,8 @@ def downlink_report(acq: Acquisition, result: DownlinkResult) -> dict:
         "packets": d.packets,
         "bands": bands,
         "line_clock": {
-            "period_s": d.line_period_s, "uncertainty_us": round(d.line_clock_uncertainty_s * 1e6, 2),
+            "period_s": d.line_period_s,
+            "uncertainty_us": round(d.line_clock_uncertainty_s * 1e6, 2),
             "max_error_vs_truth_us": round(float(line_err.max()) * 1e6, 2),
         },
         "timings_s": {k: round(v, 4) for k, v in result.timings_s.items()},
