@@ -121,6 +121,11 @@ def _cmd_downlink(args: argparse.Namespace) -> int:
               f"{'as sent' if b['valid_pixels_as_sent'] else 'DIFFER FROM WHAT WAS SENT'}, "
               f"error vs raw counts max {b['max_error_vs_raw_counts']} rms "
               f"{b['rms_error_vs_raw_counts']:.2f}")
+    tc = rep["truth_check"]
+    print(f"against the truth: {tc['data_frames_lost']} data frames lost; masks "
+          f"{'match' if tc['masks_match_lost_frames'] else 'DO NOT MATCH'} the segments they "
+          f"touched; accounts {'balance' if tc['accounts_balance'] else 'DO NOT BALANCE'}, "
+          f"frames sent {'as counted' if tc['sent_as_counted'] else 'MISCOUNTED'}")
     lc = rep["line_clock"]
     print(f"line clock: period {lc['period_s'] * 1e3:.6f} ms, time of the middle line "
           f"±{lc['uncertainty_us']:.1f} µs; max error vs truth {lc['max_error_vs_truth_us']:.1f} "

@@ -70,6 +70,8 @@ def test_downlink_writes_l0_and_reports(tmp_path: Path, capsys) -> None:
         assert ch["sent"] == ch["truth_sent"] == ch["delivered"] + ch["lost"]
     band = rep["bands"][0]
     assert band["valid_pixels_as_sent"]
+    assert all(rep["truth_check"][k] for k in
+               ("masks_match_lost_frames", "accounts_balance", "sent_as_counted"))
     assert sum(rep["cadus"].values()) >= rep["link"]["cadus_sent"] - 5
     code = main(["downlink", str(ROOT / "scenarios" / "small_test.toml"), "--out", str(out)])
     assert code == 0

@@ -20,13 +20,8 @@ from station.spacecraft.channel import impair
 from station.spacecraft.downlink import transmit
 from station.spacecraft.emulator import emulate
 from station.srrs.frames import find_cadus
-from station.srrs.receiver import (
-    CORRECTED,
-    OK,
-    OUT_OF_ORDER,
-    ReceiverError,
-    receive,
-)
+from station.srrs.receiver import ReceiverError, receive
+from station.srrs.report import expected_valid, lost_data_frames
 from station.srrs.session import downlink, record
 from station.telemetry import dpcm
 from station.telemetry import format as tf
@@ -63,24 +58,6 @@ def _send(acq, seed: int = 1, **channel):
     rx = impair(tx.cadus, tx.slot_t_s, elev, cfg, tx.bit_rate_bit_per_s,
                 np.random.default_rng(seed + 1))
     return tx, rx, receive(rx.stream, rx.n_bits)
-
-
-def _lost_data_frames(tx, d) -> np.ndarray:
-    """Indices (0-based in the session) of the data frames the receiver did not deliver."""
-    acc = d.accounts[tx.data_vc]
-    got = (d.frame_vc == tx.data_vc) & np.isin(d.frame_status, [OK, CORRECTED, OUT_OF_ORDER])
-    delivered = np.unique(d.frame_count[got]) - acc.first_count
-    return np.setdiff1d(np.arange(tx.sent[tx.data_vc]), delivered)
-
-
-def _expected_valid(tx, lost: np.ndarray, n_bands: int, n_lines: int) -> np.ndarray:
-    is_lost = np.zeros(tx.sent[tx.data_vc] + 1, bool)
-    is_lost[lost] = True
-    touched = np.cumsum(np.concatenate([[0], is_lost]))
-    hit = touched[tx.packet_last_frame + 1] - touched[tx.packet_first_frame] > 0
-    valid = np.zeros((n_bands, n_lines, tx.segment_first_detector.size), bool)
-    valid[tx.packet_band, tx.packet_row, tx.packet_segment] = ~hit
-    return valid
 
 
 # --- clean channel ---------------------------------------------------------------------------
@@ -139,10 +116,10 @@ def test_every_frame_accounted_and_every_lost_segment_masked(acq_p, acq_xs, whic
         assert acc.head_known and acc.tail_known
         assert acc.sent == sent
         assert acc.delivered + acc.lost == sent
-    lost = _lost_data_frames(tx, d)
+    lost = lost_data_frames(tx, d)
     assert lost.size == d.accounts[tx.data_vc].lost
     n_lines = acq.line_times_s.size
-    expected = _expected_valid(tx, lost, len(acq.bands), n_lines)
+    expected = expected_valid(tx, lost, n_lines)
     assert np.array_equal(np.stack(d.valid), expected)  # masked exactly where touched
     for b in range(len(acq.bands)):
         seg = np.searchsorted(tx.segment_first_detector, np.arange(d.images[b].shape[1]),
@@ -160,7 +137,7 @@ def test_no_decodable_frame_is_lost_without_fades(acq_p) -> None:
     decodable = np.zeros(tx.cadus.shape[0], bool)
     decodable[rx.copy_slot[rx.copy_max_symbol_errors <= 16]] = True
     data_slots = np.flatnonzero(tx.vc == tx.data_vc)
-    lost = _lost_data_frames(tx, d)
+    lost = lost_data_frames(tx, d)
     assert not decodable[data_slots[lost]].any()
     assert (~decodable[data_slots]).sum() == lost.size
 

@@ -7,13 +7,38 @@ comparison with the truth is possible only because the pass was emulated.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
+from station.spacecraft.downlink import Transmission
 from station.spacecraft.emulator import Acquisition
+from station.srrs.receiver import CORRECTED, OK, OUT_OF_ORDER, DecodedPass
 from station.srrs.session import DownlinkResult
 
-__all__ = ["STATION_RATE_BIT_PER_S", "downlink_report"]
+__all__ = ["STATION_RATE_BIT_PER_S", "downlink_report", "expected_valid", "lost_data_frames"]
 
 STATION_RATE_BIT_PER_S = 50e6  # two X-band channels of 25 Mbit/s
+
+
+def lost_data_frames(tx: Transmission, d: DecodedPass) -> NDArray[np.int64]:
+    """Indices (0-based in the session) of the data frames sent but not delivered."""
+    acc = d.accounts.get(tx.data_vc)
+    if acc is None:
+        return np.arange(tx.sent[tx.data_vc])
+    got = (d.frame_vc == tx.data_vc) & np.isin(d.frame_status, [OK, CORRECTED, OUT_OF_ORDER])
+    delivered = np.unique(d.frame_count[got]) - acc.first_count
+    return np.setdiff1d(np.arange(tx.sent[tx.data_vc]), delivered)
+
+
+def expected_valid(tx: Transmission, lost: NDArray[np.int64], n_lines: int) -> NDArray[np.bool_]:
+    """The validity (bands, lines, segments) the truth calls for: a segment is valid iff
+    no frame its packet occupied was lost."""
+    is_lost = np.zeros(tx.sent[tx.data_vc], bool)
+    is_lost[lost] = True
+    touched = np.concatenate([[0], np.cumsum(is_lost)])
+    hit = touched[tx.packet_last_frame + 1] - touched[tx.packet_first_frame] > 0
+    valid = np.zeros((len(tx.ground_bands), n_lines, tx.segment_first_detector.size), bool)
+    valid[tx.packet_band, tx.packet_row, tx.packet_segment] = ~hit
+    return valid
 
 
 def downlink_report(acq: Acquisition, result: DownlinkResult) -> dict:
@@ -39,6 +64,9 @@ def downlink_report(acq: Acquisition, result: DownlinkResult) -> dict:
         })
     n_bits = rx.n_bits
     t_rx = result.timings_s["receive"]
+    lost = lost_data_frames(tx, d)
+    masks_ok = bool(np.array_equal(np.stack(d.valid),
+                                   expected_valid(tx, lost, d.line_counter.size)))
     line_err = np.abs(d.line_t_s - acq.line_times_s)
     return {
         "scenario": acq.scenario.name,
@@ -55,6 +83,14 @@ def downlink_report(acq: Acquisition, result: DownlinkResult) -> dict:
         "channels": {f"vc{v:02d}": {**a.as_dict(), "truth_sent": int(tx.sent.get(v, -1))}
                      for v, a in sorted(d.accounts.items())},
         "sync": {"bits_searched": d.bits_searched, "losses": d.sync_losses},
+        "truth_check": {
+            "data_frames_lost": int(lost.size),
+            "masks_match_lost_frames": masks_ok,
+            "accounts_balance": all(a.delivered + a.lost == a.sent
+                                    for a in d.accounts.values()),
+            "sent_as_counted": all(a.sent == tx.sent.get(v, -1)
+                                   for v, a in d.accounts.items()),
+        },
         "packets": d.packets,
         "bands": bands,
         "line_clock": {
