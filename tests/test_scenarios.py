@@ -11,10 +11,12 @@ import pytest
 from station.scenario import load_scenario
 from station.spacecraft.emulator import emulate
 from station.spacecraft.summary import summarize
+from station.srrs.report import comparable, downlink_report
+from station.srrs.session import downlink
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = sorted((ROOT / "scenarios").glob("*.toml"))
-RENDERED = {"small_test"}  # the others are full-size: geometry only here
+RENDERED = {"small_test", "noisy_channel"}  # the others are full-size: geometry only here
 COORD_TOL_DEG = 1e-6  # 0.1 m: integrator round-off across machines is far below
 LENGTH_TOL_KM = 1e-4
 MEAN_COUNTS_TOL = 0.05  # a few pixels rounding the other way on another CPU
@@ -24,7 +26,10 @@ MEAN_COUNTS_TOL = 0.05  # a few pixels rounding the other way on another CPU
 def test_scenario_matches_its_expected_summary(path: Path) -> None:
     expected = json.loads((ROOT / "scenarios" / "expected" / f"{path.stem}.json").read_text())
     scn = load_scenario(path)
-    got = summarize(emulate(scn, render=scn.name in RENDERED))
+    acq = emulate(scn, render=scn.name in RENDERED)
+    got = summarize(acq)
+    if scn.name in RENDERED:  # counts of frames and lines: exact
+        assert comparable(downlink_report(acq, downlink(acq))) == expected["downlink"]
     assert got["strip"] == expected["strip"] | {
         "satellite_altitude_km": pytest.approx(expected["strip"]["satellite_altitude_km"],
                                                abs=1e-6)

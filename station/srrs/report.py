@@ -14,7 +14,13 @@ from station.spacecraft.emulator import Acquisition
 from station.srrs.receiver import CORRECTED, OK, OUT_OF_ORDER, DecodedPass
 from station.srrs.session import DownlinkResult
 
-__all__ = ["STATION_RATE_BIT_PER_S", "downlink_report", "expected_valid", "lost_data_frames"]
+__all__ = [
+    "STATION_RATE_BIT_PER_S",
+    "comparable",
+    "downlink_report",
+    "expected_valid",
+    "lost_data_frames",
+]
 
 STATION_RATE_BIT_PER_S = 50e6  # two X-band channels of 25 Mbit/s
 
@@ -100,4 +106,21 @@ def downlink_report(acq: Acquisition, result: DownlinkResult) -> dict:
         },
         "timings_s": {k: round(v, 4) for k, v in result.timings_s.items()},
         "receive_speed_x_real_time": round(n_bits / STATION_RATE_BIT_PER_S / t_rx, 2),
+    }
+
+
+def comparable(report: dict) -> dict:
+    """The part of a downlink report that must not change between runs or machines: counts
+    of frames and lines and the truth checks (frame losses depend only on where the channel
+    put its errors, which the seed fixes, not on the image)."""
+    keys = ("sent", "delivered", "lost", "gaps", "duplicates", "out_of_order", "head_known",
+            "tail_known")
+    lines = ("lines_complete", "lines_partial", "lines_missing", "valid_pixels_as_sent")
+    return {
+        "cadus": report["cadus"],
+        "channels": {vc: {k: c[k] for k in keys} for vc, c in report["channels"].items()},
+        "bands": [{k: b[k] for k in ("name", *lines)} for b in report["bands"]],
+        "truth_check": report["truth_check"],
+        "link": {k: report["link"][k] for k in ("cadus_sent", "bit_errors", "bursts",
+                                                 "fades")},
     }
