@@ -12,6 +12,8 @@ import dataclasses
 import h5py
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from levels.errors import L0Error
 from levels.readers.l0 import read_l0
@@ -153,6 +155,49 @@ def test_markers_are_found_at_any_bit_offset(acq_xs) -> None:
         offsets, confirmed, _searched, _losses = find_cadus(np.packbits(bits), bits.size)
         assert offsets.tolist() == [noise_bits + 8192 * k for k in range(6)]
         assert confirmed[:5].all()
+
+
+def test_markers_with_a_few_bit_errors_are_still_found(acq_xs) -> None:
+    tx = transmit(acq_xs, acq_xs.scenario.downlink, np.random.default_rng(1))
+    stream = tx.cadus[:7].ravel().copy()
+
+    def damage(frame: int, n_bits: int) -> None:
+        bits = np.unpackbits(stream[frame * 1024:frame * 1024 + 4])
+        bits[:n_bits] ^= 1
+        stream[frame * 1024:frame * 1024 + 4] = np.packbits(bits)
+
+    damage(0, 3)  # found by search (≤ 3 errors)
+    damage(2, 12)  # beyond the lock tolerance, but the next marker is in place: coasted
+    damage(3, 5)  # accepted while locked (≤ 8)
+    damage(4, 12)
+    damage(5, 12)  # two in a row: lock lost
+    damage(6, 2)  # found again by search
+    offsets, confirmed, _s, losses = find_cadus(stream, stream.size * 8)
+    assert offsets.tolist() == [8192 * k for k in (0, 1, 2, 3, 6)]
+    assert losses == 1 and confirmed[:4].all()
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 2**31), log_ber=st.floats(-7.0, -3.0),
+       bursts=st.floats(0.0, 10.0), fades=st.floats(0.0, 80.0),
+       replays=st.integers(0, 4), reorder=st.floats(0.0, 0.1))
+def test_round_trip_property(acq_xs, seed, log_ber, bursts, fades, replays, reorder) -> None:
+    """Whatever the channel does: accounts balance, masks are exactly the segments touched
+    by lost frames, and every valid pixel is what was sent."""
+    tx, _rx, d = _send(acq_xs, seed=seed, ber=10.0**log_ber, burst_rate_per_s=bursts,
+                       fade_rate_per_min=fades, replay_runs=replays, replay_frames=5,
+                       reorder_fraction=reorder)
+    for vc, acc in d.accounts.items():
+        assert acc.delivered + acc.lost == acc.sent
+        if acc.tail_known:
+            assert acc.sent == tx.sent[vc]
+    lost = lost_data_frames(tx, d)
+    assert np.array_equal(np.stack(d.valid), expected_valid(tx, lost, d.line_counter.size))
+    for b in range(3):
+        ok = d.valid[b][:, np.searchsorted(tx.segment_first_detector,
+                                           np.arange(d.images[b].shape[1]), "right") - 1]
+        assert np.array_equal(d.images[b][ok], tx.ground_bands[b][ok])
 
 
 # --- bad input --------------------------------------------------------------------------------

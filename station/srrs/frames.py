@@ -5,8 +5,10 @@ Synchronisation (:func:`find_cadus`)
     within ``search_tolerance`` bit errors is taken (*confirmed* when the marker is found
     again one CADU later, *unconfirmed* otherwise). Once locked, the receiver only looks
     where the next marker should be and accepts it with up to ``lock_tolerance`` errors (a
-    flywheel); a miss sends it back to searching from just after the last marker, so that
-    after a fade it re-locks at whatever bit offset the stream resumed.
+    flywheel). A marker damaged beyond that is still taken if the one after it is in place
+    (the marker is not protected by the code, the block often still decodes); otherwise
+    the receiver goes back to searching from just after the last marker, so that after a
+    fade it re-locks at whatever bit offset the stream resumed.
     With 3 errors allowed in search, a false marker in random data has a probability of
     5489 / 2³² ≈ 1.3·10⁻⁶ per bit position; an unconfirmed frame that then fails the
     Reed–Solomon decoding is classed as a false sync, not as a lost frame.
@@ -68,6 +70,14 @@ def _find(stream: NDArray[np.uint8], n_bits: int, asm: int, search_tol: int, loc
                 break
             if _popcount32(_word_at(stream, expected) ^ asm) <= lock_tol:
                 offsets[n] = expected
+                confirmed[n] = True
+                n += 1
+                last = expected
+                continue
+            after = expected + _CADU_BITS  # coast: is the marker after it where it should be?
+            if after + _CADU_BITS <= n_bits and \
+                    _popcount32(_word_at(stream, after) ^ asm) <= lock_tol:
+                offsets[n] = expected  # a damaged marker; the code block may still decode
                 confirmed[n] = True
                 n += 1
                 last = expected
