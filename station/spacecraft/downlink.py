@@ -267,7 +267,8 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
     frames[:, -2] = crc >> 8
     frames[:, -1] = crc & 0xFF
 
-    img = np.concatenate([g[2] >= 0 for g in groups])
+    row, band, segment = (np.concatenate([g[k] for g in groups]) for k in (2, 3, 4))
+    img = row >= 0  # image packets (aux packets carry −1)
     p_start = start[img]
     p_size = np.concatenate([np.full(g[1].size, g[0].shape[1]) for g in groups])[img]
     return Transmission(
@@ -278,9 +279,7 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
         sent={data_vc: n_data, tf.VC_FILL: int(is_fill.sum())},
         first_line_counter=first_line,
         segment_first_detector=seg_first,
-        packet_row=np.concatenate([g[2] for g in groups])[img],
-        packet_band=np.concatenate([g[3] for g in groups])[img],
-        packet_segment=np.concatenate([g[4] for g in groups])[img],
+        packet_row=row[img], packet_band=band[img], packet_segment=segment[img],
         packet_first_frame=p_start // tf.ZONE_BYTES,
         packet_last_frame=(p_start + p_size - 1) // tf.ZONE_BYTES,
         ground_bands=ground, aux=aux, bit_rate_bit_per_s=cfg.bit_rate_bit_per_s,
