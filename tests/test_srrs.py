@@ -296,3 +296,18 @@ def test_l0_inconsistent_shapes_are_rejected(l0_path, tmp_path) -> None:
         del f["bands/XS2/valid"]
     with pytest.raises(L0Error, match="XS2/valid"):
         read_l0(no_mask)
+
+
+def test_damaged_aux_records_do_not_move_the_line_clock(acq_p) -> None:
+    from station.srrs.receiver import _line_times, _on_the_clock, _plausible_times
+
+    _tx, _rx, d = _send(acq_p, ber=0.0, burst_rate_per_s=0.0)
+    aux = d.aux.copy()
+    aux["line_time_ms"][5] += 50  # a record damaged on board: 50 ms off its line
+    aux["time_ms"][9] = 2**63  # an impossible time code
+    keep = _plausible_times(aux)
+    assert keep.tolist().count(False) == 1 and not keep[9]
+    aux = aux[keep]
+    assert _on_the_clock(aux, d.first_line_counter).tolist().count(False) == 1
+    _epoch, t, _period, _unc = _line_times(aux, d.first_line_counter, d.line_counter.size)
+    assert np.abs(t - acq_p.line_times_s).max() < LINE_TIME_TOL_S

@@ -52,6 +52,7 @@ _HALF = tf.VC_FRAME_COUNT_MODULUS // 2
 _MAX_LINES = 10**6  # sanity limits on what the aux data may announce
 _MAX_DETECTORS = 12000
 _MAX_BANDS = 4
+_MAX_TIME_MS = 2**44  # 557 years after 1950
 ZONE_BYTES = tf.ZONE_BYTES  # plain ints for the compiled kernels
 ENCODING_RAW8 = tf.ENCODING_RAW8
 
@@ -356,7 +357,7 @@ def _lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
     shape = repack_fields(aux[keys])
     _kinds, first, votes = np.unique(shape, return_index=True, return_counts=True)
     ref = aux[first[np.argmax(votes)]]
-    agree = np.all([aux[k] == ref[k] for k in keys], axis=0)
+    agree = np.all([aux[k] == ref[k] for k in keys], axis=0) & _plausible_times(aux)
     stats["aux"] = int(agree.sum())
     stats["aux_rejected"] = int((~agree).sum())
     aux = np.sort(aux[agree], order="time_ms")
@@ -405,6 +406,34 @@ def _lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
     }
 
 
+def _plausible_times(aux: NDArray) -> NDArray[np.bool_]:
+    """Time codes within the counter's range (after 1950, before ~2400) and a line time
+    within a minute of its record's time: anything else is a damaged record."""
+    t = aux["time_ms"].astype(np.uint64)
+    lt = aux["line_time_ms"].astype(np.uint64)
+    ok = (t < _MAX_TIME_MS) & (lt < _MAX_TIME_MS)
+    gap = np.abs(t.astype(np.float64) - lt.astype(np.float64))
+    return ok & (gap <= 60_000.0)
+
+
+def _on_the_clock(aux: NDArray, first_line: int) -> NDArray[np.bool_]:
+    """Records consistent with one line clock: a robust line (median of the slopes between
+    records half the span apart, then median intercept) and a 2 ms tolerance around it
+    (twice the truncation), so that a record damaged on board cannot drag the fit."""
+    x = aux["line"].astype(np.float64) - first_line
+    y = aux["line_time_ms"].astype(np.float64)
+    y = y - y.min()
+    order = np.argsort(x, kind="stable")
+    half = max(aux.size // 2, 1)  # pair each record with one half the span away
+    dx = x[order][half:] - x[order][:-half]
+    dy = y[order][half:] - y[order][:-half]
+    if np.count_nonzero(dx > 0) == 0:
+        return np.ones(aux.size, bool)
+    slope = np.median(dy[dx > 0] / dx[dx > 0])
+    icept = np.median(y - slope * x)
+    return np.abs(y - icept - slope * x) <= 2.0
+
+
 def _line_times(aux: NDArray, first_line: int, n_lines: int) -> tuple[
         np.datetime64, NDArray[np.float64], float, float]:
     """Line times from the (line counter, time code) pairs of the aux records.
@@ -421,6 +450,7 @@ def _line_times(aux: NDArray, first_line: int, n_lines: int) -> tuple[
     time of the middle line (the clock's uncertainty, s), or the least-squares residual
     RMS when it fell back.
     """
+    aux = aux[_on_the_clock(aux, first_line)]
     ms = aux["line_time_ms"].astype(np.int64)
     day_ms = 86_400_000
     day0 = int(aux["time_ms"].astype(np.int64).min()) // day_ms * day_ms
