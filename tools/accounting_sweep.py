@@ -52,12 +52,8 @@ def main() -> int:
         d = receive(rx.stream, rx.n_bits)
         lost = lost_data_frames(tx, d)
         masks = np.array_equal(np.stack(d.valid), expected_valid(tx, lost, n_lines))
-        valid_px = all(np.array_equal(d.images[b][d.valid[b][:, seg]],
-                                      tx.ground_bands[b][d.valid[b][:, seg]])
-                       for b in range(len(d.images))
-                       for seg in [np.searchsorted(d.segment_first_detector,
-                                                   np.arange(d.images[b].shape[1]),
-                                                   side="right") - 1])
+        valid_px = all(np.array_equal(d.images[b][ok], tx.ground_bands[b][ok])
+                       for b in range(len(d.images)) for ok in [d.pixel_valid(b)])
         lines_ok = int(np.stack(d.valid).all(axis=(0, 2)).sum())
         for vc, acc in sorted(d.accounts.items()):
             ok = (acc.sent == tx.sent[vc] and acc.delivered + acc.lost == acc.sent

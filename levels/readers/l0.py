@@ -22,10 +22,17 @@ from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch
 
-__all__ = ["L0_FORMAT", "L0_VERSION", "L0Archive", "L0Band", "read_l0"]
+__all__ = ["L0_FORMAT", "L0_VERSION", "L0Archive", "L0Band", "pixel_mask", "read_l0"]
 
 L0_FORMAT = "SPOT-L0"
 L0_VERSION = 1
+
+
+def pixel_mask(valid: NDArray[np.bool_], segment_first_detector: NDArray[np.int64],
+               n_detectors: int) -> NDArray[np.bool_]:
+    """A (lines, segments) validity mask expanded to every pixel (lines, detectors)."""
+    seg = np.searchsorted(segment_first_detector, np.arange(n_detectors), side="right") - 1
+    return valid[:, seg]
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,9 +50,7 @@ class L0Band:
 
     def pixel_valid(self) -> NDArray[np.bool_]:
         """The segment mask expanded to every pixel (lines, detectors)."""
-        seg = np.searchsorted(self.segment_first_detector, np.arange(self.counts.shape[1]),
-                              side="right") - 1
-        return self.valid[:, seg]
+        return pixel_mask(self.valid, self.segment_first_detector, self.counts.shape[1])
 
     @property
     def line_valid(self) -> NDArray[np.bool_]:

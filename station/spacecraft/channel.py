@@ -60,7 +60,7 @@ def _frame_order(n: int, cfg: ChannelConfig, rng: np.random.Generator) -> NDArra
         for s in starts:  # one slice per run, not per frame
             end = s + cfg.replay_frames
             pieces += [order[prev:end], order[s:end]]
-            prev = end if end > prev else prev
+            prev = max(prev, end)
         pieces.append(order[prev:])
         order = np.concatenate(pieces)
     if cfg.reorder_fraction > 0:

@@ -203,7 +203,7 @@ def _frame_headers(frames: NDArray[np.uint8], vc: NDArray[np.int64], count: NDAr
                    fhp: NDArray[np.int64]) -> None:
     head = np.zeros(vc.size, tf.FRAME_HEADER_DTYPE)
     head["id"] = (1 << 14) | (tf.SPACECRAFT_ID << 6) | vc
-    head["count"] = np.stack([count >> 16, (count >> 8) & 0xFF, count & 0xFF], axis=1)
+    head["count"] = tf.u24(count)
     head["mpdu"] = fhp
     frames[:, :tf.FRAME_HEADER_BYTES] = head.view(np.uint8).reshape(-1, tf.FRAME_HEADER_BYTES)
 
@@ -230,14 +230,14 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
 
     n_data = zone.size // tf.ZONE_BYTES
     frame_start = np.arange(n_data) * tf.ZONE_BYTES
-    sorted_start = np.sort(start)
+    sorted_start = start[order]  # packets in sending order are laid out in order
     headers = np.append(sorted_start, idle_at)  # every packet header, the idle one last
     nxt = headers[np.minimum(np.searchsorted(headers, frame_start), headers.size - 1)]
     fhp = np.where((nxt >= frame_start) & (nxt < frame_start + tf.ZONE_BYTES),
                    nxt - frame_start, tf.FHP_NONE)
 
     # When each data frame is full: the time of the packet holding its last byte.
-    t_sorted = times[np.argsort(start)]
+    t_sorted = times[order]
     last_byte = frame_start + tf.ZONE_BYTES - 1
     holder = np.searchsorted(sorted_start, last_byte, side="right") - 1
     ready = t_sorted[holder]
@@ -295,13 +295,11 @@ def _status_records(frames: NDArray[np.uint8], is_fill: NDArray[np.bool_], data_
     entries = np.zeros((n_fill, 2), tf.STATUS_ENTRY_DTYPE)
     closed_data = data_sent[rows] >= n_data
     entries[:, 0]["vc"] = data_vc | np.where(closed_data, 0x80, 0)
-    entries[:, 0]["first_count"] = [first_count >> 16, (first_count >> 8) & 0xFF,
-                                    first_count & 0xFF]
+    entries[:, 0]["first_count"] = tf.u24(first_count)
     entries[:, 0]["sent"] = data_sent[rows]
     last_fill = fill_index[rows] == n_fill - 1
     entries[:, 1]["vc"] = tf.VC_FILL | np.where(last_fill, 0x80, 0)
-    entries[:, 1]["first_count"] = [fill_first >> 16, (fill_first >> 8) & 0xFF,
-                                    fill_first & 0xFF]
+    entries[:, 1]["first_count"] = tf.u24(fill_first)
     entries[:, 1]["sent"] = fill_index[rows] + 1
     z0 = tf.FRAME_HEADER_BYTES
     magic = np.frombuffer(tf.STATUS_MAGIC, np.uint8)

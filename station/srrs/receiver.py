@@ -32,6 +32,7 @@ from numpy.lib.recfunctions import repack_fields
 from numpy.typing import NDArray
 from scipy.optimize import linprog
 
+from levels.readers.l0 import pixel_mask
 from station.errors import StationError
 from station.srrs.frames import decode_cadus, find_cadus
 from station.telemetry import dpcm
@@ -122,6 +123,11 @@ class DecodedPass:
         lsb = self.aux["gyro_lsb_prad_per_s"].astype(np.float64)[:, None] * 1e-12
         return self.aux["gyro_counts"].astype(np.float64) * lsb
 
+    def pixel_valid(self, band: int) -> NDArray[np.bool_]:
+        """The segment mask of a band expanded to every pixel (lines, detectors)."""
+        return pixel_mask(self.valid[band], self.segment_first_detector,
+                          self.images[band].shape[1])
+
     @property
     def status_counts(self) -> dict[str, int]:
         counts = np.bincount(self.frame_status, minlength=len(STATUS_NAMES))
@@ -158,7 +164,7 @@ def _status_tables(frames: NDArray[np.uint8], rows: NDArray[np.int64]) -> dict[i
         e = raw.view(tf.STATUS_ENTRY_DTYPE).ravel()
         vc = (e["vc"] & 0x3F).astype(np.int64)
         closed = (e["vc"] & 0x80) != 0
-        first = (e["first_count"].astype(np.int64) << [16, 8, 0]).sum(axis=1)
+        first = tf.from_u24(e["first_count"])
         for v in np.unique(vc):
             sel = vc == v
             out[int(v)] = {"first": int(first[sel][0]), "sent": int(e["sent"][sel].max()),
@@ -305,8 +311,7 @@ def receive(stream: NDArray[np.uint8], n_bits: int | None = None,
     head = np.ascontiguousarray(frames[:, :6])
     word = (head[:, 0].astype(np.int64) << 8) | head[:, 1]
     version, scid, vc = word >> 14, (word >> 6) & 0xFF, word & 0x3F
-    count24 = (head[:, 2].astype(np.int64) << 16) | (head[:, 3].astype(np.int64) << 8) \
-        | head[:, 4]
+    count24 = tf.from_u24(head[:, 2:5])
     good = rs_ok & crc_ok & (version == 1) & (scid == tf.SPACECRAFT_ID)
     n_corr = np.where(corrected < 0, 0, corrected).sum(axis=1)
     status = np.where(good, np.where(n_corr > 0, CORRECTED, OK), UNCORRECTABLE)
@@ -378,7 +383,7 @@ def _lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
     count = hdr["count"].astype(np.int64)
     enc = hdr["encoding"].astype(np.int64)
     band = hdr["band"].astype(np.int64)
-    need = np.where(enc == tf.ENCODING_DPCM6, 1 + (6 * (count - 1) + 7) // 8, count)
+    need = np.where(enc == tf.ENCODING_DPCM6, dpcm.payload_bytes(count), count)
     seg = first_det // tf.SEGMENT_DETECTORS
     sane = ((row >= 0) & (row < n_lines) & (band < n_bands) & (count >= 1)
             & (first_det % tf.SEGMENT_DETECTORS == 0) & (first_det + count <= n_det)

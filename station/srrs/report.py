@@ -52,9 +52,7 @@ def downlink_report(acq: Acquisition, result: DownlinkResult) -> dict:
     tx, rx, d = result.transmission, result.reception, result.decoded
     bands = []
     for b, band in enumerate(acq.bands):
-        seg = np.searchsorted(d.segment_first_detector, np.arange(d.images[b].shape[1]),
-                              side="right") - 1
-        ok = d.valid[b][:, seg]
+        ok = d.pixel_valid(b)
         got, sent, raw = d.images[b][ok], tx.ground_bands[b][ok], band.counts[ok]
         err = np.abs(got.astype(np.int64) - raw)
         bands.append({

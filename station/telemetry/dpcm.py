@@ -65,8 +65,9 @@ def reconstruction_table() -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     return code, value64
 
 
-def payload_bytes(n_pixels: int) -> int:
-    """Bytes of a coded segment of ``n_pixels``: 1 raw byte, then 6 bits per pixel."""
+def payload_bytes(n_pixels: int | NDArray[np.int64]) -> int | NDArray[np.int64]:
+    """Bytes of a coded segment of ``n_pixels`` (int or array): 1 raw byte, then 6 bits
+    per pixel."""
     return 1 + (6 * (n_pixels - 1) + 7) // 8
 
 

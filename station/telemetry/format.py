@@ -39,7 +39,9 @@ __all__ = [
     "VC_FILL",
     "VC_FRAME_COUNT_MODULUS",
     "ZONE_BYTES",
+    "from_u24",
     "ms_since_cnes_epoch",
+    "u24",
     "vc_of_hrv",
 ]
 
@@ -69,6 +71,18 @@ CNES_EPOCH = np.datetime64("1950-01-01T00:00:00", "ns")
 def vc_of_hrv(hrv: int) -> int:
     """The virtual channel of an HRV's data (1 or 2)."""
     return int(hrv)
+
+
+def u24(values: np.ndarray) -> np.ndarray:
+    """24-bit unsigned values (…) → their 3 big-endian bytes (…, 3)."""
+    v = np.asarray(values, np.int64)
+    return np.stack([v >> 16, (v >> 8) & 0xFF, v & 0xFF], axis=-1).astype(np.uint8)
+
+
+def from_u24(octets: np.ndarray) -> np.ndarray:
+    """3 big-endian bytes (…, 3) → the 24-bit values (…) as int64."""
+    b = np.asarray(octets, np.int64)
+    return (b[..., 0] << 16) | (b[..., 1] << 8) | b[..., 2]
 
 
 def ms_since_cnes_epoch(t0_utc: np.datetime64, t_s: np.ndarray) -> np.ndarray:
