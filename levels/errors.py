@@ -4,7 +4,7 @@ One root, :class:`LevelsError`; each subclass also inherits the builtin a caller
 expect (the rasterio habit), so ``except ValueError`` still works.
 """
 
-__all__ = ["DimapError", "GeometryError", "L0Error", "LevelsError"]
+__all__ = ["DimapError", "GeometryError", "L0Error", "LevelsError", "ProductError"]
 
 
 class LevelsError(Exception):
@@ -21,3 +21,7 @@ class DimapError(LevelsError, ValueError):
 
 class L0Error(LevelsError, ValueError):
     """An L0 pass archive that is missing, truncated, of another format, or inconsistent."""
+
+
+class ProductError(LevelsError, ValueError):
+    """A level product file that is missing, truncated, of another format, or inconsistent."""

@@ -1,0 +1,117 @@
+"""Least-squares polynomials on normalised variables, the form GEO hands to COR.
+
+INPE's 1B maps are cubic polynomials of one variable (paper ``004_…`` eqs. 1–3) and its 2A
+inverse maps polynomials of two variables of order 3 to 5 (§3). Both are fitted here on
+variables centred and scaled to [−1, 1] over the breakpoints, so that the normal equations
+stay well conditioned for images of thousands of pixels; the centre and scale are part of
+the polynomial and are stored with its coefficients.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from levels.errors import GeometryError
+
+__all__ = ["Poly1D", "Poly2D"]
+
+
+def _normaliser(x: NDArray[np.float64]) -> tuple[float, float]:
+    lo, hi = float(np.min(x)), float(np.max(x))
+    if not hi > lo:
+        raise GeometryError(f"breakpoints span no interval ({lo} .. {hi})")
+    return 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+
+@dataclass(frozen=True, eq=False)
+class Poly1D:
+    """``y = Σ coef[k] · u^k`` with ``u = (x − centre) / scale``."""
+
+    coef: NDArray[np.float64]
+    centre: float
+    scale: float
+
+    @classmethod
+    def fit(cls, x: ArrayLike, y: ArrayLike, order: int) -> Poly1D:
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if x.size <= order:
+            raise GeometryError(f"{x.size} breakpoints cannot fix a polynomial of order {order}")
+        centre, scale = _normaliser(x)
+        u = (x - centre) / scale
+        coef, *_ = np.linalg.lstsq(np.vander(u, order + 1, increasing=True), y, rcond=None)
+        return cls(coef, centre, scale)
+
+    def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
+        u = (np.asarray(x, dtype=np.float64) - self.centre) / self.scale
+        return np.polynomial.polynomial.polyval(u, self.coef)
+
+    def derivative(self, x: ArrayLike) -> NDArray[np.float64]:
+        u = (np.asarray(x, dtype=np.float64) - self.centre) / self.scale
+        return np.polynomial.polynomial.polyval(u, np.polynomial.polynomial.polyder(self.coef)) \
+            / self.scale
+
+    def solve(self, y: ArrayLike, x0: ArrayLike, iterations: int = 6) -> NDArray[np.float64]:
+        """``x`` with ``p(x) = y`` by Newton from ``x0`` (the maps are monotonic)."""
+        x = np.array(x0, dtype=np.float64, copy=True)
+        y = np.asarray(y, dtype=np.float64)
+        for _ in range(iterations):
+            x -= (self(x) - y) / self.derivative(x)
+        return x
+
+    def as_array(self) -> NDArray[np.float64]:
+        """``[centre, scale, coef…]``: how products store it."""
+        return np.concatenate([[self.centre, self.scale], self.coef])
+
+    @classmethod
+    def from_array(cls, a: ArrayLike) -> Poly1D:
+        a = np.asarray(a, dtype=np.float64)
+        return cls(a[2:].copy(), float(a[0]), float(a[1]))
+
+
+def _exponents(order: int) -> NDArray[np.int64]:
+    """(p, q) of every monomial ``u^p v^q`` with ``p + q <= order``."""
+    return np.array([(p, t - p) for t in range(order + 1) for p in range(t, -1, -1)],
+                    dtype=np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class Poly2D:
+    """``z = Σ coef[k] · u^p_k v^q_k`` over ``p + q <= order``, ``u``, ``v`` normalised."""
+
+    coef: NDArray[np.float64]
+    order: int
+    centre: tuple[float, float]
+    scale: tuple[float, float]
+
+    @classmethod
+    def fit(cls, x: ArrayLike, y: ArrayLike, z: ArrayLike, order: int) -> Poly2D:
+        x, y, z = (np.asarray(a, dtype=np.float64).ravel() for a in (x, y, z))
+        n_terms = (order + 1) * (order + 2) // 2
+        if x.size < n_terms:
+            raise GeometryError(f"{x.size} breakpoints cannot fix {n_terms} coefficients")
+        cx, sx = _normaliser(x)
+        cy, sy = _normaliser(y)
+        poly = cls(np.zeros(n_terms), order, (cx, cy), (sx, sy))
+        coef, *_ = np.linalg.lstsq(poly._design(x, y), z, rcond=None)
+        return cls(coef, order, (cx, cy), (sx, sy))
+
+    def _design(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
+        u = (x - self.centre[0]) / self.scale[0]
+        v = (y - self.centre[1]) / self.scale[1]
+        pu = np.vander(u, self.order + 1, increasing=True)
+        pv = np.vander(v, self.order + 1, increasing=True)
+        e = _exponents(self.order)
+        return pu[:, e[:, 0]] * pv[:, e[:, 1]]
+
+    def __call__(self, x: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
+        xa, ya = np.broadcast_arrays(np.asarray(x, dtype=np.float64),
+                                     np.asarray(y, dtype=np.float64))
+        return (self._design(xa.ravel(), ya.ravel()) @ self.coef).reshape(xa.shape)
+
+    def as_array(self) -> NDArray[np.float64]:
+        """``[order, cx, cy, sx, sy, coef…]``: how products store it."""
+        return np.concatenate([[self.order, *self.centre, *self.scale], self.coef])

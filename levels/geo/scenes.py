@@ -1,0 +1,194 @@
+"""GEO, once per pass: the pass's geometry and its cutting into scenes.
+
+INPE's GEO (paper ``004_…`` §2.1) takes, for all scenes of a pass:
+
+* the **attitude** from the gyro rates, integrated "assuming a null attitude for the first
+  received attitude rate record" and, per scene, with "the attitude at scene center time ...
+  subtracted ... thus zeroing the scene center attitude" (:func:`integrate_rates`,
+  :meth:`SampledAttitude.zeroed_at`). The absolute attitude is never known to the system
+  levels: the constant offsets ω0, ρ0, κ0 of the truth are what 1B and 2A are off by;
+* the **ephemeris** of the bulletins, by 8-point ("seventh order") Lagrange
+  (:class:`~levels.geometry.ephemeris.Ephemeris`);
+* the **line clock** from the recorded line times;
+* the photogrammetric model of the geometry core, one per scene and band, with the scene's
+  own line numbering (line 0 is the scene's first line);
+* the scene centre and corners, located on the reference surface: the ellipsoid raised by the
+  scene's reference height (the mean altitude a producer takes from a global DEM).
+
+Scenes are cut along the pass every ``length − overlap`` lines; a tail shorter than a
+scene is not a scene (it is reported, not silently dropped: :attr:`PassGeometry.tail_lines`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from levels.errors import GeometryError
+from levels.geometry.attitude import SampledAttitude, integrate_rates
+from levels.geometry.ephemeris import Ephemeris
+from levels.geometry.model import LineClock, PushbroomModel
+from levels.geometry.sensor import LookAngleTable
+from levels.geometry.times import Epoch
+
+__all__ = ["PassGeometry", "SceneCut", "SceneGeometry", "cut_scenes", "pass_geometry"]
+
+
+@dataclass(frozen=True)
+class SceneCut:
+    """One scene of a pass: its first line among the pass's rows, its number of lines."""
+
+    index: int
+    first_line: int
+    n_lines: int
+
+    @property
+    def centre_line(self) -> float:
+        """The scene's centre line, in the scene's own numbering."""
+        return 0.5 * (self.n_lines - 1)
+
+
+def cut_scenes(n_lines: int, scene_lines: int, overlap_lines: int = 0) -> list[SceneCut]:
+    """Scenes of ``scene_lines`` lines every ``scene_lines − overlap_lines`` along a pass.
+
+    A pass shorter than one scene gives one scene of the whole pass.
+    """
+    if scene_lines < 2 or not 0 <= overlap_lines < scene_lines:
+        raise GeometryError(
+            f"scene_lines={scene_lines}, overlap_lines={overlap_lines}: need scene_lines >= 2 "
+            "and 0 <= overlap_lines < scene_lines")
+    if n_lines < 2:
+        raise GeometryError(f"a pass of {n_lines} lines cannot be cut into scenes")
+    if n_lines <= scene_lines:
+        return [SceneCut(0, 0, n_lines)]
+    step = scene_lines - overlap_lines
+    starts = np.arange(0, n_lines - scene_lines + 1, step)
+    return [SceneCut(k, int(s), scene_lines) for k, s in enumerate(starts)]
+
+
+@dataclass(frozen=True, eq=False)
+class SceneGeometry:
+    """GEO's result for one scene: the model of each band, centre and corners.
+
+    ``corners_lat_rad`` / ``corners_lon_rad`` are in the order first line first column,
+    first line last column, last line last column, last line first column (clockwise on a
+    descending pass).
+    """
+
+    cut: SceneCut
+    t_centre_s: float
+    models: dict[str, PushbroomModel]
+    attitude_at_centre_rad: NDArray[np.float64]
+    reference_height_m: float
+    centre_lat_rad: float
+    centre_lon_rad: float
+    corners_lat_rad: NDArray[np.float64]
+    corners_lon_rad: NDArray[np.float64]
+
+    def attitude_lines(self) -> NDArray[np.float64]:
+        """Scene lines at the attitude samples, with the first and last line: where the
+        model's attitude (linear between samples) changes slope."""
+        model = self.model
+        att = model.attitude
+        inner = model.clock.line(att.t_s)  # type: ignore[attr-defined]
+        last = self.cut.n_lines - 1.0
+        inner = inner[(inner > 1.0) & (inner < last - 1.0)]
+        return np.concatenate([[0.0], inner, [last]])
+
+    @property
+    def model(self) -> PushbroomModel:
+        """The model of the first band (the scene's geometry for level 1B/2A grids)."""
+        return next(iter(self.models.values()))
+
+
+@dataclass(frozen=True, eq=False)
+class PassGeometry:
+    """GEO's inputs for a whole pass, from the L0 archive.
+
+    Parameters
+    ----------
+    epoch
+        Origin of every ``t_s``.
+    line_t_s
+        Time of each row of the pass (s), from the line clock.
+    line_period_s
+        Nominal line period (s).
+    ephemeris
+        The bulletins (positions and velocities in ECEF).
+    attitude
+        Attitude integrated from the gyro rates, null at the first record.
+    look_angles
+        Nominal look-angle table of each band (mirror included).
+    """
+
+    epoch: Epoch
+    line_t_s: NDArray[np.float64]
+    line_period_s: float
+    ephemeris: Ephemeris
+    attitude: SampledAttitude
+    look_angles: dict[str, LookAngleTable]
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.line_t_s, dtype=np.float64)
+        if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
+            raise GeometryError("line times must be a 1-D increasing array of at least 2 lines")
+        object.__setattr__(self, "line_t_s", t)
+
+    @property
+    def n_lines(self) -> int:
+        return int(self.line_t_s.size)
+
+    def clock(self, first_line: int) -> LineClock:
+        """Line clock of a scene starting at row ``first_line``: a straight line fitted to
+        the recorded times of the whole pass (they come from one fitted clock already)."""
+        rows = np.arange(self.n_lines, dtype=np.float64)
+        period, t0 = np.polyfit(rows, self.line_t_s, 1)
+        return LineClock(float(t0 + period * first_line), 0.0, float(period))
+
+    def scene(self, cut: SceneCut, reference_height_m: float = 0.0) -> SceneGeometry:
+        """GEO for one scene: models with the attitude zeroed at the scene centre, centre
+        and corners on the reference surface."""
+        clock = self.clock(cut.first_line)
+        t_c = float(clock.time_s(cut.centre_line))
+        att = self.attitude.zeroed_at(t_c)  # INPE §2.1: null attitude at scene centre
+        at_centre = self.attitude.angles_rad(np.array([t_c]))[0]
+        models = {name: PushbroomModel(self.epoch, clock, self.ephemeris, att, look, cut.n_lines)
+                  for name, look in self.look_angles.items()}
+        model = next(iter(models.values()))
+        nl, nc = cut.n_lines - 1, model.n_columns - 1
+        line = np.array([cut.centre_line, 0, 0, nl, nl], dtype=np.float64)
+        col = np.array([0.5 * nc, 0, nc, nc, 0], dtype=np.float64)
+        g = model.image_to_ground(line, col, reference_height_m)
+        if not np.all(g.ok):
+            raise GeometryError(
+                f"scene {cut.index}: centre or corners not located (ephemeris span "
+                f"{self.ephemeris.span_s} s, scene centre at {t_c:.3f} s)")
+        return SceneGeometry(cut, t_c, models, at_centre, reference_height_m,
+                             float(g.lat_rad[0]), float(g.lon_rad[0]), g.lat_rad[1:],
+                             g.lon_rad[1:])
+
+    def scenes(self, scene_lines: int, overlap_lines: int = 0,
+               reference_height_m: float = 0.0) -> list[SceneGeometry]:
+        """GEO for every scene of the pass (:func:`cut_scenes`)."""
+        return [self.scene(c, reference_height_m)
+                for c in cut_scenes(self.n_lines, scene_lines, overlap_lines)]
+
+    def tail_lines(self, scene_lines: int, overlap_lines: int = 0) -> int:
+        """Rows after the last whole scene (not processed)."""
+        cuts = cut_scenes(self.n_lines, scene_lines, overlap_lines)
+        return self.n_lines - (cuts[-1].first_line + cuts[-1].n_lines)
+
+
+def pass_geometry(epoch: Epoch, line_t_s: NDArray[np.float64], line_period_s: float,
+                  ephemeris: Ephemeris, gyro_t_s: NDArray[np.float64],
+                  gyro_rates_rad_per_s: NDArray[np.float64],
+                  look_angles: dict[str, LookAngleTable]) -> PassGeometry:
+    """GEO's pass set-up: integrate the gyro rates from a null attitude at the first record."""
+    order = np.argsort(gyro_t_s, kind="stable")
+    t, keep = np.unique(np.asarray(gyro_t_s)[order], return_index=True)
+    rates = np.asarray(gyro_rates_rad_per_s)[order][keep]
+    attitude = integrate_rates(t, rates)  # INPE §2.1: null attitude at the first record
+    return PassGeometry(epoch, np.asarray(line_t_s, float), float(line_period_s), ephemeris,
+                        attitude, dict(look_angles))
