@@ -36,6 +36,7 @@ __all__ = [
     "InstrumentConfig",
     "OrbitConfig",
     "PassConfig",
+    "ProcessingConfig",
     "Scenario",
     "ScenarioError",
     "WorldConfig",
@@ -62,6 +63,8 @@ def _key(
     ``default`` is given in TOML units (degrees, km, µrad) and converted like a read value.
     """
     meta = {"key": key, "doc": doc, "scale": scale, "lo": lo, "hi": hi, "choices": choices}
+    if isinstance(default, list | tuple) and all(isinstance(v, str) for v in default):
+        return field(default=tuple(default), metadata=meta)
     if isinstance(default, list | tuple):
         si = tuple(float(v) * scale for v in default)
         return field(default=si, metadata=meta)
@@ -336,6 +339,52 @@ class ChannelConfig:
                                  lo=1, hi=1000)
 
 
+@dataclass(frozen=True)
+class ProcessingConfig:
+    """The processing centre: which levels, how scenes are cut, GEO's and COR's options.
+
+    The reference height is the scene's mean altitude the producer would take from a global
+    DEM: levels 1B and 2A are located on the ellipsoid raised by it. The PSF is the
+    instrument's nominal one, which the deconvolution of 1B and 2A inverts.
+    """
+
+    levels: tuple[str, ...] = _key(["1A", "1B", "2A"], "levels", "levels to produce",
+                                   choices=("1A", "1B", "2A"))
+    scene_lines: int = _key(0, "scene_lines", "lines per scene (0: as many as detectors)",
+                            lo=0, hi=10**6)
+    overlap_lines: int = _key(0, "overlap_lines", "lines shared by consecutive scenes",
+                              lo=0, hi=10**6)
+    reference_height_m: float = _key(450.0, "reference_height_m",
+                                     "mean scene altitude of levels 1B and 2A", 1.0,
+                                     -500.0, 9000.0)
+    pixel_size_m: float = _key(0.0, "pixel_size_m",
+                               "output pixel (0: 10 m P, 20 m XS, times the detector scale)",
+                               1.0, 0.0, 10000.0)
+    interpolation_1b: str = _key("cubic", "interpolation_1b", "1B column interpolation",
+                                 choices=("nearest", "cubic"))
+    resampling_2a: str = _key("cubic", "resampling_2a", "2A resampling",
+                              choices=("nearest", "bilinear", "cubic"))
+    inverse_2a: str = _key("nearest4", "inverse_2a", "2A inverse mapping",
+                           choices=("nearest4", "poly3", "poly4", "poly5"))
+    grid_rows: str = _key("attitude", "grid_rows",
+                          "2A direct-grid rows: at the attitude samples or INPE's regular 61",
+                          choices=("attitude", "regular"))
+    crs: str = _key("utm", "crs", "2A map: 'utm' (zone of the centre), 'som', or EPSG/WKT")
+    deconvolution: bool = _key(True, "deconvolution", "deconvolve 1B and 2A")
+    psf_fwhm_px: float = _key(1.2, "psf_fwhm_px", "nominal PSF of the instrument (FWHM)",
+                              1.0, 0.0, 5.0)
+    noise_to_signal: float = _key(0.05, "noise_to_signal",
+                                  "Wiener noise-to-signal ratio of the deconvolution", 1.0,
+                                  1e-4, 10.0)
+    checkpoints_per_side: int = _key(11, "checkpoints_per_side",
+                                     "checkpoint lattice of the quality figures", lo=2, hi=101)
+
+    def __post_init__(self) -> None:
+        if self.overlap_lines and self.scene_lines and self.overlap_lines >= self.scene_lines:
+            raise ScenarioError(f"[processing] overlap_lines = {self.overlap_lines} must be "
+                                f"less than scene_lines = {self.scene_lines}")
+
+
 _SECTIONS = {
     "orbit": OrbitConfig,
     "pass": PassConfig,
@@ -348,6 +397,7 @@ _SECTIONS = {
     "gcps": GcpConfig,
     "downlink": DownlinkConfig,
     "channel": ChannelConfig,
+    "processing": ProcessingConfig,
 }
 
 
@@ -372,6 +422,7 @@ class Scenario:
     gcps: GcpConfig = field(default_factory=GcpConfig)
     downlink: DownlinkConfig = field(default_factory=DownlinkConfig)
     channel: ChannelConfig = field(default_factory=ChannelConfig)
+    processing: ProcessingConfig = field(default_factory=ProcessingConfig)
     base_dir: str = "."
 
     def path(self, relative: str) -> Path:
@@ -381,6 +432,8 @@ class Scenario:
 
 
 def _describe(meta: dict[str, Any], typ: Any) -> str:
+    if meta["choices"] and typing.get_args(typ) == (str, Ellipsis):
+        return "a list, without repeats, of " + ", ".join(repr(c) for c in meta["choices"])
     if meta["choices"]:
         return "one of " + ", ".join(repr(c) for c in meta["choices"])
     kind = {int: "an integer", float: "a number", str: "a string", bool: "true or false"}.get(
@@ -426,6 +479,11 @@ def _convert(section: str, f: Any, typ: Any, value: Any) -> Any:
         return value
     if typ is float:
         return number(value)
+    if typing.get_args(typ) == (str, Ellipsis):
+        if (not isinstance(value, list) or not value or len(set(value)) != len(value)
+                or any(v not in (meta["choices"] or ()) for v in value)):
+            raise bad()
+        return tuple(value)
     if typing.get_origin(typ) is tuple:
         n = len(typing.get_args(typ))
         if not isinstance(value, list) or len(value) != n:

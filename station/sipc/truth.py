@@ -1,0 +1,125 @@
+"""The truth behind a processed pass: where each raw pixel truly looks, and what it sees.
+
+Checkpoints are a lattice of raw pixels of a scene. For each, two truths:
+
+* the **line of sight**: the truth orbit, attitude and look angles, met with the product's
+  own reference surface (the 1B tangent plane, or the ellipsoid raised by the reference
+  height for 2A). The product's position of the pixel minus this is the error of the
+  geometric chain (ephemeris, attitude, look angles, clock, approximations) alone;
+* the **ground**: the point of the world's terrain the pixel truly sees. The product's
+  position minus this adds the relief displacement ``(h − h_ref)·tan θ`` that only a DEM
+  (level 3) removes.
+
+The truth is measured in the emulator's own time base and line numbering; L0 rows are
+matched to emulator lines by their time (the line clock is good to well under a line).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyproj
+from numpy.typing import NDArray
+
+from levels.geo.level1b import Level1BGeometry
+from levels.geo.level2a import Level2AGeometry
+from levels.geo.scenes import SceneGeometry
+from levels.geometry.model import PushbroomModel
+from levels.quality import error_stats
+from levels.readers.l0 import L0Archive
+from station.spacecraft.emulator import Acquisition, truth_model
+from station.spacecraft.imaging import trace_pixels
+
+__all__ = ["Truth", "checkpoints_1b", "checkpoints_2a"]
+
+
+@dataclass(eq=False)
+class Truth:
+    """An acquisition and how the L0 archive's rows map onto its lines."""
+
+    acq: Acquisition
+    row_offset: int
+    _models: dict[int, PushbroomModel] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, acq: Acquisition, archive: L0Archive) -> Truth:
+        shift = float((archive.epoch.t0_utc - acq.epoch.t0_utc) / np.timedelta64(1, "ns")) * 1e-9
+        t0 = archive.line_t_s[0] + shift  # row 0 in the emulator's time base
+        offset = int(np.rint((t0 - acq.line_times_s[0]) / acq.hrv.line_period_s))
+        return cls(acq, offset)
+
+    def model(self, band: int) -> PushbroomModel:
+        if band not in self._models:
+            self._models[band] = truth_model(self.acq, band)
+        return self._models[band]
+
+    def lattice(self, scene: SceneGeometry, per_side: int
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Checkpoint lines (scene numbering) and columns: whole pixels, as a real
+        checkpoint is measured (a fractional column may fall between two butted CCDs)."""
+        line, col = np.meshgrid(np.rint(np.linspace(0, scene.cut.n_lines - 1, per_side)),
+                                np.rint(np.linspace(0, scene.model.n_columns - 1, per_side)),
+                                indexing="ij")
+        return line.ravel(), col.ravel()
+
+    def truth_lines(self, scene: SceneGeometry, line: NDArray[np.float64]) -> NDArray:
+        return line + scene.cut.first_line + self.row_offset
+
+    def ground(self, band: int, lines: NDArray[np.float64], col: NDArray[np.float64]
+               ) -> NDArray[np.float64]:
+        """ECEF points of the terrain truly seen (NaN where the ray missed), (N, 3)."""
+        acq = self.acq
+        t = acq.line_times_s[0] + lines * acq.hrv.line_period_s
+        pts, ok = trace_pixels(acq.orbit, acq.attitude, acq.hrv.bands[band], acq.world, t, col)
+        g = self.model(band).ellipsoid.to_ecef(pts[:, 0], pts[:, 1], pts[:, 2])
+        g[~ok] = np.nan
+        return g
+
+
+def checkpoints_1b(truth: Truth, scene: SceneGeometry, geom: Level1BGeometry, band: int,
+                   per_side: int) -> dict:
+    """Checkpoint errors of a 1B product on its tangent plane (X south, Y east)."""
+    line, col = truth.lattice(scene, per_side)
+    i, j = geom.corrected_of(line, col)
+    x, y = geom.plane_xy(i, j)
+    tl = truth.truth_lines(scene, line)
+    r, los = truth.model(band).sight(tl, col)
+    xt, yt = geom.plane.intersect(r, los)
+    g = truth.ground(band, tl, col) - geom.plane.origin_ecef_m
+    xg, yg = g @ geom.plane.x_axis, g @ geom.plane.y_axis
+    res = geom.pixel_size_m
+    return {"axes": "1: X (south), 2: Y (east) of the tangent plane",
+            "line_of_sight": error_stats(x - xt, y - yt, res),
+            "ground": error_stats(x - xg, y - yg, res),
+            "raw_line": line, "raw_column": col, "error_x_m": x - xt, "error_y_m": y - yt}
+
+
+def checkpoints_2a(truth: Truth, scene: SceneGeometry, geom: Level2AGeometry, band: int,
+                   per_side: int) -> dict:
+    """Checkpoint errors of a 2A product in its map (easting, northing)."""
+    line, col = truth.lattice(scene, per_side)
+    h_ref = scene.reference_height_m
+    crs = pyproj.CRS.from_wkt(geom.crs_wkt)
+    to_map = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+
+    def en(lat: NDArray, lon: NDArray) -> tuple[NDArray, NDArray]:
+        e, n = to_map.transform(np.degrees(lon), np.degrees(lat))
+        return np.asarray(e), np.asarray(n)
+
+    model = scene.models[list(scene.models)[band]]
+    p = model.image_to_ground(line, col, h_ref)
+    i0, j0 = geom.ij_of_map(*en(p.lat_rad, p.lon_rad))
+    i, j = geom.output_of(line, col, (i0, j0))
+    e, n = geom.map_of(i, j)
+    tl = truth.truth_lines(scene, line)
+    t = truth.model(band).image_to_ground(tl, col, h_ref)
+    et, nt = en(t.lat_rad, t.lon_rad)
+    g = truth.ground(band, tl, col)
+    lat, lon, _h = truth.model(band).ellipsoid.to_geodetic(g)
+    eg, ng = en(lat, lon)
+    res = geom.pixel_size_m
+    return {"axes": "1: easting, 2: northing of the map",
+            "line_of_sight": error_stats(e - et, n - nt, res),
+            "ground": error_stats(e - eg, n - ng, res),
+            "raw_line": line, "raw_column": col, "error_e_m": e - et, "error_n_m": n - nt}
