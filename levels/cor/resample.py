@@ -30,14 +30,16 @@ from numpy.typing import NDArray
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
 
-__all__ = ["INTERPOLATIONS_1B", "RESAMPLINGS_2A", "resample_1b", "resample_2a"]
+__all__ = ["INTERPOLATIONS_1B", "RESAMPLINGS_2A", "resample_1b", "resample_2a", "with_nan"]
 
 INTERPOLATIONS_1B = ("nearest", "cubic")
 RESAMPLINGS_2A = ("nearest", "bilinear", "cubic")
 _A = -0.5  # Keys' parameter
+#: Fused multiply-adds and reassociation, but NaN kept: NaN marks pixels that are not valid.
+_FAST = {"contract", "arcp", "nsz", "reassoc"}
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
 def _keys(t: float) -> tuple[float, float, float, float]:
     """Keys cubic-convolution weights of the four neighbours at fractional offset t ∈ [0, 1)."""
     t2 = t * t
@@ -49,7 +51,7 @@ def _keys(t: float) -> tuple[float, float, float, float]:
     return w0, w1, w2, w3
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
 def _poly(p: NDArray[np.float64], x: float) -> float:
     """Horner on a stored ``[centre, scale, coef…]`` polynomial."""
     u = (x - p[0]) / p[1]
@@ -59,7 +61,7 @@ def _poly(p: NDArray[np.float64], x: float) -> float:
     return acc
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
 def _store(v: float) -> np.uint8:
     if v <= 0.0:
         return np.uint8(0)
@@ -68,7 +70,7 @@ def _store(v: float) -> np.uint8:
     return np.uint8(np.floor(v + 0.5))
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, fastmath=_FAST)
 def _kernel_1b(img, valid, f, g, h, row0, col0, cubic, out, ok):
     n_lines, n_cols = img.shape
     for r in nb.prange(out.shape[0]):
@@ -119,102 +121,169 @@ def resample_1b(image: NDArray[np.float32], valid: NDArray[np.bool_], geom: Leve
     return out, ok
 
 
-@nb.njit(cache=True, inline="always")
-def _grid(z, a, b, u, v):
-    return ((1.0 - u) * ((1.0 - v) * z[a, b] + v * z[a, b + 1])
-            + u * ((1.0 - v) * z[a + 1, b] + v * z[a + 1, b + 1]))
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
+def _sample_column(img, line, c, n_lines, cubic):
+    """One raw column interpolated along track at ``line``: bilinear or Keys (NaN if a pixel
+    used is not valid; edge lines replicated)."""
+    lf = int(np.floor(line))
+    if not cubic:
+        t = line - lf
+        l0 = min(max(lf, 0), n_lines - 1)
+        l1 = min(max(lf + 1, 0), n_lines - 1)
+        return (1.0 - t) * img[l0, c] + t * img[l1, c]
+    wl = _keys(line - lf)
+    acc = 0.0
+    for q in range(4):
+        acc += wl[q] * img[min(max(lf - 1 + q, 0), n_lines - 1), c]
+    return acc
 
 
-@nb.njit(cache=True, inline="always")
-def _segment(seg_first, c):
-    s = 0
-    for k in range(1, seg_first.size):
-        if c >= seg_first[k]:
-            s = k
-    return s
-
-
-@nb.njit(cache=True, parallel=True)
-def _kernel_2a(img, valid, rows0, step_i, cols0, step_j, inv_line, inv_col, seg_first,
-               row0, col0, method, out, ok):
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
+def _pixel_2a(img, c, b, v, line_row, seg_of, method):
+    """Value of one output pixel (NaN if not valid or outside): the raw image at column ``c``
+    and, per column sampled, the line of its segment from the row's inverse grid."""
     n_lines, n_cols = img.shape
-    _n_seg, na, nb_ = inv_line.shape
-    for r in nb.prange(out.shape[0]):
-        i = float(row0 + r)
-        a = min(max(int(np.floor((i - rows0) / step_i)), 0), na - 2)
-        u = (i - (rows0 + a * step_i)) / step_i
-        for k in range(out.shape[1]):
-            out[r, k] = 0
-            ok[r, k] = False
-            j = float(col0 + k)
-            b = min(max(int(np.floor((j - cols0) / step_j)), 0), nb_ - 2)
-            v = (j - (cols0 + b * step_j)) / step_j
-            c = _grid(inv_col, a, b, u, v)
-            if c < -0.5 or c > n_cols - 0.5:
-                continue
-            if method == 0:  # nearest
-                ci = min(max(int(np.floor(c + 0.5)), 0), n_cols - 1)
-                line = _grid(inv_line[_segment(seg_first, ci)], a, b, u, v)
-                li = int(np.floor(line + 0.5))
-                if 0 <= li < n_lines and valid[li, ci]:
-                    out[r, k] = _store(img[li, ci])
-                    ok[r, k] = True
-                continue
-            cf = int(np.floor(c))
-            n_taps = 2 if method == 1 else 4
-            first = cf if method == 1 else cf - 1
-            if method == 1:
-                t = c - cf
-                wc = (1.0 - t, t, 0.0, 0.0)
-            else:
-                wc = _keys(c - cf)
-            s_prev = -1
-            line = 0.0
-            acc = 0.0
-            good = True
-            for m in range(n_taps):
-                cm = min(max(first + m, 0), n_cols - 1)
-                s = _segment(seg_first, cm)
-                if s != s_prev:
-                    line = _grid(inv_line[s], a, b, u, v)
-                    s_prev = s
-                if line < -0.5 or line > n_lines - 0.5:
-                    good = False
-                    break
-                lf = int(np.floor(line))
-                col_acc = 0.0
-                if method == 1:
-                    t = line - lf
-                    l0 = min(max(lf, 0), n_lines - 1)
-                    l1 = min(max(lf + 1, 0), n_lines - 1)
-                    good &= valid[l0, cm] & valid[l1, cm]
-                    col_acc = (1.0 - t) * img[l0, cm] + t * img[l1, cm]
-                else:
-                    wl = _keys(line - lf)
-                    for q in range(4):
-                        lq = min(max(lf - 1 + q, 0), n_lines - 1)
-                        good &= valid[lq, cm]
-                        col_acc += wl[q] * img[lq, cm]
-                acc += wc[m] * col_acc
-            if good:
-                out[r, k] = _store(acc)
-                ok[r, k] = True
+    nan = np.float32(np.nan)
+    if not (c >= -0.5 and c <= n_cols - 0.5):
+        return nan
+    if method == 0:  # nearest
+        ci = min(max(int(np.floor(c + 0.5)), 0), n_cols - 1)
+        s = seg_of[ci]
+        line = (1.0 - v) * line_row[s, b] + v * line_row[s, b + 1]
+        li = int(np.floor(line + 0.5))
+        if 0 <= li < n_lines:
+            return img[li, ci]
+        return nan
+    cubic = method == 2
+    cf = int(np.floor(c))
+    first = cf - 1 if cubic else cf
+    last = cf + 2 if cubic else cf + 1
+    s0 = seg_of[min(max(first, 0), n_cols - 1)]
+    s1 = seg_of[min(max(last, 0), n_cols - 1)]
+    line = (1.0 - v) * line_row[s0, b] + v * line_row[s0, b + 1]
+    if not (line >= -0.5 and line <= n_lines - 0.5):
+        return nan
+    lf = int(np.floor(line))
+    if cubic:
+        wc = _keys(c - cf)
+    else:
+        wc = (1.0 - (c - cf), c - cf, 0.0, 0.0)
+    if s0 == s1 and cubic and first >= 0 and last < n_cols and lf >= 1 and lf + 2 < n_lines:
+        # interior, one segment: 4 × 4 separable, row by row (contiguous loads)
+        t = c - cf
+        t2 = t * t
+        t3 = t2 * t
+        c0 = _A * (t3 - 2.0 * t2 + t)
+        c1 = (_A + 2.0) * t3 - (_A + 3.0) * t2 + 1.0
+        c2 = -(_A + 2.0) * t3 + (2.0 * _A + 3.0) * t2 - _A * t
+        c3 = _A * (t2 - t3)
+        t = line - lf
+        t2 = t * t
+        t3 = t2 * t
+        r0 = _A * (t3 - 2.0 * t2 + t)
+        r1 = (_A + 2.0) * t3 - (_A + 3.0) * t2 + 1.0
+        r2 = -(_A + 2.0) * t3 + (2.0 * _A + 3.0) * t2 - _A * t
+        r3 = _A * (t2 - t3)
+        lo = lf - 1
+        return (r0 * (c0 * img[lo, first] + c1 * img[lo, first + 1] + c2 * img[lo, first + 2]
+                      + c3 * img[lo, first + 3])
+                + r1 * (c0 * img[lo + 1, first] + c1 * img[lo + 1, first + 1]
+                        + c2 * img[lo + 1, first + 2] + c3 * img[lo + 1, first + 3])
+                + r2 * (c0 * img[lo + 2, first] + c1 * img[lo + 2, first + 1]
+                        + c2 * img[lo + 2, first + 2] + c3 * img[lo + 2, first + 3])
+                + r3 * (c0 * img[lo + 3, first] + c1 * img[lo + 3, first + 1]
+                        + c2 * img[lo + 3, first + 2] + c3 * img[lo + 3, first + 3]))
+    acc = 0.0
+    for m in range(last - first + 1):
+        cm = min(max(first + m, 0), n_cols - 1)
+        lm = line
+        sm = seg_of[cm]
+        if sm != s0:
+            lm = (1.0 - v) * line_row[sm, b] + v * line_row[sm, b + 1]
+        acc += wc[m] * _sample_column(img, lm, cm, n_lines, cubic)
+    return acc
 
 
-def resample_2a(image: NDArray[np.float32], valid: NDArray[np.bool_], geom: Level2AGeometry,
+#: Output block processed by one task: rows × columns, sized so that the raw pixels it
+#: reads stay in cache (the raw footprint of a block is about as large as the block).
+_BLOCK_ROWS = 32
+_BLOCK_COLS = 256
+
+
+@nb.njit(cache=True, parallel=True, fastmath=_FAST)
+def _kernel_2a(img, step_i, step_j, inv_line, inv_col, seg_of, row0, col0, method, out, ok):
+    """``img`` is float32 with NaN where not valid; ``inv_line`` (segments, rows, cols) and
+    ``inv_col`` on a grid of integer steps from output pixel (0, 0); ``seg_of`` the segment
+    of each raw column.
+
+    Blocks of output rows run in parallel, each swept in blocks of columns. Every pixel's
+    value depends only on its own (row, column): tiles give the same bytes as the whole.
+    """
+    n_seg, na, nb_ = inv_line.shape
+    n_out_rows, n_out_cols = out.shape
+    n_blocks = (n_out_rows + _BLOCK_ROWS - 1) // _BLOCK_ROWS
+    inv_step_i = 1.0 / step_i
+    inv_step_j = 1.0 / step_j
+    for blk in nb.prange(n_blocks):
+        r_lo = blk * _BLOCK_ROWS
+        r_hi = min(r_lo + _BLOCK_ROWS, n_out_rows)
+        # the inverse grid interpolated to each output row of the block, once per row
+        col_rows = np.empty((r_hi - r_lo, nb_))
+        line_rows = np.empty((r_hi - r_lo, n_seg, nb_))
+        for r in range(r_lo, r_hi):
+            a = min((row0 + r) // step_i, na - 2)
+            u = (row0 + r - a * step_i) * inv_step_i
+            col_rows[r - r_lo] = (1.0 - u) * inv_col[a] + u * inv_col[a + 1]
+            for s in range(n_seg):
+                line_rows[r - r_lo, s] = (1.0 - u) * inv_line[s, a] + u * inv_line[s, a + 1]
+        for k_lo in range(0, n_out_cols, _BLOCK_COLS):
+            k_hi = min(k_lo + _BLOCK_COLS, n_out_cols)
+            for r in range(r_lo, r_hi):
+                col_row = col_rows[r - r_lo]
+                line_row = line_rows[r - r_lo]
+                # cell by cell, so that the cell index costs no division per pixel
+                k = k_lo
+                while k < k_hi:
+                    b = min((col0 + k) // step_j, nb_ - 2)
+                    k_end = k_hi if b == nb_ - 2 else min(k_hi, (b + 1) * step_j - col0)
+                    c_b, c_b1 = col_row[b], col_row[b + 1]
+                    for kk in range(k, k_end):
+                        v = (col0 + kk - b * step_j) * inv_step_j
+                        c = (1.0 - v) * c_b + v * c_b1
+                        val = _pixel_2a(img, c, b, v, line_row, seg_of, method)
+                        if val == val:
+                            out[r, kk] = _store(val)
+                            ok[r, kk] = True
+                        else:
+                            out[r, kk] = 0
+                            ok[r, kk] = False
+                    k = k_end
+
+
+def with_nan(image: NDArray[np.float32], valid: NDArray[np.bool_]) -> NDArray[np.float32]:
+    """The image as the 2A kernel reads it: float32, NaN where not valid."""
+    return np.where(valid, image, np.float32(np.nan)).astype(np.float32, copy=False)
+
+
+def resample_2a(image: NDArray[np.float32], valid: NDArray[np.bool_] | None,
+                geom: Level2AGeometry,
                 resampling: str = "cubic", rows: slice | None = None,
                 cols: slice | None = None) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
-    """Level 2A image (or a tile of it) and its mask, through ``geom``'s inverse grid."""
+    """Level 2A image (or a tile of it) and its mask, through ``geom``'s inverse grid.
+
+    ``valid=None`` means ``image`` already holds NaN where not valid (:func:`with_nan`),
+    which spares a copy when several tiles or levels read the same image.
+    """
     if resampling not in RESAMPLINGS_2A:
         raise ValueError(f"2A resampling {resampling!r}: expected one of {RESAMPLINGS_2A}")
     r0, r1, _ = (rows or slice(0, geom.n_rows)).indices(geom.n_rows)
     c0, c1, _ = (cols or slice(0, geom.n_cols)).indices(geom.n_cols)
     out = np.empty((r1 - r0, c1 - c0), dtype=np.uint8)
     ok = np.empty(out.shape, dtype=bool)
-    ri, ci = geom.inverse_rows, geom.inverse_cols
-    _kernel_2a(np.ascontiguousarray(image, dtype=np.float32), np.ascontiguousarray(valid),
-               float(ri[0]), float(ri[1] - ri[0]), float(ci[0]), float(ci[1] - ci[0]),
+    step_i, step_j = geom.inverse_step
+    img = image if valid is None else with_nan(image, valid)
+    seg_of = geom.segment_of(np.arange(img.shape[1])).astype(np.int64)
+    _kernel_2a(np.ascontiguousarray(img, dtype=np.float32), step_i, step_j,
                np.ascontiguousarray(geom.inverse_line), np.ascontiguousarray(geom.inverse_column),
-               geom.segment_first_column.astype(np.float64), r0, c0,
-               RESAMPLINGS_2A.index(resampling), out, ok)
+               seg_of, r0, c0, RESAMPLINGS_2A.index(resampling), out, ok)
     return out, ok

@@ -168,6 +168,16 @@ class Level2AGeometry:
     n_raw_columns: int
 
     @property
+    def inverse_step(self) -> tuple[int, int]:
+        """Spacing of the inverse grid in output rows and columns (integers, from 0)."""
+        si = self.inverse_rows[1] - self.inverse_rows[0]
+        sj = self.inverse_cols[1] - self.inverse_cols[0]
+        if self.inverse_rows[0] != 0 or self.inverse_cols[0] != 0 or si != int(si) \
+                or sj != int(sj):
+            raise GeometryError("the inverse grid must start at 0 with integer steps")
+        return int(si), int(sj)
+
+    @property
     def geotransform(self) -> tuple[float, float, float, float, float, float]:
         """GDAL geotransform of the output grid (upper-left corner of the first pixel)."""
         return (self.x_min_m, self.pixel_size_m, 0.0, self.y_max_m, 0.0, -self.pixel_size_m)
@@ -322,19 +332,19 @@ def _order(method: str) -> int:
 
 def bilinear_grid(rows: NDArray[np.float64], cols: NDArray[np.float64],
                   z: NDArray[np.float64], i: ArrayLike, j: ArrayLike) -> NDArray[np.float64]:
-    """Bilinear interpolation of a field on a regular grid (extrapolated at the edges).
-
-    The same arithmetic as the resampling kernels, so that products and checks agree.
-    """
+    """Bilinear interpolation of a field on a grid of integer steps from (0, 0), extrapolated
+    at the far edges: the arithmetic of the 2A kernel, first along rows then columns, so that
+    checks and products agree to the last bit."""
     i_a, j_a = np.broadcast_arrays(np.asarray(i, dtype=np.float64),
                                    np.asarray(j, dtype=np.float64))
     step_i, step_j = rows[1] - rows[0], cols[1] - cols[0]
-    a = np.clip(np.floor((i_a - rows[0]) / step_i).astype(np.int64), 0, rows.size - 2)
-    b = np.clip(np.floor((j_a - cols[0]) / step_j).astype(np.int64), 0, cols.size - 2)
-    u = (i_a - rows[a]) / step_i
-    v = (j_a - cols[b]) / step_j
-    return ((1 - u) * ((1 - v) * z[a, b] + v * z[a, b + 1])
-            + u * ((1 - v) * z[a + 1, b] + v * z[a + 1, b + 1]))
+    a = np.clip(np.floor(i_a / step_i).astype(np.int64), 0, rows.size - 2)
+    b = np.clip(np.floor(j_a / step_j).astype(np.int64), 0, cols.size - 2)
+    u = (i_a - a * step_i) * (1.0 / step_i)
+    v = (j_a - b * step_j) * (1.0 / step_j)
+    at_b = (1.0 - u) * z[a, b] + u * z[a + 1, b]
+    at_b1 = (1.0 - u) * z[a, b + 1] + u * z[a + 1, b + 1]
+    return (1.0 - v) * at_b + v * at_b1
 
 
 def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,

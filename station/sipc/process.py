@@ -36,7 +36,7 @@ from levels.cor.radiometry import (
     stripe_level,
     to_counts,
 )
-from levels.cor.resample import resample_1b, resample_2a
+from levels.cor.resample import resample_1b, resample_2a, with_nan
 from levels.geo.level1b import Level1BGeometry, level1b_geometry
 from levels.geo.level2a import INVERSE_METHODS, Level2AGeometry, level2a_geometry, map_crs
 from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
@@ -217,7 +217,8 @@ def _process_scene(archive: L0Archive, pg: PassGeometry, scene: SceneGeometry,
             timings["1B"] = timings.get("1B", 0.0) + clock() - t
         if g2a is not None:
             t = clock()
-            images["2A"][bname] = BandImage(*resample_2a(dec, dvalid, g2a, cfg.resampling_2a))
+            images["2A"][bname] = BandImage(*resample_2a(with_nan(dec, dvalid), None, g2a,
+                                                         cfg.resampling_2a))
             timings["2A"] = timings.get("2A", 0.0) + clock() - t
     t = clock()
     quality = _quality(scene, cfg, g1b, g2a, stripes, taps, truth, list(archive.bands))
