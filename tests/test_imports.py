@@ -53,3 +53,16 @@ def test_the_walker_sees_a_wrong_way_import(tmp_path: Path) -> None:
     bad = tmp_path / "bad.py"
     bad.write_text("import numpy\nfrom station.cli import main\n")
     assert "station.cli" in _imports(bad)
+
+
+@pytest.mark.parametrize(
+    "path", _modules("levels/geo") + _modules("levels/cor"),
+    ids=lambda p: str(p.relative_to(ROOT)))
+def test_geo_and_cor_are_numerical(path: Path) -> None:
+    forbidden = ("h5py", "levels.readers", "levels.products", "rasterio")
+    if "levels/geo" in str(path):
+        forbidden += ("levels.cor",)  # GEO computes, COR applies: never the other way
+    bad = sorted(
+        n for n in _imports(path) if any(n == f or n.startswith(f + ".") for f in forbidden)
+    )
+    assert not bad, f"{path.relative_to(ROOT)} imports {bad}: GEO and COR do no I/O"

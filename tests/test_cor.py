@@ -1,0 +1,126 @@
+"""COR: calibration, deconvolution, and the resampling kernels of 1B and 2A."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from levels.cor.radiometry import (
+    calibrate,
+    deconvolution_taps,
+    deconvolve,
+    mtf,
+    stripe_level,
+    to_counts,
+)
+from levels.cor.resample import resample_1b, resample_2a, with_nan
+from levels.geo.level1b import level1b_geometry
+from levels.geo.level2a import level2a_geometry, map_crs
+from levels.geo.scenes import pass_geometry
+from station.scenario import scenario_from_dict
+from station.sipc.process import nominal_pixel_size_m
+from station.spacecraft.emulator import emulate
+
+#: float32 image values against float64 references: 1e-3 counts is far below the 8-bit step.
+FLOAT32_COUNTS = 1e-3
+
+
+@pytest.fixture(scope="module")
+def geometry():
+    acq = emulate(scenario_from_dict({"instrument": {"n_detectors": 400, "n_lines": 400}}),
+                  render=False)
+    b = acq.hrv.bands[0]
+    pg = pass_geometry(acq.epoch, acq.line_times_s, acq.hrv.line_period_s, acq.bulletins,
+                       acq.gyros.t_s, acq.gyros.rates_rad_per_s, {b.name: b.look_nominal})
+    scene = pg.scenes(400, 0, 450.0)[0]
+    res = nominal_pixel_size_m(b.look_nominal)
+    g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad,
+                                              scene.centre_lon_rad))
+    return level1b_geometry(scene, res), g2
+
+
+def test_calibration_removes_detector_stripes() -> None:
+    rng = np.random.default_rng(3)
+    lines, dets = 400, 300
+    scene = 80.0 + 20.0 * np.sin(np.linspace(0, 6, dets))[None, :] \
+        + 5.0 * rng.standard_normal((lines, dets))
+    gain = 1.0 + 0.05 * rng.standard_normal(dets)
+    offset = 5.0 + 2.0 * rng.standard_normal(dets)
+    counts = to_counts(gain * scene + offset)
+    valid = np.ones(counts.shape, dtype=bool)
+    before = stripe_level(counts.astype(np.float32), valid)
+    after = stripe_level(calibrate(counts, valid, gain, offset), valid)
+    assert before > 3.0  # 5 % of 80 counts and 2 counts of offsets
+    assert after < before / 5  # what remains is the scene's own noise in the means
+
+
+def test_deconvolution_raises_the_mtf_and_keeps_the_mean() -> None:
+    taps = deconvolution_taps(1.2, 0.05)
+    assert taps.sum() == pytest.approx(1.0, abs=1e-12)
+    gain_nyquist = abs(np.sum(taps * np.cos(np.pi * (np.arange(taps.size) - taps.size // 2))))
+    assert mtf(np.array([0.5]), 1.2)[0] * gain_nyquist > 1.5 * mtf(np.array([0.5]), 1.2)[0]
+    img = np.full((50, 60), 100.0, dtype=np.float32)
+    valid = np.ones(img.shape, dtype=bool)
+    valid[20, 30] = False
+    out, ok = deconvolve(img, valid, taps)
+    assert out[ok] == pytest.approx(100.0, abs=FLOAT32_COUNTS)
+    assert not ok[17:24, 27:34].any() and ok[:16].all()  # the ringing reach is masked
+
+
+def _ramp(n_lines: int, n_cols: int) -> np.ndarray:
+    line, col = np.mgrid[0:n_lines, 0:n_cols].astype(np.float64)
+    return (20.0 + 0.3 * line + 0.2 * col).astype(np.float32)
+
+
+def test_2a_kernel_samples_where_the_grid_says(geometry) -> None:
+    """Cubic convolution reproduces a linear ramp exactly, so the output must equal the
+    ramp at the (L, C) the inverse grid gives for each pixel."""
+    _g1, g2 = geometry
+    img = _ramp(400, 400)
+    out, ok = resample_2a(img, np.ones(img.shape, bool), g2, "cubic")
+    i, j = np.nonzero(ok)
+    line, col = g2.raw_of(i, j)
+    expected = 20.0 + 0.3 * line + 0.2 * col
+    assert np.abs(out[i, j] - np.rint(expected)).max() <= 1  # 8-bit rounding at .5 edges
+    assert np.mean(out[i, j] == np.rint(expected)) > 0.99
+    assert 0.4 < ok.mean() < 0.9  # the raw footprint, rotated, inside a north-up grid
+
+
+@pytest.mark.parametrize("method", ["nearest", "bilinear", "cubic"])
+def test_2a_tiles_equal_whole(geometry, method) -> None:
+    _g1, g2 = geometry
+    rng = np.random.default_rng(5)
+    img = (rng.random((400, 400)) * 200).astype(np.float32)
+    valid = rng.random((400, 400)) > 0.01
+    whole, ok = resample_2a(img, valid, g2, method)
+    nan_img = with_nan(img, valid)
+    for rows, cols in [(slice(0, 77), slice(13, 200)), (slice(77, 500), slice(0, 13))]:
+        tile, tok = resample_2a(nan_img, None, g2, method, rows, cols)
+        assert np.array_equal(tile, whole[rows, cols])
+        assert np.array_equal(tok, ok[rows, cols])
+    # a pixel is valid only if every raw pixel it uses is
+    assert ok.mean() < resample_2a(img, np.ones_like(valid), g2, method)[1].mean()
+
+
+@pytest.mark.parametrize("interpolation", ["nearest", "cubic"])
+def test_1b_kernel(geometry, interpolation) -> None:
+    g1, _g2 = geometry
+    img = _ramp(400, 400)
+    valid = np.ones(img.shape, bool)
+    out, ok = resample_1b(img, valid, g1, interpolation)
+    i, j = np.nonzero(ok)
+    line, col = g1.raw_of(i, j)
+    expected = 20.0 + 0.3 * np.rint(line) + 0.2 * (
+        col if interpolation == "cubic" else np.rint(col))
+    assert np.abs(out[i, j] - expected).max() <= 0.5 + FLOAT32_COUNTS
+    tile, tok = resample_1b(img, valid, g1, interpolation, slice(50, 150), slice(100, 300))
+    assert np.array_equal(tile, out[50:150, 100:300]) and np.array_equal(tok, ok[50:150,
+                                                                                 100:300])
+    # left skew: h(I) black, invalid pixels start each line, up to where g meets column −½
+    rows = np.arange(g1.n_rows, dtype=float)
+    j_left = g1.g.solve(np.full(rows.size, -0.5), np.zeros(rows.size)) + g1.h(rows)
+    line_inside = (np.rint(g1.f(rows)) >= 0) & (np.rint(g1.f(rows)) < 400)
+    for r in np.flatnonzero(line_inside)[::17]:
+        black = int(np.floor(j_left[r]))
+        assert not ok[r, : max(black, 0)].any()
+        assert ok[r, black + 1: black + 5].all()

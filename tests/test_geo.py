@@ -1,0 +1,189 @@
+"""GEO: scene cutting, level 1B polynomials, level 2A grids, and the chain against truth.
+
+Geometry only (the emulator with ``render=False``): no image is needed to know where the
+products put each raw pixel, so these run at full scene size in seconds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from levels.errors import GeometryError
+from levels.geo.level1b import level1b_geometry
+from levels.geo.level2a import INVERSE_METHODS, butting_columns, level2a_geometry, map_crs
+from levels.geo.polynomial import Poly1D, Poly2D
+from levels.geo.scenes import cut_scenes, pass_geometry
+from station.scenario import scenario_from_dict
+from station.sipc.process import nominal_pixel_size_m
+from station.sipc.truth import Truth, checkpoints_1b, checkpoints_2a
+from station.spacecraft.emulator import emulate
+
+#: The issue's bound on the 2A inverse from the four nearest direct-grid points.
+MAX_INVERSE_PX = 0.05
+#: The issue's bound on checkpoint errors of an unbiased chain (errors switched off).
+UNBIASED_PX = 0.5
+H_REF_M = 450.0
+#: Every error source of the emulator switched off; a flat world at the reference height.
+ERRORS_OFF = {
+    "attitude": {"roll_offset_urad": 0.0, "pitch_offset_urad": 0.0, "yaw_offset_urad": 0.0,
+                 "drift_scale": 0.0, "jitter_amplitude_urad": [0.0, 0.0, 0.0]},
+    "bulletins": {"bias_m": [0.0, 0.0, 0.0], "drift_m_per_s": [0.0, 0.0, 0.0]},
+    "instrument": {"calibration_error_urad": 0.0},
+    "world": {"relief_m": 0.0, "base_height_m": H_REF_M},
+}
+
+
+def _merge(*parts: dict) -> dict:
+    out: dict = {}
+    for p in parts:
+        for sec, kv in p.items():
+            out[sec] = {**out.get(sec, {}), **kv} if isinstance(kv, dict) else kv
+    return out
+
+
+def _scene(data: dict):
+    acq = emulate(scenario_from_dict(data), render=False)
+    b = acq.hrv.bands[0]
+    pg = pass_geometry(acq.epoch, acq.line_times_s, acq.hrv.line_period_s, acq.bulletins,
+                       acq.gyros.t_s, acq.gyros.rates_rad_per_s, {b.name: b.look_nominal})
+    scene = pg.scenes(acq.hrv.n_lines, 0, H_REF_M)[0]
+    return acq, scene, nominal_pixel_size_m(b.look_nominal)
+
+
+@pytest.fixture(scope="module")
+def nadir():
+    return _scene({})
+
+
+@pytest.fixture(scope="module")
+def tilted():
+    return _scene({"instrument": {"mirror_step": 93}})  # 27°
+
+
+def test_polynomials_fit_and_invert() -> None:
+    x = np.linspace(-50.0, 7000.0, 61)
+    p = Poly1D.fit(x, 3.0 + 0.9 * x + 2e-6 * x**2 - 1e-10 * x**3, 3)
+    y = p(x)
+    assert p.solve(y, x + 5.0) == pytest.approx(x, abs=1e-9)
+    assert Poly1D.from_array(p.as_array())(x) == pytest.approx(y, abs=1e-9)
+    i, j = np.meshgrid(np.linspace(0, 7000, 30), np.linspace(0, 6000, 30))
+    z = 1.0 + 0.5 * i - 0.2 * j + 1e-8 * i * j**2
+    assert Poly2D.fit(i, j, z, 3)(i, j) == pytest.approx(z, abs=1e-6)
+
+
+def test_scene_cutting() -> None:
+    cuts = cut_scenes(20000, 6000, 500)
+    assert [c.first_line for c in cuts] == [0, 5500, 11000]
+    assert all(c.n_lines == 6000 for c in cuts)
+    assert cut_scenes(300, 6000)[0].n_lines == 300  # a short pass is one scene
+    with pytest.raises(GeometryError, match="overlap_lines"):
+        cut_scenes(20000, 6000, 6000)
+
+
+def test_scene_centre_and_corners_on_the_target(nadir) -> None:
+    acq, scene, _ = nadir
+    pc = acq.scenario.pass_
+    # the emulator aims the strip's centre at the target; GEO finds it within the
+    # system-level error (a few hundred metres)
+    dlat = (scene.centre_lat_rad - pc.target_lat_rad) * 6.371e6
+    assert abs(dlat) < 1000.0
+    # corners clockwise on a descending pass: first line north of last line
+    assert scene.corners_lat_rad[0] > scene.corners_lat_rad[3]
+    assert scene.corners_lon_rad[1] > scene.corners_lon_rad[0]  # columns run east
+
+
+def test_level1b_axes_and_round_trip(nadir) -> None:
+    _acq, scene, res = nadir
+    g = level1b_geometry(scene, res)
+    lat, lon = scene.centre_lat_rad, scene.centre_lon_rad
+    north = np.array([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)])
+    east = np.array([-np.sin(lon), np.cos(lon), 0.0])
+    assert g.plane.y_axis @ east > 0.95 and g.plane.x_axis @ north < -0.95  # Y east, X south
+    line, col = np.meshgrid(np.linspace(0, 5999, 9), np.linspace(0, 5999, 9))
+    i, j = g.corrected_of(line, col)
+    back = g.raw_of(i, j)
+    assert back[0] == pytest.approx(line, abs=1e-6)
+    assert back[1] == pytest.approx(col, abs=1e-6)
+    assert 5900 < g.n_rows < 6300 and 5900 < g.n_cols < 6300  # 60 km at 10 m
+
+
+@pytest.mark.parametrize("case", ["nadir", "tilted"])
+def test_1b_polynomial_errors_are_measured(case, request) -> None:
+    _acq, scene, res = request.getfixturevalue(case)
+    err = level1b_geometry(scene, res).approximation_error(scene.model)
+    # INPE's one-dimensional cubics: under a pixel at nadir, a few pixels at 27°
+    # (measured 0.88 and 2.19 px max); the bound only guards against a broken fit
+    assert err["n_points"] > 1000
+    assert 0.0 < err["max_px"] < (1.5 if case == "nadir" else 4.0)
+
+
+@pytest.mark.parametrize("case", ["nadir", "tilted"])
+def test_2a_four_nearest_inverse_within_a_twentieth_of_a_pixel(case, request) -> None:
+    _acq, scene, res = request.getfixturevalue(case)
+    crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
+    g = level2a_geometry(scene, res, crs)
+    errors = {m: g.approximation_error(scene.model, H_REF_M, m)["max_px"]
+              for m in INVERSE_METHODS}
+    assert errors["nearest4"] <= MAX_INVERSE_PX
+    # the polynomials miss the attitude's high frequencies the gyros do see
+    assert min(errors["poly3"], errors["poly4"], errors["poly5"]) > 2 * MAX_INVERSE_PX
+
+
+def test_direct_grid_holds_both_sides_of_each_butting(nadir) -> None:
+    _acq, scene, _res = nadir
+    cols = butting_columns(scene.model.look_angles)
+    assert cols.tolist() == [1499.0, 1500.0, 2999.0, 3000.0, 4499.0, 4500.0]
+
+
+def test_2a_grid_and_kernel_arithmetic_agree(nadir) -> None:
+    _acq, scene, res = nadir
+    g = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad,
+                                             scene.centre_lon_rad))
+    i, j = np.meshgrid(np.arange(0, g.n_rows, 997.0), np.arange(0, g.n_cols, 991.0))
+    line, col = g.raw_of(i.ravel(), j.ravel())
+    ii, jj = g.output_of(line, col, (i.ravel() + 3.0, j.ravel() - 2.0))
+    assert ii == pytest.approx(i.ravel(), abs=1e-6)
+    assert jj == pytest.approx(j.ravel(), abs=1e-6)
+
+
+def _errors(over: dict):
+    data = _merge({"instrument": {"n_detectors": 300}}, over)
+    acq, scene, res = _scene(data)
+    truth = Truth(acq, 0)
+    g1 = level1b_geometry(scene, res)
+    g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad,
+                                              scene.centre_lon_rad))
+    return (checkpoints_1b(truth, scene, g1, 0, 11)["line_of_sight"],
+            checkpoints_2a(truth, scene, g2, 0, 11)["line_of_sight"], res)
+
+
+@pytest.mark.parametrize("mirror_step", [48, 93])
+def test_chain_is_unbiased_with_errors_off(mirror_step) -> None:
+    e1, e2, res = _errors(_merge(ERRORS_OFF, {"instrument": {"mirror_step": mirror_step,
+                                                             "n_detectors": 6000}}))
+    assert e2["max_px"] < UNBIASED_PX
+    # 1B: its mean is unbiased; its spread is its cubics' approximation error, measured
+    # on its own (test above)
+    assert np.hypot(e1["mean_1_m"], e1["mean_2_m"]) / res < UNBIASED_PX
+    assert e1["rms_px"] < 1.0
+
+
+def test_default_errors_are_the_sum_of_their_sources() -> None:
+    """How the size of the default errors is checked: each source alone gives the
+    displacement it implies, and together they add up."""
+    att_only = _merge(ERRORS_OFF, {"attitude": {"roll_offset_urad": 150.0,
+                                                "pitch_offset_urad": -200.0}})
+    eph_only = _merge(ERRORS_OFF, {"bulletins": {"bias_m": [150.0, -100.0, 0.0]}})
+    both = _merge(att_only, {"bulletins": eph_only["bulletins"]})
+    _, a, _ = _errors(att_only)
+    _, e, _ = _errors(eph_only)
+    _, b, _ = _errors(both)
+    # attitude: the angle times the 822 km height (flat Earth, nadir)
+    expected_att = 822e3 * np.hypot(150e-6, 200e-6)
+    assert np.hypot(a["mean_1_m"], a["mean_2_m"]) == pytest.approx(expected_att, rel=0.03)
+    # ephemeris: the horizontal bias, carried to the ground (× (R)/(R + H) on a sphere)
+    expected_eph = np.hypot(150.0, 100.0) * 6.371e6 / (6.371e6 + 822e3)
+    assert np.hypot(e["mean_1_m"], e["mean_2_m"]) == pytest.approx(expected_eph, rel=0.03)
+    sum_1, sum_2 = a["mean_1_m"] + e["mean_1_m"], a["mean_2_m"] + e["mean_2_m"]
+    assert np.hypot(b["mean_1_m"] - sum_1, b["mean_2_m"] - sum_2) < 2.0
