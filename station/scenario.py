@@ -558,7 +558,8 @@ def describe_keys() -> str:
             if isinstance(default, float):
                 default = default / meta["scale"]
             elif isinstance(default, tuple):
-                default = [round(v / meta["scale"], 12) for v in default]
+                default = [v if isinstance(v, str) else round(v / meta["scale"], 12)
+                           for v in default]
             lines.append(
                 f"  {meta['key']} = {default!r}  # {meta['doc']}; {_describe(meta, hints[f.name])}"
             )
