@@ -81,7 +81,7 @@ def _invert_cells(gl, gc, gi, gj, i_pts, j_pts, a0, b0, line, col):
     for k in range(i_pts.size):
         a, b = a0[k], b0[k]
         u = v = 0.5
-        for _move in range(6):
+        for _move in range(8):
             for _it in range(5):
                 i00, i01, i10, i11 = gi[a, b], gi[a, b + 1], gi[a + 1, b], gi[a + 1, b + 1]
                 j00, j01, j10, j11 = gj[a, b], gj[a, b + 1], gj[a + 1, b], gj[a + 1, b + 1]
@@ -211,17 +211,19 @@ class Level2AGeometry:
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Line per segment ``(segments, N)`` and column ``(N,)`` of output points."""
         n_seg = self.segment_first_column.size
-        pl3, pc3 = self.inverse_polynomials[3]
         if method == "nearest4":
+            # first guesses from the cubic inverse: near enough for the walk between cells;
+            # the segments then start from the whole grid's answer
+            pl3, pc3 = self.inverse_polynomials[3]
             guess = (pl3[0](i, j), pc3(i, j))
-            _, col = invert_direct_grid(self.grid_line, self.grid_column, self.grid_i,
-                                        self.grid_j, i, j, guess)
+            line, col = invert_direct_grid(self.grid_line, self.grid_column, self.grid_i,
+                                           self.grid_j, i, j, guess)
             lines = np.empty((n_seg, i.size))
             for s in range(n_seg):
                 k = self._segment_columns(s)
                 lines[s], _ = invert_direct_grid(
                     self.grid_line, self.grid_column[k], self.grid_i[:, k], self.grid_j[:, k],
-                    i, j, (pl3[s](i, j), col))
+                    i, j, (line, col))
             return lines, col
         pl, pc = self.inverse_polynomials[_order(method)]
         return np.stack([p(i, j) for p in pl]), pc(i, j)
