@@ -138,6 +138,44 @@ def _cmd_downlink(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_process(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from station.scenario import load_scenario
+    from station.sipc.process import process_scenario
+
+    scn = load_scenario(args.scenario)
+    out = Path(args.out) if args.out else Path(f"{scn.name}_products")
+    products, l0 = process_scenario(scn, out)
+    rows = [{"scene": s.index, "level": lv, "path": str(s.paths[lv]), **s.quality[lv],
+             "timings_s": s.timings_s} for s in products.scenes for lv in s.paths]
+    if args.json:
+        print(json.dumps({"l0": str(l0), "tail_lines": products.tail_lines,
+                          "timings_s": products.timings_s, "products": rows}, indent=2,
+                         default=float))
+        return 0
+    print(f"{scn.name}: {len(products.scenes)} scene(s) from {l0}; GEO "
+          f"{products.timings_s['geo']:.3f} s, all {products.timings_s['total']:.1f} s")
+    print(f"{'scene':>5} {'level':>5} {'LOS rms m':>10} {'max px':>7} {'ground rms m':>13} "
+          f"{'approx max px':>14}  stripes raw → 1A")
+    for r in rows:
+        band = next(b for b in ("P", "XS1") if f"stripe_level/{b}/raw_counts" in r
+                    or f"checkpoints/{b}/line_of_sight/rms_m" in r)
+        los = r.get(f"checkpoints/{band}/line_of_sight/rms_m", float("nan"))
+        los_px = r.get(f"checkpoints/{band}/line_of_sight/max_px", float("nan"))
+        ground = r.get(f"checkpoints/{band}/ground/rms_m", float("nan"))
+        approx = r.get("polynomials_vs_model/max_px",
+                       r.get(f"inverse_vs_model/{r.get('inverse_method', '')}/max_px",
+                             float("nan")))
+        stripes = (f"{r[f'stripe_level/{band}/raw_counts']:.2f} → "
+                   f"{r[f'stripe_level/{band}/level_1a_counts']:.2f}"
+                   if r["level"] == "1A" else "")
+        print(f"{r['scene']:5d} {r['level']:>5} {los:10.1f} {los_px:7.2f} {ground:13.1f} "
+              f"{approx:14.4f}  {stripes}")
+        print(f"{'':11}{r['path']}")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="station",
@@ -172,6 +210,14 @@ def _parser() -> argparse.ArgumentParser:
     down.add_argument("--out", help="L0 file to write (default: <scenario name>.l0.h5)")
     down.add_argument("--json", action="store_true", help="print JSON instead of text")
     down.set_defaults(func=_cmd_downlink)
+    proc = sub.add_parser(
+        "process",
+        help="emulate and receive a pass, then make its level 1A, 1B, 2A products (GEO, COR)",
+    )
+    proc.add_argument("scenario", help="path to a scenario .toml (see scenarios/)")
+    proc.add_argument("--out", help="directory of the products (default: <name>_products)")
+    proc.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    proc.set_defaults(func=_cmd_process)
     return parser
 
 

@@ -84,3 +84,15 @@ def test_downlink_bad_scenario_exits_2(tmp_path: Path, capsys) -> None:
     assert main(["downlink", str(bad)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("station: error: [channel] ber = 2.0") and err.count("\n") == 1
+
+
+def test_process_writes_products_and_reports(tmp_path: Path, capsys) -> None:
+    code = main(["process", str(ROOT / "scenarios" / "small_test.toml"), "--out",
+                 str(tmp_path), "--json"])
+    assert code == 0
+    rep = json.loads(capsys.readouterr().out)
+    levels = {r["level"]: r for r in rep["products"]}
+    assert set(levels) == {"1A", "1B", "2A"}
+    assert all(Path(r["path"]).is_file() for r in rep["products"])
+    assert levels["2A"]["checkpoints/P/line_of_sight/rms_m"] > 0
+    assert main(["process", str(tmp_path / "missing.toml")]) == 2
