@@ -170,20 +170,8 @@ def _pixel_2a(img, c, b, v, line_row, seg_of, method):
         wc = (1.0 - (c - cf), c - cf, 0.0, 0.0)
     if s0 == s1 and cubic and first >= 0 and last < n_cols and lf >= 1 and lf + 2 < n_lines:
         # interior, one segment: 4 × 4 separable, row by row (contiguous loads)
-        t = c - cf
-        t2 = t * t
-        t3 = t2 * t
-        c0 = _A * (t3 - 2.0 * t2 + t)
-        c1 = (_A + 2.0) * t3 - (_A + 3.0) * t2 + 1.0
-        c2 = -(_A + 2.0) * t3 + (2.0 * _A + 3.0) * t2 - _A * t
-        c3 = _A * (t2 - t3)
-        t = line - lf
-        t2 = t * t
-        t3 = t2 * t
-        r0 = _A * (t3 - 2.0 * t2 + t)
-        r1 = (_A + 2.0) * t3 - (_A + 3.0) * t2 + 1.0
-        r2 = -(_A + 2.0) * t3 + (2.0 * _A + 3.0) * t2 - _A * t
-        r3 = _A * (t2 - t3)
+        c0, c1, c2, c3 = _keys(c - cf)
+        r0, r1, r2, r3 = _keys(line - lf)
         lo = lf - 1
         return (r0 * (c0 * img[lo, first] + c1 * img[lo, first + 1] + c2 * img[lo, first + 2]
                       + c3 * img[lo, first + 3])
