@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["error_stats"]
+__all__ = ["error_stats", "raw_error_stats"]
 
 
 def error_stats(d1_m: NDArray[np.float64], d2_m: NDArray[np.float64], pixel_size_m: float
@@ -32,3 +32,13 @@ def error_stats(d1_m: NDArray[np.float64], d2_m: NDArray[np.float64], pixel_size
     for key in ("mean_m", "rms_m", "max_m"):
         out[key.replace("_m", "_px")] = out[key] / pixel_size_m
     return out
+
+
+def raw_error_stats(dl: NDArray[np.float64], dc: NDArray[np.float64]) -> dict[str, float]:
+    """Max and RMS of line, column and total errors (pixels), and how many points."""
+    d = np.hypot(dl, dc)
+    if d.size == 0:
+        return {"n_points": 0}
+    return {"n_points": int(d.size), "max_px": float(d.max()),
+            "rms_px": float(np.sqrt(np.mean(d * d))), "max_line_px": float(np.abs(dl).max()),
+            "max_column_px": float(np.abs(dc).max())}

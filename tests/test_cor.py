@@ -9,6 +9,7 @@ from levels.cor.radiometry import (
     calibrate,
     deconvolution_taps,
     deconvolve,
+    fir_response,
     mtf,
     stripe_level,
     to_counts,
@@ -57,7 +58,7 @@ def test_calibration_removes_detector_stripes() -> None:
 def test_deconvolution_raises_the_mtf_and_keeps_the_mean() -> None:
     taps = deconvolution_taps(1.2, 0.05)
     assert taps.sum() == pytest.approx(1.0, abs=1e-12)
-    gain_nyquist = abs(np.sum(taps * np.cos(np.pi * (np.arange(taps.size) - taps.size // 2))))
+    gain_nyquist = abs(fir_response(taps, np.array([0.5]))[0])
     assert mtf(np.array([0.5]), 1.2)[0] * gain_nyquist > 1.5 * mtf(np.array([0.5]), 1.2)[0]
     img = np.full((50, 60), 100.0, dtype=np.float32)
     valid = np.ones(img.shape, dtype=bool)

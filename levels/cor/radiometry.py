@@ -29,8 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-__all__ = ["calibrate", "deconvolution_taps", "deconvolve", "mtf", "stripe_level",
-           "to_counts"]
+__all__ = ["calibrate", "deconvolution_taps", "deconvolve", "fir_response", "mtf",
+           "stripe_level", "to_counts"]
 
 #: Detectors in the running median of the stripe metric.
 _STRIPE_WINDOW = 15
@@ -55,6 +55,12 @@ def mtf(nu: NDArray[np.float64], psf_fwhm_px: float) -> NDArray[np.float64]:
     """System MTF along one axis: pixel box × Gaussian PSF (``ν`` in cycles per pixel)."""
     sigma = psf_fwhm_px / (2.0 * np.sqrt(2.0 * np.log(2.0)))
     return np.sinc(nu) * np.exp(-2.0 * (np.pi * sigma * nu) ** 2)
+
+
+def fir_response(taps: NDArray[np.float64], nu: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Frequency response of a symmetric FIR at ``ν`` (cycles per pixel)."""
+    k = np.arange(taps.size) - taps.size // 2
+    return np.cos(2.0 * np.pi * np.outer(np.asarray(nu, dtype=np.float64), k)) @ taps
 
 
 def deconvolution_taps(psf_fwhm_px: float, noise_to_signal: float = 0.05, n_taps: int = 7

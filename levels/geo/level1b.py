@@ -31,6 +31,7 @@ from levels.errors import GeometryError
 from levels.geo.polynomial import Poly1D
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
+from levels.quality import raw_error_stats
 
 __all__ = ["N_BREAKPOINTS", "Level1BGeometry", "TangentPlane", "level1b_geometry",
            "raw_border"]
@@ -156,17 +157,7 @@ class Level1BGeometry:
         dl = lp[inside] - exact.line
         dc = cp[inside] - exact.column
         ok = exact.converged
-        return _error_summary(dl[ok], dc[ok])
-
-
-def _error_summary(dl: NDArray[np.float64], dc: NDArray[np.float64]) -> dict[str, float]:
-    """Max and RMS of line, column and total errors (pixels), and how many points."""
-    d = np.hypot(dl, dc)
-    if d.size == 0:
-        return {"n_points": 0}
-    return {"n_points": int(d.size), "max_px": float(d.max()),
-            "rms_px": float(np.sqrt(np.mean(d * d))), "max_line_px": float(np.abs(dl).max()),
-            "max_column_px": float(np.abs(dc).max())}
+        return raw_error_stats(dl[ok], dc[ok])
 
 
 def level1b_geometry(scene: SceneGeometry, pixel_size_m: float,

@@ -34,11 +34,12 @@ import pyproj
 from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
-from levels.geo.level1b import N_BREAKPOINTS, _error_summary
+from levels.geo.level1b import N_BREAKPOINTS
 from levels.geo.polynomial import Poly2D
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
 from levels.geometry.sensor import LookAngleTable
+from levels.quality import raw_error_stats
 
 __all__ = ["INVERSE_METHODS", "Level2AGeometry", "bilinear_grid", "butting_columns",
            "invert_direct_grid", "level2a_geometry", "map_crs"]
@@ -201,12 +202,6 @@ class Level2AGeometry:
         return np.clip(np.searchsorted(self.segment_first_column, c, side="right") - 1, 0,
                        self.segment_first_column.size - 1)
 
-    def _segment_columns(self, s: int) -> NDArray[np.bool_]:
-        lo = self.segment_first_column[s]
-        hi = (self.segment_first_column[s + 1] - 1 if s + 1 < self.segment_first_column.size
-              else np.inf)
-        return (self.grid_column >= lo) & (self.grid_column <= hi)
-
     def _nodes(self, i: NDArray[np.float64], j: NDArray[np.float64], method: str
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Line per segment ``(segments, N)`` and column ``(N,)`` of output points."""
@@ -219,8 +214,7 @@ class Level2AGeometry:
             line, col = invert_direct_grid(self.grid_line, self.grid_column, self.grid_i,
                                            self.grid_j, i, j, guess)
             lines = np.empty((n_seg, i.size))
-            for s in range(n_seg):
-                k = self._segment_columns(s)
+            for s, k in enumerate(_segment_masks(self.grid_column, self.segment_first_column)):
                 lines[s], _ = invert_direct_grid(
                     self.grid_line, self.grid_column[k], self.grid_i[:, k], self.grid_j[:, k],
                     i, j, (line, col))
@@ -303,7 +297,7 @@ class Level2AGeometry:
         for first in self.segment_first_column[1:]:
             gap |= (exact.column > first - 1) & (exact.column < first)
         ok = exact.converged & ~gap
-        return _error_summary((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
+        return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
 
     def with_inverse(self, method: str) -> Level2AGeometry:
         """The same geometry with the inverse grid computed by another method."""
@@ -324,6 +318,14 @@ def butting_columns(look: LookAngleTable) -> NDArray[np.float64]:
     typical = np.median(d)
     k = np.flatnonzero(d > 10.0 * typical + 1e-9)  # 1 nrad: far below any butting offset
     return np.union1d(look.column[k], look.column[k + 1])
+
+
+def _segment_masks(grid_column: NDArray[np.float64], segment_first_column: NDArray[np.float64]
+                   ) -> list[NDArray[np.bool_]]:
+    """Which direct-grid columns belong to each CCD segment."""
+    ends = np.append(segment_first_column[1:] - 1, np.inf)
+    return [(grid_column >= lo) & (grid_column <= hi)
+            for lo, hi in zip(segment_first_column, ends, strict=True)]
 
 
 def _order(method: str) -> int:
@@ -394,14 +396,9 @@ def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
     gi = (y_max - n) / res - 0.5
     gj = (e - x_min) / res - 0.5
     seg_first = np.concatenate([[0.0], butting[1::2]])
-    polys = {}
-    for o in (3, 4, 5):
-        per_seg = []
-        for s in range(seg_first.size):
-            hi = seg_first[s + 1] - 1 if s + 1 < seg_first.size else np.inf
-            k = (gc >= seg_first[s]) & (gc <= hi)
-            per_seg.append(Poly2D.fit(gi[:, k], gj[:, k], ll[:, k], o))
-        polys[o] = (tuple(per_seg), Poly2D.fit(gi, gj, cc, o))
+    masks = _segment_masks(gc, seg_first)
+    polys = {o: (tuple(Poly2D.fit(gi[:, k], gj[:, k], ll[:, k], o) for k in masks),
+                 Poly2D.fit(gi, gj, cc, o)) for o in (3, 4, 5)}
     step = inverse_step_px or max(1, round(max(n_rows, n_cols) / (n_breakpoints - 1) / 4))
     rows = np.arange(0.0, n_rows - 1 + step, step)
     cols = np.arange(0.0, n_cols - 1 + step, step)

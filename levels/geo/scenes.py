@@ -135,17 +135,19 @@ class PassGeometry:
         if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
             raise GeometryError("line times must be a 1-D increasing array of at least 2 lines")
         object.__setattr__(self, "line_t_s", t)
+        # one straight line through the recorded times of the whole pass (they come from
+        # one fitted clock already), fitted once for every scene
+        period, t0 = np.polyfit(np.arange(t.size, dtype=np.float64), t, 1)
+        object.__setattr__(self, "_clock_fit", (float(t0), float(period)))
 
     @property
     def n_lines(self) -> int:
         return int(self.line_t_s.size)
 
     def clock(self, first_line: int) -> LineClock:
-        """Line clock of a scene starting at row ``first_line``: a straight line fitted to
-        the recorded times of the whole pass (they come from one fitted clock already)."""
-        rows = np.arange(self.n_lines, dtype=np.float64)
-        period, t0 = np.polyfit(rows, self.line_t_s, 1)
-        return LineClock(float(t0 + period * first_line), 0.0, float(period))
+        """Line clock of a scene starting at row ``first_line``, from the pass's fit."""
+        t0, period = self._clock_fit  # type: ignore[attr-defined]
+        return LineClock(t0 + period * first_line, 0.0, period)
 
     def scene(self, cut: SceneCut, reference_height_m: float = 0.0) -> SceneGeometry:
         """GEO for one scene: models with the attitude zeroed at the scene centre, centre

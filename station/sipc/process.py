@@ -32,6 +32,7 @@ from levels.cor.radiometry import (
     calibrate,
     deconvolution_taps,
     deconvolve,
+    fir_response,
     mtf,
     stripe_level,
     to_counts,
@@ -176,7 +177,7 @@ def process_l0(archive: L0Archive, cfg: ProcessingConfig, out_dir: str | Path, *
     for scene in scenes:
         results.append(_process_scene(archive, pg, scene, cfg, res, taps, pixel_valid, out,
                                       name, truth, prov))
-    tail = archive.n_lines - (cuts[-1].first_line + cuts[-1].n_lines)
+    tail = pg.tail_lines(scene_lines, cfg.overlap_lines)
     return PassProducts(results, tail, {"geo": t_geo, "total": clock() - t0})
 
 
@@ -250,12 +251,10 @@ def _quality(scene: SceneGeometry, cfg: ProcessingConfig, g1b: Level1BGeometry |
              taps: NDArray[np.float64], truth: Truth | None, bands: list[str]
              ) -> dict[str, dict[str, Any]]:
     q: dict[str, dict[str, Any]] = {"1A": {"stripe_level": stripes}}
-    radiometry = {"deconvolution_taps": taps,
-                  "mtf_at_nyquist_before": float(mtf(np.array([0.5]), cfg.psf_fwhm_px)[0]),
-                  "mtf_at_nyquist_after": float(
-                      mtf(np.array([0.5]), cfg.psf_fwhm_px)[0]
-                      * abs(np.sum(taps * np.cos(np.pi * (np.arange(taps.size)
-                                                          - taps.size // 2)))))}
+    nyquist = np.array([0.5])
+    before = float(mtf(nyquist, cfg.psf_fwhm_px)[0])
+    radiometry = {"deconvolution_taps": taps, "mtf_at_nyquist_before": before,
+                  "mtf_at_nyquist_after": before * abs(float(fir_response(taps, nyquist)[0]))}
     per_side = cfg.checkpoints_per_side
     if g1b is not None:
         q["1B"] = {"radiometry": radiometry,

@@ -44,8 +44,8 @@ class Truth:
 
     @classmethod
     def of(cls, acq: Acquisition, archive: L0Archive) -> Truth:
-        shift = float((archive.epoch.t0_utc - acq.epoch.t0_utc) / np.timedelta64(1, "ns")) * 1e-9
-        t0 = archive.line_t_s[0] + shift  # row 0 in the emulator's time base
+        t0 = archive.line_t_s[0] + float(acq.epoch.seconds(archive.epoch.t0_utc))  # row 0,
+        # in the emulator's time base
         offset = int(np.rint((t0 - acq.line_times_s[0]) / acq.hrv.line_period_s))
         return cls(acq, offset)
 
