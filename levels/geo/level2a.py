@@ -74,41 +74,138 @@ def map_crs(kind: str, centre_lat_rad: float, centre_lon_rad: float,
                             "a WKT") from None
 
 
-@nb.njit(cache=True)
-def _invert_cells(gl, gc, gi, gj, i_pts, j_pts, a0, b0, line, col):
-    """Newton on the bilinear map of the direct-grid cell holding each point (see
-    :func:`invert_direct_grid`); moves to the neighbouring cell while outside it."""
+@nb.njit(cache=True, nogil=True)
+def _walk(gl, gc, gi, gj, ip, jp, a, b, u, v, b_lo, b_hi, max_moves):
+    """Raw ``(L, C)`` of output point ``(ip, jp)``: Newton on the bilinear map of direct-grid
+    cell ``(a, b)`` from local coordinates ``(u, v)``, moving to the neighbouring cell while
+    they fall outside [0, 1]. Cells are kept within rows ``0 .. na − 2`` and columns
+    ``b_lo .. b_hi − 1`` (a CCD segment's own columns); beyond them the edge cell is
+    extrapolated. The walk moves one cell at a time: a butting cell is one pixel wide, and
+    its bilinear map extrapolated far from it has spurious roots that a jump of several
+    cells would take. Returns ``(L, C, a, b, u, v)``."""
+    na = gi.shape[0]
+    for _move in range(max_moves):
+        for _it in range(6):
+            i00, i01, i10, i11 = gi[a, b], gi[a, b + 1], gi[a + 1, b], gi[a + 1, b + 1]
+            j00, j01, j10, j11 = gj[a, b], gj[a, b + 1], gj[a + 1, b], gj[a + 1, b + 1]
+            ii = (1 - u) * ((1 - v) * i00 + v * i01) + u * ((1 - v) * i10 + v * i11)
+            jj = (1 - u) * ((1 - v) * j00 + v * j01) + u * ((1 - v) * j10 + v * j11)
+            a11 = (1 - v) * (i10 - i00) + v * (i11 - i01)
+            a12 = (1 - u) * (i01 - i00) + u * (i11 - i10)
+            a21 = (1 - v) * (j10 - j00) + v * (j11 - j01)
+            a22 = (1 - u) * (j01 - j00) + u * (j11 - j10)
+            det = a11 * a22 - a12 * a21
+            ri, rj = ip - ii, jp - jj
+            du = (a22 * ri - a12 * rj) / det
+            dv = (-a21 * ri + a11 * rj) / det
+            u += du
+            v += dv
+            if abs(du) + abs(dv) < 1e-7:
+                break  # Newton's quadratic convergence: what remains is below 1e-14
+        na_ = min(max(a + (1 if u >= 1.0 else (-1 if u < 0.0 else 0)), 0), na - 2)
+        nb2 = min(max(b + (1 if v >= 1.0 else (-1 if v < 0.0 else 0)), b_lo), b_hi - 1)
+        if na_ == a and nb2 == b:
+            break
+        u -= na_ - a
+        v -= nb2 - b
+        a, b = na_, nb2
+    return gl[a] + u * (gl[a + 1] - gl[a]), gc[b] + v * (gc[b + 1] - gc[b]), a, b, u, v
+
+
+@nb.njit(cache=True, nogil=True)
+def _invert_points(gl, gc, gi, gj, i_pts, j_pts, a0, b0, seg_b0, seg_b1, lines, col):
+    """:func:`_walk` for scattered points, each from its own first-guess cell ``(a0, b0)``,
+    over the whole grid (``col``) and over each segment's cells ``seg_b0[s] .. seg_b1[s] − 1``
+    (``lines[s]``); a point whose whole-grid cell lies in the segment has the segment's
+    answer already."""
+    n_seg = lines.shape[0]
     na, nb_ = gi.shape
     for k in range(i_pts.size):
-        a, b = a0[k], b0[k]
-        u = v = 0.5
-        for _move in range(8):
-            for _it in range(5):
-                i00, i01, i10, i11 = gi[a, b], gi[a, b + 1], gi[a + 1, b], gi[a + 1, b + 1]
-                j00, j01, j10, j11 = gj[a, b], gj[a, b + 1], gj[a + 1, b], gj[a + 1, b + 1]
-                ii = (1 - u) * ((1 - v) * i00 + v * i01) + u * ((1 - v) * i10 + v * i11)
-                jj = (1 - u) * ((1 - v) * j00 + v * j01) + u * ((1 - v) * j10 + v * j11)
-                a11 = (1 - v) * (i10 - i00) + v * (i11 - i01)
-                a12 = (1 - u) * (i01 - i00) + u * (i11 - i10)
-                a21 = (1 - v) * (j10 - j00) + v * (j11 - j01)
-                a22 = (1 - u) * (j01 - j00) + u * (j11 - j10)
-                det = a11 * a22 - a12 * a21
-                ri, rj = i_pts[k] - ii, j_pts[k] - jj
-                du = (a22 * ri - a12 * rj) / det
-                dv = (-a21 * ri + a11 * rj) / det
-                u += du
-                v += dv
-                if abs(du) + abs(dv) < 1e-12:
-                    break
-            na_ = min(max(a + int(np.floor(u)), 0), na - 2)
-            nb2 = min(max(b + int(np.floor(v)), 0), nb_ - 2)
-            if na_ == a and nb2 == b:
-                break
-            u -= na_ - a
-            v -= nb2 - b
-            a, b = na_, nb2
-        line[k] = gl[a] + u * (gl[a + 1] - gl[a])
-        col[k] = gc[b] + v * (gc[b + 1] - gc[b])
+        line, c, a, b, u, v = _walk(gl, gc, gi, gj, i_pts[k], j_pts[k], a0[k], b0[k], 0.5, 0.5,
+                                    0, nb_ - 1, na + nb_)
+        col[k] = c
+        for s in range(n_seg):
+            if seg_b0[s] <= b < seg_b1[s]:
+                lines[s, k] = line
+            else:
+                bs = min(max(b, seg_b0[s]), seg_b1[s] - 1)
+                lines[s, k] = _walk(gl, gc, gi, gj, i_pts[k], j_pts[k], a, bs, u, v + b - bs,
+                                    seg_b0[s], seg_b1[s], na + nb_)[0]
+
+
+@nb.njit(cache=True, nogil=True)
+def _invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lines, col):
+    """The inverse grid by :func:`_walk`, row by row, each node starting from the cell of
+    the node before it, at the cell coordinates extrapolated from the two nodes before it:
+    a step of the inverse grid is a fraction of a direct-grid cell, so a walk rarely moves
+    and Newton starts close (a row's first node starts from the centre of the grid).
+    Serial: a scene's grid takes milliseconds, and idle parallel threads would spin
+    against BLAS.
+
+    A segment's line is taken exactly (over its own columns, extrapolated beyond) at the
+    nodes of every inverse-grid cell whose column range meets the raw columns that belong
+    to the segment, ``[seg_lo[s], seg_hi[s])``: those are the nodes the 2A kernel's
+    bilinear interpolation reads for it. Elsewhere the field holds the whole grid's line,
+    the line of the CCD that does see there.
+    """
+    n_seg = lines.shape[0]
+    na, nb_ = gi.shape
+    nr, nc = rows.size, cols.size
+    cell_a = np.empty((nr, nc), dtype=np.int64)
+    cell_b = np.empty((nr, nc), dtype=np.int64)
+    cell_u = np.empty((nr, nc))
+    cell_v = np.empty((nr, nc))
+    whole = np.empty((nr, nc))
+    for r in range(nr):
+        a, b, u, v = (na - 1) // 2, (nb_ - 1) // 2, 0.5, 0.5
+        for c in range(nc):
+            if c >= 2:  # linear prediction in global cell coordinates
+                pu = 2.0 * (cell_a[r, c - 1] + cell_u[r, c - 1]) - (cell_a[r, c - 2]
+                                                                  + cell_u[r, c - 2])
+                pv = 2.0 * (cell_b[r, c - 1] + cell_v[r, c - 1]) - (cell_b[r, c - 2]
+                                                                  + cell_v[r, c - 2])
+                a = min(max(int(np.floor(pu)), 0), na - 2)
+                b = min(max(int(np.floor(pv)), 0), nb_ - 2)
+                u, v = pu - a, pv - b
+            moves = na + nb_ if c == 0 else 16
+            line, cc, a, b, u, v = _walk(gl, gc, gi, gj, rows[r], cols[c], a, b, u, v, 0,
+                                         nb_ - 1, moves)
+            whole[r, c], col[r, c] = line, cc
+            cell_a[r, c], cell_b[r, c], cell_u[r, c], cell_v[r, c] = a, b, u, v
+    need = np.zeros((n_seg, nr, nc), dtype=np.bool_)
+    for r in range(nr - 1):
+        for c in range(nc - 1):
+            lo = min(min(col[r, c], col[r, c + 1]), min(col[r + 1, c], col[r + 1, c + 1]))
+            hi = max(max(col[r, c], col[r, c + 1]), max(col[r + 1, c], col[r + 1, c + 1]))
+            for s in range(n_seg):
+                if lo < seg_hi[s] and hi >= seg_lo[s]:
+                    need[s, r, c] = need[s, r, c + 1] = True
+                    need[s, r + 1, c] = need[s, r + 1, c + 1] = True
+    for r in range(nr):
+        for s in range(n_seg):
+            for c in range(nc):
+                b = cell_b[r, c]
+                if not need[s, r, c] or seg_b0[s] <= b < seg_b1[s]:
+                    lines[s, r, c] = whole[r, c]
+                else:
+                    bs = min(max(b, seg_b0[s]), seg_b1[s] - 1)
+                    lines[s, r, c] = _walk(gl, gc, gi, gj, rows[r], cols[c], cell_a[r, c], bs,
+                                           cell_u[r, c], cell_v[r, c] + b - bs, seg_b0[s],
+                                           seg_b1[s], na + nb_)[0]
+
+
+def _segment_cells(grid_column: NDArray[np.float64], segment_first_column: NDArray[np.float64]
+                   ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Direct-grid column indices of each segment's first and last detector: segment ``s``
+    owns the cells ``first[s] .. last[s] − 1``. The cell across a butting gap, between the
+    last detector of one CCD and the first of the next, belongs to neither."""
+    ends = np.append(segment_first_column[1:] - 1, grid_column[-1])
+    first = np.searchsorted(grid_column, segment_first_column)
+    last = np.searchsorted(grid_column, ends)
+    if not (np.all(grid_column[first] == segment_first_column)
+            and np.all(grid_column[last] == ends)):
+        raise GeometryError("the direct grid must hold both sides of every CCD butting")
+    return first.astype(np.int64), last.astype(np.int64)
 
 
 def invert_direct_grid(grid_line: NDArray[np.float64], grid_column: NDArray[np.float64],
@@ -123,18 +220,31 @@ def invert_direct_grid(grid_line: NDArray[np.float64], grid_column: NDArray[np.f
     the point moves to the neighbouring cell while its local coordinates fall outside
     [0, 1]. Points beyond the grid are extrapolated from the edge cell.
     """
+    lines, col = _invert_scattered(grid_line, grid_column, grid_i, grid_j,
+                                   np.asarray(grid_column[:1], dtype=np.float64), i, j,
+                                   first_guess)
+    return lines[0], col
+
+
+def _invert_scattered(gl: NDArray[np.float64], gc: NDArray[np.float64],
+                      gi: NDArray[np.float64], gj: NDArray[np.float64],
+                      segment_first_column: NDArray[np.float64], i: ArrayLike, j: ArrayLike,
+                      first_guess: tuple[NDArray, NDArray]
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Line per segment ``(segments, N)`` and column ``(N,)`` of scattered output points."""
     i_a, j_a = (np.ascontiguousarray(x, dtype=np.float64).ravel()
                 for x in np.broadcast_arrays(i, j))
-    na, nb_ = grid_i.shape
-    a = np.clip(np.searchsorted(grid_line, np.ravel(first_guess[0])) - 1, 0, na - 2)
-    b = np.clip(np.searchsorted(grid_column, np.ravel(first_guess[1])) - 1, 0, nb_ - 2)
-    line = np.empty(i_a.size)
+    na, nb_ = gi.shape
+    a = np.clip(np.searchsorted(gl, np.ravel(first_guess[0])) - 1, 0, na - 2)
+    b = np.clip(np.searchsorted(gc, np.ravel(first_guess[1])) - 1, 0, nb_ - 2)
+    seg_b0, seg_b1 = _segment_cells(gc, segment_first_column)
+    lines = np.empty((segment_first_column.size, i_a.size))
     col = np.empty(i_a.size)
-    _invert_cells(np.asarray(grid_line, float), np.asarray(grid_column, float),
-                  np.ascontiguousarray(grid_i, dtype=np.float64),
-                  np.ascontiguousarray(grid_j, dtype=np.float64), i_a, j_a,
-                  a.astype(np.int64), b.astype(np.int64), line, col)
-    return line, col
+    _invert_points(np.asarray(gl, float), np.asarray(gc, float),
+                   np.ascontiguousarray(gi, dtype=np.float64),
+                   np.ascontiguousarray(gj, dtype=np.float64), i_a, j_a,
+                   a.astype(np.int64), b.astype(np.int64), seg_b0, seg_b1, lines, col)
+    return lines, col
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,20 +315,12 @@ class Level2AGeometry:
     def _nodes(self, i: NDArray[np.float64], j: NDArray[np.float64], method: str
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Line per segment ``(segments, N)`` and column ``(N,)`` of output points."""
-        n_seg = self.segment_first_column.size
         if method == "nearest4":
-            # first guesses from the cubic inverse: near enough for the walk between cells;
-            # the segments then start from the whole grid's answer
+            # first guesses from the cubic inverse: near enough for the walk between cells
             pl3, pc3 = self.inverse_polynomials[3]
-            guess = (pl3[0](i, j), pc3(i, j))
-            line, col = invert_direct_grid(self.grid_line, self.grid_column, self.grid_i,
-                                           self.grid_j, i, j, guess)
-            lines = np.empty((n_seg, i.size))
-            for s, k in enumerate(_segment_masks(self.grid_column, self.segment_first_column)):
-                lines[s], _ = invert_direct_grid(
-                    self.grid_line, self.grid_column[k], self.grid_i[:, k], self.grid_j[:, k],
-                    i, j, (line, col))
-            return lines, col
+            return _invert_scattered(self.grid_line, self.grid_column, self.grid_i,
+                                     self.grid_j, self.segment_first_column, i, j,
+                                     (pl3[0](i, j), pc3(i, j)))
         pl, pc = self.inverse_polynomials[_order(method)]
         return np.stack([p(i, j) for p in pl]), pc(i, j)
 
@@ -303,11 +405,24 @@ class Level2AGeometry:
         """The same geometry with the inverse grid computed by another method."""
         if method not in INVERSE_METHODS:
             raise GeometryError(f"inverse method {method!r}: expected one of {INVERSE_METHODS}")
-        i, j = np.meshgrid(self.inverse_rows, self.inverse_cols, indexing="ij")
-        lines, col = self._nodes(i.ravel(), j.ravel(), method)
-        return Level2AGeometry(**{**self.__dict__, "method": method,
-                                  "inverse_line": lines.reshape(-1, *i.shape),
-                                  "inverse_column": col.reshape(i.shape)})
+        shape = (self.inverse_rows.size, self.inverse_cols.size)
+        if method == "nearest4":
+            lines = np.empty((self.segment_first_column.size, *shape))
+            col = np.empty(shape)
+            seg_b0, seg_b1 = _segment_cells(self.grid_column, self.segment_first_column)
+            # the raw columns each segment's line serves: those its nearest detector is in
+            seg_lo = np.append(-np.inf, self.segment_first_column[1:] - 0.5)
+            seg_hi = np.append(self.segment_first_column[1:] - 0.5, np.inf)
+            _invert_nodes(self.grid_line, self.grid_column, self.grid_i, self.grid_j,
+                          np.asarray(self.inverse_rows, dtype=np.float64),
+                          np.asarray(self.inverse_cols, dtype=np.float64),
+                          seg_b0, seg_b1, seg_lo, seg_hi, lines, col)
+        else:
+            i, j = np.meshgrid(self.inverse_rows, self.inverse_cols, indexing="ij")
+            lines, col = self._nodes(i.ravel(), j.ravel(), method)
+            lines, col = lines.reshape(-1, *shape), col.reshape(shape)
+        return Level2AGeometry(**{**self.__dict__, "method": method, "inverse_line": lines,
+                                  "inverse_column": col})
 
 
 def butting_columns(look: LookAngleTable) -> NDArray[np.float64]:
@@ -397,8 +512,10 @@ def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
     gj = (e - x_min) / res - 0.5
     seg_first = np.concatenate([[0.0], butting[1::2]])
     masks = _segment_masks(gc, seg_first)
-    polys = {o: (tuple(Poly2D.fit(gi[:, k], gj[:, k], ll[:, k], o) for k in masks),
-                 Poly2D.fit(gi, gj, cc, o)) for o in (3, 4, 5)}
+    orders = (3, 4, 5)
+    line_fits = [Poly2D.fit_orders(gi[:, k], gj[:, k], ll[:, k], orders) for k in masks]
+    col_fits = Poly2D.fit_orders(gi, gj, cc, orders)
+    polys = {o: (tuple(f[o] for f in line_fits), col_fits[o]) for o in orders}
     step = inverse_step_px or max(1, round(max(n_rows, n_cols) / (n_breakpoints - 1) / 4))
     rows = np.arange(0.0, n_rows - 1 + step, step)
     cols = np.arange(0.0, n_cols - 1 + step, step)

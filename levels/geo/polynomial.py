@@ -9,9 +9,11 @@ the polynomial and are stored with its coefficients.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
@@ -98,6 +100,30 @@ class Poly2D:
         poly = cls(np.zeros(n_terms), order, (cx, cy), (sx, sy))
         coef, *_ = np.linalg.lstsq(poly._design(x, y), z, rcond=None)
         return cls(coef, order, (cx, cy), (sx, sy))
+
+    @classmethod
+    def fit_orders(cls, x: ArrayLike, y: ArrayLike, z: ArrayLike, orders: Sequence[int]
+                   ) -> dict[int, Poly2D]:
+        """The least-squares fits of several orders on the same points, from one QR
+        factorisation: the monomials are ordered by total degree, so the design matrix of a
+        lower order is the leading columns of the highest's, and so is its R."""
+        x, y, z = (np.asarray(a, dtype=np.float64).ravel() for a in (x, y, z))
+        top = max(orders)
+        n_top = (top + 1) * (top + 2) // 2
+        if x.size < n_top:
+            raise GeometryError(f"{x.size} breakpoints cannot fix {n_top} coefficients")
+        cx, sx = _normaliser(x)
+        cy, sy = _normaliser(y)
+        # R of [A | z] holds R of A and, in its last column, Qᵀz: Q is never formed
+        design = cls(np.zeros(n_top), top, (cx, cy), (sx, sy))._design(x, y)
+        r_aug = np.linalg.qr(np.column_stack([design, z]), mode="r")
+        r, qz = r_aug[:n_top, :n_top], r_aug[:n_top, n_top]
+        out = {}
+        for order in orders:
+            n = (order + 1) * (order + 2) // 2
+            coef = scipy.linalg.solve_triangular(r[:n, :n], qz[:n])
+            out[order] = cls(coef, order, (cx, cy), (sx, sy))
+        return out
 
     def _design(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
         u = (x - self.centre[0]) / self.scale[0]

@@ -160,7 +160,9 @@ class PushbroomModel:
             np.atleast_1d(np.asarray(line, dtype=np.float64)),
             np.atleast_1d(np.asarray(column, dtype=np.float64)),
         )
-        r, axes, body = self._orientation(self.clock.time_s(line_a.ravel()))
+        # grids repeat each line many times: orient each distinct time once
+        t_u, at = np.unique(self.clock.time_s(line_a.ravel()), return_inverse=True)
+        r, axes, body = (x[at] for x in self._orientation(t_u))
         u = self.look_angles.directions(col_a.ravel())
         los = np.einsum("nij,nj->ni", axes, np.einsum("nij,nj->ni", body, u))
         return r, los
