@@ -161,14 +161,16 @@ class Level1BGeometry:
 
 
 def level1b_geometry(scene: SceneGeometry, pixel_size_m: float,
-                     n_breakpoints: int = N_BREAKPOINTS) -> Level1BGeometry:
-    """GEO for level 1B: tangent plane, breakpoints, polynomials f, g, h, image size."""
-    model = scene.model
-    ell = model.ellipsoid
-    h_ref = scene.reference_height_m
-    origin = ell.to_ecef(scene.centre_lat_rad, scene.centre_lon_rad, h_ref).reshape(3)
-    up = ell.up(scene.centre_lat_rad, scene.centre_lon_rad).reshape(3)
-    east = np.array([-np.sin(scene.centre_lon_rad), np.cos(scene.centre_lon_rad), 0.0])
+                     n_breakpoints: int = N_BREAKPOINTS, band: str | None = None,
+                     like: Level1BGeometry | None = None) -> Level1BGeometry:
+    """GEO for level 1B: tangent plane, breakpoints, polynomials f, g, h, image size.
+
+    ``band`` names the band whose model is fitted (the first by default). ``like``, the
+    geometry of another band of the scene, gives the plane and the output grid to share:
+    the XS bands of a product are then registered on one grid, each through its own f, g,
+    h (their look angles differ by a few tenths of a pixel).
+    """
+    model = scene.models[band] if band is not None else scene.model
     nl, nc = scene.cut.n_lines, model.n_columns
     lc, cc = scene.cut.centre_line, 0.5 * (nc - 1)
     k = np.linspace(0.0, 1.0, n_breakpoints)
@@ -176,14 +178,7 @@ def level1b_geometry(scene: SceneGeometry, pixel_size_m: float,
     line_c = np.full(n_breakpoints, lc)
     col_c = k * (nc - 1)
     r, los = model.sight(line_c, col_c)
-    draft = TangentPlane(origin, np.cross(east, up), east, up)
-    x0, y0 = draft.intersect(r, los)
-    d = draft.to_ecef(x0[-1], y0[-1])[0] - draft.to_ecef(x0[0], y0[0])[0]
-    y_axis = d - (d @ up) * up
-    y_axis /= np.linalg.norm(y_axis)
-    if y_axis @ east < 0:
-        y_axis = -y_axis
-    plane = TangentPlane(origin, np.cross(y_axis, up), y_axis, up)  # X = Y × up: southward
+    plane = _tangent_plane(scene, model, r, los) if like is None else like.plane
     xl, yl = plane.intersect(r, los)
     line_k = k * (nl - 1)
     r, los = model.sight(line_k, np.full(n_breakpoints, cc))
@@ -194,10 +189,17 @@ def level1b_geometry(scene: SceneGeometry, pixel_size_m: float,
     if not np.all(np.isfinite(np.concatenate([xl, yl, xk, yk, xb, yb]))):
         raise GeometryError("level 1B: a breakpoint's line of sight misses the tangent plane")
     res = float(pixel_size_m)
-    i_origin = float(np.floor(xb.min() / res))
-    j_origin = float(np.floor(yb.min() / res))
-    n_rows = int(np.floor(xb.max() / res) - i_origin) + 1
-    n_cols = int(np.floor(yb.max() / res) - j_origin) + 1
+    if like is None:
+        i_origin = float(np.floor(xb.min() / res))
+        j_origin = float(np.floor(yb.min() / res))
+        n_rows = int(np.floor(xb.max() / res) - i_origin) + 1
+        n_cols = int(np.floor(yb.max() / res) - j_origin) + 1
+    else:
+        if like.pixel_size_m != res:
+            raise GeometryError(f"level 1B: pixel size {res} m differs from the shared grid's "
+                                f"{like.pixel_size_m} m")
+        i_origin, j_origin, n_rows, n_cols = like.i_origin, like.j_origin, like.n_rows, \
+            like.n_cols
     ik, jk = xk / res - i_origin, yk / res - j_origin
     il, jl = xl / res - i_origin, yl / res - j_origin
     f = Poly1D.fit(ik, line_k, 3)                     # INPE eq. (1): L = f(I)
@@ -212,3 +214,20 @@ def level1b_geometry(scene: SceneGeometry, pixel_size_m: float,
     )
 
 
+def _tangent_plane(scene: SceneGeometry, model: PushbroomModel, r: NDArray[np.float64],
+                   los: NDArray[np.float64]) -> TangentPlane:
+    """The plane tangent to the reference surface at the scene centre, Y along the centre
+    line (``r``, ``los``: its breakpoints' sight) eastward, X = Y × up southward."""
+    ell = model.ellipsoid
+    origin = ell.to_ecef(scene.centre_lat_rad, scene.centre_lon_rad,
+                         scene.reference_height_m).reshape(3)
+    up = ell.up(scene.centre_lat_rad, scene.centre_lon_rad).reshape(3)
+    east = np.array([-np.sin(scene.centre_lon_rad), np.cos(scene.centre_lon_rad), 0.0])
+    draft = TangentPlane(origin, np.cross(east, up), east, up)
+    x0, y0 = draft.intersect(r, los)
+    d = draft.to_ecef(x0[-1], y0[-1])[0] - draft.to_ecef(x0[0], y0[0])[0]
+    y_axis = d - (d @ up) * up
+    y_axis /= np.linalg.norm(y_axis)
+    if y_axis @ east < 0:
+        y_axis = -y_axis
+    return TangentPlane(origin, np.cross(y_axis, up), y_axis, up)

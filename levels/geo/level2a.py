@@ -468,7 +468,9 @@ def bilinear_grid(rows: NDArray[np.float64], cols: NDArray[np.float64],
 
 def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
                      method: str = "nearest4", n_breakpoints: int = N_BREAKPOINTS,
-                     inverse_step_px: int = 0, grid_rows: str = "attitude") -> Level2AGeometry:
+                     inverse_step_px: int = 0, grid_rows: str = "attitude",
+                     band: str | None = None, like: Level2AGeometry | None = None
+                     ) -> Level2AGeometry:
     """GEO for level 2A (module docstring).
 
     Parameters
@@ -483,13 +485,19 @@ def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
         attitude sample of the scene, where the model's attitude (linear between the
         samples) bends, plus the first and last line; with Westin's rough pitch drift the
         regular rows miss those bends by up to 0.06 px at nadir.
+    band
+        The band whose model is gridded (the first by default).
+    like
+        The geometry of another band of the scene: its map grid (CRS, extent, inverse-grid
+        nodes) is shared, so that the XS bands of a product are registered on one grid,
+        each through its own direct and inverse grids.
     Columns are INPE's 61, plus both sides of each CCD butting (:func:`butting_columns`).
     """
     if method not in INVERSE_METHODS:
         raise GeometryError(f"inverse method {method!r}: expected one of {INVERSE_METHODS}")
     if grid_rows not in ("attitude", "regular"):
         raise GeometryError(f"grid_rows {grid_rows!r}: expected 'attitude' or 'regular'")
-    model = scene.model
+    model = scene.models[band] if band is not None else scene.model
     nl, nc = scene.cut.n_lines, model.n_columns
     gl = (scene.attitude_lines() if grid_rows == "attitude"
           else np.linspace(0.0, nl - 1.0, n_breakpoints))
@@ -500,14 +508,27 @@ def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
     if not np.all(g.ok):
         raise GeometryError(f"level 2A: {np.count_nonzero(~g.ok)} direct-grid breakpoints of "
                             f"scene {scene.cut.index} not located")
+    if like is not None:
+        if like.pixel_size_m != float(pixel_size_m) or not pyproj.CRS.from_wkt(
+                like.crs_wkt).equals(crs):
+            raise GeometryError("level 2A: a shared map grid must have the same CRS and "
+                                "pixel size")
+        crs = pyproj.CRS.from_wkt(like.crs_wkt)
     to_map = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
     e, n = to_map.transform(np.degrees(g.lon_rad), np.degrees(g.lat_rad))
     e, n = np.asarray(e).reshape(ll.shape), np.asarray(n).reshape(ll.shape)
     res = float(pixel_size_m)
-    x_min = float(np.floor(e.min() / res) * res)
-    y_max = float(np.ceil(n.max() / res) * res)
-    n_cols = int(np.ceil((e.max() - x_min) / res))
-    n_rows = int(np.ceil((y_max - n.min()) / res))
+    if like is None:
+        x_min = float(np.floor(e.min() / res) * res)
+        y_max = float(np.ceil(n.max() / res) * res)
+        n_cols = int(np.ceil((e.max() - x_min) / res))
+        n_rows = int(np.ceil((y_max - n.min()) / res))
+        step = inverse_step_px or max(1, round(max(n_rows, n_cols) / (n_breakpoints - 1) / 4))
+        rows = np.arange(0.0, n_rows - 1 + step, step)
+        cols = np.arange(0.0, n_cols - 1 + step, step)
+    else:
+        x_min, y_max, n_rows, n_cols = like.x_min_m, like.y_max_m, like.n_rows, like.n_cols
+        rows, cols = like.inverse_rows, like.inverse_cols
     gi = (y_max - n) / res - 0.5
     gj = (e - x_min) / res - 0.5
     seg_first = np.concatenate([[0.0], butting[1::2]])
@@ -516,9 +537,6 @@ def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
     line_fits = [Poly2D.fit_orders(gi[:, k], gj[:, k], ll[:, k], orders) for k in masks]
     col_fits = Poly2D.fit_orders(gi, gj, cc, orders)
     polys = {o: (tuple(f[o] for f in line_fits), col_fits[o]) for o in orders}
-    step = inverse_step_px or max(1, round(max(n_rows, n_cols) / (n_breakpoints - 1) / 4))
-    rows = np.arange(0.0, n_rows - 1 + step, step)
-    cols = np.arange(0.0, n_cols - 1 + step, step)
     geom = Level2AGeometry(
         crs_wkt=crs.to_wkt(), pixel_size_m=res, x_min_m=x_min, y_max_m=y_max, n_rows=n_rows,
         n_cols=n_cols, grid_line=gl, grid_column=gc, grid_i=gi, grid_j=gj,

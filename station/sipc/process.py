@@ -21,9 +21,10 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -114,24 +115,43 @@ def _geometry_common(pg: PassGeometry, scene: SceneGeometry) -> dict[str, Any]:
     }
 
 
-def _geometry_1b(g: Level1BGeometry) -> dict[str, Any]:
+_G = TypeVar("_G", Level1BGeometry, Level2AGeometry)
+
+
+def _per_band(scene: SceneGeometry, make: Callable[[str, _G | None], _G]) -> dict[str, _G]:
+    """A geometry per band, every band on the first band's output grid."""
+    first, *others = scene.models
+    out = {first: make(first, None)}
+    for b in others:
+        out[b] = make(b, out[first])
+    return out
+
+
+def _geometry_1b(geoms: dict[str, Level1BGeometry]) -> dict[str, Any]:
+    g = next(iter(geoms.values()))
     return {"pixel_size_m": g.pixel_size_m, "i_origin": g.i_origin, "j_origin": g.j_origin,
             "plane_ecef_m": g.plane.as_array(),
             "plane_note": "rows: origin, X (south), Y (east), normal (up); ECEF",
-            "f": g.f.as_array(), "g": g.g.as_array(), "h": g.h.as_array(),
             "polynomial_note": "[centre, scale, c0..c3]: p(x) = sum c_k ((x - centre)/scale)^k;"
                                " L = f(I), C = g(J - h(I))",
-            "centre_column_breakpoints": g.centre_column_breakpoints,
-            "centre_line_breakpoints": g.centre_line_breakpoints,
-            "breakpoints_note": "columns L, C, I, J"}
+            "breakpoints_note": "columns L, C, I, J",
+            "bands": {b: {"f": g.f.as_array(), "g": g.g.as_array(), "h": g.h.as_array(),
+                          "centre_column_breakpoints": g.centre_column_breakpoints,
+                          "centre_line_breakpoints": g.centre_line_breakpoints}
+                      for b, g in geoms.items()}}
 
 
-def _geometry_2a(g: Level2AGeometry) -> dict[str, Any]:
-    polys = {f"poly{o}": {"line": np.stack([p.as_array() for p in pl]), "column": pc.as_array()}
-             for o, (pl, pc) in g.inverse_polynomials.items()}
+def _geometry_2a(geoms: dict[str, Level2AGeometry]) -> dict[str, Any]:
+    g = next(iter(geoms.values()))
     return {"crs_wkt": g.crs_wkt, "geotransform": np.asarray(g.geotransform),
             "pixel_size_m": g.pixel_size_m, "inverse_method": g.method,
-            "direct_grid": {"line": g.grid_line, "column": g.grid_column, "i": g.grid_i,
+            "bands": {b: _geometry_2a_band(g) for b, g in geoms.items()}}
+
+
+def _geometry_2a_band(g: Level2AGeometry) -> dict[str, Any]:
+    polys = {f"poly{o}": {"line": np.stack([p.as_array() for p in pl]), "column": pc.as_array()}
+             for o, (pl, pc) in g.inverse_polynomials.items()}
+    return {"direct_grid": {"line": g.grid_line, "column": g.grid_column, "i": g.grid_i,
                             "j": g.grid_j},
             "segment_first_column": g.segment_first_column,
             "inverse_grid": {"rows": g.inverse_rows, "cols": g.inverse_cols,
@@ -189,12 +209,14 @@ def _process_scene(archive: L0Archive, pg: PassGeometry, scene: SceneGeometry,
     timings: dict[str, float] = {}
     t = clock()
     rows = slice(scene.cut.first_line, scene.cut.first_line + scene.cut.n_lines)
-    g1b = level1b_geometry(scene, res) if "1B" in cfg.levels else None
-    g2a = None
+    g1b = g2a = None
+    if "1B" in cfg.levels:
+        g1b = _per_band(scene, lambda b, like: level1b_geometry(scene, res, band=b, like=like))
     if "2A" in cfg.levels:
         crs = map_crs(cfg.crs, scene.centre_lat_rad, scene.centre_lon_rad,
                       _ascending_node_lon(pg) if cfg.crs == "som" else None)
-        g2a = level2a_geometry(scene, res, crs, cfg.inverse_2a, grid_rows=cfg.grid_rows)
+        g2a = _per_band(scene, lambda b, like: level2a_geometry(
+            scene, res, crs, cfg.inverse_2a, grid_rows=cfg.grid_rows, band=b, like=like))
     timings["geometry"] = clock() - t
     images: dict[str, dict[str, BandImage]] = {lv: {} for lv in cfg.levels}
     stripes: dict[str, dict[str, float]] = {}
@@ -214,15 +236,16 @@ def _process_scene(archive: L0Archive, pg: PassGeometry, scene: SceneGeometry,
         timings["deconvolution"] = timings.get("deconvolution", 0.0) + clock() - t
         if g1b is not None:
             t = clock()
-            images["1B"][bname] = BandImage(*resample_1b(dec, dvalid, g1b, cfg.interpolation_1b))
+            images["1B"][bname] = BandImage(*resample_1b(dec, dvalid, g1b[bname],
+                                                         cfg.interpolation_1b))
             timings["1B"] = timings.get("1B", 0.0) + clock() - t
         if g2a is not None:
             t = clock()
-            images["2A"][bname] = BandImage(*resample_2a(with_nan(dec, dvalid), None, g2a,
-                                                         cfg.resampling_2a))
+            images["2A"][bname] = BandImage(*resample_2a(with_nan(dec, dvalid), None,
+                                                         g2a[bname], cfg.resampling_2a))
             timings["2A"] = timings.get("2A", 0.0) + clock() - t
     t = clock()
-    quality = _quality(scene, cfg, g1b, g2a, stripes, taps, truth, list(archive.bands))
+    quality = _quality(scene, cfg, g1b, g2a, stripes, taps, truth)
     timings["quality"] = clock() - t
     t = clock()
     common = _geometry_common(pg, scene)
@@ -246,30 +269,33 @@ def _process_scene(archive: L0Archive, pg: PassGeometry, scene: SceneGeometry,
                          {lv: _headline(q) for lv, q in quality.items()}, timings)
 
 
-def _quality(scene: SceneGeometry, cfg: ProcessingConfig, g1b: Level1BGeometry | None,
-             g2a: Level2AGeometry | None, stripes: dict[str, dict[str, float]],
-             taps: NDArray[np.float64], truth: Truth | None, bands: list[str]
-             ) -> dict[str, dict[str, Any]]:
+def _quality(scene: SceneGeometry, cfg: ProcessingConfig,
+             g1b: dict[str, Level1BGeometry] | None, g2a: dict[str, Level2AGeometry] | None,
+             stripes: dict[str, dict[str, float]], taps: NDArray[np.float64],
+             truth: Truth | None) -> dict[str, dict[str, Any]]:
     q: dict[str, dict[str, Any]] = {"1A": {"stripe_level": stripes}}
     nyquist = np.array([0.5])
     before = float(mtf(nyquist, cfg.psf_fwhm_px)[0])
     radiometry = {"deconvolution_taps": taps, "mtf_at_nyquist_before": before,
                   "mtf_at_nyquist_after": before * abs(float(fir_response(taps, nyquist)[0]))}
     per_side = cfg.checkpoints_per_side
+    bands = list(scene.models)
     if g1b is not None:
+        # the first band's figures: the others' fits are the same polynomials a few tenths
+        # of a pixel apart, and their checkpoints below measure each band
         q["1B"] = {"radiometry": radiometry,
-                   "polynomials_vs_model": g1b.approximation_error(scene.model)}
+                   "polynomials_vs_model": g1b[bands[0]].approximation_error(scene.model)}
         if truth is not None:
-            q["1B"]["checkpoints"] = {b: checkpoints_1b(truth, scene, g1b, k, per_side)
+            q["1B"]["checkpoints"] = {b: checkpoints_1b(truth, scene, g1b[b], k, per_side)
                                       for k, b in enumerate(bands)}
     if g2a is not None:
-        approx = {}
-        for m in INVERSE_METHODS:
-            approx[m] = g2a.approximation_error(scene.model, scene.reference_height_m, m)
+        g = g2a[bands[0]]
+        approx = {m: g.approximation_error(scene.model, scene.reference_height_m, m)
+                  for m in INVERSE_METHODS}
         q["2A"] = {"radiometry": radiometry, "inverse_vs_model": approx,
-                   "inverse_method": g2a.method}
+                   "inverse_method": g.method}
         if truth is not None:
-            q["2A"]["checkpoints"] = {b: checkpoints_2a(truth, scene, g2a, k, per_side)
+            q["2A"]["checkpoints"] = {b: checkpoints_2a(truth, scene, g2a[b], k, per_side)
                                       for k, b in enumerate(bands)}
     return {lv: q[lv] for lv in cfg.levels}
 
