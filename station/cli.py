@@ -9,6 +9,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from levels.errors import LevelsError
 from station.errors import StationError
@@ -176,12 +177,49 @@ def _cmd_process(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The scenario ``station`` and ``station run`` run when given none.
+DEFAULT_SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "quickstart.toml"
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from station.run import run_scenario, summary_table
+    from station.scenario import load_scenario
+
+    path = Path(args.scenario) if args.scenario else DEFAULT_SCENARIO
+    if not args.scenario and not path.is_file():
+        raise StationError(f"the default scenario {path} is not there (an install without "
+                           "the repository's scenarios/); give a scenario file")
+    scn = load_scenario(path)
+    out = Path(args.out) if args.out else Path("runs") / scn.name
+    if not args.json:
+        print(f"running {path} into {out}/ ...", file=sys.stderr)
+    report = run_scenario(scn, out, quicklooks=not args.no_quicklooks,
+                          progress=not args.quiet and sys.stderr.isatty())
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        print(summary_table(report, out))
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="station",
         description="Emulated SPOT direct-receiving station and processing centre.",
     )
     sub = parser.add_subparsers(dest="command")
+    run = sub.add_parser(
+        "run",
+        help="run a scenario end to end (emulate, downlink, L0, GEO and COR, quality, "
+             "quicklooks, report.json); the default scenario without one",
+    )
+    run.add_argument("scenario", nargs="?",
+                     help="path to a scenario .toml (default: scenarios/quickstart.toml)")
+    run.add_argument("--out", help="run directory (default: runs/<scenario name>)")
+    run.add_argument("--json", action="store_true", help="print the report instead of a table")
+    run.add_argument("--no-quicklooks", action="store_true", help="skip the quicklook PNGs")
+    run.add_argument("--quiet", action="store_true", help="no progress bars")
+    run.set_defaults(func=_cmd_run)
     locate = sub.add_parser(
         "locate",
         help="predict the frame of a real SPOT scene from its METADATA.DIM and compare",
@@ -225,9 +263,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``station`` console script; returns the exit code."""
     parser = _parser()
     args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help()
-        return 0
+    if args.command is None:  # `station` alone runs the default scenario
+        args = parser.parse_args(["run"])
     try:
         return args.func(args)
     except (LevelsError, StationError, OSError) as exc:

@@ -14,6 +14,8 @@ to SI, its allowed range and a one-line meaning. The error messages and the list
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import math
 import tomllib
 import typing
@@ -424,6 +426,9 @@ class Scenario:
     channel: ChannelConfig = field(default_factory=ChannelConfig)
     processing: ProcessingConfig = field(default_factory=ProcessingConfig)
     base_dir: str = "."
+    #: The scenario file and the SHA-256 of its bytes ("" when built from a dict).
+    source: str = ""
+    source_sha256: str = ""
 
     def path(self, relative: str) -> Path:
         """A path of the scenario, resolved from the scenario file's directory."""
@@ -538,12 +543,19 @@ def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file; :class:`ScenarioError` says what is wrong."""
     p = Path(path)
     try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
+        raw = p.read_bytes()
+        data = tomllib.loads(raw.decode("utf-8"))
     except FileNotFoundError:
         raise ScenarioError(f"scenario file {p} not found") from None
+    except IsADirectoryError:
+        raise ScenarioError(f"scenario {p} is a directory, not a .toml file") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f"{p}: not a text file (UTF-8)") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{p}: not valid TOML ({exc})") from None
-    return scenario_from_dict(data, p.resolve().parent)
+    scn = scenario_from_dict(data, p.resolve().parent)
+    return dataclasses.replace(scn, source=str(p.resolve()),
+                               source_sha256=hashlib.sha256(raw).hexdigest())
 
 
 def describe_keys() -> str:

@@ -18,7 +18,6 @@ the bands' small registration offsets then show in each band's checkpoint errors
 
 from __future__ import annotations
 
-import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -172,8 +171,12 @@ def _headline(q: dict[str, Any]) -> dict[str, Any]:
 
 def process_l0(archive: L0Archive, cfg: ProcessingConfig, out_dir: str | Path, *,
                name: str = "pass", truth: Truth | None = None,
-               provenance: dict[str, Any] | None = None) -> PassProducts:
-    """GEO and COR over a pass (module docstring); products go to ``out_dir``."""
+               provenance: dict[str, Any] | None = None,
+               on_scene: Callable[[SceneProducts, int], None] | None = None) -> PassProducts:
+    """GEO and COR over a pass (module docstring); products go to ``out_dir``.
+
+    ``on_scene(done, n_scenes)`` is called after each scene (progress reporting).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter
@@ -191,12 +194,14 @@ def process_l0(archive: L0Archive, cfg: ProcessingConfig, out_dir: str | Path, *
     pixel_valid = {b: archive.bands[b].pixel_valid() for b in band_names}
     taps = deconvolution_taps(cfg.psf_fwhm_px, cfg.noise_to_signal) if cfg.deconvolution \
         else np.ones(1)
-    prov = {"software": f"spot-station {__version__}", "inputs": str(archive.path),
+    prov = {"software": f"spot-station {__version__}", "inputs": Path(archive.path).name,
             "processing": json.dumps(asdict(cfg)), **(provenance or {})}
     results = []
     for scene in scenes:
         results.append(_process_scene(archive, pg, scene, cfg, res, taps, pixel_valid, out,
                                       name, truth, prov))
+        if on_scene is not None:
+            on_scene(results[-1], len(scenes))
     tail = pg.tail_lines(scene_lines, cfg.overlap_lines)
     return PassProducts(results, tail, {"geo": t_geo, "total": clock() - t0})
 
@@ -310,6 +315,12 @@ def _ascending_node_lon(pg: PassGeometry) -> float:
     return float(np.arctan2(node[1], node[0]))
 
 
+def scenario_provenance(scn: Scenario) -> dict[str, Any]:
+    """What a product records of the scenario it was made from."""
+    return {"scenario": scn.name, "scenario_file": Path(scn.source).name,
+            "scenario_sha256": scn.source_sha256, "seed": scn.seed}
+
+
 def process_scenario(scn: Scenario, out_dir: str | Path, l0_path: str | Path | None = None
                      ) -> tuple[PassProducts, Path]:
     """Emulate, downlink, record and process a scenario; products measured against truth."""
@@ -322,12 +333,6 @@ def process_scenario(scn: Scenario, out_dir: str | Path, l0_path: str | Path | N
     result = downlink(acq)
     l0 = record(acq, result, l0_path or out / f"{scn.name}.l0.h5")
     archive = read_l0(l0)
-    digest = ""
-    source = scn.path(f"{scn.name}.toml")
-    if source.is_file():
-        digest = hashlib.sha256(source.read_bytes()).hexdigest()
     products = process_l0(archive, scn.processing, out, name=scn.name,
-                          truth=Truth.of(acq, archive),
-                          provenance={"scenario": scn.name, "scenario_sha256": digest,
-                                      "seed": scn.seed})
+                          truth=Truth.of(acq, archive), provenance=scenario_provenance(scn))
     return products, l0

@@ -92,7 +92,8 @@ def checkpoints_1b(truth: Truth, scene: SceneGeometry, geom: Level1BGeometry, ba
     return {"axes": "1: X (south), 2: Y (east) of the tangent plane",
             "line_of_sight": error_stats(x - xt, y - yt, res),
             "ground": error_stats(x - xg, y - yg, res),
-            "raw_line": line, "raw_column": col, "error_x_m": x - xt, "error_y_m": y - yt}
+            "raw_line": line, "raw_column": col, "output_row": i, "output_col": j,
+            "error_x_m": x - xt, "error_y_m": y - yt}
 
 
 def checkpoints_2a(truth: Truth, scene: SceneGeometry, geom: Level2AGeometry, band: int,
@@ -122,4 +123,5 @@ def checkpoints_2a(truth: Truth, scene: SceneGeometry, geom: Level2AGeometry, ba
     return {"axes": "1: easting, 2: northing of the map",
             "line_of_sight": error_stats(e - et, n - nt, res),
             "ground": error_stats(e - eg, n - ng, res),
-            "raw_line": line, "raw_column": col, "error_e_m": e - et, "error_n_m": n - nt}
+            "raw_line": line, "raw_column": col, "output_row": i, "output_col": j,
+            "error_e_m": e - et, "error_n_m": n - nt}

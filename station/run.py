@@ -1,0 +1,225 @@
+"""End-to-end scenario runs: ``station run``.
+
+One call takes a scenario through the whole ground segment and says how good each product
+is: the spacecraft emulator images the pass, the sender and the channel carry it, the
+receiving station decodes and records the L0 archive, the processing centre runs GEO once
+and COR per scene and level, and every product is measured against the truth. The run
+directory then holds the L0 archive, the products, a quicklook PNG per product and
+``report.json``::
+
+    <out>/<name>.l0.h5
+    <out>/<name>_s<scene>_<level>.h5
+    <out>/quicklooks/<name>_s<scene>_<level>.png
+    <out>/report.json
+
+``report.json`` (format ``spot-station-run`` v1) holds the scenario and its hash, the
+decoding statistics of the downlink, per product its size and headline quality figures, and
+the timings of every stage. Everything in it except ``timings_s`` and the sizes in MB is a
+function of the scenario alone: reruns with the same scenario and seed give identical
+products and the same report (``comparable_report``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from levels.products import read_product
+from station import __version__
+from station.scenario import Scenario
+
+__all__ = ["REPORT_FORMAT", "comparable_report", "run_scenario", "summary_table"]
+
+REPORT_FORMAT = "spot-station-run"
+REPORT_VERSION = 1
+#: Report keys that vary from one run to the next (wall times, sizes on disk).
+_VARYING = ("timings_s", "size_mb", "receive_speed_x_real_time")
+
+
+def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
+                 progress: bool = False) -> dict[str, Any]:
+    """Run ``scn`` end to end into ``out_dir``; returns the report (also in report.json).
+
+    ``progress`` shows progress bars on stderr (stages, then scenes).
+    """
+    from tqdm import tqdm
+
+    from levels.quicklook import write_quicklook
+    from levels.readers.l0 import read_l0
+    from station.sipc.process import process_l0, scenario_provenance
+    from station.sipc.truth import Truth
+    from station.spacecraft.emulator import emulate
+    from station.srrs.report import downlink_report
+    from station.srrs.session import downlink, record
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    clock = time.perf_counter
+    timings: dict[str, Any] = {}
+    t_start = clock()
+    stages = tqdm(total=4 + quicklooks, desc="emulate", unit="stage", disable=not progress,
+                  leave=False)
+    t = clock()
+    acq = emulate(scn)
+    timings["emulate"] = clock() - t
+    stages.update()
+    stages.set_description("downlink")
+    result = downlink(acq)
+    timings.update(result.timings_s)
+    t = clock()
+    l0 = record(acq, result, out / f"{scn.name}.l0.h5")
+    timings["record"] = clock() - t
+    decode = downlink_report(acq, result)
+    stages.update()
+    stages.set_description("GEO and COR")
+    archive = read_l0(l0)
+    scenes = tqdm(desc="scenes", unit="scene", disable=not progress, leave=False)
+
+    def on_scene(_done: Any, total: int) -> None:
+        scenes.total = total
+        scenes.update()
+
+    products = process_l0(archive, scn.processing, out, name=scn.name,
+                          truth=Truth.of(acq, archive), provenance=scenario_provenance(scn),
+                          on_scene=on_scene)
+    scenes.close()
+    timings["geo"] = products.timings_s["geo"]
+    cor: dict[str, float] = {}
+    for s in products.scenes:
+        for k, v in s.timings_s.items():
+            cor[k] = cor.get(k, 0.0) + v
+    timings["cor"] = cor
+    stages.update()
+    rows = []
+    t = clock()
+    for s in products.scenes:
+        for level, path in s.paths.items():
+            p = read_product(path)
+            row: dict[str, Any] = {
+                "scene": s.index, "level": level, "first_line": s.first_line,
+                "n_lines": s.n_lines, "file": path.name, "n_rows": p.attrs["n_rows"],
+                "n_cols": p.attrs["n_cols"], "bands": list(p.bands),
+                "valid_fraction": {b: round(float(im.valid.mean()), 6)
+                                   for b, im in p.bands.items()},
+                "size_mb": round(path.stat().st_size / 1e6, 3),
+                "quality": s.quality[level]}
+            if quicklooks:
+                ql = write_quicklook(p, out / "quicklooks" / f"{path.stem}.png")
+                row["quicklook"] = str(ql.relative_to(out))
+            rows.append(row)
+    if quicklooks:
+        timings["quicklooks"] = clock() - t
+        stages.update()
+    stages.set_description("report")
+    timings["total"] = clock() - t_start
+    report = {
+        "format": REPORT_FORMAT, "format_version": REPORT_VERSION,
+        "software": f"spot-station {__version__}",
+        "scenario": {"name": scn.name, "file": Path(scn.source).name if scn.source else "",
+                     "sha256": scn.source_sha256, "seed": scn.seed},
+        "instrument": {"hrv": decode["hrv"], "mode": decode["mode"],
+                       "mirror_step": scn.instrument.mirror_step, "lines": decode["lines"],
+                       "detectors": decode["detectors"]},
+        "decode": {k: v for k, v in decode.items()
+                   if k not in ("scenario", "hrv", "mode", "lines", "detectors", "timings_s")},
+        "l0": {"file": l0.name, "size_mb": round(l0.stat().st_size / 1e6, 3),
+               "rows": archive.n_lines},
+        "processing": {"levels": list(scn.processing.levels), "scenes": len(products.scenes),
+                       "tail_lines": products.tail_lines},
+        "products": rows,
+        "timings_s": _rounded(timings),
+    }
+    _write_json(out / "report.json", report)
+    stages.update()
+    stages.close()
+    return report
+
+
+def _rounded(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {k: _rounded(v) for k, v in x.items()}
+    return round(float(x), 4)
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    """Atomically: a reader never sees half a report."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
+    os.replace(tmp, path)
+
+
+def _json_default(x: Any) -> Any:
+    try:
+        return x.item()  # numpy scalars
+    except AttributeError:
+        raise TypeError(f"{type(x).__name__} is not JSON serialisable") from None
+
+
+def comparable_report(report: dict[str, Any]) -> dict[str, Any]:
+    """The report without what varies between identical runs (wall times, file sizes)."""
+    def strip(x: Any) -> Any:
+        if isinstance(x, dict):
+            return {k: strip(v) for k, v in x.items() if k not in _VARYING}
+        if isinstance(x, list):
+            return [strip(v) for v in x]
+        return x
+    return strip(json.loads(json.dumps(report, default=_json_default)))
+
+
+def _fmt(x: Any, spec: str) -> str:
+    """``x`` formatted by ``spec`` ("10.1f"), or a dash as wide when there is no figure."""
+    return "—".rjust(int(spec.split(".")[0])) if x is None else format(x, spec)
+
+
+def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> str:
+    """The short human summary printed at the end of a run."""
+    ins, dec = report["instrument"], report["decode"]
+    lines = [f"{report['scenario']['name']}: HRV{ins['hrv']} {ins['mode']}, mirror step "
+             f"{ins['mirror_step']}, {ins['lines']} lines × {ins['detectors']} detectors → "
+             f"{report['processing']['scenes']} scene(s)"]
+    link, cadus = dec["link"], dec["cadus"]
+    bands = dec["bands"]
+    tc = dec["truth_check"]
+    ok = all(tc[k] for k in ("masks_match_lost_frames", "accounts_balance", "sent_as_counted"))
+    lines.append(
+        f"downlink: {link['cadus_sent']} CADUs, {link['bit_errors']} bit errors, "
+        f"{cadus['corrected']} corrected, {cadus['uncorrectable']} uncorrectable; lines "
+        + ", ".join(f"{b['name']} {b['lines_complete']}/{b['lines_partial']}/"
+                    f"{b['lines_missing']}" for b in bands)
+        + f" (complete/partial/missing); truth check {'passed' if ok else 'FAILED'}")
+    lines.append(f"{'scene':>5} {'level':>5} {'size px':>11} {'valid':>6} {'LOS rms m':>10} "
+                 f"{'LOS max m':>10} {'ground rms m':>13} {'approx max px':>14}  product")
+    for r in report["products"]:
+        q = r["quality"]
+        band = r["bands"][0]
+        los = q.get(f"checkpoints/{band}/line_of_sight/rms_m")
+        los_max = q.get(f"checkpoints/{band}/line_of_sight/max_m")
+        ground = q.get(f"checkpoints/{band}/ground/rms_m")
+        approx = q.get("polynomials_vs_model/max_px",
+                       q.get(f"inverse_vs_model/{q.get('inverse_method', '')}/max_px"))
+        valid = r["valid_fraction"].get(band)
+        lines.append(f"{r['scene']:5d} {r['level']:>5} {r['n_rows']:>5}×{r['n_cols']:<5} "
+                     f"{_fmt(valid, '6.3f')} {_fmt(los, '10.1f')} {_fmt(los_max, '10.1f')} "
+                     f"{_fmt(ground, '13.1f')} {_fmt(approx, '14.4f')}  {r['file']}")
+    stripes = [(r["scene"], b, r["quality"].get(f"stripe_level/{b}/raw_counts"),
+                r["quality"].get(f"stripe_level/{b}/level_1a_counts"))
+               for r in report["products"] if r["level"] == "1A" for b in r["bands"][:1]]
+    if stripes:
+        lines.append("stripes raw → 1A (counts): " + ", ".join(
+            f"scene {s} {b} {raw:.2f} → {cal:.2f}" for s, b, raw, cal in stripes))
+    t = report["timings_s"]
+    cor = sum(t.get("cor", {}).values())
+    parts = [f"emulate {t['emulate']:.1f}",
+             f"downlink {t.get('transmit', 0) + t.get('channel', 0) + t.get('receive', 0):.1f}",
+             f"record {t['record']:.1f}", f"GEO {t['geo']:.2f}", f"COR {cor:.1f}"]
+    if "quicklooks" in t:
+        parts.append(f"quicklooks {t['quicklooks']:.1f}")
+    lines.append("timings (s): " + ", ".join(parts) + f"; total {t['total']:.1f}")
+    if out_dir is not None:
+        n_ql = sum("quicklook" in r for r in report["products"])
+        lines.append(f"in {out_dir}/: report.json, {report['l0']['file']}, "
+                     f"{len(report['products'])} products, {n_ql} quicklooks")
+    return "\n".join(lines)
