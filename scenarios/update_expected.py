@@ -1,16 +1,23 @@
-"""Regenerate ``scenarios/expected/<name>.json`` from the current code.
+"""Regenerate ``scenarios/<name>/expected/`` from the current code.
 
 Run only when a change of results is intended and understood; the diff of the JSON files is
 then the record of what changed. ``tests/test_scenarios.py`` compares runs with these files.
-Geometry only (``render=False``) except for the reduced scenes, which are rendered and also
-sent through the downlink: their ``downlink`` entry is the comparable part of the report.
+
+- ``summary.json``: the emulator's summary of every scenario (geometry only, ``render=False``,
+  except for the reduced scenes, which are rendered and also sent through the downlink:
+  their ``downlink`` entry is the comparable part of the downlink report).
+- ``run.json``: for the reduced scenes, the comparable part of ``station run``'s report
+  (decode statistics, products, quality figures; no wall times or file sizes).
 """
 
 from __future__ import annotations
 
 import json
+import sys
+import tempfile
 from pathlib import Path
 
+from station.run import comparable_report, run_scenario
 from station.scenario import load_scenario
 from station.spacecraft.emulator import emulate
 from station.spacecraft.summary import summarize
@@ -18,20 +25,35 @@ from station.srrs.report import comparable, downlink_report
 from station.srrs.session import downlink
 
 HERE = Path(__file__).resolve().parent
-RENDERED = {"small_test", "noisy_channel"}
+#: Reduced scenes: rendered, sent through the downlink and run end to end in the tests.
+RENDERED = {"quickstart", "small_test", "noisy_channel", "tilt27_rugged"}
 
 
-def main() -> None:
+def expected_run(report: dict) -> dict:
+    """What ``run.json`` holds of a run's report (the software version left out)."""
+    rep = comparable_report(report)
+    rep.pop("software", None)
+    return rep
+
+
+def main(names: list[str]) -> None:
     for path in sorted(HERE.glob("*.toml")):
+        if names and path.stem not in names:
+            continue
         scn = load_scenario(path)
         acq = emulate(scn, render=scn.name in RENDERED)
         summary = summarize(acq)
+        out = HERE / path.stem / "expected"
+        out.mkdir(parents=True, exist_ok=True)
         if scn.name in RENDERED:
             summary["downlink"] = comparable(downlink_report(acq, downlink(acq)))
-        out = HERE / "expected" / f"{path.stem}.json"
-        out.write_text(json.dumps(summary, indent=2) + "\n")
-        print(f"wrote {out.relative_to(HERE.parent)}")
+            with tempfile.TemporaryDirectory() as tmp:
+                report = run_scenario(scn, tmp, quicklooks=False)
+            (out / "run.json").write_text(json.dumps(expected_run(report), indent=2) + "\n")
+            print(f"wrote {(out / 'run.json').relative_to(HERE.parent)}")
+        (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        print(f"wrote {(out / 'summary.json').relative_to(HERE.parent)}")
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

@@ -1,4 +1,5 @@
-"""Each shipped scenario against its expected summary (scenarios/expected/*.json)."""
+"""Each shipped scenario against its expected summaries (scenarios/<name>/expected/):
+the emulator's summary of every scenario, and ``station run``'s report of the reduced ones."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ from station.srrs.session import downlink
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = sorted((ROOT / "scenarios").glob("*.toml"))
-RENDERED = {"small_test", "noisy_channel"}  # the others are full-size: geometry only here
+# the reduced scenes; the others are full-size: geometry only here
+RENDERED = {"quickstart", "small_test", "noisy_channel", "tilt27_rugged"}
 COORD_TOL_DEG = 1e-6  # 0.1 m: integrator round-off across machines is far below
 LENGTH_TOL_KM = 1e-4
 MEAN_COUNTS_TOL = 0.05  # a few pixels rounding the other way on another CPU
@@ -24,7 +26,8 @@ MEAN_COUNTS_TOL = 0.05  # a few pixels rounding the other way on another CPU
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
 def test_scenario_matches_its_expected_summary(path: Path) -> None:
-    expected = json.loads((ROOT / "scenarios" / "expected" / f"{path.stem}.json").read_text())
+    expected = json.loads((ROOT / "scenarios" / path.stem / "expected" / "summary.json")
+                          .read_text())
     scn = load_scenario(path)
     acq = emulate(scn, render=scn.name in RENDERED)
     got = summarize(acq)
@@ -50,3 +53,52 @@ def test_scenario_matches_its_expected_summary(path: Path) -> None:
     for g, e in zip(got["bands"], expected["bands"], strict=True):
         assert g["mean_counts"] == pytest.approx(e["mean_counts"], abs=MEAN_COUNTS_TOL)
         assert g["failed_rays"] == e["failed_rays"] == 0
+
+
+#: Named tolerances of a run's figures, by the unit at the end of their key. Geometry is
+#: float64 throughout (checkpoints, approximation errors): across machines it moves by
+#: round-off only. Figures read from images (stripe levels, valid fractions) can move by a
+#: few pixels rounding the other way under numba's fastmath on another CPU.
+RUN_TOL = {"_m": 0.01, "_px": 1e-4, "_counts": 0.02, "valid_fraction": 1e-4}
+RUN_REL = 1e-6  # everything else numeric (MTF figures, ...)
+
+
+def _close(got, want, key: str) -> bool:
+    if isinstance(want, dict):
+        return isinstance(got, dict) and set(got) == set(want) and all(
+            _close(got[k], want[k], f"{key}/{k}") for k in want)
+    if isinstance(want, list):
+        return isinstance(got, list) and len(got) == len(want) and all(
+            _close(g, w, key) for g, w in zip(got, want, strict=True))
+    if isinstance(want, bool) or not isinstance(want, float | int) or "n_points" in key:
+        return got == want  # counts, names, flags: exact
+    tol = next((t for suffix, t in RUN_TOL.items()
+                if key.endswith(suffix) or suffix in key), None)
+    if tol is None:
+        return got == pytest.approx(want, rel=RUN_REL, abs=1e-12)
+    return abs(got - want) <= tol
+
+
+def _diff(got, want, key: str = "") -> list[str]:
+    """The keys where a run departs from its expected report (for the failure message)."""
+    if isinstance(want, dict) and isinstance(got, dict):
+        return [d for k in sorted(set(got) | set(want))
+                for d in (_diff(got.get(k), want.get(k), f"{key}/{k}") if k in got and k in want
+                          else [f"{key}/{k}: only in {'run' if k in got else 'expected'}"])]
+    if isinstance(want, list) and isinstance(got, list) and len(got) == len(want):
+        return [d for i, (g, w) in enumerate(zip(got, want, strict=True))
+                for d in _diff(g, w, f"{key}[{i}]")]
+    return [] if _close(got, want, key) else [f"{key}: got {got!r}, expected {want!r}"]
+
+
+@pytest.mark.parametrize("name", sorted(RENDERED))
+def test_run_matches_its_expected_report(name: str, tmp_path: Path) -> None:
+    from station.run import comparable_report, run_scenario
+
+    want = json.loads((ROOT / "scenarios" / name / "expected" / "run.json").read_text())
+    report = run_scenario(load_scenario(ROOT / "scenarios" / f"{name}.toml"), tmp_path,
+                          quicklooks=False)
+    got = comparable_report(report)
+    got.pop("software")  # as scenarios/update_expected.py writes it
+    differences = _diff(got, want)
+    assert not differences, "\n".join(differences[:20])
