@@ -202,6 +202,34 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from levels.compare import compare_paths, load_tolerances
+
+    result = compare_paths(args.a, args.b, load_tolerances(args.tolerances))
+    print(json.dumps(result.as_dict(), indent=2) if args.json else result.text())
+    return 0 if result.ok else 1
+
+
+def _cmd_inspect(args: argparse.Namespace) -> int:
+    from levels.inspect import product_summary, summary_text
+    from levels.products import read_product
+
+    summary = product_summary(read_product(args.product), args.product)
+    print(json.dumps(summary, indent=2, default=str) if args.json else summary_text(summary))
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from levels.export import write_geotiff
+    from levels.products import read_product
+
+    src = Path(args.product)
+    out = Path(args.out) if args.out else src.with_suffix(".tif")
+    path = write_geotiff(read_product(src), out)
+    print(f"wrote {path}")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="station",
@@ -256,6 +284,27 @@ def _parser() -> argparse.ArgumentParser:
     proc.add_argument("--out", help="directory of the products (default: <name>_products)")
     proc.add_argument("--json", action="store_true", help="print JSON instead of a table")
     proc.set_defaults(func=_cmd_process)
+    comp = sub.add_parser(
+        "compare",
+        help="compare two products or two run directories; exit 0 within tolerances, 1 "
+             "outside, 2 on bad input",
+    )
+    comp.add_argument("a", help="a product (.h5) or a run directory")
+    comp.add_argument("b", help="the product or run directory to compare it with")
+    comp.add_argument("--tolerances", help="TOML file overriding the default tolerances "
+                                           "(docs/compare.md)")
+    comp.add_argument("--json", action="store_true", help="print JSON instead of text")
+    comp.set_defaults(func=_cmd_compare)
+    insp = sub.add_parser("inspect", help="what a level product holds, at a glance")
+    insp.add_argument("product", help="a level product (.h5)")
+    insp.add_argument("--json", action="store_true", help="print JSON instead of text")
+    insp.set_defaults(func=_cmd_inspect)
+    expo = sub.add_parser("export", help="export a level 2A product as a GeoTIFF")
+    expo.add_argument("product", help="a level product (.h5)")
+    expo.add_argument("--geotiff", action="store_true", required=True,
+                      help="GeoTIFF through GDAL (the only format so far)")
+    expo.add_argument("--out", help="output file (default: the product's name with .tif)")
+    expo.set_defaults(func=_cmd_export)
     return parser
 
 

@@ -1,0 +1,398 @@
+"""Regression comparison of level products: two products, or two run directories.
+
+What is compared, and how (each check is a :class:`Finding`, inside or outside its
+tolerance):
+
+- **metadata**: the product attributes (level, sizes, instrument, pixel size) and the map
+  CRS must be equal;
+- **pixels**, per band, over the pixels valid in both: max |Δ| and RMS in counts, PSNR
+  (peak 255), the fraction of pixels changed; and the fraction whose validity changed;
+- **geometry**: the shift of the scene centre and corners on the ellipsoid (m); for 2A the
+  shift of the map grid's origin (m) and, per band, the difference of the inverse grids
+  (raw pixels); for 1B the difference of the polynomials f, g, h over the image (pixels);
+- **quality**: every scalar figure of the ``quality`` group, within ``abs + rel·|a|``;
+- **provenance**: reported, never a failure (a new software version is why one compares),
+  with the processing parameters that differ named one by one;
+- for run directories, also the products present in one run only, and the decode
+  statistics of ``report.json`` (counts: exact).
+
+The default tolerances (:data:`DEFAULT_TOLERANCES`, documented in ``docs/compare.md``) let
+through only what a different CPU's floating point can change (a few pixels by one count
+under numba's fastmath); reruns on one machine are bit-identical. A TOML file with the same
+sections overrides any of them.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyproj
+
+from levels.errors import ProductError
+from levels.geo.polynomial import Poly1D
+from levels.products import Product, read_product
+
+__all__ = ["DEFAULT_TOLERANCES", "Comparison", "Finding", "compare_paths", "compare_products",
+           "load_tolerances"]
+
+DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
+    "pixels": {"max_abs_counts": 1.0, "rms_counts": 0.01, "fraction_changed": 1e-4,
+               "mask_fraction_changed": 0.0},
+    "geometry": {"corner_shift_m": 0.01, "grid_px": 1e-4},
+    "quality": {"abs": 1e-6, "rel": 1e-4},
+}
+
+
+class CompareError(ProductError):
+    """Bad input to a comparison (not products, an unknown tolerance, …)."""
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One check: ``what`` was ``a`` in the first input and ``b`` in the second, or a figure
+    ``value`` of their difference; ``ok`` if within ``tolerance`` (None: reported only)."""
+
+    kind: str
+    what: str
+    value: Any = None
+    tolerance: float | None = None
+    ok: bool = True
+    a: Any = None
+    b: Any = None
+
+    def text(self) -> str:
+        if self.a is not None or self.b is not None:
+            s = f"{self.what}: {self.a!r} → {self.b!r}"
+        else:
+            s = f"{self.what} = {_num(self.value)}"
+        if self.tolerance is not None:
+            s += f" (tolerance {_num(self.tolerance)})"
+        return s
+
+
+def _num(x: Any) -> str:
+    if isinstance(x, float):
+        return f"{x:.6g}"
+    return str(x)
+
+
+@dataclass
+class Comparison:
+    """All findings of a comparison, per pair of products (``""`` for the run itself)."""
+
+    a: str
+    b: str
+    findings: dict[str, list[Finding]] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return all(f.ok for fs in self.findings.values() for f in fs)
+
+    def failures(self) -> list[tuple[str, Finding]]:
+        return [(k, f) for k, fs in self.findings.items() for f in fs if not f.ok]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"a": self.a, "b": self.b, "ok": self.ok,
+                "outside_tolerance": sum(1 for _ in self.failures()),
+                "findings": {k: [{key: _jsonable(v) for key, v in f.__dict__.items()}
+                                 for f in fs] for k, fs in self.findings.items()}}
+
+    def text(self) -> str:
+        n = sum(len(fs) for fs in self.findings.values())
+        bad = self.failures()
+        lines = [f"compare {self.a} with {self.b}: {n} checks, {len(bad)} outside tolerance"]
+        for k, f in bad:
+            lines.append(f"  DIFFERS  {k + ': ' if k else ''}{f.text()}")
+        notes: dict[str, list[str]] = {}  # the same note of many products, said once
+        for k, fs in self.findings.items():
+            for f in fs:
+                if f.ok and f.kind == "provenance":
+                    notes.setdefault(f.text(), []).append(k)
+        for text, where in sorted(notes.items(), key=lambda t: not t[0].startswith("proc")):
+            whose = where[0] if len(where) == 1 else f"{len(where)} products"
+            lines.append(f"  note     {text} ({whose})")
+        return "\n".join(lines)
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return str(x)
+    return x
+
+
+def load_tolerances(path: str | Path | None) -> dict[str, dict[str, float]]:
+    """The default tolerances, overridden by a TOML file's sections and keys."""
+    tol = {k: dict(v) for k, v in DEFAULT_TOLERANCES.items()}
+    if path is None:
+        return tol
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CompareError(f"tolerance file {p} not found") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise CompareError(f"{p}: not valid TOML ({exc})") from None
+    for section, values in data.items():
+        if section not in tol or not isinstance(values, dict):
+            raise CompareError(f"{p}: unknown section [{section}]; expected one of "
+                               f"{', '.join(tol)}")
+        for key, v in values.items():
+            if key not in tol[section]:
+                raise CompareError(f"{p}: unknown key {key!r} in [{section}]; expected one of "
+                                   f"{', '.join(tol[section])}")
+            if isinstance(v, bool) or not isinstance(v, int | float) or v < 0:
+                raise CompareError(f"{p}: [{section}] {key} = {v!r}: expected a number >= 0")
+            tol[section][key] = float(v)
+    return tol
+
+
+def compare_paths(a: str | Path, b: str | Path,
+                  tolerances: dict[str, dict[str, float]] | None = None) -> Comparison:
+    """Compare two products, or two run directories (their products matched by name)."""
+    pa, pb = Path(a), Path(b)
+    tol = tolerances or load_tolerances(None)
+    for p in (pa, pb):
+        if not p.exists():
+            raise CompareError(f"{p}: no such product or run directory")
+    if pa.is_dir() != pb.is_dir():
+        raise CompareError(f"cannot compare a directory with a file ({pa}, {pb})")
+    if not pa.is_dir():
+        out = Comparison(str(pa), str(pb))
+        out.findings[""] = compare_products(read_product(pa), read_product(pb), tol)
+        return out
+    return _compare_runs(pa, pb, tol)
+
+
+def _products_in(d: Path) -> dict[str, Path]:
+    return {p.name: p for p in sorted(d.glob("*.h5")) if not p.name.endswith(".l0.h5")}
+
+
+def _compare_runs(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> Comparison:
+    out = Comparison(str(a), str(b))
+    pa, pb = _products_in(a), _products_in(b)
+    if not pa and not pb:
+        raise CompareError(f"no level products (*.h5) in {a} or {b}")
+    run: list[Finding] = []
+    for name in sorted(set(pa) ^ set(pb)):
+        run.append(Finding("files", f"product {name}", ok=False,
+                           a="present" if name in pa else "missing",
+                           b="present" if name in pb else "missing"))
+    ra, rb = a / "report.json", b / "report.json"
+    if ra.is_file() and rb.is_file():
+        run += _compare_reports(_read_report(ra), _read_report(rb))
+    out.findings[""] = run
+    for name in sorted(set(pa) & set(pb)):
+        out.findings[name] = compare_products(read_product(pa[name]), read_product(pb[name]),
+                                              tol)
+    return out
+
+
+def _read_report(path: Path) -> dict[str, Any]:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CompareError(f"{path}: not a readable run report ({exc})") from None
+
+
+def _compare_reports(a: dict[str, Any], b: dict[str, Any]) -> list[Finding]:
+    """The decode statistics of two run reports: counts, exactly."""
+    out = []
+    for key in ("link", "cadus", "truth_check"):
+        for k in sorted(set(a.get("decode", {}).get(key, {})) |
+                        set(b.get("decode", {}).get(key, {}))):
+            va = a.get("decode", {}).get(key, {}).get(k)
+            vb = b.get("decode", {}).get(key, {}).get(k)
+            if va != vb:
+                out.append(Finding("decode", f"decode/{key}/{k}", ok=False, a=va, b=vb))
+    ba = {x["name"]: x for x in a.get("decode", {}).get("bands", [])}
+    bb = {x["name"]: x for x in b.get("decode", {}).get("bands", [])}
+    for name in sorted(set(ba) | set(bb)):
+        for k in ("lines_complete", "lines_partial", "lines_missing"):
+            va, vb = ba.get(name, {}).get(k), bb.get(name, {}).get(k)
+            if va != vb:
+                out.append(Finding("decode", f"decode/bands/{name}/{k}", ok=False, a=va, b=vb))
+    if not out:
+        out.append(Finding("decode", "decode statistics", value="identical"))
+    return out
+
+
+def compare_products(a: Product, b: Product, tol: dict[str, dict[str, float]] | None = None
+                     ) -> list[Finding]:
+    """Every check of two products (module docstring)."""
+    tol = tol or load_tolerances(None)
+    out = _metadata(a, b)
+    out += _pixels(a, b, tol["pixels"])
+    out += _geometry(a, b, tol["geometry"])
+    out += _quality(a, b, tol["quality"])
+    out += _provenance(a, b)
+    return out
+
+
+def _metadata(a: Product, b: Product) -> list[Finding]:
+    out = []
+    for k in sorted(set(a.attrs) | set(b.attrs)):
+        va, vb = a.attrs.get(k), b.attrs.get(k)
+        if _differs(va, vb):
+            out.append(Finding("metadata", f"attrs/{k}", ok=False, a=_plain(va), b=_plain(vb)))
+    if set(a.bands) != set(b.bands):
+        out.append(Finding("metadata", "bands", ok=False, a=sorted(a.bands), b=sorted(b.bands)))
+    wa = a.geometry.get("level_2a", {}).get("crs_wkt")
+    wb = b.geometry.get("level_2a", {}).get("crs_wkt")
+    if wa is not None and wb is not None and not pyproj.CRS.from_wkt(wa).equals(
+            pyproj.CRS.from_wkt(wb)):
+        out.append(Finding("metadata", "map CRS", ok=False, a=pyproj.CRS.from_wkt(wa).name,
+                           b=pyproj.CRS.from_wkt(wb).name))
+    return out
+
+
+def _plain(x: Any) -> Any:
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return _jsonable(x)
+
+
+def _differs(x: Any, y: Any) -> bool:
+    if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+        return not np.array_equal(np.asarray(x), np.asarray(y))
+    return bool(x != y)
+
+
+def _pixels(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
+    out = []
+    for name in sorted(set(a.bands) & set(b.bands)):
+        ia, ib = a.bands[name], b.bands[name]
+        if ia.image.shape != ib.image.shape:
+            out.append(Finding("pixels", f"bands/{name}/shape", ok=False, a=ia.image.shape,
+                               b=ib.image.shape))
+            continue
+        both = ia.valid & ib.valid
+        d = ia.image[both].astype(np.int16) - ib.image[both].astype(np.int16)
+        n = max(int(both.sum()), 1)
+        max_abs = float(np.abs(d).max()) if d.size else 0.0
+        rms = float(np.sqrt(np.mean(d.astype(np.float64) ** 2))) if d.size else 0.0
+        changed = float(np.count_nonzero(d)) / n
+        mask = float(np.count_nonzero(ia.valid != ib.valid)) / ia.valid.size
+        psnr = math.inf if rms == 0 else 20.0 * math.log10(255.0 / rms)
+        p = f"bands/{name}"
+        out += [
+            Finding("pixels", f"{p}/max_abs_counts", max_abs, tol["max_abs_counts"],
+                    max_abs <= tol["max_abs_counts"]),
+            Finding("pixels", f"{p}/rms_counts", rms, tol["rms_counts"],
+                    rms <= tol["rms_counts"]),
+            Finding("pixels", f"{p}/fraction_changed", changed, tol["fraction_changed"],
+                    changed <= tol["fraction_changed"]),
+            Finding("pixels", f"{p}/mask_fraction_changed", mask, tol["mask_fraction_changed"],
+                    mask <= tol["mask_fraction_changed"]),
+            Finding("pixels", f"{p}/psnr_db", psnr),
+        ]
+    return out
+
+
+_GEOD = pyproj.Geod(ellps="WGS84")
+
+
+def _geometry(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
+    out = []
+    sa, sb = a.geometry.get("scene"), b.geometry.get("scene")
+    if sa and sb:
+        lat_a = np.append(sa["corners_lat_deg"], sa["centre_lat_deg"])
+        lon_a = np.append(sa["corners_lon_deg"], sa["centre_lon_deg"])
+        lat_b = np.append(sb["corners_lat_deg"], sb["centre_lat_deg"])
+        lon_b = np.append(sb["corners_lon_deg"], sb["centre_lon_deg"])
+        _, _, dist = _GEOD.inv(lon_a, lat_a, lon_b, lat_b)
+        shift = float(np.max(dist))
+        out.append(Finding("geometry", "scene/corner_shift_m", shift, tol["corner_shift_m"],
+                           shift <= tol["corner_shift_m"]))
+    ga, gb = a.geometry.get("level_2a"), b.geometry.get("level_2a")
+    if ga and gb:
+        ta, tb = np.asarray(ga["geotransform"]), np.asarray(gb["geotransform"])
+        shift = float(np.hypot(ta[0] - tb[0], ta[3] - tb[3]))
+        out.append(Finding("geometry", "level_2a/origin_shift_m", shift, tol["corner_shift_m"],
+                           shift <= tol["corner_shift_m"]))
+        for band in sorted(set(ga.get("bands", {})) & set(gb.get("bands", {}))):
+            ia, ib = ga["bands"][band]["inverse_grid"], gb["bands"][band]["inverse_grid"]
+            what = f"level_2a/bands/{band}/inverse_grid_px"
+            if ia["line"].shape != ib["line"].shape:
+                out.append(Finding("geometry", what, ok=False, a=ia["line"].shape,
+                                   b=ib["line"].shape))
+                continue
+            d = float(max(np.abs(ia["line"] - ib["line"]).max(),
+                          np.abs(ia["column"] - ib["column"]).max()))
+            out.append(Finding("geometry", what, d, tol["grid_px"], d <= tol["grid_px"]))
+    ga, gb = a.geometry.get("level_1b"), b.geometry.get("level_1b")
+    if ga and gb:
+        rows = np.linspace(0.0, a.attrs.get("n_rows", 1) - 1.0, 101)
+        cols = np.linspace(0.0, a.attrs.get("n_cols", 1) - 1.0, 101)
+        for band in sorted(set(ga.get("bands", {})) & set(gb.get("bands", {}))):
+            pa, pb = ga["bands"][band], gb["bands"][band]
+            d = max(float(np.abs(Poly1D.from_array(pa[k])(x) - Poly1D.from_array(pb[k])(x)).max())
+                    for k, x in (("f", rows), ("g", cols), ("h", rows)))
+            out.append(Finding("geometry", f"level_1b/bands/{band}/polynomials_px", d,
+                               tol["grid_px"], d <= tol["grid_px"]))
+    return out
+
+
+def _scalars(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in tree.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(_scalars(v, key + "/"))
+        elif isinstance(v, np.ndarray) and v.ndim > 0:
+            continue  # the lattices behind the scalar figures
+        else:
+            out[key] = _jsonable(v.item() if isinstance(v, np.ndarray) else v)
+    return out
+
+
+def _quality(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
+    qa, qb = _scalars(a.quality), _scalars(b.quality)
+    out = []
+    for k in sorted(set(qa) | set(qb)):
+        what = f"quality/{k}"
+        if k not in qa or k not in qb:
+            out.append(Finding("quality", what, ok=False, a=qa.get(k, "missing"),
+                               b=qb.get(k, "missing")))
+            continue
+        va, vb = qa[k], qb[k]
+        if isinstance(va, int | float) and isinstance(vb, int | float) \
+                and not isinstance(va, bool):
+            bound = tol["abs"] + tol["rel"] * abs(va)
+            ok = abs(va - vb) <= bound or (math.isnan(va) and math.isnan(vb))
+            if not ok:
+                out.append(Finding("quality", what, ok=False, a=va, b=vb, tolerance=bound))
+        elif va != vb:
+            out.append(Finding("quality", what, ok=False, a=va, b=vb))
+    n = len(set(qa) | set(qb))
+    if not out:
+        out.append(Finding("quality", f"quality ({n} figures)", value="within tolerance"))
+    return out
+
+
+def _provenance(a: Product, b: Product) -> list[Finding]:
+    out = []
+    pa, pb = a.provenance, b.provenance
+    for k in sorted(set(pa) | set(pb)):
+        va, vb = pa.get(k), pb.get(k)
+        if va == vb:
+            continue
+        if k == "processing":
+            try:
+                ca, cb = json.loads(va or "{}"), json.loads(vb or "{}")
+            except json.JSONDecodeError:
+                ca, cb = {"processing": va}, {"processing": vb}
+            for key in sorted(set(ca) | set(cb)):
+                if ca.get(key) != cb.get(key):
+                    out.append(Finding("provenance", f"processing/{key}", a=ca.get(key),
+                                       b=cb.get(key)))
+        else:
+            out.append(Finding("provenance", f"provenance/{k}", a=va, b=vb))
+    return out

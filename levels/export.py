@@ -1,0 +1,65 @@
+"""Export of map-projected level products as GeoTIFF (through rasterio, i.e. GDAL).
+
+A 2A product's bands become the bands of one GeoTIFF, uint8, tiled and DEFLATE-compressed,
+with the product's CRS (its WKT) and its north-up geotransform; the validity mask becomes
+the dataset's internal mask (GDAL's per-dataset mask band, which QGIS and GDAL honour), and
+pixels not valid are 0. Band descriptions carry the band names; the tags carry the level,
+scene, instrument and the provenance of the product.
+
+Levels 1A and 1B are in image geometry, not on a map: a GeoTIFF of them would need RPCs
+fitted to the rigorous model (not yet written), so they are refused with a clear error.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from levels.errors import ProductError
+from levels.products import Product
+
+__all__ = ["write_geotiff"]
+
+#: Levels on a map grid, which a GeoTIFF's geotransform can describe.
+MAP_LEVELS = ("2A", "2", "3")
+
+
+def write_geotiff(product: Product, path: str | Path) -> Path:
+    """Write ``product`` (images loaded) as a georeferenced GeoTIFF; returns its path."""
+    import rasterio
+    from rasterio.crs import CRS
+    from rasterio.transform import Affine
+
+    level = product.level
+    if level not in MAP_LEVELS:
+        raise ProductError(f"level {level} is in image geometry: GeoTIFF export is for the "
+                           f"map levels {', '.join(MAP_LEVELS)} (1A/1B would need RPCs)")
+    geo = product.geometry.get("level_2a")
+    if not geo or "crs_wkt" not in geo or "geotransform" not in geo:
+        raise ProductError(f"level {level} product without a map grid (geometry/level_2a)")
+    names = list(product.bands)
+    images = [product.bands[n].image for n in names]
+    valid = np.logical_and.reduce([product.bands[n].valid for n in names])
+    rows, cols = images[0].shape
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp")
+    profile = {
+        "driver": "GTiff", "width": cols, "height": rows, "count": len(names),
+        "dtype": "uint8", "crs": CRS.from_wkt(str(geo["crs_wkt"])),
+        "transform": Affine.from_gdal(*(float(x) for x in geo["geotransform"])),
+        "tiled": True, "blockxsize": 256, "blockysize": 256, "compress": "deflate",
+    }
+    a = product.attrs
+    with rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True), rasterio.open(tmp, "w", **profile) as ds:
+        for k, (name, im) in enumerate(zip(names, images, strict=True), start=1):
+            ds.write(im, k)
+            ds.set_band_description(k, name)
+        ds.write_mask(valid)
+        ds.update_tags(level=level, scene_index=a.get("scene_index", ""),
+                       name=a.get("name", ""), hrv=a.get("hrv", ""), mode=a.get("mode", ""),
+                       pixel_size_m=a.get("pixel_size_m", ""),
+                       **{f"provenance_{k}": v for k, v in product.provenance.items()})
+    tmp.replace(out)
+    return out

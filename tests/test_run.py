@@ -1,0 +1,190 @@
+"""station run, compare, inspect and export: the two user jobs end to end, through the CLI."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import rasterio
+
+from levels.compare import compare_paths
+from levels.products import read_product
+from station.cli import main
+from station.run import REPORT_FORMAT, comparable_report
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = ROOT / "scenarios" / "small_test.toml"
+#: The issue's bound: the exported GeoTIFF puts each checkpoint where the product says.
+GEOTIFF_CHECKPOINT_PX = 0.5
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("run") / "small"
+    assert main(["run", str(SMALL), "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_run_writes_products_report_and_quicklooks(run_dir: Path, capsys) -> None:
+    report = json.loads((run_dir / "report.json").read_text())
+    assert report["format"] == REPORT_FORMAT and report["scenario"]["name"] == "small_test"
+    assert report["scenario"]["sha256"] and report["scenario"]["file"] == "small_test.toml"
+    assert (run_dir / report["l0"]["file"]).is_file()
+    assert report["decode"]["truth_check"]["accounts_balance"]
+    levels = [p["level"] for p in report["products"]]
+    assert levels == ["1A", "1B", "2A"]
+    for p in report["products"]:
+        assert (run_dir / p["file"]).is_file()
+        png = run_dir / p["quicklook"]
+        assert png.read_bytes()[:8] == PNG_SIGNATURE and png.stat().st_size > 10_000
+        if p["level"] != "1A":
+            assert 100.0 < p["quality"]["checkpoints/P/line_of_sight/rms_m"] < 500.0
+    for stage in ("emulate", "transmit", "receive", "record", "geo", "cor", "quicklooks",
+                  "total"):
+        assert stage in report["timings_s"]
+    assert set(report["timings_s"]["cor"]) >= {"1A", "1B", "2A", "write"}
+
+
+def test_run_prints_a_summary_table(tmp_path: Path, capsys) -> None:
+    assert main(["run", str(SMALL), "--out", str(tmp_path), "--quiet",
+                 "--no-quicklooks"]) == 0
+    out = capsys.readouterr().out
+    assert "small_test: HRV1 P" in out and "truth check passed" in out
+    assert out.count("small_test_s000_") == 3 and "stripes raw → 1A" in out
+    assert not (tmp_path / "quicklooks").exists()
+
+
+def test_rerun_gives_identical_products(run_dir: Path, tmp_path: Path, capsys) -> None:
+    again = tmp_path / "again"
+    assert main(["run", str(SMALL), "--out", str(again), "--quiet", "--no-quicklooks"]) == 0
+    a = json.loads((run_dir / "report.json").read_text())
+    b = json.loads((again / "report.json").read_text())
+    for r in a["products"]:
+        r.pop("quicklook")
+    assert comparable_report(a) == comparable_report(b)
+    for p in a["products"]:
+        pa, pb = read_product(run_dir / p["file"]), read_product(again / p["file"])
+        for band in pa.bands:
+            assert np.array_equal(pa.bands[band].image, pb.bands[band].image)
+            assert np.array_equal(pa.bands[band].valid, pb.bands[band].valid)
+    capsys.readouterr()
+    assert main(["compare", str(run_dir), str(again)]) == 0
+    assert "0 outside tolerance" in capsys.readouterr().out
+
+
+def test_station_alone_runs_the_quickstart(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main([]) == 0
+    report = json.loads((tmp_path / "runs" / "quickstart" / "report.json").read_text())
+    assert report["processing"]["scenes"] == 2
+    assert len(report["products"]) == 6
+    assert len(list((tmp_path / "runs" / "quickstart" / "quicklooks").glob("*.png"))) == 6
+    assert "quickstart: HRV1 P" in capsys.readouterr().out
+
+
+def test_compare_names_a_changed_parameter(run_dir: Path, tmp_path: Path, capsys) -> None:
+    changed = tmp_path / "bilinear.toml"
+    changed.write_text(SMALL.read_text() + '\n[processing]\nresampling_2a = "bilinear"\n')
+    other = tmp_path / "other"
+    assert main(["run", str(changed), "--out", str(other), "--quiet", "--no-quicklooks"]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(run_dir), str(other)]) == 1
+    out = capsys.readouterr().out
+    assert "DIFFERS  small_test_s000_2A.h5: bands/P/" in out
+    assert "processing/resampling_2a: 'cubic' → 'bilinear'" in out
+    assert "small_test_s000_1A.h5: bands" not in out  # 1A does not depend on it
+    assert main(["compare", str(run_dir), str(other), "--json"]) == 1
+    data = json.loads(capsys.readouterr().out)
+    assert data["ok"] is False and data["outside_tolerance"] >= 1
+
+
+def test_compare_sees_one_changed_pixel_and_tolerances(run_dir: Path, tmp_path: Path,
+                                                       capsys) -> None:
+    a = run_dir / "small_test_s000_1B.h5"
+    b = tmp_path / a.name
+    shutil.copy(a, b)
+    with h5py.File(b, "r+") as f:
+        img = f["bands/P/image"]
+        valid = f["bands/P/valid"][...]
+        r, c = np.argwhere(valid)[len(valid) // 2]
+        img[r, c] = (int(img[r, c]) + 40) % 256
+    result = compare_paths(a, b)
+    assert not result.ok
+    # one pixel of 90 000 is within the changed-fraction tolerance, not within the others
+    assert {f.what for _k, f in result.failures()} == {"bands/P/max_abs_counts",
+                                                        "bands/P/rms_counts"}
+    loose = tmp_path / "loose.toml"
+    loose.write_text("[pixels]\nmax_abs_counts = 255\nrms_counts = 10\n"
+                     "fraction_changed = 0.01\n")
+    assert main(["compare", str(a), str(b), "--tolerances", str(loose)]) == 0
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[pixels]\nmax_abs = 3\n")
+    assert main(["compare", str(a), str(b), "--tolerances", str(bad)]) == 2
+    assert "unknown key 'max_abs'" in capsys.readouterr().err
+
+
+def test_inspect(run_dir: Path, capsys) -> None:
+    assert main(["inspect", str(run_dir / "small_test_s000_2A.h5")]) == 0
+    out = capsys.readouterr().out
+    assert "level 2A of small_test scene 0" in out and "UTM zone 21S" in out
+    assert main(["inspect", str(run_dir / "small_test_s000_1B.h5"), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["attrs"]["level"] == "1B" and data["bands"]["P"]["valid_fraction"] > 0.9
+
+
+def test_geotiff_export_puts_checkpoints_where_the_product_says(run_dir: Path,
+                                                                 tmp_path: Path) -> None:
+    src = run_dir / "small_test_s000_2A.h5"
+    tif = tmp_path / "scene.tif"
+    assert main(["export", str(src), "--geotiff", "--out", str(tif)]) == 0
+    p = read_product(src)
+    g = p.geometry["level_2a"]
+    cp = p.quality["checkpoints"]["P"]
+    x0, dx, _, y0, _, dy = g["geotransform"]
+    # where the product says each checkpoint is on the map (its geotransform)
+    e = x0 + (cp["output_col"] + 0.5) * dx
+    n = y0 + (cp["output_row"] + 0.5) * dy
+    with rasterio.open(tif) as ds:
+        assert ds.crs.to_epsg() == 32721 and ds.count == 1
+        inv = ~ds.transform  # pixel edges: the centre of pixel k is at k + 0.5
+        col, row = inv.a * e + inv.b * n + inv.c, inv.d * e + inv.e * n + inv.f
+        assert np.abs(row - 0.5 - cp["output_row"]).max() < GEOTIFF_CHECKPOINT_PX
+        assert np.abs(col - 0.5 - cp["output_col"]).max() < GEOTIFF_CHECKPOINT_PX
+        assert np.array_equal(ds.read(1), p.bands["P"].image)
+        assert np.array_equal(ds.dataset_mask() > 0, p.bands["P"].valid)
+        assert ds.descriptions == ("P",) and ds.tags()["level"] == "2A"
+
+
+@pytest.mark.parametrize("args, message", [
+    (["run", "missing.toml"], "not found"),
+    (["run", "{bad}"], "not valid TOML"),
+    (["run", "{unknown}"], "unknown key"),
+    (["inspect", "{junk}"], "not a readable HDF5"),
+    (["inspect", "{truncated}"], ""),
+    (["inspect", "{toml}"], ""),
+    (["compare", "{junk}", "{junk}"], ""),
+    (["compare", "{run}", "{product}"], "directory with a file"),
+    (["compare", "missing_a", "missing_b"], "no such product"),
+    (["export", "{product_1b}", "--geotiff"], "image geometry"),
+])
+def test_bad_input_is_one_line_and_exit_2(args, message, run_dir: Path, tmp_path: Path,
+                                          monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.toml").write_text("name = [\n")
+    (tmp_path / "unknown.toml").write_text("[instrument]\nn_detector = 3\n")
+    (tmp_path / "junk.h5").write_bytes(b"not hdf5 at all")
+    good = run_dir / "small_test_s000_2A.h5"
+    (tmp_path / "truncated.h5").write_bytes(good.read_bytes()[: good.stat().st_size // 3])
+    names = {"bad": "bad.toml", "unknown": "unknown.toml", "junk": "junk.h5",
+             "truncated": "truncated.h5", "toml": "bad.toml", "run": str(run_dir),
+             "product": str(good), "product_1b": str(run_dir / "small_test_s000_1B.h5")}
+    assert main([a.format(**names) for a in args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("station: error: ") and err.count("\n") == 1
+    assert message in err
+    assert "Traceback" not in err
