@@ -37,6 +37,7 @@ import pyproj
 from levels.errors import ProductError
 from levels.geo.polynomial import Poly1D
 from levels.products import Product, read_product
+from levels.quality import scalar_figures
 
 __all__ = ["DEFAULT_TOLERANCES", "Comparison", "Finding", "compare_paths", "compare_products",
            "load_tolerances"]
@@ -340,21 +341,8 @@ def _geometry(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
     return out
 
 
-def _scalars(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in tree.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, dict):
-            out.update(_scalars(v, key + "/"))
-        elif isinstance(v, np.ndarray) and v.ndim > 0:
-            continue  # the lattices behind the scalar figures
-        else:
-            out[key] = _jsonable(v.item() if isinstance(v, np.ndarray) else v)
-    return out
-
-
 def _quality(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
-    qa, qb = _scalars(a.quality), _scalars(b.quality)
+    qa, qb = scalar_figures(a.quality), scalar_figures(b.quality)
     out = []
     for k in sorted(set(qa) | set(qb)):
         what = f"quality/{k}"

@@ -9,22 +9,13 @@ import numpy as np
 import pyproj
 
 from levels.products import Product
+from levels.quality import scalar_figures
 
 __all__ = ["product_summary", "summary_text"]
 
 #: Quality figures shown in the text summary (the rest are in the JSON).
 _HEADLINE_SUFFIXES = ("line_of_sight/rms_m", "line_of_sight/max_m", "ground/rms_m",
                       "polynomials_vs_model/max_px", "raw_counts", "level_1a_counts")
-
-
-def _flat(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in tree.items():
-        if isinstance(v, dict):
-            out.update(_flat(v, f"{prefix}{k}/"))
-        elif not (isinstance(v, np.ndarray) and v.ndim > 0):
-            out[f"{prefix}{k}"] = v.item() if isinstance(v, np.ndarray | np.generic) else v
-    return out
 
 
 def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
@@ -61,7 +52,7 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
     if g1b:
         out["plane"] = {"pixel_size_m": float(g1b["pixel_size_m"]),
                         "origin_ecef_m": np.asarray(g1b["plane_ecef_m"])[0].tolist()}
-    out["quality"] = _flat(product.quality)
+    out["quality"] = scalar_figures(product.quality)
     out["provenance"] = dict(product.provenance)
     return out
 

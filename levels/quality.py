@@ -7,10 +7,12 @@ computed on a real scene from surveyed checkpoints.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["error_stats", "raw_error_stats"]
+__all__ = ["error_stats", "raw_error_stats", "scalar_figures"]
 
 
 def error_stats(d1_m: NDArray[np.float64], d2_m: NDArray[np.float64], pixel_size_m: float
@@ -42,3 +44,18 @@ def raw_error_stats(dl: NDArray[np.float64], dc: NDArray[np.float64]) -> dict[st
     return {"n_points": int(d.size), "max_px": float(d.max()),
             "rms_px": float(np.sqrt(np.mean(d * d))), "max_line_px": float(np.abs(dl).max()),
             "max_column_px": float(np.abs(dc).max())}
+
+
+def scalar_figures(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """The scalar figures of a quality tree, flattened with '/' and as Python numbers; the
+    arrays behind them (checkpoint lattices, taps) are left out."""
+    out: dict[str, Any] = {}
+    for k, v in tree.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(scalar_figures(v, key + "/"))
+        elif isinstance(v, np.ndarray) and v.ndim > 0:
+            continue
+        else:
+            out[key] = v.item() if isinstance(v, np.ndarray | np.generic) else v
+    return out

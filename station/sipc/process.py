@@ -43,6 +43,7 @@ from levels.geo.level2a import INVERSE_METHODS, Level2AGeometry, level2a_geometr
 from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
 from levels.geometry.sensor import LookAngleTable
 from levels.products import BandImage, Product, write_product
+from levels.quality import scalar_figures
 from levels.readers.l0 import L0Archive, read_l0
 from station import __version__
 from station.scenario import ProcessingConfig, Scenario
@@ -158,17 +159,6 @@ def _geometry_2a_band(g: Level2AGeometry) -> dict[str, Any]:
             "inverse_polynomials": polys}
 
 
-def _headline(q: dict[str, Any]) -> dict[str, Any]:
-    """The scalar figures of a quality tree, flattened with '/' (arrays left out)."""
-    out: dict[str, Any] = {}
-    for k, v in q.items():
-        if isinstance(v, dict):
-            out.update({f"{k}/{kk}": vv for kk, vv in _headline(v).items()})
-        elif not isinstance(v, np.ndarray):
-            out[k] = v
-    return out
-
-
 def process_l0(archive: L0Archive, cfg: ProcessingConfig, out_dir: str | Path, *,
                name: str = "pass", truth: Truth | None = None,
                provenance: dict[str, Any] | None = None,
@@ -271,7 +261,7 @@ def _process_scene(archive: L0Archive, pg: PassGeometry, scene: SceneGeometry,
         paths[level] = write_product(out / f"{name}_s{scene.cut.index:03d}_{level}.h5", product)
     timings["write"] = clock() - t
     return SceneProducts(scene.cut.index, scene.cut.first_line, scene.cut.n_lines, paths,
-                         {lv: _headline(q) for lv, q in quality.items()}, timings)
+                         {lv: scalar_figures(q) for lv, q in quality.items()}, timings)
 
 
 def _quality(scene: SceneGeometry, cfg: ProcessingConfig,
