@@ -188,3 +188,24 @@ def test_bad_input_is_one_line_and_exit_2(args, message, run_dir: Path, tmp_path
     assert err.startswith("station: error: ") and err.count("\n") == 1
     assert message in err
     assert "Traceback" not in err
+
+
+def test_scenes_lost_in_a_fade_are_skipped_and_said(tmp_path: Path, capsys) -> None:
+    """A 15 s fade loses most of a five-scene pass: the run makes what it can, and the
+    report names every scene it could not make and why."""
+    scn = tmp_path / "fade.toml"
+    scn.write_text('name = "fade"\nseed = 5\n[instrument]\nn_detectors = 300\n'
+                   'n_lines = 1500\n[downlink]\nbit_rate_mbps = 0.2\npreamble_s = 0.1\n'
+                   'postamble_s = 0.1\n[channel]\nfade_rate_per_min = 2.0\n'
+                   'fade_duration_ms = 15000.0\n')
+    out = tmp_path / "run"
+    assert main(["run", str(scn), "--out", str(out), "--quiet", "--no-quicklooks"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    skipped = report["processing"]["skipped"]
+    made = {p["scene"] for p in report["products"]}
+    assert len(made) + len(skipped) == 5 and made and skipped
+    assert {k["scene"] for k in skipped}.isdisjoint(made)
+    assert any("lost in the downlink" in k["reason"] for k in skipped)
+    lost = report["decode"]["bands"][0]["lines_missing"]
+    assert lost >= 300 * sum("lost in the downlink" in k["reason"] for k in skipped)
+    assert "skipped: no valid line" in capsys.readouterr().out

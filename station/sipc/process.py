@@ -38,6 +38,7 @@ from levels.cor.radiometry import (
     to_counts,
 )
 from levels.cor.resample import resample_1b, resample_2a, with_nan
+from levels.errors import GeometryError
 from levels.geo.level1b import Level1BGeometry, level1b_geometry
 from levels.geo.level2a import INVERSE_METHODS, Level2AGeometry, level2a_geometry, map_crs
 from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
@@ -69,12 +70,24 @@ class SceneProducts:
 
 
 @dataclass(frozen=True)
+class SkippedScene:
+    """A scene of the pass that could not be made, and why (lost in the downlink, or GEO
+    could not place it: no attitude or ephemeris over it)."""
+
+    index: int
+    first_line: int
+    n_lines: int
+    reason: str
+
+
+@dataclass(frozen=True)
 class PassProducts:
     """All scenes of a pass, the rows left after the last whole scene, GEO's time."""
 
     scenes: list[SceneProducts]
     tail_lines: int
     timings_s: dict[str, float] = field(default_factory=dict)
+    skipped: list[SkippedScene] = field(default_factory=list)
 
 
 def nominal_pixel_size_m(look: LookAngleTable) -> float:
@@ -178,10 +191,21 @@ def process_l0(archive: L0Archive, cfg: ProcessingConfig, out_dir: str | Path, *
     n_det = archive.bands[band_names[0]].counts.shape[1]
     scene_lines = cfg.scene_lines or n_det
     cuts = cut_scenes(archive.n_lines, scene_lines, cfg.overlap_lines)
-    scenes = [pg.scene(c, cfg.reference_height_m) for c in cuts]
+    pixel_valid = {b: archive.bands[b].pixel_valid() for b in band_names}
+    rows_seen = np.logical_or.reduce([v.any(axis=1) for v in pixel_valid.values()])
+    scenes, skipped = [], []
+    for c in cuts:
+        if not rows_seen[c.first_line:c.first_line + c.n_lines].any():
+            skipped.append(SkippedScene(c.index, c.first_line, c.n_lines,
+                                        "no valid line: lost in the downlink"))
+            continue
+        try:
+            scenes.append(pg.scene(c, cfg.reference_height_m))
+        except GeometryError as exc:
+            skipped.append(SkippedScene(c.index, c.first_line, c.n_lines,
+                                        f"GEO could not place it: {exc}"))
     res = cfg.pixel_size_m or nominal_pixel_size_m(pg.look_angles[band_names[0]])
     t_geo = clock() - t0
-    pixel_valid = {b: archive.bands[b].pixel_valid() for b in band_names}
     taps = deconvolution_taps(cfg.psf_fwhm_px, cfg.noise_to_signal) if cfg.deconvolution \
         else np.ones(1)
     prov = {"software": f"spot-station {__version__}", "inputs": Path(archive.path).name,
@@ -193,7 +217,7 @@ def process_l0(archive: L0Archive, cfg: ProcessingConfig, out_dir: str | Path, *
         if on_scene is not None:
             on_scene(results[-1], len(scenes))
     tail = pg.tail_lines(scene_lines, cfg.overlap_lines)
-    return PassProducts(results, tail, {"geo": t_geo, "total": clock() - t0})
+    return PassProducts(results, tail, {"geo": t_geo, "total": clock() - t0}, skipped)
 
 
 def _process_scene(archive: L0Archive, pg: PassGeometry, scene: SceneGeometry,
