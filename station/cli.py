@@ -142,6 +142,7 @@ def _cmd_downlink(args: argparse.Namespace) -> int:
 def _cmd_process(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from station.run import approximation_max_px
     from station.scenario import load_scenario
     from station.sipc.process import process_scenario
 
@@ -165,9 +166,8 @@ def _cmd_process(args: argparse.Namespace) -> int:
         los = r.get(f"checkpoints/{band}/line_of_sight/rms_m", float("nan"))
         los_px = r.get(f"checkpoints/{band}/line_of_sight/max_px", float("nan"))
         ground = r.get(f"checkpoints/{band}/ground/rms_m", float("nan"))
-        approx = r.get("polynomials_vs_model/max_px",
-                       r.get(f"inverse_vs_model/{r.get('inverse_method', '')}/max_px",
-                             float("nan")))
+        approx = approximation_max_px(r)
+        approx = float("nan") if approx is None else approx
         stripes = (f"{r[f'stripe_level/{band}/raw_counts']:.2f} → "
                    f"{r[f'stripe_level/{band}/level_1a_counts']:.2f}"
                    if r["level"] == "1A" else "")

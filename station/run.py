@@ -31,7 +31,8 @@ from levels.products import read_product
 from station import __version__
 from station.scenario import Scenario
 
-__all__ = ["REPORT_FORMAT", "comparable_report", "run_scenario", "summary_table"]
+__all__ = ["REPORT_FORMAT", "approximation_max_px", "comparable_report", "run_scenario",
+           "summary_table"]
 
 REPORT_FORMAT = "spot-station-run"
 REPORT_VERSION = 1
@@ -177,6 +178,13 @@ def _fmt(x: Any, spec: str) -> str:
     return "—".rjust(int(spec.split(".")[0])) if x is None else format(x, spec)
 
 
+def approximation_max_px(quality: dict[str, Any]) -> float | None:
+    """A product's headline approximation figure: its 1B polynomials', or its 2A inverse's
+    (the method it was made with), against the rigorous model; None for 1A."""
+    return quality.get("polynomials_vs_model/max_px",
+                       quality.get(f"inverse_vs_model/{quality.get('inverse_method', '')}/max_px"))
+
+
 def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> str:
     """The short human summary printed at the end of a run."""
     ins, dec = report["instrument"], report["decode"]
@@ -208,8 +216,7 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
         los = q.get(f"checkpoints/{band}/line_of_sight/rms_m")
         los_max = q.get(f"checkpoints/{band}/line_of_sight/max_m")
         ground = q.get(f"checkpoints/{band}/ground/rms_m")
-        approx = q.get("polynomials_vs_model/max_px",
-                       q.get(f"inverse_vs_model/{q.get('inverse_method', '')}/max_px"))
+        approx = approximation_max_px(q)
         valid = r["valid_fraction"].get(band)
         lines.append(f"{r['scene']:5d} {r['level']:>5} {r['n_rows']:>5}×{r['n_cols']:<5} "
                      f"{_fmt(valid, '6.3f')} {_fmt(los, '10.1f')} {_fmt(los_max, '10.1f')} "

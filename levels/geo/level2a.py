@@ -42,7 +42,7 @@ from levels.geometry.sensor import LookAngleTable
 from levels.quality import raw_error_stats
 
 __all__ = ["INVERSE_METHODS", "Level2AGeometry", "bilinear_grid", "butting_columns",
-           "invert_direct_grid", "level2a_geometry", "map_crs"]
+           "level2a_geometry", "map_crs"]
 
 INVERSE_METHODS = ("nearest4", "poly3", "poly4", "poly5")
 #: SPOT 1–4 orbit for the Space Oblique Mercator: inclination and revolution period.
@@ -113,6 +113,18 @@ def _walk(gl, gc, gi, gj, ip, jp, a, b, u, v, b_lo, b_hi, max_moves):
 
 
 @nb.njit(cache=True, nogil=True)
+def _segment_line(gl, gc, gi, gj, ip, jp, line, a, b, u, v, b0, b1):
+    """The line of segment ``b0 .. b1 − 1`` at output point ``(ip, jp)``, from the whole
+    grid's walk (``line`` in cell ``(a, b)`` at ``(u, v)``): the same if that cell is the
+    segment's, else a walk over the segment's cells from its nearest one."""
+    if b0 <= b < b1:
+        return line
+    bs = min(max(b, b0), b1 - 1)
+    return _walk(gl, gc, gi, gj, ip, jp, a, bs, u, v + b - bs, b0, b1,
+                 gi.shape[0] + gi.shape[1])[0]
+
+
+@nb.njit(cache=True, nogil=True)
 def _invert_points(gl, gc, gi, gj, i_pts, j_pts, a0, b0, seg_b0, seg_b1, lines, col):
     """:func:`_walk` for scattered points, each from its own first-guess cell ``(a0, b0)``,
     over the whole grid (``col``) and over each segment's cells ``seg_b0[s] .. seg_b1[s] − 1``
@@ -125,12 +137,8 @@ def _invert_points(gl, gc, gi, gj, i_pts, j_pts, a0, b0, seg_b0, seg_b1, lines, 
                                     0, nb_ - 1, na + nb_)
         col[k] = c
         for s in range(n_seg):
-            if seg_b0[s] <= b < seg_b1[s]:
-                lines[s, k] = line
-            else:
-                bs = min(max(b, seg_b0[s]), seg_b1[s] - 1)
-                lines[s, k] = _walk(gl, gc, gi, gj, i_pts[k], j_pts[k], a, bs, u, v + b - bs,
-                                    seg_b0[s], seg_b1[s], na + nb_)[0]
+            lines[s, k] = _segment_line(gl, gc, gi, gj, i_pts[k], j_pts[k], line, a, b, u, v,
+                                        seg_b0[s], seg_b1[s])
 
 
 @nb.njit(cache=True, nogil=True)
@@ -184,14 +192,9 @@ def _invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, li
     for r in range(nr):
         for s in range(n_seg):
             for c in range(nc):
-                b = cell_b[r, c]
-                if not need[s, r, c] or seg_b0[s] <= b < seg_b1[s]:
-                    lines[s, r, c] = whole[r, c]
-                else:
-                    bs = min(max(b, seg_b0[s]), seg_b1[s] - 1)
-                    lines[s, r, c] = _walk(gl, gc, gi, gj, rows[r], cols[c], cell_a[r, c], bs,
-                                           cell_u[r, c], cell_v[r, c] + b - bs, seg_b0[s],
-                                           seg_b1[s], na + nb_)[0]
+                lines[s, r, c] = whole[r, c] if not need[s, r, c] else _segment_line(
+                    gl, gc, gi, gj, rows[r], cols[c], whole[r, c], cell_a[r, c], cell_b[r, c],
+                    cell_u[r, c], cell_v[r, c], seg_b0[s], seg_b1[s])
 
 
 def _segment_cells(grid_column: NDArray[np.float64], segment_first_column: NDArray[np.float64]
@@ -208,30 +211,15 @@ def _segment_cells(grid_column: NDArray[np.float64], segment_first_column: NDArr
     return first.astype(np.int64), last.astype(np.int64)
 
 
-def invert_direct_grid(grid_line: NDArray[np.float64], grid_column: NDArray[np.float64],
-                       grid_i: NDArray[np.float64], grid_j: NDArray[np.float64],
-                       i: ArrayLike, j: ArrayLike, first_guess: tuple[NDArray, NDArray]
-                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Raw ``(L, C)`` of output points ``(I, J)`` from the four nearest direct-grid points.
-
-    ``grid_line`` (na,) and ``grid_column`` (nb,) are the raw breakpoints (increasing), and
-    ``grid_i``, ``grid_j`` (na, nb) their output coordinates. Each point starts in the cell
-    of its ``first_guess`` ``(L, C)``; the cell's bilinear map is inverted by Newton, and
-    the point moves to the neighbouring cell while its local coordinates fall outside
-    [0, 1]. Points beyond the grid are extrapolated from the edge cell.
-    """
-    lines, col = _invert_scattered(grid_line, grid_column, grid_i, grid_j,
-                                   np.asarray(grid_column[:1], dtype=np.float64), i, j,
-                                   first_guess)
-    return lines[0], col
-
-
 def _invert_scattered(gl: NDArray[np.float64], gc: NDArray[np.float64],
                       gi: NDArray[np.float64], gj: NDArray[np.float64],
                       segment_first_column: NDArray[np.float64], i: ArrayLike, j: ArrayLike,
                       first_guess: tuple[NDArray, NDArray]
                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Line per segment ``(segments, N)`` and column ``(N,)`` of scattered output points."""
+    """Line per segment ``(segments, N)`` and column ``(N,)`` of scattered output points
+    ``(I, J)``, from the four nearest direct-grid points: each point starts in the cell of
+    its ``first_guess`` ``(L, C)`` and walks (:func:`_walk`); points beyond the grid are
+    extrapolated from the edge cell."""
     i_a, j_a = (np.ascontiguousarray(x, dtype=np.float64).ravel()
                 for x in np.broadcast_arrays(i, j))
     na, nb_ = gi.shape
@@ -435,14 +423,6 @@ def butting_columns(look: LookAngleTable) -> NDArray[np.float64]:
     return np.union1d(look.column[k], look.column[k + 1])
 
 
-def _segment_masks(grid_column: NDArray[np.float64], segment_first_column: NDArray[np.float64]
-                   ) -> list[NDArray[np.bool_]]:
-    """Which direct-grid columns belong to each CCD segment."""
-    ends = np.append(segment_first_column[1:] - 1, np.inf)
-    return [(grid_column >= lo) & (grid_column <= hi)
-            for lo, hi in zip(segment_first_column, ends, strict=True)]
-
-
 def _order(method: str) -> int:
     if method not in INVERSE_METHODS[1:]:
         raise GeometryError(f"inverse method {method!r}: expected one of {INVERSE_METHODS}")
@@ -532,9 +512,11 @@ def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
     gi = (y_max - n) / res - 0.5
     gj = (e - x_min) / res - 0.5
     seg_first = np.concatenate([[0.0], butting[1::2]])
-    masks = _segment_masks(gc, seg_first)
+    # each segment's own grid columns, its first detector to its last
+    segments = [slice(f, last + 1) for f, last in zip(*_segment_cells(gc, seg_first),
+                                                       strict=True)]
     orders = (3, 4, 5)
-    line_fits = [Poly2D.fit_orders(gi[:, k], gj[:, k], ll[:, k], orders) for k in masks]
+    line_fits = [Poly2D.fit_orders(gi[:, k], gj[:, k], ll[:, k], orders) for k in segments]
     col_fits = Poly2D.fit_orders(gi, gj, cc, orders)
     polys = {o: (tuple(f[o] for f in line_fits), col_fits[o]) for o in orders}
     geom = Level2AGeometry(

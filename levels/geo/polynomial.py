@@ -91,15 +91,7 @@ class Poly2D:
 
     @classmethod
     def fit(cls, x: ArrayLike, y: ArrayLike, z: ArrayLike, order: int) -> Poly2D:
-        x, y, z = (np.asarray(a, dtype=np.float64).ravel() for a in (x, y, z))
-        n_terms = (order + 1) * (order + 2) // 2
-        if x.size < n_terms:
-            raise GeometryError(f"{x.size} breakpoints cannot fix {n_terms} coefficients")
-        cx, sx = _normaliser(x)
-        cy, sy = _normaliser(y)
-        poly = cls(np.zeros(n_terms), order, (cx, cy), (sx, sy))
-        coef, *_ = np.linalg.lstsq(poly._design(x, y), z, rcond=None)
-        return cls(coef, order, (cx, cy), (sx, sy))
+        return cls.fit_orders(x, y, z, (order,))[order]
 
     @classmethod
     def fit_orders(cls, x: ArrayLike, y: ArrayLike, z: ArrayLike, orders: Sequence[int]
