@@ -204,25 +204,39 @@ def _read_report(path: Path) -> dict[str, Any]:
 
 
 def _compare_reports(a: dict[str, Any], b: dict[str, Any]) -> list[Finding]:
-    """The decode statistics of two run reports: counts, exactly."""
+    """The decode statistics of two run reports, HRV by HRV: counts, exactly."""
     out = []
-    for key in ("link", "cadus", "truth_check"):
-        for k in sorted(set(a.get("decode", {}).get(key, {})) |
-                        set(b.get("decode", {}).get(key, {}))):
-            va = a.get("decode", {}).get(key, {}).get(k)
-            vb = b.get("decode", {}).get(key, {}).get(k)
-            if va != vb:
-                out.append(Finding("decode", f"decode/{key}/{k}", ok=False, a=va, b=vb))
-    ba = {x["name"]: x for x in a.get("decode", {}).get("bands", [])}
-    bb = {x["name"]: x for x in b.get("decode", {}).get("bands", [])}
-    for name in sorted(set(ba) | set(bb)):
-        for k in ("lines_complete", "lines_partial", "lines_missing"):
-            va, vb = ba.get(name, {}).get(k), bb.get(name, {}).get(k)
-            if va != vb:
-                out.append(Finding("decode", f"decode/bands/{name}/{k}", ok=False, a=va, b=vb))
+    ha, hb = _decode_by_hrv(a), _decode_by_hrv(b)
+    if set(ha) != set(hb):
+        out.append(Finding("decode", "HRVs received", ok=False, a=sorted(ha), b=sorted(hb)))
+    for hrv in sorted(set(ha) & set(hb)):
+        da, db = ha[hrv], hb[hrv]
+        where = f"decode/HRV{hrv}"
+        for key in ("link", "cadus", "truth_check"):
+            for k in sorted(set(da.get(key, {})) | set(db.get(key, {}))):
+                va, vb = da.get(key, {}).get(k), db.get(key, {}).get(k)
+                if va != vb:
+                    out.append(Finding("decode", f"{where}/{key}/{k}", ok=False, a=va, b=vb))
+        ba = {x["name"]: x for x in da.get("bands", [])}
+        bb = {x["name"]: x for x in db.get("bands", [])}
+        for name in sorted(set(ba) | set(bb)):
+            for k in ("lines_complete", "lines_partial", "lines_missing"):
+                va, vb = ba.get(name, {}).get(k), bb.get(name, {}).get(k)
+                if va != vb:
+                    out.append(Finding("decode", f"{where}/bands/{name}/{k}", ok=False,
+                                       a=va, b=vb))
     if not out:
         out.append(Finding("decode", "decode statistics", value="identical"))
     return out
+
+
+def _decode_by_hrv(report: dict[str, Any]) -> dict[Any, dict[str, Any]]:
+    """A run report's decode statistics per HRV number (format 1 had one HRV, at the top)."""
+    if "hrvs" in report:
+        return {h.get("hrv"): h.get("decode", {}) for h in report["hrvs"]}
+    if "decode" in report:
+        return {report.get("instrument", {}).get("hrv"): report["decode"]}
+    return {}
 
 
 def compare_products(a: Product, b: Product, tol: dict[str, dict[str, float]] | None = None

@@ -5,7 +5,8 @@ then the record of what changed. ``tests/test_scenarios.py`` compares runs with 
 
 - ``summary.json``: the emulator's summary of every scenario (geometry only, ``render=False``,
   except for the reduced scenes, which are rendered and also sent through the downlink:
-  their ``downlink`` entry is the comparable part of the downlink report).
+  their ``downlink`` entry is the comparable part of the downlink report). A scenario
+  imaged by both HRVs has one summary per HRV, under ``hrvs``.
 - ``run.json``: for the reduced scenes, the comparable part of ``station run``'s report
   (decode statistics, products, quality figures; no wall times or file sizes).
 """
@@ -19,14 +20,14 @@ from pathlib import Path
 
 from station.run import comparable_report, run_scenario
 from station.scenario import load_scenario
-from station.spacecraft.emulator import emulate
+from station.spacecraft.emulator import emulate_pass
 from station.spacecraft.summary import summarize
 from station.srrs.report import comparable, downlink_report
 from station.srrs.session import downlink
 
 HERE = Path(__file__).resolve().parent
 #: Reduced scenes: rendered, sent through the downlink and run end to end in the tests.
-RENDERED = {"quickstart", "small_test", "noisy_channel", "tilt27_rugged"}
+RENDERED = {"quickstart", "small_test", "noisy_channel", "tilt27_rugged", "cuiaba_pass"}
 
 
 def expected_run(report: dict) -> dict:
@@ -41,12 +42,15 @@ def main(names: list[str]) -> None:
         if names and path.stem not in names:
             continue
         scn = load_scenario(path)
-        acq = emulate(scn, render=scn.name in RENDERED)
-        summary = summarize(acq)
+        summaries = []
+        for acq in emulate_pass(scn, render=scn.name in RENDERED):
+            summaries.append(summarize(acq))
+            if scn.name in RENDERED:
+                summaries[-1]["downlink"] = comparable(downlink_report(acq, downlink(acq)))
+        summary = summaries[0] if len(summaries) == 1 else {"hrvs": summaries}
         out = HERE / path.stem / "expected"
         out.mkdir(parents=True, exist_ok=True)
         if scn.name in RENDERED:
-            summary["downlink"] = comparable(downlink_report(acq, downlink(acq)))
             with tempfile.TemporaryDirectory() as tmp:
                 report = run_scenario(scn, tmp, quicklooks=False)
             (out / "run.json").write_text(json.dumps(expected_run(report), indent=2) + "\n")

@@ -12,11 +12,14 @@ directory then holds the L0 archive, the products, a quicklook PNG per product a
     <out>/quicklooks/<name>_s<scene>_<level>.png
     <out>/report.json
 
-``report.json`` (format ``spot-station-run`` v1) holds the scenario and its hash, the
-decoding statistics of the downlink, per product its size and headline quality figures, and
-the timings of every stage. Everything in it except ``timings_s`` and the sizes in MB is a
-function of the scenario alone: reruns with the same scenario and seed give identical
-products and the same report (``comparable_report``).
+A pass imaged by both HRVs goes through one channel, L0 archive and GEO/COR chain per HRV,
+and its files carry the HRV (``<name>_hrv2.l0.h5``, ``<name>_hrv2_s<scene>_<level>.h5``).
+``report.json`` (format ``spot-station-run`` v2, ``docs/compare.md``) holds the scenario and
+its hash, per HRV the decoding statistics of its downlink and what was made and skipped, per
+product its size and headline quality figures, and the timings of every stage. Everything
+in it except ``timings_s`` and the sizes in MB is a function of the scenario alone: reruns
+with the same scenario and seed give identical products and the same report
+(``comparable_report``).
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ __all__ = ["REPORT_FORMAT", "approximation_max_px", "comparable_report", "run_sc
            "summary_table"]
 
 REPORT_FORMAT = "spot-station-run"
-REPORT_VERSION = 1
+REPORT_VERSION = 2  # 2: one section per HRV ("hrvs"), products tagged by HRV
 #: Report keys that vary from one run to the next (wall times, sizes on disk).
 _VARYING = ("timings_s", "size_mb", "receive_speed_x_real_time")
 
@@ -49,58 +52,33 @@ def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
     from tqdm import tqdm
 
     from levels.quicklook import write_quicklook
-    from levels.readers.l0 import read_l0
-    from station.sipc.process import process_l0, scenario_provenance
-    from station.sipc.truth import Truth
-    from station.spacecraft.emulator import emulate
-    from station.srrs.report import downlink_report
-    from station.srrs.session import downlink, record
+    from station.spacecraft.emulator import emulate_pass
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter
     timings: dict[str, Any] = {}
     t_start = clock()
-    stages = tqdm(total=4 + quicklooks, desc="emulate", unit="stage", disable=not progress,
-                  leave=False)
+    n_hrv = len(scn.instruments)
+    stages = tqdm(total=1 + 3 * n_hrv + quicklooks, desc="emulate", unit="stage",
+                  disable=not progress, leave=False)
     t = clock()
-    acq = emulate(scn)
+    acqs = emulate_pass(scn)
     timings["emulate"] = clock() - t
     stages.update()
-    stages.set_description("downlink")
-    result = downlink(acq)
-    timings.update(result.timings_s)
-    t = clock()
-    l0 = record(acq, result, out / f"{scn.name}.l0.h5")
-    timings["record"] = clock() - t
-    decode = downlink_report(acq, result)
-    stages.update()
-    stages.set_description("GEO and COR")
-    archive = read_l0(l0)
-    scenes = tqdm(desc="scenes", unit="scene", disable=not progress, leave=False)
-
-    def on_scene(_done: Any, total: int) -> None:
-        scenes.total = total
-        scenes.update()
-
-    products = process_l0(archive, scn.processing, out, name=scn.name,
-                          truth=Truth.of(acq, archive), provenance=scenario_provenance(scn),
-                          on_scene=on_scene)
-    scenes.close()
-    timings["geo"] = products.timings_s["geo"]
-    cor: dict[str, float] = {}
-    for s in products.scenes:
-        for k, v in s.timings_s.items():
-            cor[k] = cor.get(k, 0.0) + v
-    timings["cor"] = cor
-    stages.update()
+    hrvs, made = [], []
+    for acq in acqs:
+        tag = scn.name if n_hrv == 1 else f"{scn.name}_hrv{acq.hrv.number}"
+        section, products = _receive_and_process(acq, out, tag, timings, stages, progress)
+        hrvs.append(section)
+        made += [(acq.hrv.number, s) for s in products.scenes]
     rows = []
     t = clock()
-    for s in products.scenes:
+    for hrv, s in made:
         for level, path in s.paths.items():
             p = read_product(path)
             row: dict[str, Any] = {
-                "scene": s.index, "level": level, "first_line": s.first_line,
+                "hrv": hrv, "scene": s.index, "level": level, "first_line": s.first_line,
                 "n_lines": s.n_lines, "file": path.name, "n_rows": p.attrs["n_rows"],
                 "n_cols": p.attrs["n_cols"], "bands": list(p.bands),
                 "valid_fraction": {b: round(float(im.valid.mean()), 6)
@@ -121,9 +99,60 @@ def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
         "software": f"spot-station {__version__}",
         "scenario": {"name": scn.name, "file": Path(scn.source).name if scn.source else "",
                      "sha256": scn.source_sha256, "seed": scn.seed},
-        "instrument": {"hrv": decode["hrv"], "mode": decode["mode"],
-                       "mirror_step": scn.instrument.mirror_step, "lines": decode["lines"],
-                       "detectors": decode["detectors"]},
+        "hrvs": hrvs,
+        "products": rows,
+        "timings_s": _rounded(timings),
+    }
+    _write_json(out / "report.json", report)
+    stages.close()
+    return report
+
+
+def _receive_and_process(acq: Any, out: Path, tag: str, timings: dict[str, Any],
+                         stages: Any, progress: bool) -> tuple[dict[str, Any], Any]:
+    """One HRV's chain after the emulator: its channel, its L0 archive, GEO and COR.
+
+    Adds its wall times to ``timings``; returns its report section and its products.
+    """
+    from tqdm import tqdm
+
+    from levels.readers.l0 import read_l0
+    from station.sipc.process import process_l0, scenario_provenance
+    from station.sipc.truth import Truth
+    from station.srrs.report import downlink_report
+    from station.srrs.session import downlink, record
+
+    scn, clock = acq.scenario, time.perf_counter
+    stages.set_description(f"downlink HRV{acq.hrv.number}")
+    result = downlink(acq)
+    for k, v in result.timings_s.items():
+        timings[k] = timings.get(k, 0.0) + v
+    t = clock()
+    l0 = record(acq, result, out / f"{tag}.l0.h5")
+    timings["record"] = timings.get("record", 0.0) + clock() - t
+    decode = downlink_report(acq, result)
+    stages.update()
+    stages.set_description(f"GEO and COR HRV{acq.hrv.number}")
+    archive = read_l0(l0)
+    scenes = tqdm(desc="scenes", unit="scene", disable=not progress, leave=False)
+
+    def on_scene(_done: Any, total: int) -> None:
+        scenes.total = total
+        scenes.update()
+
+    products = process_l0(archive, scn.processing, out, name=tag,
+                          truth=Truth.of(acq, archive), provenance=scenario_provenance(scn),
+                          on_scene=on_scene)
+    scenes.close()
+    timings["geo"] = timings.get("geo", 0.0) + products.timings_s["geo"]
+    cor = timings.setdefault("cor", {})
+    for s in products.scenes:
+        for k, v in s.timings_s.items():
+            cor[k] = cor.get(k, 0.0) + v
+    stages.update(2)
+    section = {
+        "hrv": decode["hrv"], "mode": decode["mode"], "mirror_step": acq.hrv.mirror_step,
+        "lines": decode["lines"], "detectors": decode["detectors"],
         "decode": {k: v for k, v in decode.items()
                    if k not in ("scenario", "hrv", "mode", "lines", "detectors", "timings_s")},
         "l0": {"file": l0.name, "size_mb": round(l0.stat().st_size / 1e6, 3),
@@ -133,13 +162,8 @@ def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
                        "skipped": [{"scene": k.index, "first_line": k.first_line,
                                     "n_lines": k.n_lines, "reason": k.reason}
                                    for k in products.skipped]},
-        "products": rows,
-        "timings_s": _rounded(timings),
     }
-    _write_json(out / "report.json", report)
-    stages.update()
-    stages.close()
-    return report
+    return section, products
 
 
 def _rounded(x: Any) -> Any:
@@ -185,15 +209,9 @@ def approximation_max_px(quality: dict[str, Any]) -> float | None:
                        quality.get(f"inverse_vs_model/{quality.get('inverse_method', '')}/max_px"))
 
 
-def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> str:
-    """The short human summary printed at the end of a run."""
-    ins, dec = report["instrument"], report["decode"]
-    lines = [f"{report['scenario']['name']}: HRV{ins['hrv']} {ins['mode']}, mirror step "
-             f"{ins['mirror_step']}, {ins['lines']} lines × {ins['detectors']} detectors → "
-             f"{report['processing']['scenes']} scene(s)"]
-    link, cadus = dec["link"], dec["cadus"]
-    bands = dec["bands"]
-    tc = dec["truth_check"]
+def _downlink_line(dec: dict[str, Any]) -> str:
+    """One HRV's decoding in a line: frames, errors, lines, and the check against the truth."""
+    link, cadus, tc = dec["link"], dec["cadus"], dec["truth_check"]
     failed = [k for k in ("masks_match_lost_frames", "accounts_balance", "sent_as_counted")
               if not tc[k]]
     tails_lost = [n for n, c in dec["channels"].items() if not c["tail_known"]]
@@ -202,14 +220,26 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
         verdict = f"passed (frames sent after the pass's end unknown on {', '.join(tails_lost)})"
     else:
         verdict = "passed" if not failed else "FAILED: " + ", ".join(failed)
-    lines.append(
-        f"downlink: {link['cadus_sent']} CADUs, {link['bit_errors']} bit errors, "
-        f"{cadus['corrected']} corrected, {cadus['uncorrectable']} uncorrectable; lines "
-        + ", ".join(f"{b['name']} {b['lines_complete']}/{b['lines_partial']}/"
-                    f"{b['lines_missing']}" for b in bands)
-        + f" (complete/partial/missing); truth check {verdict}")
-    lines.append(f"{'scene':>5} {'level':>5} {'size px':>11} {'valid':>6} {'LOS rms m':>10} "
-                 f"{'LOS max m':>10} {'ground rms m':>13} {'approx max px':>14}  product")
+    return (f"  downlink: {link['cadus_sent']} CADUs, {link['bit_errors']} bit errors, "
+            f"{cadus['corrected']} corrected, {cadus['uncorrectable']} uncorrectable; lines "
+            + ", ".join(f"{b['name']} {b['lines_complete']}/{b['lines_partial']}/"
+                        f"{b['lines_missing']}" for b in dec["bands"])
+            + f" (complete/partial/missing); truth check {verdict}")
+
+
+def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> str:
+    """The short human summary printed at the end of a run."""
+    name, several = report["scenario"]["name"], len(report["hrvs"]) > 1
+    lines = []
+    for h in report["hrvs"]:
+        lines.append(f"{name}: HRV{h['hrv']} {h['mode']}, mirror step {h['mirror_step']}, "
+                     f"{h['lines']} lines × {h['detectors']} detectors → "
+                     f"{h['processing']['scenes']} scene(s)")
+        lines.append(_downlink_line(h["decode"]))
+    hrv_col = f"{'HRV':>3} " if several else ""
+    lines.append(f"{hrv_col}{'scene':>5} {'level':>5} {'size px':>11} {'valid':>6} "
+                 f"{'LOS rms m':>10} {'LOS max m':>10} {'ground rms m':>13} "
+                 f"{'approx max px':>14}  product")
     for r in report["products"]:
         q = r["quality"]
         band = r["bands"][0]
@@ -218,17 +248,21 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
         ground = q.get(f"checkpoints/{band}/ground/rms_m")
         approx = approximation_max_px(q)
         valid = r["valid_fraction"].get(band)
-        lines.append(f"{r['scene']:5d} {r['level']:>5} {r['n_rows']:>5}×{r['n_cols']:<5} "
+        hrv = f"{r['hrv']:3d} " if several else ""
+        lines.append(f"{hrv}{r['scene']:5d} {r['level']:>5} {r['n_rows']:>5}×{r['n_cols']:<5} "
                      f"{_fmt(valid, '6.3f')} {_fmt(los, '10.1f')} {_fmt(los_max, '10.1f')} "
                      f"{_fmt(ground, '13.1f')} {_fmt(approx, '14.4f')}  {r['file']}")
-    for k in report["processing"].get("skipped", []):
-        lines.append(f"{k['scene']:5d}  skipped: {k['reason']}")
-    stripes = [(r["scene"], b, r["quality"].get(f"stripe_level/{b}/raw_counts"),
+    for h in report["hrvs"]:
+        for k in h["processing"]["skipped"]:
+            hrv = f"{h['hrv']:3d} " if several else ""
+            lines.append(f"{hrv}{k['scene']:5d}  skipped: {k['reason']}")
+    stripes = [(f"HRV{r['hrv']} " if several else "", r["scene"], b,
+                r["quality"].get(f"stripe_level/{b}/raw_counts"),
                 r["quality"].get(f"stripe_level/{b}/level_1a_counts"))
                for r in report["products"] if r["level"] == "1A" for b in r["bands"][:1]]
     if stripes:
         lines.append("stripes raw → 1A (counts): " + ", ".join(
-            f"scene {s} {b} {raw:.2f} → {cal:.2f}" for s, b, raw, cal in stripes))
+            f"{h}scene {s} {b} {raw:.2f} → {cal:.2f}" for h, s, b, raw, cal in stripes))
     t = report["timings_s"]
     cor = sum(t.get("cor", {}).values())
     parts = [f"emulate {t['emulate']:.1f}",
@@ -239,6 +273,7 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
     lines.append("timings (s): " + ", ".join(parts) + f"; total {t['total']:.1f}")
     if out_dir is not None:
         n_ql = sum("quicklook" in r for r in report["products"])
-        lines.append(f"in {out_dir}/: report.json, {report['l0']['file']}, "
+        l0 = ", ".join(h["l0"]["file"] for h in report["hrvs"])
+        lines.append(f"in {out_dir}/: report.json, {l0}, "
                      f"{len(report['products'])} products, {n_ql} quicklooks")
     return "\n".join(lines)

@@ -191,6 +191,10 @@ class InstrumentConfig:
     Sizes can be reduced without changing the physics: ``n_detectors`` fewer detectors
     spread over the same swath (a proportionally wider IFOV), ``first_detector`` and
     ``detector_count`` a window of the array, ``n_lines`` the lines rendered.
+
+    Written ``[[instrument]]`` twice, both HRVs image the pass at once, each with its own
+    mode, mirror and sizes, and each sent on its own X-band channel: the first one given
+    aims the orbit (``[pass] aim``).
     """
 
     hrv: int = _key(1, "hrv", "which HRV (the twins look 3.926° apart)", lo=1, hi=2)
@@ -319,7 +323,9 @@ class ChannelConfig:
     ``burst_rate_per_s`` at zenith, rising as 1/sin²(elevation) towards the horizon, lasting
     ``burst_length_bits`` on average, with ``burst_ber`` inside); fades that replace whole
     stretches with noise and slip the bit clock; stretches of frames replayed twice (tape
-    replay overlap); frames displaced by a few places.
+    replay overlap); frames displaced by a few places. An outage is one fade placed by hand
+    (``outage_start_s`` after the first frame, for ``outage_duration_s``): the antenna
+    losing track, a demodulator fault; being the station's, it strikes both HRVs' channels.
     """
 
     ber: float = _key(1e-7, "ber", "random bit error rate", 1.0, 0.0, 0.01)
@@ -339,6 +345,11 @@ class ChannelConfig:
                                    1.0, 0.0, 0.5)
     reorder_distance: int = _key(3, "reorder_distance", "largest displacement, in frames",
                                  lo=1, hi=1000)
+    outage_start_s: float = _key(0.0, "outage_start_s",
+                                 "start of an outage, after the first frame sent", 1.0,
+                                 0.0, 86400.0)
+    outage_duration_s: float = _key(0.0, "outage_duration_s", "its duration (0: none)", 1.0,
+                                    0.0, 3600.0)
 
 
 @dataclass(frozen=True)
@@ -425,10 +436,23 @@ class Scenario:
     downlink: DownlinkConfig = field(default_factory=DownlinkConfig)
     channel: ChannelConfig = field(default_factory=ChannelConfig)
     processing: ProcessingConfig = field(default_factory=ProcessingConfig)
+    #: The second HRV of a pass imaged by both (``[[instrument]]`` given twice), or ().
+    more_instruments: tuple[InstrumentConfig, ...] = ()
     base_dir: str = "."
     #: The scenario file and the SHA-256 of its bytes ("" when built from a dict).
     source: str = ""
     source_sha256: str = ""
+
+    def __post_init__(self) -> None:
+        numbers = [i.hrv for i in self.instruments]
+        if len(set(numbers)) != len(numbers):
+            raise ScenarioError(f"[[instrument]]: hrv = {numbers}: each HRV images once "
+                                "per pass; give each [[instrument]] its own hrv (1 or 2)")
+
+    @property
+    def instruments(self) -> tuple[InstrumentConfig, ...]:
+        """Every HRV imaging the pass: ``instrument`` first (it aims the orbit)."""
+        return (self.instrument, *self.more_instruments)
 
     def path(self, relative: str) -> Path:
         """A path of the scenario, resolved from the scenario file's directory."""
@@ -532,6 +556,12 @@ def scenario_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Scen
                 want = "a string" if key == "name" else "an integer in [0, 2**63)"
                 raise ScenarioError(f"{key} = {value!r}: expected {want}")
             kwargs[key] = value
+        elif key == "instrument" and isinstance(value, list):
+            if not 1 <= len(value) <= 2:
+                raise ScenarioError(f"[[instrument]] given {len(value)} times: a SPOT "
+                                    "carries two HRVs, give one or two")
+            built = [_build(InstrumentConfig, "instrument", v) for v in value]
+            kwargs["instrument"], kwargs["more_instruments"] = built[0], tuple(built[1:])
         elif key in _SECTIONS:
             kwargs["pass_" if key == "pass" else key] = _build(_SECTIONS[key], key, value)
         else:

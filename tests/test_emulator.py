@@ -14,7 +14,7 @@ import pytest
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.frames import ecef_from_orbital
 from station.scenario import scenario_from_dict
-from station.spacecraft.emulator import emulate, truth_model
+from station.spacecraft.emulator import emulate, emulate_pass, truth_model
 from station.spacecraft.imaging import HEIGHT_TOL_M, psf_quadrature, trace_pixels
 from station.spacecraft.instrument import COUNTS_PER_RADIANCE, TWIN_SEPARATION_RAD
 
@@ -247,3 +247,40 @@ def test_orbit_from_a_tle_of_refdata(refdata) -> None:
     assert acq.bulletins.t_s[0] < acq.line_times_s[0] < acq.line_times_s[-1] < \
         acq.bulletins.t_s[-1]
     assert len(acq.passes) >= 2
+
+
+#: Twin HRVs: view axes 3.926° apart from 822 km (plus Earth curvature): ground centres
+#: about 56.5 km apart, two 60 km swaths side by side, 117 km together (SPOT's figure).
+TWIN_CENTRES_KM = 56.5
+TWIN_CENTRES_TOL_KM = 1.0
+
+
+def test_both_hrvs_ride_one_platform() -> None:
+    """A pass imaged by both HRVs: one orbit, attitude, gyro record and set of bulletins;
+    each HRV its own lines (XS twice as long), centred on the same instant; and an HRV's
+    acquisition is the same emulated alone or with the other."""
+    scn = scenario_from_dict({
+        "instrument": [{**SMALL, "twin": True, "hrv": 1},
+                       {**SMALL, "twin": True, "hrv": 2, "mode": "XS", "n_detectors": 150,
+                        "n_lines": 150}],
+        "pass": NO_PASSES})
+    p, xs = emulate_pass(scn, render=False)
+    assert (p.hrv.number, p.hrv.mode, xs.hrv.number, xs.hrv.mode) == (1, "P", 2, "XS")
+    assert p.orbit is xs.orbit and p.attitude is xs.attitude and p.gyros is xs.gyros
+    assert xs.hrv.line_period_s == pytest.approx(2 * p.hrv.line_period_s, rel=1e-12)
+    assert p.line_times_s.mean() == pytest.approx(xs.line_times_s.mean(), abs=1e-9)
+    assert p.gyros.t_s[0] < p.line_times_s[0] and p.gyros.t_s[-1] > p.line_times_s[-1]
+    alone = emulate(scn, render=False, instrument=1)
+    assert np.array_equal(alone.line_times_s, xs.line_times_s)
+    assert np.array_equal(alone.gcps.line, xs.gcps.line)  # its own streams, the same
+    assert np.array_equal(alone.hrv.bands[0].look_true.psi_y_rad,
+                          xs.hrv.bands[0].look_true.psi_y_rad)
+    assert not np.array_equal(p.gcps.true_line, xs.gcps.true_line)  # but not the other's
+    # side by side on the ground, seen at the same instant
+    centres = []
+    for acq in (p, xs):
+        g = truth_model(acq).image_to_ground([(acq.hrv.n_lines - 1) / 2],
+                                             [(acq.hrv.n_columns - 1) / 2], 450.0)
+        centres.append(WGS84.to_ecef(g.lat_rad[0], g.lon_rad[0], 0.0))
+    distance_km = np.linalg.norm(centres[0] - centres[1]) / 1e3
+    assert distance_km == pytest.approx(TWIN_CENTRES_KM, abs=TWIN_CENTRES_TOL_KM)

@@ -34,8 +34,9 @@ def test_run_writes_products_report_and_quicklooks(run_dir: Path, capsys) -> Non
     report = json.loads((run_dir / "report.json").read_text())
     assert report["format"] == REPORT_FORMAT and report["scenario"]["name"] == "small_test"
     assert report["scenario"]["sha256"] and report["scenario"]["file"] == "small_test.toml"
-    assert (run_dir / report["l0"]["file"]).is_file()
-    assert report["decode"]["truth_check"]["accounts_balance"]
+    (hrv,) = report["hrvs"]
+    assert (run_dir / hrv["l0"]["file"]).is_file() and hrv["hrv"] == 1
+    assert hrv["decode"]["truth_check"]["accounts_balance"]
     levels = [p["level"] for p in report["products"]]
     assert levels == ["1A", "1B", "2A"]
     for p in report["products"]:
@@ -81,7 +82,7 @@ def test_station_alone_runs_the_quickstart(tmp_path: Path, monkeypatch, capsys) 
     monkeypatch.chdir(tmp_path)
     assert main([]) == 0
     report = json.loads((tmp_path / "runs" / "quickstart" / "report.json").read_text())
-    assert report["processing"]["scenes"] == 2
+    assert report["hrvs"][0]["processing"]["scenes"] == 2
     assert len(report["products"]) == 6
     assert len(list((tmp_path / "runs" / "quickstart" / "quicklooks").glob("*.png"))) == 6
     assert "quickstart: HRV1 P" in capsys.readouterr().out
@@ -201,11 +202,53 @@ def test_scenes_lost_in_a_fade_are_skipped_and_said(tmp_path: Path, capsys) -> N
     out = tmp_path / "run"
     assert main(["run", str(scn), "--out", str(out), "--quiet", "--no-quicklooks"]) == 0
     report = json.loads((out / "report.json").read_text())
-    skipped = report["processing"]["skipped"]
+    skipped = report["hrvs"][0]["processing"]["skipped"]
     made = {p["scene"] for p in report["products"]}
     assert len(made) + len(skipped) == 5 and made and skipped
     assert {k["scene"] for k in skipped}.isdisjoint(made)
     assert any("lost in the downlink" in k["reason"] for k in skipped)
-    lost = report["decode"]["bands"][0]["lines_missing"]
+    lost = report["hrvs"][0]["decode"]["bands"][0]["lines_missing"]
     assert lost >= 300 * sum("lost in the downlink" in k["reason"] for k in skipped)
     assert "skipped: no valid line" in capsys.readouterr().out
+
+
+def test_a_pass_of_both_hrvs_with_a_gap(tmp_path: Path, capsys) -> None:
+    """Both HRVs (P and XS) on their own channels, an outage striking both: one L0 archive
+    and one set of products per HRV, the lost scenes of each named, and `compare` tells
+    two such runs apart HRV by HRV."""
+    text = ('name = "both"\nseed = 8\n'
+            '[[instrument]]\nhrv = 1\ntwin = true\nn_detectors = 300\nn_lines = 1200\n'
+            '[[instrument]]\nhrv = 2\nmode = "XS"\ntwin = true\nn_detectors = 150\n'
+            'n_lines = 600\n[downlink]\nbit_rate_mbps = 1.25\npreamble_s = 0.1\n'
+            'postamble_s = 0.1\n[channel]\noutage_start_s = 10.5\n'
+            'outage_duration_s = {}\n[processing]\nlevels = ["1A", "2A"]\n')
+    runs = []
+    for outage in (11.5, 1.0):
+        scn = tmp_path / f"both_{outage:g}.toml"
+        scn.write_text(text.format(outage))
+        runs.append(tmp_path / f"run_{outage:g}")
+        assert main(["run", str(scn), "--out", str(runs[-1]), "--quiet",
+                     "--no-quicklooks"]) == 0
+    report = json.loads((runs[0] / "report.json").read_text())
+    assert [(h["hrv"], h["mode"]) for h in report["hrvs"]] == [(1, "P"), (2, "XS")]
+    for h in report["hrvs"]:
+        assert (runs[0] / h["l0"]["file"]).is_file()
+        assert h["l0"]["file"] == f"both_hrv{h['hrv']}.l0.h5"
+        assert h["decode"]["truth_check"]["accounts_balance"]
+        lost = [k["scene"] for k in h["processing"]["skipped"]]
+        # 9 s scenes (300 lines of 30 ms, or 150 of 60 ms), the first line sent 2.1 s
+        # after the first frame: the outage loses P lines 278–664 (XS 141–331): all of scene 1
+        assert lost == [1], lost
+        made = {p["scene"] for p in report["products"] if p["hrv"] == h["hrv"]}
+        assert made == {0, 2, 3}
+    xs = [p for p in report["products"] if p["hrv"] == 2 and p["level"] == "2A"]
+    assert xs and all(p["bands"] == ["XS1", "XS2", "XS3"] for p in xs)
+    assert all(p["quality"]["checkpoints/XS2/line_of_sight/rms_m"] < 500.0 for p in xs)
+    out = capsys.readouterr().out
+    assert "both: HRV1 P" in out and "both: HRV2 XS" in out
+    assert out.count("skipped: no valid line") == 2
+    assert main(["compare", str(runs[0]), str(runs[1]), "--json"]) == 1
+    found = json.loads(capsys.readouterr().out)
+    where = {f["what"] for f in found["findings"][""]}
+    assert "decode/HRV2/bands/XS1/lines_missing" in where
+    assert "product both_hrv2_s001_2A.h5" in where  # made in one run only

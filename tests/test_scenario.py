@@ -28,6 +28,15 @@ def test_three_lines_are_a_scenario(tmp_path: Path) -> None:
     assert scn.base_dir == str(tmp_path)
 
 
+def test_both_hrvs_are_two_instrument_tables(tmp_path: Path) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text('[[instrument]]\nhrv = 2\nmode = "XS"\n[[instrument]]\nhrv = 1\n')
+    scn = load_scenario(f)
+    assert [(i.hrv, i.mode) for i in scn.instruments] == [(2, "XS"), (1, "P")]
+    assert scn.instrument is scn.instruments[0]  # the first aims the orbit
+    assert load_scenario(ROOT / "scenarios" / "small_test.toml").more_instruments == ()
+
+
 def test_units_converted_once_to_si() -> None:
     scn = scenario_from_dict(
         {"orbit": {"kind": "elements", "altitude_km": 830.0, "inclination_deg": 98.0},
@@ -60,6 +69,10 @@ def test_units_converted_once_to_si() -> None:
         ({"seed": -1}, "seed = -1"),
         ({"seed": True}, "seed = True"),
         ({"world": []}, "[world] must be a table"),
+        ({"instrument": [{"hrv": 1}, {"hrv": 1, "mode": "XS"}]}, "hrv = [1, 1]"),
+        ({"instrument": [{"hrv": 1}, {"hrv": 2}, {}]}, "given 3 times"),
+        ({"instrument": [{"hrv": 1}, {"mode": "PX"}]}, "[instrument] mode = 'PX'"),
+        ({"channel": {"outage_duration_s": -1.0}}, "outage_duration_s = -1.0"),
     ],
 )
 def test_bad_values_are_rejected_by_name(table: dict, message: str) -> None:

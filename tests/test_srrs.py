@@ -143,6 +143,29 @@ def test_no_decodable_frame_is_lost_without_fades(acq_p) -> None:
     assert (~decodable[data_slots]).sum() == lost.size
 
 
+@pytest.mark.parametrize("random_fades", [0.0, 600.0])
+def test_an_outage_loses_the_frames_under_it_and_only_those(acq_p, random_fades) -> None:
+    """A scenario's outage is one fade placed by hand: the copies sent while it lasts are
+    noise, all of them (also when random fades overlap it), and nothing else is lost."""
+    frame_s = 8 * tf.CADU_BYTES / (_DOWN["bit_rate_mbps"] * 1e6)
+    span = acq_p.line_times_s[-1] - acq_p.line_times_s[0]
+    start, length = 0.3 * span, 0.2 * span
+    tx, rx, d = _send(acq_p, seed=3, ber=0.0, burst_rate_per_s=0.0, outage_start_s=start,
+                      outage_duration_s=length, fade_rate_per_min=random_fades,
+                      fade_duration_s=0.01)
+    faded = np.flatnonzero(rx.copy_faded)
+    under = np.arange(np.ceil(start / frame_s), np.floor((start + length) / frame_s) - 1,
+                      dtype=int)  # copies wholly inside the outage
+    assert np.isin(under, faded).all()  # every copy under the outage is lost
+    if not random_fades:  # and the outage alone loses no copy beyond its edges
+        assert faded.min() >= under[0] - 1 and faded.max() <= under[-1] + 2
+    lost = lost_data_frames(tx, d)
+    data = np.flatnonzero(tx.vc == tx.data_vc)
+    assert np.isin(data[lost], rx.copy_slot[faded]).all()  # nothing lost outside fades
+    data_under = np.intersect1d(rx.copy_slot[under], data)
+    assert data_under.size and np.isin(data_under, data[lost]).all()  # and those are lost
+
+
 def test_markers_are_found_at_any_bit_offset(acq_xs) -> None:
     tx = transmit(acq_xs, acq_xs.scenario.downlink, np.random.default_rng(1))
     rng = np.random.default_rng(9)

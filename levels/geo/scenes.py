@@ -164,9 +164,13 @@ class PassGeometry:
         col = np.array([0.5 * nc, 0, nc, nc, 0], dtype=np.float64)
         g = model.image_to_ground(line, col, reference_height_m)
         if not np.all(g.ok):
+            t_att = self.attitude.t_s
+            t_end = float(clock.time_s(nl))
             raise GeometryError(
-                f"scene {cut.index}: centre or corners not located (ephemeris span "
-                f"{self.ephemeris.span_s} s, scene centre at {t_c:.3f} s)")
+                f"scene {cut.index}: centre or corners not located (its lines "
+                f"{clock.time_s(0):.2f}–{t_end:.2f} s; attitude known over "
+                f"{t_att[0]:.2f}–{t_att[-1]:.2f} s, ephemeris over "
+                f"{self.ephemeris.span_s[0]:.0f}–{self.ephemeris.span_s[1]:.0f} s)")
         return SceneGeometry(cut, t_c, models, at_centre, reference_height_m,
                              float(g.lat_rad[0]), float(g.lon_rad[0]), g.lat_rad[1:],
                              g.lon_rad[1:])

@@ -15,7 +15,8 @@ In the order they act:
    ``fade_duration_ms`` (Poisson arrivals, ``fade_rate_per_min``): that stretch of the
    recording is noise, and since the bit clock is re-acquired the noise is not of the
    same length — the stream slips by a random number of bits, so the receiver has to find
-   the frames again at any bit offset.
+   the frames again at any bit offset. An outage (``outage_start_s``,
+   ``outage_duration_s``) is one more fade, placed by hand.
 
 The result is the recorded bit stream (bytes; the last byte may be partly padding) and,
 per CADU copy in it, which slot it came from, whether a fade touched it and the largest
@@ -143,13 +144,19 @@ def impair(cadus: NDArray[np.uint8], slot_t_s: NDArray[np.float64],
         span = (t_bits[0], t_bits[-1])
         fades = np.sort(rng.uniform(*span, rng.poisson(cfg.fade_rate_per_min / 60.0
                                                        * (span[1] - span[0]))))
+    lasts = rng.exponential(cfg.fade_duration_s, fades.size) if fades.size else fades
+    if cfg.outage_duration_s > 0:
+        fades = np.append(fades, slot_t_s[0] + cfg.outage_start_s)
+        lasts = np.append(lasts, cfg.outage_duration_s)
+        by_start = np.argsort(fades, kind="stable")
+        fades, lasts = fades[by_start], lasts[by_start]
     if fades.size:
         cut0 = ((fades - slot_t_s[0]) / bit_s).astype(np.int64)
-        cut1 = cut0 + (rng.exponential(cfg.fade_duration_s, fades.size) / bit_s).astype(
-            np.int64)
+        cut1 = cut0 + (lasts / bit_s).astype(np.int64)
         cut0, cut1 = np.clip(cut0, 0, n_bits), np.clip(cut1, 0, n_bits)
         keep = np.concatenate([[True], cut0[1:] >= np.maximum.accumulate(cut1)[:-1]])
-        cut0, cut1 = cut0[keep], cut1[keep]  # overlapping fades merge into the first
+        group = np.flatnonzero(keep)  # overlapping fades merge into the first: one, longer
+        cut0, cut1 = cut0[keep], np.maximum.reduceat(cut1, group)
         noise_len = np.maximum(cut1 - cut0 + rng.integers(-7, 8, cut0.size), 0)
         first_copy = cut0 // (8 * tf.CADU_BYTES)
         last_copy = (np.maximum(cut1, cut0 + 1) - 1) // (8 * tf.CADU_BYTES)

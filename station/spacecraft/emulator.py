@@ -44,7 +44,8 @@ from station.spacecraft.passes import Pass, find_passes
 from station.spacecraft.sun import sun_direction_ecef
 from station.spacecraft.world import World
 
-__all__ = ["Acquisition", "ControlPoints", "emulate", "make_bulletins", "truth_model"]
+__all__ = ["Acquisition", "ControlPoints", "emulate", "emulate_pass", "make_bulletins",
+           "truth_model"]
 
 _ATTITUDE_MARGIN_S = 3.0  # truth attitude and gyros beyond the strip's ends
 
@@ -89,6 +90,8 @@ class Acquisition:
     gcps: ControlPoints
     passes: tuple[Pass, ...]
     sun_ecef: NDArray[np.float64]
+    #: Which of the scenario's HRVs (0: its first ``[[instrument]]``).
+    index: int = 0
 
 
 def _view_of(hrv_mirror_rad: float, height_m: float):
@@ -202,60 +205,92 @@ def _control_points(
     )
 
 
-def emulate(scn: Scenario, render: bool = True) -> Acquisition:
-    """Run the spacecraft emulator on a scenario (module docstring).
+def emulate(scn: Scenario, render: bool = True, instrument: int = 0) -> Acquisition:
+    """Run the spacecraft emulator on a scenario (module docstring): the acquisition of its
+    ``instrument``-th HRV (0: the first ``[[instrument]]``).
 
     With ``render=False`` the bands are left empty (geometry, gyros, bulletins and control
     points only): the fast path for geometry tests and pass planning.
     """
+    return emulate_pass(scn, render, (instrument,))[0]
+
+
+def emulate_pass(scn: Scenario, render: bool = True,
+                 instruments: tuple[int, ...] | None = None) -> tuple[Acquisition, ...]:
+    """The acquisitions of every HRV of the pass (or of those listed), in scenario order.
+
+    Both HRVs ride the same platform: one orbit (aimed at the first HRV's view), one truth
+    attitude and one gyro record spanning every HRV's lines, one set of bulletins; each
+    HRV has its own detectors, line times (centred on the same instant; XS lines last
+    twice as long as P lines), renders and control points. An HRV's acquisition is the same
+    whether it is emulated alone or with the other: the random streams are per component
+    and per HRV, and the platform's spans are those of the whole scenario.
+    """
+    configs = scn.instruments
+    chosen = tuple(range(len(configs))) if instruments is None else instruments
+    for k in chosen:
+        if not 0 <= k < len(configs):
+            raise IndexError(f"instrument {k}: the scenario has {len(configs)}")
     streams = np.random.default_rng(scn.seed).spawn(6)
-    rng_att, rng_hrv, rng_gyro, rng_noise, rng_gcp, _spare = streams
-    hrv = build_hrv(scn.instrument, scn.calibration, rng_hrv)
+    rng_att, rng_hrv, rng_gyro, rng_noise, rng_gcp, rng_more = streams
+    # per HRV: (detectors, noise, control points); the first keeps the original streams
+    per_hrv = [(rng_hrv, rng_noise, rng_gcp)] + [
+        tuple(g.spawn(3)) for g in rng_more.spawn(len(configs))[1:]]
+    hrvs = [build_hrv(c, scn.calibration, per_hrv[k][0]) for k, c in enumerate(configs)]
+    first = hrvs[0]
     tle = _tle(scn) if scn.orbit.kind == "tle" else None
     if tle is not None:  # the TLE's day: its orbit is where it is
         epoch = Epoch(tle.epoch_utc.astype("datetime64[D]"), name="00:00 UTC of the TLE's day")
     else:
         epoch = Epoch(np.datetime64(scn.pass_.date_utc, "ns"), name="00:00 UTC of the pass day")
-    strip_s = hrv.n_lines * hrv.line_period_s
+    # every HRV's strip is centred on the same instant: the longest one spans them all
+    strip_s = max(h.n_lines * h.line_period_s for h in hrvs)
     margin = max(scn.bulletins.margin_s, 8 * scn.bulletins.period_s) + strip_s / 2
-    mirror = float(mirror_angle_rad(hrv.mirror_step))
-    if hrv.twin:
-        mirror += (-0.5 if hrv.number == 1 else 0.5) * TWIN_SEPARATION_RAD
+    mirror = float(mirror_angle_rad(first.mirror_step))
+    if first.twin:
+        mirror += (-0.5 if first.number == 1 else 0.5) * TWIN_SEPARATION_RAD
     day = (0.0, max(scn.pass_.ground_pass_days, 1.0) * 86400.0)
     span = (min(day[0], -margin), day[1] + margin)
     orbit, t_c = _orbit(scn, epoch, span, margin, mirror, tle)
-    line_times = t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s
+    half_s = max((h.n_lines - 1) * h.line_period_s for h in hrvs) / 2  # first to last line
+    strip = (t_c - half_s, t_c + half_s)
     ac = scn.attitude
     attitude = TruthAttitude.generate(
-        line_times[0] - _ATTITUDE_MARGIN_S, line_times[-1] + _ATTITUDE_MARGIN_S, rng_att,
+        strip[0] - _ATTITUDE_MARGIN_S, strip[1] + _ATTITUDE_MARGIN_S, rng_att,
         offsets_rad=(ac.roll0_rad, ac.pitch0_rad, ac.yaw0_rad), drift_scale=ac.drift_scale,
         jitter_amplitude_rad=ac.jitter_amplitude_rad,
         jitter_frequency_hz=ac.jitter_frequency_hz,
     )
-    g0 = np.ceil((line_times[0] - 2.0) / ac.gyro_period_s) * ac.gyro_period_s
-    n_gyro = int((line_times[-1] + 2.0 - g0) / ac.gyro_period_s) + 1
+    g0 = np.ceil((strip[0] - 2.0) / ac.gyro_period_s) * ac.gyro_period_s
+    n_gyro = int((strip[1] + 2.0 - g0) / ac.gyro_period_s) + 1
     gyros = sample_gyros(attitude, g0, n_gyro, ac.gyro_period_s, ac.gyro_noise_rad_per_s,
                          ac.gyro_lsb_rad_per_s, rng_gyro)
     world = _world(scn)
     sun = sun_direction_ecef(epoch, [t_c])[0]
-    bands: tuple[RenderedBand, ...] = ()
-    if render:
-        bands = tuple(
-            render_band(orbit, attitude, hrv, b, world, line_times, sun, rng_noise)
-            for b in hrv.bands
-        )
     bc = scn.bulletins
     bulletins = make_bulletins(
-        orbit, line_times[0] - bc.margin_s, line_times[-1] + bc.margin_s, bc.period_s,
+        orbit, strip[0] - bc.margin_s, strip[1] + bc.margin_s, bc.period_s,
         np.asarray(bc.bias_m), np.asarray(bc.drift_m_per_s), t_c,
     )
-    gcps = _control_points(scn.gcps, hrv, line_times, orbit, attitude, world, rng_gcp)
     gs = scn.ground_station
     passes = tuple(find_passes(orbit, gs.lat_rad, gs.lon_rad, gs.height_m,
                                gs.elevation_mask_rad, day[0], day[1])) \
         if scn.pass_.ground_pass_days > 0 else ()
-    return Acquisition(
-        scenario=scn, epoch=epoch, orbit=orbit, attitude=attitude, hrv=hrv, world=world,
-        t_centre_s=t_c, line_times_s=line_times, bands=bands, gyros=gyros,
-        bulletins=bulletins, gcps=gcps, passes=passes, sun_ecef=sun,
-    )
+    out = []
+    for k in chosen:  # one HRV each: two at most
+        hrv = hrvs[k]
+        _, rng_noise_k, rng_gcp_k = per_hrv[k]
+        line_times = t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s
+        bands: tuple[RenderedBand, ...] = ()
+        if render:
+            bands = tuple(
+                render_band(orbit, attitude, hrv, b, world, line_times, sun, rng_noise_k)
+                for b in hrv.bands
+            )
+        gcps = _control_points(scn.gcps, hrv, line_times, orbit, attitude, world, rng_gcp_k)
+        out.append(Acquisition(
+            scenario=scn, epoch=epoch, orbit=orbit, attitude=attitude, hrv=hrv, world=world,
+            t_centre_s=t_c, line_times_s=line_times, bands=bands, gyros=gyros,
+            bulletins=bulletins, gcps=gcps, passes=passes, sun_ecef=sun, index=k,
+        ))
+    return tuple(out)

@@ -37,10 +37,15 @@ class DownlinkResult:
 
 
 def downlink(acq: Acquisition) -> DownlinkResult:
-    """Send an acquisition through the scenario's downlink and channel, and receive it."""
+    """Send an acquisition through the scenario's downlink and channel, and receive it.
+
+    Each HRV has its own X-band channel (SPOT 1–4's two image channels), with its own
+    random draws; a scenario's outage strikes both.
+    """
     scn = acq.scenario
+    key = (_DOWNLINK_STREAM,) if acq.index == 0 else (_DOWNLINK_STREAM, acq.index)
     rng_tx, rng_ch = np.random.default_rng(
-        np.random.SeedSequence(scn.seed, spawn_key=(_DOWNLINK_STREAM,))).spawn(2)
+        np.random.SeedSequence(scn.seed, spawn_key=key)).spawn(2)
     clock = time.perf_counter
     t0 = clock()
     tx = transmit(acq, scn.downlink, rng_tx)
