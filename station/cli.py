@@ -230,6 +230,41 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_capacity(args: argparse.Namespace) -> int:
+    if args.scenario == "calibrate":
+        from station.capacity.calibrate import calibrate, write_service_times
+
+        if args.sweep or args.replications:
+            raise StationError("capacity calibrate takes only --out FILE")
+        print("measuring this code's stages on this machine ...", file=sys.stderr)
+        table = calibrate()
+        path = write_service_times(args.out or "service_times.json", table)
+        print(f"wrote {path}: ingest {table['ingest_s_per_signal_s']:.3f} s per s of signal; "
+              "per full scene, GEO " + ", ".join(
+                  f"{m} {v:.3f}" for m, v in table["geo_s_per_scene"].items())
+              + " s; COR " + "; ".join(
+                  f"{m} " + ", ".join(f"{lv} {t:.2f}" for lv, t in lvs.items())
+                  for m, lvs in table["cor_s"].items()) + " s")
+        return 0
+    from station.capacity.config import load_capacity
+    from station.capacity.study import parse_sweep, run_study, study_table
+
+    scn = load_capacity(args.scenario)
+    sweep = parse_sweep(args.sweep) if args.sweep else None
+    if args.replications is not None and args.replications < 1:
+        raise StationError(f"--replications {args.replications}: expected at least 1")
+    out = Path(args.out) if args.out else Path("runs") / scn.name
+    summary = run_study(scn, out, sweep, args.replications, plots=not args.no_plots)
+    if args.json:
+        print(json.dumps(summary, indent=2, default=str))
+    else:
+        print(study_table(summary))
+        print(f"in {out}/: summary.json, stages.csv, levels.csv, station.csv, queues.csv"
+              + ("" if args.no_plots else ", queues.png, latency.png"
+                 + (", sweep.png" if sweep else "")))
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="station",
@@ -305,6 +340,21 @@ def _parser() -> argparse.ArgumentParser:
                       help="GeoTIFF through GDAL (the only format so far)")
     expo.add_argument("--out", help="output file (default: the product's name with .tif)")
     expo.set_defaults(func=_cmd_export)
+    cap = sub.add_parser(
+        "capacity", help="capacity planning: a simpy model of the station, or `calibrate`",
+        description="Simulate a station's passes, recording and processing queues over a "
+                    "capacity scenario (scenarios/capacity/), with replications and what-if "
+                    "sweeps; or `station capacity calibrate` to measure this code's service "
+                    "times on this machine.")
+    cap.add_argument("scenario", help="a capacity scenario (.toml), or 'calibrate'")
+    cap.add_argument("--sweep", help="SECTION.KEY=V1,V2,... (e.g. "
+                                     "resources.cor_workers=1,2,3,4)")
+    cap.add_argument("--replications", type=int, help="replications (default: the scenario's)")
+    cap.add_argument("--out", help="output directory (default runs/<name>/); for calibrate, "
+                                   "the service-time file (default service_times.json)")
+    cap.add_argument("--json", action="store_true", help="print the summary as JSON")
+    cap.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    cap.set_defaults(func=_cmd_capacity)
     return parser
 
 

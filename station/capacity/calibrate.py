@@ -1,0 +1,105 @@
+"""Service times of this code's own stages, measured on this machine: ``station capacity
+calibrate``.
+
+Two reduced passes (P: 1000 detectors × 1000 lines; XS: 500 × 500, the same swath and
+physics) go through the downlink, the L0 archive and GEO/COR for levels 1A, 1B and 2A, after
+one untimed run that compiles the numba kernels. The figures are scaled to a full SPOT
+scene and channel:
+
+- **ingest**: receiving and recording, per second of one HRV channel at 25 Mbit/s: the wall
+  time per bit received, times the full rate;
+- **GEO**, per scene: the pass's attitude and the scene's grids. Its work is set by the
+  grids' nodes, not the pixels: not scaled;
+- **COR**, per scene and level, everything from L0 up (1A: radiometry; 1B: 1A,
+  deconvolution, 1B resampling; 2A: 1A, deconvolution, 2A resampling), scaled by the
+  pixels of a full scene over the reduced one (6000² in P, 3 × 3000² in XS). The quality
+  figures against the truth are the emulator's business, not production: left out;
+- **archive**, per product: writing it, scaled by pixels likewise.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from station import __version__
+
+__all__ = ["FULL_BIT_RATE_BIT_PER_S", "calibrate", "write_service_times"]
+
+FULL_BIT_RATE_BIT_PER_S = 25e6  # one HRV channel (docs/telemetry.md)
+_REDUCED = {  # mode: detectors, lines, bit rate (a share of 25 Mbit/s like the detectors)
+    "P": (1000, 1000, 4.0),
+    "XS": (500, 500, 4.0),
+}
+_FULL_PIXELS = {"P": 6000 * 6000, "XS": 3 * 3000 * 3000}
+
+
+def _measure(mode: str, detectors: int, lines: int, rate_mbps: float, tmp: Path
+             ) -> dict[str, float]:
+    from levels.readers.l0 import read_l0
+    from station.scenario import scenario_from_dict
+    from station.sipc.process import process_l0
+    from station.spacecraft.emulator import emulate
+    from station.srrs.session import downlink, record
+
+    scn = scenario_from_dict({
+        "name": f"calibrate_{mode}", "seed": 7,
+        "instrument": {"mode": mode, "n_detectors": detectors, "n_lines": lines},
+        "downlink": {"bit_rate_mbps": rate_mbps, "preamble_s": 0.1, "postamble_s": 0.1},
+        "pass": {"ground_pass_days": 0.0}, "processing": {"scene_lines": lines}})
+    acq = emulate(scn)
+    result = downlink(acq)
+    t = time.perf_counter()
+    l0 = record(acq, result, tmp / f"{mode}.l0.h5")
+    t_record = time.perf_counter() - t
+    bits = result.reception.n_bits
+    products = process_l0(read_l0(l0), scn.processing, tmp, name=mode)
+    (scene,) = products.scenes
+    c = scene.timings_s
+    n_bands = len(acq.bands)
+    return {
+        "receive_and_record_s": result.timings_s["receive"] + t_record, "bits": float(bits),
+        "geo_s": products.timings_s["geo"] + c["geometry"],
+        "1A_s": c["1A"], "1B_s": c["1A"] + c["deconvolution"] + c["1B"],
+        "2A_s": c["1A"] + c["deconvolution"] + c["2A"], "write_s": c["write"],
+        "products": float(len(scene.paths)), "pixels": float(detectors * lines * n_bands),
+    }
+
+
+def calibrate() -> dict[str, Any]:
+    """Measure the stages (module docstring); returns the service-time table."""
+    with tempfile.TemporaryDirectory() as tmp:
+        _measure("XS", 100, 100, 0.8, Path(tmp))  # compiles the kernels; not timed
+        raw = {m: _measure(m, *spec, Path(tmp)) for m, spec in _REDUCED.items()}
+    per_bit = np.mean([r["receive_and_record_s"] / r["bits"] for r in raw.values()])
+    scale = {m: _FULL_PIXELS[m] / r["pixels"] for m, r in raw.items()}
+    return {
+        "format": "spot-station-service-times", "format_version": 1,
+        "software": f"spot-station {__version__}",
+        "machine": f"{platform.node()}: {platform.processor() or platform.machine()}, "
+                   f"Python {platform.python_version()}",
+        "measured_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "reduced": {m: {"detectors": d, "lines": n, "bit_rate_mbps": b}
+                    for m, (d, n, b) in _REDUCED.items()},
+        "raw": raw,
+        "ingest_s_per_signal_s": float(per_bit * FULL_BIT_RATE_BIT_PER_S),
+        "geo_s_per_scene": {m: r["geo_s"] for m, r in raw.items()},
+        "cor_s": {m: {lv: r[f"{lv}_s"] * scale[m] for lv in ("1A", "1B", "2A")}
+                  for m, r in raw.items()},
+        "archive_s": {m: {lv: r["write_s"] / r["products"] * scale[m]
+                          for lv in ("1A", "1B", "2A")} for m, r in raw.items()},
+    }
+
+
+def write_service_times(path: str | Path, table: dict[str, Any]) -> Path:
+    """Write a service-time table as JSON."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(json.dumps(table, indent=2) + "\n")
+    return p

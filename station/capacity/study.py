@@ -1,0 +1,247 @@
+"""Capacity studies: replications with confidence intervals, what-if sweeps, and their
+outputs (JSON, CSV, PNG): ``station capacity``.
+
+Each replication is an independent run of :func:`~station.capacity.model.simulate` (its own
+random streams); every figure is reported as the mean over the replications and the
+half-width of its 95 % Student-t interval. A sweep repeats that for each value of one key
+of the scenario (``resources.cor_workers=1,2,3,4``), with the same seeds (common random
+numbers: the differences between values are not drowned in noise).
+
+Written to the output directory:
+
+- ``summary.json``: the scenario, the service times used, and per sweep value the station's,
+  stages' and levels' figures (mean and CI);
+- ``stages.csv``, ``levels.csv``, ``station.csv``: the same, one row per value and figure;
+- ``queues.csv``: the queue length of every stage over time (first replication);
+- ``queues.png``, ``latency.png`` and, for a sweep, ``sweep.png``: backlog growth of COR,
+  its utilisation and the 2A latency against the swept value.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from station.capacity.config import CapacityScenario, with_value
+from station.capacity.model import LEVELS, Replication, Service, simulate
+from station.capacity.stats import mean_ci
+from station.errors import ScenarioError
+
+__all__ = ["load_service", "parse_sweep", "run_study", "study_table"]
+
+
+def load_service(scn: CapacityScenario) -> Service:
+    """The scenario's service-time file (``[service] file``)."""
+    p = scn.path(scn.service.file)
+    try:
+        return Service.from_dict(json.loads(p.read_text(encoding="utf-8")))
+    except FileNotFoundError:
+        raise ScenarioError(f"[service] file = {scn.service.file!r}: {p} not found; "
+                            "make one with `station capacity calibrate --out FILE`") from None
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise ScenarioError(f"{p}: not a service-time file ({exc})") from None
+
+
+def parse_sweep(text: str) -> tuple[str, list[str]]:
+    """``SECTION.KEY=V1,V2,...`` → (``SECTION.KEY``, values as written)."""
+    param, sep, values = text.partition("=")
+    vals = [v.strip() for v in values.split(",") if v.strip()]
+    if not sep or not vals or "." not in param:
+        raise ScenarioError(f"--sweep {text!r}: expected SECTION.KEY=V1,V2,... "
+                            "(e.g. resources.cor_workers=1,2,3,4)")
+    return param.strip(), vals
+
+
+def _ci(values: list[float]) -> dict[str, float]:
+    m, h = mean_ci(values)
+    return {"mean": m, "ci95": h}
+
+
+def _aggregate(reps: list[Replication]) -> dict[str, Any]:
+    stages = {name: {k: _ci([float(r.stages[name][k]) for r in reps])
+                     for k in reps[0].stages[name]} for name in reps[0].stages}
+    levels = {lv: {k: _ci([float(r.levels[lv][k]) for r in reps]) for k in reps[0].levels[lv]}
+              for lv in LEVELS}
+    station = {k: _ci([float(r.station[k]) for r in reps]) for k in reps[0].station}
+    return {"stages": stages, "levels": levels, "station": station}
+
+
+def run_study(scn: CapacityScenario, out_dir: str | Path | None = None,
+              sweep: tuple[str, list[str]] | None = None, replications: int | None = None,
+              plots: bool = True, service: Service | None = None) -> dict[str, Any]:
+    """Replicate the scenario (for each sweep value); write the outputs to ``out_dir``."""
+    service = service or load_service(scn)
+    n = replications or scn.simulation.replications
+    param, values = sweep if sweep else ("", [""])
+    variants = [(v, with_value(scn, param, v) if param else scn) for v in values]
+    runs, first = [], None
+    for value, variant in variants:
+        reps = [simulate(variant, service, r) for r in range(n)]
+        first = first or reps[0]
+        runs.append({"value": value, **_aggregate(reps)})
+    summary = {
+        "format": "spot-station-capacity", "format_version": 1,
+        "scenario": {"name": scn.name, "file": Path(scn.source).name if scn.source else "",
+                     "sha256": scn.source_sha256, "seed": scn.seed},
+        "service": {"file": scn.service.file, "machine": service.machine},
+        "simulated_days": scn.simulation.days, "warmup_days": scn.simulation.warmup_days,
+        "replications": n, "sweep": param, "runs": runs,
+    }
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        _write(out, summary, first)
+        if plots:
+            _plots(out, summary, first)
+    return summary
+
+
+def _write(out: Path, summary: dict[str, Any], first: Replication | None) -> None:
+    tmp = out / ".summary.json.tmp"
+    tmp.write_text(json.dumps(summary, indent=2, default=_plain) + "\n")
+    os.replace(tmp, out / "summary.json")
+    for kind in ("stages", "levels"):
+        with open(out / f"{kind}.csv", "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow([summary["sweep"] or "value", kind[:-1], "figure", "mean", "ci95"])
+            for run in summary["runs"]:
+                for name, figs in run[kind].items():
+                    for k, v in figs.items():
+                        w.writerow([run["value"], name, k, _plain(v["mean"]), _plain(v["ci95"])])
+    with open(out / "station.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow([summary["sweep"] or "value", "figure", "mean", "ci95"])
+        for run in summary["runs"]:
+            for k, v in run["station"].items():
+                w.writerow([run["value"], k, _plain(v["mean"]), _plain(v["ci95"])])
+    if first is not None:
+        names = list(first.series)
+        t = first.series[names[0]][0]
+        with open(out / "queues.csv", "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["day", *names])
+            for i, ti in enumerate(t):
+                w.writerow([round(ti / 86400.0, 4), *(first.series[k][1][i] for k in names)])
+
+
+def _plain(x: Any) -> Any:
+    if isinstance(x, float | np.floating):
+        return None if not math.isfinite(float(x)) else round(float(x), 6)
+    return x
+
+
+def _plots(out: Path, summary: dict[str, Any], first: Replication | None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    name = summary["scenario"]["name"]
+    if first is not None:
+        fig, ax = plt.subplots(figsize=(9, 4))
+        for stage, (t, q) in first.series.items():
+            if max(q, default=0) > 0:
+                ax.step(np.asarray(t) / 86400.0, q, where="post", label=stage, lw=0.8)
+        ax.set(xlabel="day", ylabel="jobs waiting", title=f"{name}: queues (replication 0)")
+        ax.legend(loc="upper left", fontsize=8)
+        fig.tight_layout()
+        fig.savefig(out / "queues.png", dpi=110)
+        plt.close(fig)
+    run = summary["runs"][0]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    qs = (50, 90, 95, 99)
+    for i, lv in enumerate(LEVELS):
+        means = [run["levels"][lv][f"latency_p{q}_h"]["mean"] for q in qs]
+        ax.bar(np.arange(len(qs)) + 0.27 * (i - 1), means, 0.27, label=f"level {lv}")
+    ax.set_xticks(range(len(qs)), [f"p{q}" for q in qs])
+    ax.set(ylabel="hours from acquisition", title=f"{name}: latency to each level"
+           + (f" ({summary['sweep']} = {run['value']})" if summary["sweep"] else ""))
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "latency.png", dpi=110)
+    plt.close(fig)
+    if summary["sweep"]:
+        _sweep_plot(out, summary, plt)
+
+
+def _sweep_plot(out: Path, summary: dict[str, Any], plt: Any) -> None:
+    values = [r["value"] for r in summary["runs"]]
+    x = np.arange(len(values))
+    growth = [r["station"]["cor_backlog_growth_per_day"] for r in summary["runs"]]
+    lat = [r["levels"]["2A"]["latency_p95_h"] for r in summary["runs"]]
+    util = [r["stages"]["cor"]["utilisation"]["mean"] for r in summary["runs"]]
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    ax.errorbar(x, [g["mean"] for g in growth],
+                yerr=[0 if not math.isfinite(g["ci95"]) else g["ci95"] for g in growth],
+                marker="o", capsize=3, color="C3", label="COR backlog growth (jobs/day)")
+    ax.axhline(0.0, color="grey", lw=0.6)
+    ax.set(xlabel=summary["sweep"], ylabel="COR backlog growth, jobs per day",
+           title=f"{summary['scenario']['name']}: sweep of {summary['sweep']}")
+    ax.set_xticks(x, values)
+    ax2 = ax.twinx()
+    ax2.plot(x, [v["mean"] for v in lat], "s--", color="C0", label="2A latency p95 (h)")
+    ax2.set_yscale("log")
+    ax2.set_ylabel("2A latency p95, hours (log)")
+    for xi, u in zip(x, util, strict=True):
+        ax.annotate(f"COR {100 * u:.0f} % busy", (xi, 0), textcoords="offset points",
+                    xytext=(0, 8), ha="center", fontsize=7)
+    lines = ax.get_legend_handles_labels()
+    lines2 = ax2.get_legend_handles_labels()
+    ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=8, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(out / "sweep.png", dpi=110)
+    plt.close(fig)
+
+
+def study_table(summary: dict[str, Any]) -> str:
+    """The human summary of a study: per sweep value, the station, its stages, its levels."""
+    lines = [f"{summary['scenario']['name']}: {summary['simulated_days']:g} days after "
+             f"{summary['warmup_days']:g} of warm-up, {summary['replications']} replication(s);"
+             " mean ± 95 % CI"]
+
+    def f(v: dict[str, float], spec: str = ".2f") -> str:
+        m, h = v["mean"], v["ci95"]
+        if not math.isfinite(m):
+            return "—"
+        return format(m, spec) + ("" if not math.isfinite(h) else f" ±{h:{spec}}")
+
+    for run in summary["runs"]:
+        st = run["station"]
+        if summary["sweep"]:
+            lines.append(f"— {summary['sweep']} = {run['value']}")
+        lines.append(f"passes {f(st['passes'], '.0f')} (imaging {f(st['imaging_passes'], '.0f')}"
+                     f", lost at the antenna {f(st['passes_lost'], '.1f')}); scenes/day "
+                     f"{f(st['scenes_per_day'], '.1f')}, products/day "
+                     f"{f(st['products_per_day'], '.1f')}; COR backlog growth "
+                     f"{f(st['cor_backlog_growth_per_day'], '.3f')} jobs/day")
+        if "outage_clear_days" in st:
+            lines.append(f"outage: backlog peak {f(st['outage_backlog_peak'], '.0f')} jobs, "
+                         f"cleared {f(st['outage_clear_days'], '.1f')} days after it ended")
+        lines.append(f"{'stage':>13} {'units':>5} {'busy %':>12} {'down %':>6} "
+                     f"{'queue mean':>14} {'p95':>5} {'max':>5} {'wait h':>14} {'L/λW':>6}")
+        for name, s in run["stages"].items():
+            lw = s["little_lambda_W"]["mean"]
+            little = s["little_L"]["mean"] / lw if lw > 0 else math.nan
+            lines.append(
+                f"{name:>13} {s['units']['mean']:5.0f} "
+                f"{f({k: 100 * v for k, v in s['utilisation'].items()}, '.1f'):>12} "
+                f"{100 * s['down_fraction']['mean']:6.2f} {f(s['queue_mean']):>14} "
+                f"{s['queue_p95']['mean']:5.1f} {s['queue_max']['mean']:5.0f} "
+                f"{f(s['wait_mean_h']):>14} {little:6.3f}")
+        lines.append(f"{'level':>13} {'products':>8} {'p50 h':>8} {'p90 h':>8} {'p95 h':>8} "
+                     f"{'p99 h':>8} {'within service level':>21}")
+        for lv, v in run["levels"].items():
+            lines.append(
+                f"{lv:>13} {v['products']['mean']:8.0f} {v['latency_p50_h']['mean']:8.1f} "
+                f"{v['latency_p90_h']['mean']:8.1f} {v['latency_p95_h']['mean']:8.1f} "
+                f"{v['latency_p99_h']['mean']:8.1f} "
+                f"{f({k: 100 * x for k, x in v['within_service_level'].items()}, '.1f'):>19} %")
+    return "\n".join(lines)
+
+
