@@ -1,0 +1,223 @@
+"""Capacity planning: the simpy model against queueing theory, the station's figures, and
+the command line (`station capacity`)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import simpy
+
+from station.capacity.config import capacity_from_dict, load_capacity, with_value
+from station.capacity.model import Shift, Stage, pass_pattern, simulate
+from station.capacity.stats import erlang_c, erlang_c_wait_s, mean_ci, time_weighted
+from station.capacity.study import load_service, run_study
+from station.cli import main
+from station.errors import ScenarioError
+
+ROOT = Path(__file__).resolve().parents[1]
+CUIABA = ROOT / "scenarios" / "capacity" / "cuiaba.toml"
+#: Little's law per stage, as the issue asks: L = λW within 2 %.
+LITTLE_REL = 0.02
+
+
+def _mmc_wait_h(lam: float, mu: float, c: int, n_jobs: int, seed: int) -> float:
+    """Mean wait of an M/M/c queue simulated through the model's own Stage."""
+    env = simpy.Environment()
+    stage = Stage(env, "mmc", c, warmup_s=200.0 / lam)  # a warm-up of 200 arrivals
+    rng = np.random.default_rng(seed)
+
+    def arrivals():
+        for _ in range(n_jobs):
+            yield env.timeout(rng.exponential(1.0 / lam))
+            env.process(stage.serve(rng.exponential(1.0 / mu)))
+
+    env.process(arrivals())
+    env.run()
+    return stage.figures(env.now)["wait_mean_h"]
+
+
+@pytest.mark.parametrize(("c", "rho"), [(1, 0.7), (3, 0.85)])
+def test_an_mmc_stage_reproduces_erlang_c(c: int, rho: float) -> None:
+    """Poisson arrivals, exponential service, c servers: the mean wait of the replications
+    holds Erlang C's within their 95 % confidence interval."""
+    mu = 1.0 / 3600.0  # one job an hour per server
+    lam = rho * c * mu
+    waits = [_mmc_wait_h(lam, mu, c, 6000, seed) for seed in range(10)]
+    mean, half = mean_ci(waits)
+    theory_h = erlang_c_wait_s(lam, mu, c) / 3600.0
+    assert abs(mean - theory_h) <= half, (mean, half, theory_h)
+    assert half < 0.25 * theory_h  # and the interval says something
+
+
+def test_erlang_c_closed_forms() -> None:
+    assert erlang_c(1, 0.5) == pytest.approx(0.5)  # M/M/1: C = ρ
+    assert erlang_c(2, 1.0) == pytest.approx(1 / 3)
+    assert erlang_c_wait_s(0.8, 1.0, 1) == pytest.approx(4.0)  # ρ/(μ − λ)
+    with pytest.raises(ValueError):
+        erlang_c(2, 2.0)
+
+
+def test_time_weighted_figures() -> None:
+    tw = time_weighted([0.0, 1.0, 3.0], [2, 0, 4], 4.0)  # 2 for 1, 0 for 2, 4 for 1
+    assert tw["mean"] == pytest.approx(1.5) and tw["max"] == 4.0 and tw["p95"] == 4.0
+
+
+def test_shift_calendar() -> None:
+    # t = 0 on a Monday 00:00 at longitude 0: shifts 8–18 h, Monday to Friday
+    shift = Shift(8.0, 18.0, 5, 0.0, weekday0=0)
+    h = 3600.0
+    assert shift.wait_s(7 * h) == pytest.approx(1 * h)
+    assert shift.wait_s(9 * h) == 0.0
+    assert shift.wait_s(19 * h) == pytest.approx(13 * h)  # to Tuesday 8 h
+    assert shift.wait_s(4 * 86400 + 19 * h) == pytest.approx(2 * 86400 + 13 * h)  # Fri → Mon
+    west = Shift(8.0, 18.0, 7, np.radians(-60.0), weekday0=0)  # local = UTC − 4 h
+    assert west.wait_s(11 * h) == pytest.approx(1 * h)
+
+
+@pytest.fixture(scope="module")
+def cuiaba():
+    return load_capacity(CUIABA)
+
+
+def _short(scn, **changes):
+    scn = with_value(scn, "simulation.days", "90")
+    for k, v in changes.items():
+        scn = with_value(scn, k.replace("__", "."), v)
+    return scn
+
+
+def test_passes_come_from_the_orbit(cuiaba) -> None:
+    aos, dur, daylight, _ = pass_pattern((cuiaba.ground_station,))
+    per_day = aos.size / 26.0
+    assert per_day == pytest.approx(3.88, abs=0.05)  # the emulator's 26-day figure (README)
+    assert 0.4 < daylight.mean() < 0.6  # the descending half, in daylight
+    assert 9.0 < np.median(dur) / 60.0 < 13.0  # minutes (README: median 11.25)
+
+
+def test_littles_law_holds_per_stage(cuiaba) -> None:
+    scn = _short(cuiaba, resources__cor_workers="3", outage__days="0")
+    rep = simulate(scn, load_service(scn), 0)
+    for name, s in rep.stages.items():
+        if s["arrivals_per_day"] > 0 and s["little_lambda_W"] > 0:
+            assert s["little_L"] == pytest.approx(s["little_lambda_W"], rel=LITTLE_REL), name
+
+
+def test_the_station_figures_hang_together(cuiaba) -> None:
+    scn = _short(cuiaba, resources__cor_workers="3", outage__days="0")
+    rep = simulate(scn, load_service(scn), 0)
+    st = rep.station
+    # two satellites, 3.9 passes a day each; the imaging ones: daylight × plan probability
+    assert st["passes"] / 90 == pytest.approx(2 * 3.88, rel=0.05)
+    assert st["imaging_passes"] / st["passes"] == pytest.approx(0.5 * 0.8, abs=0.06)
+    assert st["segments"] + st["segments_lost"] <= 2 * st["imaging_passes"]
+    assert st["orders"] / st["scenes"] == pytest.approx(0.6, abs=0.03)
+    assert st["products"] <= st["orders"]
+    n = sum(v["products"] for v in rep.levels.values())
+    assert n == st["products"]
+    mix = [rep.levels[lv]["products"] / n for lv in ("1A", "1B", "2A")]
+    assert mix == pytest.approx([0.2, 0.3, 0.5], abs=0.03)
+    for v in rep.levels.values():  # latency percentiles in order
+        p = [v[f"latency_p{q}_h"] for q in (50, 90, 95, 99)]
+        assert p == sorted(p) and p[0] > 0
+    for s in rep.stages.values():
+        assert 0.0 <= s["utilisation"] <= 1.0
+    # the tape playback waits for the operators: weekends and nights
+    assert rep.stages["transcription"]["wait_mean_h"] > 4.0
+    straight = simulate(with_value(scn, "resources.recording", "disk"), load_service(scn), 0)
+    assert "transcription" not in straight.stages
+    assert straight.levels["2A"]["latency_p50_h"] < rep.levels["2A"]["latency_p50_h"]
+
+
+def test_an_outage_builds_a_backlog_that_clears(cuiaba) -> None:
+    scn = _short(cuiaba, resources__cor_workers="3", outage__start_day="30",
+                 outage__days="5", failures__cor_mtbf_h="0")
+    st = simulate(scn, load_service(scn), 0).station
+    orders_per_day = 0.6 * st["scenes_per_day"]
+    assert st["outage_backlog_peak"] >= 0.5 * 5 * orders_per_day  # most of 5 days' orders
+    assert 0.0 <= st["outage_clear_days"] < 20.0
+
+
+def test_a_sweep_finds_where_the_backlog_stops_growing(cuiaba, tmp_path: Path) -> None:
+    scn = _short(cuiaba, outage__days="0")
+    summary = run_study(scn, tmp_path, ("resources.cor_workers", ["1", "3"]), replications=2)
+    growth = [r["station"]["cor_backlog_growth_per_day"]["mean"] for r in summary["runs"]]
+    assert growth[0] > 5.0 and abs(growth[1]) < 0.5  # one workstation cannot keep up
+    for name in ("summary.json", "stages.csv", "levels.csv", "station.csv", "queues.csv",
+                 "queues.png", "latency.png", "sweep.png"):
+        assert (tmp_path / name).stat().st_size > 0
+    with open(tmp_path / "stages.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert {r["resources.cor_workers"] for r in rows} == {"1", "3"}
+    cor = [r for r in rows if r["stage"] == "cor" and r["figure"] == "utilisation"]
+    assert float(cor[0]["mean"]) > 0.95 > float(cor[1]["mean"])
+
+
+def test_replications_give_intervals_and_are_reproducible(cuiaba) -> None:
+    scn = with_value(_short(cuiaba), "simulation.days", "30")
+    a = run_study(scn, None, replications=3)
+    b = run_study(scn, None, replications=3)
+    assert a == b
+    cor = a["runs"][0]["stages"]["cor"]["utilisation"]
+    assert cor["ci95"] > 0 and math.isfinite(cor["mean"])
+
+
+@pytest.mark.parametrize(("table", "message"), [
+    ({"resources": {"cor_workers": 0}}, "[resources] cor_workers = 0"),
+    ({"orders": {"mix": [0.5, 0.5, 0.5]}}, "must add to 1"),
+    ({"shifts": {"start_h": 18.0, "end_h": 8.0}}, "must be after start_h"),
+    ({"shifts": {"staffed": ["antenna"]}}, "[shifts] staffed"),
+    ({"satellite": {"name": "x"}}, "[[satellite]]"),
+    ({"satellites": []}, "unknown key 'satellites'"),
+])
+def test_bad_capacity_scenarios_are_rejected_by_name(table: dict, message: str) -> None:
+    with pytest.raises(ScenarioError) as err:
+        capacity_from_dict(table)
+    assert message in str(err.value)
+
+
+def test_sweep_of_an_unknown_key_is_rejected(cuiaba) -> None:
+    with pytest.raises(ScenarioError, match="no key 'workers'"):
+        with_value(cuiaba, "resources.workers", "3")
+
+
+def test_capacity_command(cuiaba, tmp_path: Path, capsys) -> None:
+    scn = tmp_path / "short.toml"
+    text = CUIABA.read_text().replace("days = 365.0", "days = 20.0")
+    scn.write_text(text.replace('file = "service_times.json"',
+                                f'file = "{CUIABA.parent / "service_times.json"}"'))
+    out = tmp_path / "out"
+    assert main(["capacity", str(scn), "--out", str(out), "--replications", "2",
+                 "--no-plots"]) == 0
+    text_out = capsys.readouterr().out
+    assert "cuiaba_capacity: 20 days" in text_out and "L/λW" in text_out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["replications"] == 2 and not (out / "queues.png").exists()
+    for argv, message in [
+        (["capacity", str(tmp_path / "none.toml")], "not found"),
+        (["capacity", str(scn), "--sweep", "cor_workers=1,2"], "SECTION.KEY=V1"),
+        (["capacity", str(scn), "--sweep", "resources.cor_workers=0"], "cor_workers = 0"),
+        (["capacity", str(scn), "--replications", "0"], "at least 1"),
+    ]:
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err
+    bad = tmp_path / "bad_service.toml"
+    bad.write_text(text.replace('file = "service_times.json"', 'file = "missing.json"'))
+    assert main(["capacity", str(bad)]) == 2
+    assert "station capacity calibrate" in capsys.readouterr().err
+
+
+def test_calibration_measures_this_code(tmp_path: Path, capsys) -> None:
+    assert main(["capacity", "calibrate", "--out", str(tmp_path / "st.json")]) == 0
+    table = json.loads((tmp_path / "st.json").read_text())
+    for mode in ("P", "XS"):
+        cor = table["cor_s"][mode]
+        assert 0 < cor["1A"] < cor["1B"] < cor["2A"]  # each level includes the ones below
+        assert table["geo_s_per_scene"][mode] > 0 and table["archive_s"][mode]["2A"] > 0
+    assert table["ingest_s_per_signal_s"] > 0
+    assert "wrote" in capsys.readouterr().out
