@@ -100,7 +100,9 @@ def test_passes_come_from_the_orbit(cuiaba) -> None:
 
 
 def test_littles_law_holds_per_stage(cuiaba) -> None:
-    scn = _short(cuiaba, resources__cor_workers="3", outage__days="0")
+    """L (time-weighted counters) against λW (the completed jobs' own records) over the
+    scenario's year: apart only by the jobs still in a stage when the run ends."""
+    scn = with_value(with_value(cuiaba, "resources.cor_workers", "3"), "outage.days", "0")
     rep = simulate(scn, load_service(scn), 0)
     for name, s in rep.stages.items():
         if s["arrivals_per_day"] > 0 and s["little_lambda_W"] > 0:

@@ -26,6 +26,7 @@ from a gamma law of the scenario's coefficient of variation.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Generator
@@ -225,7 +226,7 @@ def pass_pattern(scn_key: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray, np.n
     gs, = scn_key
     scn = scenario_from_dict({"instrument": {"n_detectors": 100, "n_lines": 10},
                               "pass": {"ground_pass_days": 0.0}, "gcps": {"count": 0}})
-    scn = type(scn)(**{**scn.__dict__, "ground_station": gs})
+    scn = dataclasses.replace(scn, ground_station=gs)
     o = emulate(scn, render=False).orbit
     cycle_s = scn.orbit.repeat_days * _DAY
     orbit = TruthOrbit(o.epoch, o.t_ref_s, o.r_ref_eci_m, o.v_ref_eci_m_per_s,
@@ -265,7 +266,7 @@ def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> R
     warmup = sim.warmup_days * _DAY
     t_end = warmup + sim.days * _DAY
     aos, dur, daylight, weekday0 = pass_pattern((scn.ground_station,))
-    cycle_s = scn_cycle_s()
+    cycle_s = _cycle_s()
     env = simpy.Environment()
     sh = scn.shifts
     shift = Shift(sh.start_h, sh.end_h, sh.days_per_week, scn.ground_station.lon_rad, weekday0)
@@ -352,8 +353,9 @@ def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> R
             hrv_channel(mode, n, t_aos, duration)
 
     def passes_of(sat: Any) -> Process:
-        """Start each pass's process shortly before its AOS (few live processes)."""
-        k0 = 0
+        """Start each pass's process at its AOS (few live processes at a time); a trailing
+        satellite's first days are the end of its previous cycle."""
+        k0 = -1
         offset = sat.cycle_offset_days * _DAY
         while True:
             base = k0 * cycle_s + offset
@@ -392,7 +394,7 @@ def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> R
     return Replication(figures, levels, station, series)
 
 
-def scn_cycle_s() -> float:
+def _cycle_s() -> float:
     """Length of the phased orbit's repeat cycle (SPOT: 26 days)."""
     from station.scenario import OrbitConfig
 

@@ -59,8 +59,10 @@ def parse_sweep(text: str) -> tuple[str, list[str]]:
 
 
 def _ci(values: list[float]) -> dict[str, float]:
+    """Mean and 95 % half-width over the replications that have the figure (``n``: how
+    many; an outage's backlog may not clear within a replication)."""
     m, h = mean_ci(values)
-    return {"mean": m, "ci95": h}
+    return {"mean": m, "ci95": h, "n": int(np.isfinite(values).sum())}
 
 
 def _aggregate(reps: list[Replication]) -> dict[str, Any]:
@@ -109,17 +111,18 @@ def _write(out: Path, summary: dict[str, Any], first: Replication | None) -> Non
     for kind in ("stages", "levels"):
         with open(out / f"{kind}.csv", "w", newline="") as f:
             w = csv.writer(f)
-            w.writerow([summary["sweep"] or "value", kind[:-1], "figure", "mean", "ci95"])
+            w.writerow([summary["sweep"] or "value", kind[:-1], "figure", "mean", "ci95", "n"])
             for run in summary["runs"]:
                 for name, figs in run[kind].items():
                     for k, v in figs.items():
-                        w.writerow([run["value"], name, k, _plain(v["mean"]), _plain(v["ci95"])])
+                        w.writerow([run["value"], name, k, _plain(v["mean"]),
+                                    _plain(v["ci95"]), v["n"]])
     with open(out / "station.csv", "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow([summary["sweep"] or "value", "figure", "mean", "ci95"])
+        w.writerow([summary["sweep"] or "value", "figure", "mean", "ci95", "n"])
         for run in summary["runs"]:
             for k, v in run["station"].items():
-                w.writerow([run["value"], k, _plain(v["mean"]), _plain(v["ci95"])])
+                w.writerow([run["value"], k, _plain(v["mean"]), _plain(v["ci95"]), v["n"]])
     if first is not None:
         names = list(first.series)
         t = first.series[names[0]][0]
@@ -221,8 +224,10 @@ def study_table(summary: dict[str, Any]) -> str:
                      f"{f(st['products_per_day'], '.1f')}; COR backlog growth "
                      f"{f(st['cor_backlog_growth_per_day'], '.3f')} jobs/day")
         if "outage_clear_days" in st:
-            lines.append(f"outage: backlog peak {f(st['outage_backlog_peak'], '.0f')} jobs, "
-                         f"cleared {f(st['outage_clear_days'], '.1f')} days after it ended")
+            clear = st["outage_clear_days"]
+            lines.append(f"outage: backlog peak {f(st['outage_backlog_peak'], '.0f')} jobs; "
+                         f"cleared in {clear['n']} of {summary['replications']} "
+                         f"replication(s), {f(clear, '.1f')} days after it ended")
         lines.append(f"{'stage':>13} {'units':>5} {'busy %':>12} {'down %':>6} "
                      f"{'queue mean':>14} {'p95':>5} {'max':>5} {'wait h':>14} {'L/λW':>6}")
         for name, s in run["stages"].items():
