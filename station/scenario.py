@@ -44,6 +44,7 @@ __all__ = [
     "WorldConfig",
     "describe_keys",
     "load_scenario",
+    "read_toml",
     "scenario_from_dict",
 ]
 
@@ -569,20 +570,26 @@ def scenario_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Scen
     return Scenario(**kwargs)
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file; :class:`ScenarioError` says what is wrong."""
+def read_toml(path: str | Path, what: str = "scenario") -> tuple[dict[str, Any], bytes]:
+    """A TOML file's table and its bytes; :class:`ScenarioError` names what is wrong."""
     p = Path(path)
     try:
         raw = p.read_bytes()
-        data = tomllib.loads(raw.decode("utf-8"))
+        return tomllib.loads(raw.decode("utf-8")), raw
     except FileNotFoundError:
-        raise ScenarioError(f"scenario file {p} not found") from None
+        raise ScenarioError(f"{what} file {p} not found") from None
     except IsADirectoryError:
-        raise ScenarioError(f"scenario {p} is a directory, not a .toml file") from None
+        raise ScenarioError(f"{what} {p} is a directory, not a .toml file") from None
     except UnicodeDecodeError:
         raise ScenarioError(f"{p}: not a text file (UTF-8)") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{p}: not valid TOML ({exc})") from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file; :class:`ScenarioError` says what is wrong."""
+    p = Path(path)
+    data, raw = read_toml(p)
     scn = scenario_from_dict(data, p.resolve().parent)
     return dataclasses.replace(scn, source=str(p.resolve()),
                                source_sha256=hashlib.sha256(raw).hexdigest())

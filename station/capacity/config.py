@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from station.errors import ScenarioError
-from station.scenario import GroundStationConfig, _build, _key
+from station.scenario import GroundStationConfig, _build, _key, read_toml
 
 __all__ = ["STAGES", "CapacityScenario", "capacity_from_dict", "load_capacity", "with_value"]
 
@@ -256,15 +256,7 @@ def capacity_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Capa
 def load_capacity(path: str | Path) -> CapacityScenario:
     """Read and validate a capacity scenario file."""
     p = Path(path)
-    try:
-        raw = p.read_bytes()
-        data = tomllib.loads(raw.decode("utf-8"))
-    except FileNotFoundError:
-        raise ScenarioError(f"capacity scenario {p} not found") from None
-    except IsADirectoryError:
-        raise ScenarioError(f"capacity scenario {p} is a directory, not a .toml file") from None
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ScenarioError(f"{p}: not valid TOML ({exc})") from None
+    data, raw = read_toml(p, "capacity scenario")
     scn = capacity_from_dict(data, p.resolve().parent)
     return dataclasses.replace(scn, source=str(p.resolve()),
                                source_sha256=hashlib.sha256(raw).hexdigest())

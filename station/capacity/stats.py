@@ -4,7 +4,7 @@ intervals over replications, and the closed forms the model is checked against.
 - **Erlang C** (M/M/c): the probability that an arrival waits,
   ``C(c, a) = [aᶜ/c! · c/(c − a)] / [Σₖ₌₀^{c−1} aᵏ/k! + aᶜ/c! · c/(c − a)]`` with
   ``a = λ/μ`` the offered load, and the mean wait in queue ``W_q = C(c, a) / (cμ − λ)``
-  (Kleinrock, *Queueing Systems* I, eq. 3.40 and 3.43).
+  (Kleinrock, *Queueing Systems* I, §3.5, the m-server queue).
 - **Little's law**: ``L = λ W`` for any stage in steady state, L the time-average number in
   the stage, λ its arrival rate and W the mean time spent in it.
 """
@@ -31,7 +31,7 @@ def erlang_c(c: int, offered_load: float) -> float:
 
 
 def erlang_c_wait_s(arrival_rate: float, service_rate: float, c: int) -> float:
-    """Mean time in queue of an M/M/c queue (eq. 3.43)."""
+    """Mean time in queue of an M/M/c queue, ``C(c, a) / (cμ − λ)``."""
     return erlang_c(c, arrival_rate / service_rate) / (c * service_rate - arrival_rate)
 
 
