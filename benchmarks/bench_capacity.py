@@ -35,7 +35,7 @@ def main() -> None:
         scn = with_value(scn, "simulation.days", sys.argv[1])
     service = load_service(scn)
     t0 = time.perf_counter()
-    aos, _dur, _day, _ = pass_pattern((scn.ground_station,))
+    aos = pass_pattern(scn.ground_station).aos_s
     t_passes = time.perf_counter() - t0
 
     events = 0

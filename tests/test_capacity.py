@@ -92,7 +92,9 @@ def _short(scn, **changes):
 
 
 def test_passes_come_from_the_orbit(cuiaba) -> None:
-    aos, dur, daylight, _ = pass_pattern((cuiaba.ground_station,))
+    pattern = pass_pattern(cuiaba.ground_station)
+    aos, dur, daylight = pattern.aos_s, pattern.duration_s, pattern.daylight
+    assert pattern.cycle_s == 26 * 86400.0
     per_day = aos.size / 26.0
     assert per_day == pytest.approx(3.88, abs=0.05)  # the emulator's 26-day figure (README)
     assert 0.4 < daylight.mean() < 0.6  # the descending half, in daylight

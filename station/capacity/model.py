@@ -38,8 +38,10 @@ import simpy
 
 from station.capacity.config import CapacityScenario
 from station.capacity.stats import time_weighted
+from station.scenario import GroundStationConfig
 
-__all__ = ["LEVELS", "Replication", "Service", "Shift", "Stage", "pass_pattern", "simulate"]
+__all__ = ["LEVELS", "PassPattern", "Replication", "Service", "Shift", "Stage", "pass_pattern",
+           "simulate"]
 
 LEVELS = ("1A", "1B", "2A")
 _DAY = 86400.0
@@ -202,17 +204,26 @@ class Stage:
             "queue_mean": self.area_wait / span,
             "queue_p95": q["p95"],
             "queue_max": q["max"],
-            "in_stage_mean": in_stage,
             # Little's law: L = λW, the time-average in the stage against rate × sojourn
             "little_L": in_stage,
             "little_lambda_W": lam * (float(s.mean()) if s.size else 0.0),
         }
 
 
+@dataclass(frozen=True, eq=False)
+class PassPattern:
+    """The passes over a station in one repeat cycle of the phased orbit."""
+
+    aos_s: np.ndarray  # since the cycle's start
+    duration_s: np.ndarray
+    daylight: np.ndarray  # descending in daylight: the imaging passes
+    cycle_s: float
+    weekday0: int  # weekday of the cycle's start (0 = Monday)
+
+
 @functools.lru_cache(maxsize=8)
-def pass_pattern(scn_key: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """Passes over the station in one repeat cycle of the phased orbit: AOS (s since the
-    cycle's start), duration (s), daylight flag, and the cycle's first weekday.
+def pass_pattern(gs: GroundStationConfig) -> PassPattern:
+    """The passes over ``gs`` above its mask in one repeat cycle of the phased orbit.
 
     The orbit repeats its ground track every cycle (SPOT: 369 revolutions in 26 days), so
     a year is this pattern laid end to end; a satellite trailing by whole days on the same
@@ -223,7 +234,6 @@ def pass_pattern(scn_key: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray, np.n
     from station.spacecraft.orbit import TruthOrbit
     from station.spacecraft.passes import find_passes
 
-    gs, = scn_key
     scn = scenario_from_dict({"instrument": {"n_detectors": 100, "n_lines": 10},
                               "pass": {"ground_pass_days": 0.0}, "gcps": {"count": 0}})
     scn = dataclasses.replace(scn, ground_station=gs)
@@ -234,11 +244,12 @@ def pass_pattern(scn_key: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray, np.n
     passes = [p for p in find_passes(orbit, gs.lat_rad, gs.lon_rad, gs.height_m,
                                      gs.elevation_mask_rad, 0.0, cycle_s + _DAY, step_s=20.0)
               if p.aos_s < cycle_s]
-    aos = np.array([p.aos_s for p in passes])
-    dur = np.array([p.duration_s for p in passes])
-    day = np.array([p.daylight and p.descending for p in passes])
-    weekday0 = int((o.epoch.t0_utc.astype("datetime64[D]").astype(np.int64) + 3) % 7)
-    return aos, dur, day, weekday0
+    return PassPattern(
+        aos_s=np.array([p.aos_s for p in passes]),
+        duration_s=np.array([p.duration_s for p in passes]),
+        daylight=np.array([p.daylight and p.descending for p in passes]),
+        cycle_s=cycle_s,
+        weekday0=int((o.epoch.t0_utc.astype("datetime64[D]").astype(np.int64) + 3) % 7))
 
 
 @dataclass
@@ -265,11 +276,11 @@ def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> R
     sim, res, sv = scn.simulation, scn.resources, scn.service
     warmup = sim.warmup_days * _DAY
     t_end = warmup + sim.days * _DAY
-    aos, dur, daylight, weekday0 = pass_pattern((scn.ground_station,))
-    cycle_s = _cycle_s()
+    pattern = pass_pattern(scn.ground_station)
     env = simpy.Environment()
     sh = scn.shifts
-    shift = Shift(sh.start_h, sh.end_h, sh.days_per_week, scn.ground_station.lon_rad, weekday0)
+    shift = Shift(sh.start_h, sh.end_h, sh.days_per_week, scn.ground_station.lon_rad,
+                  pattern.weekday0)
     sample = sim.queue_sample_h * 3600.0
     units = {"antenna": res.antennas, "recorder": res.recorders,
              "transcription": res.transcription_units, "ingest": res.ingest_workers,
@@ -338,8 +349,8 @@ def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> R
                     counts["orders"] += 1
                 env.process(order(mode, t_acq, geo))
 
-    def one_pass(sat: Any, t_aos: float, duration: float, day: bool) -> Process:
-        yield env.timeout(t_aos - env.now)
+    def one_pass(sat: Any, t_aos: float, duration: float, day: bool) -> None:
+        """At AOS: the antenna, and each HRV's segment, or a loss."""
         counted = t_aos >= warmup
         counts["passes"] += counted
         imaging = (day or pl.night_passes_image) and rng_plan.random() < pl.imaging_probability
@@ -353,19 +364,20 @@ def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> R
             hrv_channel(mode, n, t_aos, duration)
 
     def passes_of(sat: Any) -> Process:
-        """Start each pass's process at its AOS (few live processes at a time); a trailing
-        satellite's first days are the end of its previous cycle."""
+        """Each pass at its AOS, in order; a trailing satellite's first days are the end of
+        its previous cycle."""
         k0 = -1
         offset = sat.cycle_offset_days * _DAY
         while True:
-            base = k0 * cycle_s + offset
-            for t, d, day in zip(aos + base, dur, daylight, strict=True):
+            base = k0 * pattern.cycle_s + offset
+            for t, d, day in zip(pattern.aos_s + base, pattern.duration_s, pattern.daylight,
+                                 strict=True):
                 if t >= t_end:
                     return
                 if t >= 0.0:
                     if t > env.now:
                         yield env.timeout(t - env.now)
-                    env.process(one_pass(sat, t, d, bool(day)))
+                    one_pass(sat, t, d, bool(day))
             k0 += 1
 
     for sat in scn.satellites:
@@ -392,13 +404,6 @@ def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> R
         station |= _clearing(stages[og.stage], warmup + og.start_day * _DAY, og.days * _DAY)
     series = {name: (s.series_t, s.series_wait) for name, s in stages.items()}
     return Replication(figures, levels, station, series)
-
-
-def _cycle_s() -> float:
-    """Length of the phased orbit's repeat cycle (SPOT: 26 days)."""
-    from station.scenario import OrbitConfig
-
-    return OrbitConfig().repeat_days * _DAY
 
 
 def _clearing(stage: Stage, start_s: float, duration_s: float) -> dict[str, float]:
