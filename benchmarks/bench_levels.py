@@ -35,9 +35,10 @@ from levels.cor.resample import resample_2a
 from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import level2a_geometry, map_crs
 from levels.geo.scenes import pass_geometry
+from levels.options import ProcessingOptions
+from levels.process import nominal_pixel_size_m, process_l0
 from levels.readers.l0 import read_l0
-from station.scenario import ProcessingConfig, scenario_from_dict
-from station.sipc.process import nominal_pixel_size_m, process_l0
+from station.scenario import scenario_from_dict
 
 REPEATS = 3
 
@@ -61,7 +62,7 @@ def make_l0(directory: Path) -> Path:
 
 
 def bench_chain(l0: Path, out: Path) -> None:
-    cfg = ProcessingConfig()
+    cfg = ProcessingOptions()
     t_total, result = best(lambda: process_l0(read_l0(l0), cfg, out, name="bench"))
     scene = result.scenes[0]
     print(f"\n1. L0 → 1A, 1B, 2A, full P scene, {numba.get_num_threads()} threads: "

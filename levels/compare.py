@@ -13,8 +13,9 @@ tolerance):
 - **quality**: every scalar figure of the ``quality`` group, within ``abs + rel·|a|``;
 - **provenance**: reported, never a failure (a new software version is why one compares),
   with the processing parameters that differ named one by one;
-- for run directories, also the products present in one run only, and the decode
-  statistics of ``report.json`` (counts: exact).
+- for two directories of products, also the products present in one only (the station
+  adds, for its run directories, the decode statistics of their reports:
+  ``station.compare``).
 
 The default tolerances (:data:`DEFAULT_TOLERANCES`, documented in ``docs/compare.md``) let
 through only what a different CPU's floating point can change (a few pixels by one count
@@ -35,12 +36,13 @@ import numpy as np
 import pyproj
 
 from levels.errors import ProductError
-from levels.geo.polynomial import Poly1D
+from levels.geo.level1b import Level1BGeometry
+from levels.geo.level2a import Level2AGeometry
 from levels.products import Product, read_product
 from levels.quality import scalar_figures
 
-__all__ = ["DEFAULT_TOLERANCES", "Comparison", "Finding", "compare_paths", "compare_products",
-           "load_tolerances"]
+__all__ = ["DEFAULT_TOLERANCES", "CompareError", "Comparison", "Finding", "compare_directories",
+           "compare_paths", "compare_products", "load_tolerances"]
 
 DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
     "pixels": {"max_abs_counts": 1.0, "rms_counts": 0.01, "fraction_changed": 1e-4,
@@ -157,7 +159,7 @@ def load_tolerances(path: str | Path | None) -> dict[str, dict[str, float]]:
 
 def compare_paths(a: str | Path, b: str | Path,
                   tolerances: dict[str, dict[str, float]] | None = None) -> Comparison:
-    """Compare two products, or two run directories (their products matched by name)."""
+    """Compare two products, or two directories of products (matched by name)."""
     pa, pb = Path(a), Path(b)
     tol = tolerances or load_tolerances(None)
     for p in (pa, pb):
@@ -169,74 +171,28 @@ def compare_paths(a: str | Path, b: str | Path,
         out = Comparison(str(pa), str(pb))
         out.findings[""] = compare_products(read_product(pa), read_product(pb), tol)
         return out
-    return _compare_runs(pa, pb, tol)
+    return compare_directories(pa, pb, tol)
 
 
 def _products_in(d: Path) -> dict[str, Path]:
     return {p.name: p for p in sorted(d.glob("*.h5")) if not p.name.endswith(".l0.h5")}
 
 
-def _compare_runs(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> Comparison:
+def compare_directories(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> Comparison:
+    """Two directories of products, matched by file name: every pair compared, and the
+    products present in one directory only reported as differences."""
     out = Comparison(str(a), str(b))
     pa, pb = _products_in(a), _products_in(b)
     if not pa and not pb:
         raise CompareError(f"no level products (*.h5) in {a} or {b}")
-    run: list[Finding] = []
-    for name in sorted(set(pa) ^ set(pb)):
-        run.append(Finding("files", f"product {name}", ok=False,
-                           a="present" if name in pa else "missing",
-                           b="present" if name in pb else "missing"))
-    ra, rb = a / "report.json", b / "report.json"
-    if ra.is_file() and rb.is_file():
-        run += _compare_reports(_read_report(ra), _read_report(rb))
-    out.findings[""] = run
+    out.findings[""] = [Finding("files", f"product {name}", ok=False,
+                                a="present" if name in pa else "missing",
+                                b="present" if name in pb else "missing")
+                        for name in sorted(set(pa) ^ set(pb))]
     for name in sorted(set(pa) & set(pb)):
         out.findings[name] = compare_products(read_product(pa[name]), read_product(pb[name]),
                                               tol)
     return out
-
-
-def _read_report(path: Path) -> dict[str, Any]:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise CompareError(f"{path}: not a readable run report ({exc})") from None
-
-
-def _compare_reports(a: dict[str, Any], b: dict[str, Any]) -> list[Finding]:
-    """The decode statistics of two run reports, HRV by HRV: counts, exactly."""
-    out = []
-    ha, hb = _decode_by_hrv(a), _decode_by_hrv(b)
-    if set(ha) != set(hb):
-        out.append(Finding("decode", "HRVs received", ok=False, a=sorted(ha), b=sorted(hb)))
-    for hrv in sorted(set(ha) & set(hb)):
-        da, db = ha[hrv], hb[hrv]
-        where = f"decode/HRV{hrv}"
-        for key in ("link", "cadus", "truth_check"):
-            for k in sorted(set(da.get(key, {})) | set(db.get(key, {}))):
-                va, vb = da.get(key, {}).get(k), db.get(key, {}).get(k)
-                if va != vb:
-                    out.append(Finding("decode", f"{where}/{key}/{k}", ok=False, a=va, b=vb))
-        ba = {x["name"]: x for x in da.get("bands", [])}
-        bb = {x["name"]: x for x in db.get("bands", [])}
-        for name in sorted(set(ba) | set(bb)):
-            for k in ("lines_complete", "lines_partial", "lines_missing"):
-                va, vb = ba.get(name, {}).get(k), bb.get(name, {}).get(k)
-                if va != vb:
-                    out.append(Finding("decode", f"{where}/bands/{name}/{k}", ok=False,
-                                       a=va, b=vb))
-    if not out:
-        out.append(Finding("decode", "decode statistics", value="identical"))
-    return out
-
-
-def _decode_by_hrv(report: dict[str, Any]) -> dict[Any, dict[str, Any]]:
-    """A run report's decode statistics per HRV number (format 1 had one HRV, at the top)."""
-    if "hrvs" in report:
-        return {h.get("hrv"): h.get("decode", {}) for h in report["hrvs"]}
-    if "decode" in report:
-        return {report.get("instrument", {}).get("hrv"): report["decode"]}
-    return {}
 
 
 def compare_products(a: Product, b: Product, tol: dict[str, dict[str, float]] | None = None
@@ -259,12 +215,14 @@ def _metadata(a: Product, b: Product) -> list[Finding]:
             out.append(Finding("metadata", f"attrs/{k}", ok=False, a=_plain(va), b=_plain(vb)))
     if set(a.bands) != set(b.bands):
         out.append(Finding("metadata", "bands", ok=False, a=sorted(a.bands), b=sorted(b.bands)))
-    wa = a.geometry.get("level_2a", {}).get("crs_wkt")
-    wb = b.geometry.get("level_2a", {}).get("crs_wkt")
-    if wa is not None and wb is not None and not pyproj.CRS.from_wkt(wa).equals(
-            pyproj.CRS.from_wkt(wb)):
-        out.append(Finding("metadata", "map CRS", ok=False, a=pyproj.CRS.from_wkt(wa).name,
-                           b=pyproj.CRS.from_wkt(wb).name))
+    ga, gb = a.map_grid, b.map_grid
+    if (ga is None) != (gb is None):
+        out.append(Finding("metadata", "map grid", ok=False, a="present" if ga else "missing",
+                           b="present" if gb else "missing"))
+    elif ga is not None and gb is not None:
+        ca, cb = pyproj.CRS.from_wkt(ga.crs_wkt), pyproj.CRS.from_wkt(gb.crs_wkt)
+        if not ca.equals(cb):
+            out.append(Finding("metadata", "map CRS", ok=False, a=ca.name, b=cb.name))
     return out
 
 
@@ -326,30 +284,32 @@ def _geometry(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
         shift = float(np.max(dist))
         out.append(Finding("geometry", "scene/corner_shift_m", shift, tol["corner_shift_m"],
                            shift <= tol["corner_shift_m"]))
-    ga, gb = a.geometry.get("level_2a"), b.geometry.get("level_2a")
-    if ga and gb:
-        ta, tb = np.asarray(ga["geotransform"]), np.asarray(gb["geotransform"])
+    if a.map_grid is not None and b.map_grid is not None:
+        ta, tb = a.map_grid.geotransform, b.map_grid.geotransform
         shift = float(np.hypot(ta[0] - tb[0], ta[3] - tb[3]))
         out.append(Finding("geometry", "level_2a/origin_shift_m", shift, tol["corner_shift_m"],
                            shift <= tol["corner_shift_m"]))
-        for band in sorted(set(ga.get("bands", {})) & set(gb.get("bands", {}))):
-            ia, ib = ga["bands"][band]["inverse_grid"], gb["bands"][band]["inverse_grid"]
+    bands = sorted(set(a.bands) & set(b.bands))
+    if "level_2a" in a.geometry and "level_2a" in b.geometry:
+        for band in bands:
+            ga = Level2AGeometry.from_tree(a.geometry["level_2a"], band)
+            gb = Level2AGeometry.from_tree(b.geometry["level_2a"], band)
             what = f"level_2a/bands/{band}/inverse_grid_px"
-            if ia["line"].shape != ib["line"].shape:
-                out.append(Finding("geometry", what, ok=False, a=ia["line"].shape,
-                                   b=ib["line"].shape))
+            if ga.inverse_line.shape != gb.inverse_line.shape:
+                out.append(Finding("geometry", what, ok=False, a=ga.inverse_line.shape,
+                                   b=gb.inverse_line.shape))
                 continue
-            d = float(max(np.abs(ia["line"] - ib["line"]).max(),
-                          np.abs(ia["column"] - ib["column"]).max()))
+            d = float(max(np.abs(ga.inverse_line - gb.inverse_line).max(),
+                          np.abs(ga.inverse_column - gb.inverse_column).max()))
             out.append(Finding("geometry", what, d, tol["grid_px"], d <= tol["grid_px"]))
-    ga, gb = a.geometry.get("level_1b"), b.geometry.get("level_1b")
-    if ga and gb:
-        rows = np.linspace(0.0, a.attrs.get("n_rows", 1) - 1.0, 101)
-        cols = np.linspace(0.0, a.attrs.get("n_cols", 1) - 1.0, 101)
-        for band in sorted(set(ga.get("bands", {})) & set(gb.get("bands", {}))):
-            pa, pb = ga["bands"][band], gb["bands"][band]
-            d = max(float(np.abs(Poly1D.from_array(pa[k])(x) - Poly1D.from_array(pb[k])(x)).max())
-                    for k, x in (("f", rows), ("g", cols), ("h", rows)))
+    if "level_1b" in a.geometry and "level_1b" in b.geometry:
+        for band in bands:
+            ga = Level1BGeometry.from_tree(a.geometry["level_1b"], band)
+            gb = Level1BGeometry.from_tree(b.geometry["level_1b"], band)
+            rows = np.linspace(0.0, ga.n_rows - 1.0, 101)
+            cols = np.linspace(0.0, ga.n_cols - 1.0, 101)
+            d = max(float(np.abs(pa(x) - pb(x)).max())
+                    for pa, pb, x in ((ga.f, gb.f, rows), (ga.g, gb.g, cols), (ga.h, gb.h, rows)))
             out.append(Finding("geometry", f"level_1b/bands/{band}/polynomials_px", d,
                                tol["grid_px"], d <= tol["grid_px"]))
     return out

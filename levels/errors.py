@@ -4,7 +4,8 @@ One root, :class:`LevelsError`; each subclass also inherits the builtin a caller
 expect (the rasterio habit), so ``except ValueError`` still works.
 """
 
-__all__ = ["DimapError", "GeometryError", "L0Error", "LevelsError", "ProductError"]
+__all__ = ["DimapError", "GeometryError", "L0Error", "LevelsError", "OptionsError",
+           "ProductError"]
 
 
 class LevelsError(Exception):
@@ -25,3 +26,7 @@ class L0Error(LevelsError, ValueError):
 
 class ProductError(LevelsError, ValueError):
     """A level product file that is missing, truncated, of another format, or inconsistent."""
+
+
+class OptionsError(LevelsError, ValueError):
+    """Processing options (a ``[processing]`` table) that cannot be used as given."""

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from levels.errors import ProductError
+from levels.files import atomic_path
 from levels.products import Product
 
 __all__ = ["write_geotiff"]
@@ -35,24 +36,24 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
     if level not in MAP_LEVELS:
         raise ProductError(f"level {level} is in image geometry: GeoTIFF export is for the "
                            f"map levels {', '.join(MAP_LEVELS)} (1A/1B would need RPCs)")
-    geo = product.geometry.get("level_2a")
-    if not geo or "crs_wkt" not in geo or "geotransform" not in geo:
-        raise ProductError(f"level {level} product without a map grid (geometry/level_2a)")
+    grid = product.map_grid
+    if grid is None:
+        raise ProductError(f"level {level} product without a map grid (no crs variable)")
     names = list(product.bands)
     images = [product.bands[n].image for n in names]
     valid = np.logical_and.reduce([product.bands[n].valid for n in names])
     rows, cols = images[0].shape
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp")
     profile = {
         "driver": "GTiff", "width": cols, "height": rows, "count": len(names),
-        "dtype": "uint8", "crs": CRS.from_wkt(str(geo["crs_wkt"])),
-        "transform": Affine.from_gdal(*(float(x) for x in geo["geotransform"])),
+        "dtype": "uint8", "crs": CRS.from_wkt(grid.crs_wkt),
+        "transform": Affine.from_gdal(*grid.geotransform),
         "tiled": True, "blockxsize": 256, "blockysize": 256, "compress": "deflate",
     }
     a = product.attrs
-    with rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True), rasterio.open(tmp, "w", **profile) as ds:
+    with atomic_path(out) as tmp, rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True), \
+            rasterio.open(tmp, "w", **profile) as ds:
         for k, (name, im) in enumerate(zip(names, images, strict=True), start=1):
             ds.write(im, k)
             ds.set_band_description(k, name)
@@ -61,5 +62,4 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
                        name=a.get("name", ""), hrv=a.get("hrv", ""), mode=a.get("mode", ""),
                        pixel_size_m=a.get("pixel_size_m", ""),
                        **{f"provenance_{k}": v for k, v in product.provenance.items()})
-    tmp.replace(out)
     return out

@@ -42,12 +42,13 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
                             [scene["corners_lat_deg"], scene["corners_lon_deg"]]).tolist(),
                         "first_line": int(scene["first_line"]),
                         "n_lines": int(scene["n_lines"])}
-    g2a = product.geometry.get("level_2a")
-    if g2a:
-        crs = pyproj.CRS.from_wkt(str(g2a["crs_wkt"]))
+    grid = product.map_grid
+    if grid is not None:
+        crs = pyproj.CRS.from_wkt(grid.crs_wkt)
         out["map"] = {"crs": crs.name, "epsg": crs.to_epsg(),
-                      "geotransform": [float(x) for x in g2a["geotransform"]],
-                      "inverse_method": g2a.get("inverse_method")}
+                      "geotransform": list(grid.geotransform),
+                      "inverse_method": product.geometry.get("level_2a", {}).get(
+                          "inverse_method")}
     g1b = product.geometry.get("level_1b")
     if g1b:
         out["plane"] = {"pixel_size_m": float(g1b["pixel_size_m"]),

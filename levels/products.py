@@ -1,40 +1,59 @@
-"""Level products: one HDF5 file per scene and level, written atomically; the reader.
+"""Level products: one netCDF-4 / CF file (HDF5) per scene and level, written atomically.
 
 The layout is documented in ``docs/products.md``. A :class:`Product` is what COR made of a
-scene at a level: one image and validity mask per band, and four trees of metadata,
-``geometry`` (everything needed to redo the geometry), ``quality`` (figures measured
-against the truth), ``provenance`` (what made it) and root ``attrs``. Trees are nested
-dicts of arrays, numbers and strings: a dict becomes an HDF5 group, an array a dataset, a
-scalar or string an attribute of its group.
+scene at a level: one image and validity mask per band, the map grid of a map-projected
+level (:class:`MapGrid`), and four trees of metadata, ``geometry`` (everything needed to
+redo the geometry), ``quality`` (figures measured against the truth), ``provenance`` (what
+made it) and root ``attrs``. Trees are nested dicts of arrays, numbers and strings: a dict
+becomes an HDF5 group, an array a dataset, a scalar or string an attribute of its group.
+
+Format version 2 is netCDF-4 as the netCDF library, GDAL and xarray read it: each band is a
+root variable ``<band>`` (uint8) with its mask ``<band>_valid``, on dimension scales; a
+map-projected product (2A, and 2 and 3 to come) has CF coordinates ``x`` and ``y`` (pixel
+centres, metres) and a ``crs`` grid-mapping variable (its WKT, GDAL's ``spatial_ref`` and
+``GeoTransform``), so that ``NETCDF:"<file>":P`` opens georeferenced in GDAL and QGIS, and
+``xarray.open_dataset`` gives the image with its coordinates, with no export step. Products
+in image geometry (1A, 1B) have index dimensions ``row`` and ``column``. Version 1 products
+(bands under ``bands/<name>/``) are still read.
 
 Every dataset carries CF-style ``units`` and ``long_name`` attributes; the unit is read off
 the name's suffix (``_m`` → ``m``, ``_rad`` → ``rad``, …), the project's naming rule.
-The file is written under a hidden temporary name beside its target and renamed into place
-when complete (``os.replace``), so no reader ever sees half a product.
+Files are written through :func:`levels.files.atomic_path`: no reader ever sees half a
+product.
 """
 
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
+import pyproj
 from numpy.typing import NDArray
 
 from levels.errors import ProductError
+from levels.files import atomic_path
 
-__all__ = ["PRODUCT_FORMAT", "PRODUCT_VERSION", "BandImage", "Product", "read_product",
-           "write_product"]
+__all__ = ["PRODUCT_FORMAT", "PRODUCT_VERSION", "BandImage", "MapGrid", "Product",
+           "product_name", "read_product", "write_product"]
 
 PRODUCT_FORMAT = "SPOT-LEVEL"
-PRODUCT_VERSION = 1
+PRODUCT_VERSION = 2  # 2: netCDF-4 / CF layout (module docstring); 1 is still read
+_READABLE_VERSIONS = (1, 2)
+#: The geometry trees a product of each level must carry (``docs/products.md``).
+REQUIRED_GEOMETRY = {"1A": ("scene",), "1B": ("scene", "level_1b"),
+                     "2A": ("scene", "level_2a")}
 _CHUNK = 512
 _UNITS = (("_m_per_s", "m s-1"), ("_rad_per_s", "rad s-1"), ("_rad", "rad"), ("_deg", "degree"),
           ("_px", "1"), ("_m", "m"), ("_s", "s"), ("_counts", "1"))
+
+
+def product_name(name: str, scene_index: int, level: str) -> str:
+    """The file name of a scene's product at a level: ``<name>_s<scene>_<level>.h5``."""
+    return f"{name}_s{scene_index:03d}_{level}.h5"
 
 
 def units_of(name: str) -> str:
@@ -58,15 +77,59 @@ class BandImage:
                                "must be 2-D of the same shape")
 
 
+@dataclass(frozen=True)
+class MapGrid:
+    """The north-up map grid of a map-projected product: its CRS (WKT) and GDAL geotransform
+    ``(x_min, res, 0, y_max, 0, −res)``; pixel ``(I, J)`` has its centre at
+    ``x = x_min + (J + ½)·res``, ``y = y_max − (I + ½)·res``."""
+
+    crs_wkt: str
+    geotransform: tuple[float, float, float, float, float, float]
+
+    def __post_init__(self) -> None:
+        gt = tuple(float(v) for v in self.geotransform)
+        if len(gt) != 6 or gt[2] != 0.0 or gt[4] != 0.0 or not gt[1] > 0 or gt[5] != -gt[1]:
+            raise ProductError(f"map grid geotransform {gt}: expected a north-up grid "
+                               "(x_min, res, 0, y_max, 0, -res)")
+        try:
+            pyproj.CRS.from_wkt(self.crs_wkt)
+        except pyproj.exceptions.CRSError as exc:
+            raise ProductError(f"map grid CRS is not a valid WKT ({exc})") from None
+        object.__setattr__(self, "geotransform", gt)
+
+    @property
+    def pixel_size_m(self) -> float:
+        return self.geotransform[1]
+
+    def x_m(self, n_cols: int) -> NDArray[np.float64]:
+        """Easting of the centres of ``n_cols`` columns."""
+        return self.geotransform[0] + (np.arange(n_cols) + 0.5) * self.geotransform[1]
+
+    def y_m(self, n_rows: int) -> NDArray[np.float64]:
+        """Northing of the centres of ``n_rows`` rows."""
+        return self.geotransform[3] + (np.arange(n_rows) + 0.5) * self.geotransform[5]
+
+
 @dataclass(frozen=True, eq=False)
 class Product:
-    """A scene at a level (module docstring). ``attrs`` must hold ``level``."""
+    """A scene at a level (module docstring). ``attrs`` must hold ``level``; ``map_grid``
+    is given for map-projected levels."""
 
     attrs: dict[str, Any]
     bands: dict[str, BandImage]
     geometry: dict[str, Any] = field(default_factory=dict)
     quality: dict[str, Any] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
+    map_grid: MapGrid | None = None
+
+    def __post_init__(self) -> None:
+        shapes = {b.image.shape for b in self.bands.values()}
+        if len(shapes) > 1:
+            raise ProductError(f"the bands of a product share one grid, got shapes {shapes}")
+        reserved = {"x", "y", "row", "column", "crs"}
+        bad = [n for n in self.bands if n in reserved or n.endswith("_valid") or "/" in n]
+        if bad:
+            raise ProductError(f"band name {bad[0]!r} is reserved by the product layout")
 
     @property
     def level(self) -> str:
@@ -102,38 +165,115 @@ def _read_tree(group: h5py.Group) -> dict[str, Any]:
     return out
 
 
+def _dimension(f: h5py.File, name: str, values: NDArray, attrs: dict[str, str]) -> h5py.Dataset:
+    ds = f.create_dataset(name, data=values)
+    ds.make_scale(name)
+    for k, v in attrs.items():
+        ds.attrs[k] = v
+    return ds
+
+
+def _grid_mapping(f: h5py.File, grid: MapGrid) -> None:
+    """The CF grid-mapping variable ``crs``: pyproj's CF attributes, the WKT, and GDAL's
+    ``spatial_ref`` and ``GeoTransform`` (which GDAL's netCDF driver reads first)."""
+    crs = pyproj.CRS.from_wkt(grid.crs_wkt)
+    var = f.create_dataset("crs", data=np.int32(0))
+    cf = crs.to_cf()
+    for k, v in cf.items():
+        var.attrs[k] = v
+    var.attrs["crs_wkt"] = grid.crs_wkt
+    var.attrs["spatial_ref"] = grid.crs_wkt
+    var.attrs["GeoTransform"] = " ".join(repr(float(v)) for v in grid.geotransform)
+    var.attrs["long_name"] = "map projection of the product"
+
+
 def write_product(path: str | Path, product: Product) -> Path:
     """Write a product atomically (module docstring); returns its path."""
     target = Path(path)
-    tmp = target.with_name(f".{target.name}.partial")
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = PRODUCT_FORMAT
-            f.attrs["format_version"] = PRODUCT_VERSION
-            f.attrs["Conventions"] = "CF-1.8"
-            f.attrs["band_names"] = json.dumps(list(product.bands))
-            for k, v in product.attrs.items():
-                f.attrs[k] = _attr(v)
-            for name, band in product.bands.items():
-                g = f.create_group(f"bands/{name}")
-                rows, cols = band.image.shape
-                chunks = (min(_CHUNK, rows), min(_CHUNK, cols))
-                img = g.create_dataset("image", data=band.image, chunks=chunks,
-                                       compression="gzip", compression_opts=1)
-                img.attrs["units"] = "1"
-                img.attrs["long_name"] = f"level {product.level} counts of band {name}"
-                img.attrs["_FillValue"] = np.uint8(0)
-                val = g.create_dataset("valid", data=band.valid, chunks=chunks,
-                                       compression="gzip", compression_opts=1)
-                val.attrs["units"] = "1"
-                val.attrs["long_name"] = "pixel is valid (every raw pixel it uses arrived)"
-            for name in ("geometry", "quality", "provenance"):
-                _write_tree(f.create_group(name), getattr(product, name))
-        os.replace(tmp, target)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_path(target) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["format"] = PRODUCT_FORMAT
+        f.attrs["format_version"] = PRODUCT_VERSION
+        f.attrs["Conventions"] = "CF-1.8"
+        f.attrs["band_names"] = json.dumps(list(product.bands))
+        for k, v in product.attrs.items():
+            f.attrs[k] = _attr(v)
+        rows, cols = next(iter(product.bands.values())).image.shape
+        grid = product.map_grid
+        if grid is not None:
+            dims = (_dimension(f, "y", grid.y_m(rows), {
+                        "standard_name": "projection_y_coordinate", "axis": "Y",
+                        "units": "m", "long_name": "northing of the pixel centre"}),
+                    _dimension(f, "x", grid.x_m(cols), {
+                        "standard_name": "projection_x_coordinate", "axis": "X",
+                        "units": "m", "long_name": "easting of the pixel centre"}))
+            _grid_mapping(f, grid)
+        else:
+            dims = (_dimension(f, "row", np.arange(rows, dtype=np.int32),
+                               {"units": "1", "long_name": "image row (line)"}),
+                    _dimension(f, "column", np.arange(cols, dtype=np.int32),
+                               {"units": "1", "long_name": "image column"}))
+        chunks = (min(_CHUNK, rows), min(_CHUNK, cols))
+        for name, band in product.bands.items():
+            for var, data, long_name in (
+                    (name, band.image, f"level {product.level} counts of band {name}"),
+                    (f"{name}_valid", band.valid.view(np.uint8),
+                     f"pixel of band {name} is valid (every raw pixel it uses arrived)")):
+                ds = f.create_dataset(var, data=data, chunks=chunks, compression="gzip",
+                                      compression_opts=1)
+                for axis, dim in enumerate(dims):
+                    ds.dims[axis].attach_scale(dim)
+                ds.attrs["units"] = "1"
+                ds.attrs["long_name"] = long_name
+                if grid is not None:
+                    ds.attrs["grid_mapping"] = "crs"
+                if var == name:
+                    ds.attrs["ancillary_variables"] = f"{name}_valid"
+                else:
+                    ds.attrs["flag_values"] = np.array([0, 1], np.uint8)
+                    ds.attrs["flag_meanings"] = "invalid valid"
+        for name in ("geometry", "quality", "provenance"):
+            _write_tree(f.create_group(name), getattr(product, name))
     return target
+
+
+def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> None:
+    """Version 1 trees lacked the grid sizes that version 2 keeps beside the grids."""
+    scene = geometry.get("scene", {})
+    look = next(iter(geometry.get("look_angles", {}).values()), {})
+    sizes = {"n_rows": attrs.get("n_rows"), "n_cols": attrs.get("n_cols"),
+             "n_raw_lines": scene.get("n_lines"),
+             "n_raw_columns": int(np.asarray(look["column"])[-1]) + 1 if "column" in look
+             else None}
+    for key in ("level_1b", "level_2a"):
+        if key in geometry:
+            for k, v in sizes.items():
+                if v is not None:
+                    geometry[key].setdefault(k, v)
+
+
+def _read_bands(f: h5py.File, names: list[str], version: int, images: bool
+                ) -> dict[str, BandImage]:
+    bands = {}
+    for name in names:
+        image_ds, valid_ds = ((f[f"bands/{name}/image"], f[f"bands/{name}/valid"])
+                              if version == 1 else (f[name], f[f"{name}_valid"]))
+        valid = valid_ds[()].astype(bool)
+        image = image_ds[()] if images else np.zeros(valid.shape, np.uint8)
+        bands[name] = BandImage(image, valid)
+    return bands
+
+
+def _read_map_grid(f: h5py.File, version: int, geometry: dict[str, Any]) -> MapGrid | None:
+    if version == 1:
+        g = geometry.get("level_2a")
+        if not g:
+            return None
+        return MapGrid(str(g["crs_wkt"]), tuple(np.asarray(g["geotransform"], float)))
+    if "crs" not in f:
+        return None
+    a = f["crs"].attrs
+    gt = tuple(float(v) for v in str(a["GeoTransform"]).split())
+    return MapGrid(str(a["crs_wkt"]), gt)  # type: ignore[arg-type]
 
 
 def read_product(path: str | Path, images: bool = True) -> Product:
@@ -150,11 +290,14 @@ def read_product(path: str | Path, images: bool = True) -> Product:
         if f.attrs.get("format") != PRODUCT_FORMAT:
             raise ProductError(f"{where}: format attribute is {f.attrs.get('format')!r}, "
                                f"expected {PRODUCT_FORMAT!r}; not a level product")
-        if int(f.attrs.get("format_version", -1)) != PRODUCT_VERSION:
+        version = int(f.attrs.get("format_version", -1))
+        if version not in _READABLE_VERSIONS:
             raise ProductError(f"{where}: product format version "
                                f"{f.attrs.get('format_version')!r}; this reader knows "
-                               f"version {PRODUCT_VERSION}")
-        missing = [k for k in ("bands", "geometry", "quality", "provenance") if k not in f]
+                               f"versions {', '.join(map(str, _READABLE_VERSIONS))}")
+        groups = ("bands", "geometry", "quality", "provenance") if version == 1 else \
+            ("geometry", "quality", "provenance")
+        missing = [k for k in groups if k not in f]
         if missing:
             raise ProductError(f"{where}: group '{missing[0]}' is missing; not a complete "
                                "product")
@@ -162,13 +305,18 @@ def read_product(path: str | Path, images: bool = True) -> Product:
             attrs = {k: (v.item() if isinstance(v, np.generic) else v)
                      for k, v in f.attrs.items()}
             trees = {k: _read_tree(f[k]) for k in ("geometry", "quality", "provenance")}
+            level = str(attrs.get("level"))
+            lacking = [k for k in REQUIRED_GEOMETRY.get(level, ()) if k not in trees["geometry"]]
+            if lacking:
+                raise ProductError(f"level {level} product without its geometry/{lacking[0]} "
+                                   "group; damaged or incomplete")
+            if version == 1:
+                _upgrade_v1_geometry(trees["geometry"], attrs)
             names = json.loads(attrs.pop("band_names"))
-            bands = {}
-            for name in names:
-                g = f[f"bands/{name}"]
-                valid = g["valid"][()]
-                image = g["image"][()] if images else np.zeros(valid.shape, np.uint8)
-                bands[name] = BandImage(image, valid.astype(bool))
-        except (KeyError, OSError, RuntimeError, ValueError) as exc:
+            bands = _read_bands(f, names, version, images)
+            grid = _read_map_grid(f, version, trees["geometry"])
+            return Product(attrs=attrs, bands=bands, map_grid=grid, **trees)
+        except ProductError as exc:
+            raise ProductError(f"{where}: {exc}") from None
+        except (KeyError, OSError, RuntimeError, ValueError, TypeError) as exc:
             raise ProductError(f"{where}: damaged or incomplete product ({exc})") from None
-    return Product(attrs=attrs, bands=bands, **trees)

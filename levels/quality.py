@@ -7,12 +7,12 @@ computed on a real scene from surveyed checkpoints.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["error_stats", "raw_error_stats", "scalar_figures"]
+__all__ = ["CheckpointSource", "error_stats", "raw_error_stats", "scalar_figures"]
 
 
 def error_stats(d1_m: NDArray[np.float64], d2_m: NDArray[np.float64], pixel_size_m: float
@@ -59,3 +59,20 @@ def scalar_figures(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
         else:
             out[key] = v.item() if isinstance(v, np.ndarray | np.generic) else v
     return out
+
+
+@runtime_checkable
+class CheckpointSource(Protocol):
+    """Where checkpoints of a scene truly are, for the ``checkpoints`` quality figures.
+
+    The processing driver (:func:`levels.process.process_l0`) asks it for the errors of
+    each band's 1B and 2A geometry; the emulator's truth is one (``station.sipc.truth``),
+    surveyed points of a real scene would be another. Each method returns a tree: the
+    :func:`error_stats` of the line of sight and of the ground, and the lattice behind them.
+    """
+
+    def level_1b(self, scene: Any, geometry: Any, band_index: int, per_side: int
+                 ) -> dict[str, Any]: ...
+
+    def level_2a(self, scene: Any, geometry: Any, band_index: int, per_side: int
+                 ) -> dict[str, Any]: ...

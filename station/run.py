@@ -116,8 +116,8 @@ def _receive_and_process(acq: Any, out: Path, tag: str, timings: dict[str, Any],
     """
     from tqdm import tqdm
 
+    from levels.process import process_l0
     from levels.readers.l0 import read_l0
-    from station.sipc.process import process_l0, scenario_provenance
     from station.sipc.truth import Truth
     from station.srrs.report import downlink_report
     from station.srrs.session import downlink, record
@@ -141,7 +141,7 @@ def _receive_and_process(acq: Any, out: Path, tag: str, timings: dict[str, Any],
         scenes.update()
 
     products = process_l0(archive, scn.processing, out, name=tag,
-                          truth=Truth.of(acq, archive), provenance=scenario_provenance(scn),
+                          checkpoints=Truth.of(acq, archive), provenance=scn.provenance(),
                           on_scene=on_scene)
     scenes.close()
     timings["geo"] = timings.get("geo", 0.0) + products.timings_s["geo"]

@@ -18,8 +18,8 @@ from levels.cor.resample import resample_1b, resample_2a, with_nan
 from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import level2a_geometry, map_crs
 from levels.geo.scenes import pass_geometry
+from levels.process import nominal_pixel_size_m
 from station.scenario import scenario_from_dict
-from station.sipc.process import nominal_pixel_size_m
 from station.spacecraft.emulator import emulate
 
 #: float32 image values against float64 references: 1e-3 counts is far below the 8-bit step.

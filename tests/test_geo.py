@@ -14,8 +14,8 @@ from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import INVERSE_METHODS, butting_columns, level2a_geometry, map_crs
 from levels.geo.polynomial import Poly1D, Poly2D
 from levels.geo.scenes import cut_scenes, pass_geometry
+from levels.process import nominal_pixel_size_m
 from station.scenario import scenario_from_dict
-from station.sipc.process import nominal_pixel_size_m
 from station.sipc.truth import Truth, checkpoints_1b, checkpoints_2a
 from station.spacecraft.emulator import emulate
 

@@ -110,8 +110,8 @@ def test_compare_sees_one_changed_pixel_and_tolerances(run_dir: Path, tmp_path: 
     b = tmp_path / a.name
     shutil.copy(a, b)
     with h5py.File(b, "r+") as f:
-        img = f["bands/P/image"]
-        valid = f["bands/P/valid"][...]
+        img = f["P"]
+        valid = f["P_valid"][...].astype(bool)
         r, c = np.argwhere(valid)[len(valid) // 2]
         img[r, c] = (int(img[r, c]) + 40) % 256
     result = compare_paths(a, b)

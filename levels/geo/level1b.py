@@ -23,11 +23,12 @@ centres, ``(0, 0)`` the first pixel of the first line.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from levels.errors import GeometryError
+from levels.errors import GeometryError, ProductError
 from levels.geo.polynomial import Poly1D
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
@@ -71,6 +72,14 @@ class TangentPlane:
     def as_array(self) -> NDArray[np.float64]:
         """Rows origin, X, Y, normal: shape (4, 3)."""
         return np.stack([self.origin_ecef_m, self.x_axis, self.y_axis, self.normal])
+
+    @classmethod
+    def from_array(cls, a: ArrayLike) -> TangentPlane:
+        """The inverse of :meth:`as_array`."""
+        a = np.asarray(a, dtype=np.float64)
+        if a.shape != (4, 3):
+            raise ValueError(f"a tangent plane is 4 × 3 numbers, got {a.shape}")
+        return cls(*(row.copy() for row in a))
 
 
 def raw_border(n_lines: int, n_columns: int, per_side: int = N_BREAKPOINTS
@@ -137,6 +146,45 @@ class Level1BGeometry:
         """Corrected pixel coordinates of plane points."""
         return (np.asarray(x_m, dtype=np.float64) / self.pixel_size_m - self.i_origin,
                 np.asarray(y_m, dtype=np.float64) / self.pixel_size_m - self.j_origin)
+
+    @staticmethod
+    def product_tree(bands: dict[str, Level1BGeometry]) -> dict[str, Any]:
+        """The ``geometry/level_1b`` tree of a product whose bands have these geometries
+        (they share the first band's plane and grid; ``docs/products.md``)."""
+        g = next(iter(bands.values()))
+        return {"pixel_size_m": g.pixel_size_m, "i_origin": g.i_origin,
+                "j_origin": g.j_origin, "n_rows": g.n_rows, "n_cols": g.n_cols,
+                "n_raw_lines": g.n_raw_lines, "n_raw_columns": g.n_raw_columns,
+                "plane_ecef_m": g.plane.as_array(),
+                "plane_note": "rows: origin, X (south), Y (east), normal (up); ECEF",
+                "polynomial_note": "[centre, scale, c0..c3]: p(x) = sum c_k ((x - centre)/"
+                                   "scale)^k; L = f(I), C = g(J - h(I))",
+                "breakpoints_note": "columns L, C, I, J",
+                "bands": {b: {"f": band.f.as_array(), "g": band.g.as_array(),
+                              "h": band.h.as_array(),
+                              "centre_column_breakpoints": band.centre_column_breakpoints,
+                              "centre_line_breakpoints": band.centre_line_breakpoints}
+                          for b, band in bands.items()}}
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any], band: str | None = None) -> Level1BGeometry:
+        """The geometry of ``band`` (the first by default) from a product's
+        ``geometry/level_1b`` tree; :class:`ProductError` names what is missing or bad."""
+        try:
+            bands = tree["bands"]
+            b = bands[band if band is not None else next(iter(bands))]
+            return cls(
+                plane=TangentPlane.from_array(tree["plane_ecef_m"]),
+                pixel_size_m=float(tree["pixel_size_m"]), n_rows=int(tree["n_rows"]),
+                n_cols=int(tree["n_cols"]), i_origin=float(tree["i_origin"]),
+                j_origin=float(tree["j_origin"]), f=Poly1D.from_array(b["f"]),
+                g=Poly1D.from_array(b["g"]), h=Poly1D.from_array(b["h"]),
+                centre_column_breakpoints=b["centre_column_breakpoints"],
+                centre_line_breakpoints=b["centre_line_breakpoints"],
+                n_raw_lines=int(tree["n_raw_lines"]), n_raw_columns=int(tree["n_raw_columns"]))
+        except (KeyError, TypeError, ValueError, StopIteration) as exc:
+            raise ProductError(f"level 1B geometry tree is incomplete or damaged "
+                               f"({type(exc).__name__}: {exc})") from None
 
     def approximation_error(self, model: PushbroomModel, per_side: int = 41
                             ) -> dict[str, float]:

@@ -133,3 +133,13 @@ class Poly2D:
     def as_array(self) -> NDArray[np.float64]:
         """``[order, cx, cy, sx, sy, coef…]``: how products store it."""
         return np.concatenate([[self.order, *self.centre, *self.scale], self.coef])
+
+    @classmethod
+    def from_array(cls, a: ArrayLike) -> Poly2D:
+        """The inverse of :meth:`as_array`."""
+        a = np.asarray(a, dtype=np.float64)
+        order = int(a[0])
+        n = (order + 1) * (order + 2) // 2
+        if a.shape != (5 + n,):
+            raise ValueError(f"a Poly2D of order {order} is {5 + n} numbers, got {a.shape}")
+        return cls(a[5:].copy(), order, (float(a[1]), float(a[2])), (float(a[3]), float(a[4])))

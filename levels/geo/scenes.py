@@ -22,6 +22,7 @@ scene is not a scene (it is reported, not silently dropped: :attr:`PassGeometry.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -174,6 +175,40 @@ class PassGeometry:
         return SceneGeometry(cut, t_c, models, at_centre, reference_height_m,
                              float(g.lat_rad[0]), float(g.lon_rad[0]), g.lat_rad[1:],
                              g.lon_rad[1:])
+
+    def product_tree(self, scene: SceneGeometry) -> dict[str, Any]:
+        """The part of a product's ``geometry`` tree every level shares: the epoch, the
+        scene, its clock, the ephemeris and attitude used (the attitude records within 2 s
+        of the scene), the look angles of each band (``docs/products.md``)."""
+        att = scene.model.attitude
+        t = att.t_s  # type: ignore[attr-defined]
+        margin_s = 2.0
+        keep = (t >= scene.model.clock.time_s(0) - margin_s) & \
+            (t <= scene.model.clock.time_s(scene.cut.n_lines - 1) + margin_s)
+        return {
+            "epoch_utc": str(self.epoch.t0_utc),
+            "reference_height_m": scene.reference_height_m,
+            "scene": {"first_line": scene.cut.first_line, "n_lines": scene.cut.n_lines,
+                      "t_centre_s": scene.t_centre_s,
+                      "centre_lat_deg": float(np.degrees(scene.centre_lat_rad)),
+                      "centre_lon_deg": float(np.degrees(scene.centre_lon_rad)),
+                      "corners_lat_deg": np.degrees(scene.corners_lat_rad),
+                      "corners_lon_deg": np.degrees(scene.corners_lon_rad)},
+            "clock": {"t_first_line_s": float(scene.model.clock.time_s(0)),
+                      "line_period_s": scene.model.clock.period_s},
+            "ephemeris": {"t_s": self.ephemeris.t_s, "r_ecef_m": self.ephemeris.r_ecef_m,
+                          "v_ecef_m_per_s": self.ephemeris.v_ecef_m_per_s,
+                          "lagrange_points": self.ephemeris.n_points},
+            "attitude": {"t_s": t[keep],
+                         "angles_rad": att.angles_rad_samples[keep],  # type: ignore
+                         "integrated_at_centre_rad": scene.attitude_at_centre_rad,
+                         "note": "gyro rates integrated from a null first record, zeroed at "
+                                 "the scene centre (INPE)"},
+            "look_angles": {name: {"column": m.look_angles.column,
+                                   "psi_x_rad": m.look_angles.psi_x_rad,
+                                   "psi_y_rad": m.look_angles.psi_y_rad}
+                            for name, m in scene.models.items()},
+        }
 
     def scenes(self, scene_lines: int, overlap_lines: int = 0,
                reference_height_m: float = 0.0) -> list[SceneGeometry]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -78,6 +79,15 @@ class L0Archive:
     ephemeris: Ephemeris
     decode: dict = field(default_factory=dict)
     attrs: dict = field(default_factory=dict)
+
+    @property
+    def provenance(self) -> dict[str, Any]:
+        """What the station recorded of where the pass came from (scenario, seed …)."""
+        try:
+            prov = json.loads(str(self.attrs.get("provenance", "{}")))
+        except json.JSONDecodeError:
+            raise L0Error(f"{self.path}: root attribute 'provenance' is not JSON") from None
+        return prov if isinstance(prov, dict) else {}
 
     @property
     def n_lines(self) -> int:

@@ -42,9 +42,9 @@ _FULL_PIXELS = {"P": 6000 * 6000, "XS": 3 * 3000 * 3000}
 
 def _measure(mode: str, detectors: int, lines: int, rate_mbps: float, tmp: Path
              ) -> dict[str, float]:
+    from levels.process import process_l0
     from levels.readers.l0 import read_l0
     from station.scenario import scenario_from_dict
-    from station.sipc.process import process_l0
     from station.spacecraft.emulator import emulate
     from station.srrs.session import downlink, record
 

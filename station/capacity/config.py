@@ -28,8 +28,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from levels.options import build_section, option
 from station.errors import ScenarioError
-from station.scenario import GroundStationConfig, _build, _key, read_toml
+from station.scenario import GroundStationConfig, read_toml
 
 __all__ = ["STAGES", "CapacityScenario", "capacity_from_dict", "load_capacity", "with_value"]
 
@@ -41,94 +42,126 @@ STAGES = ("antenna", "recorder", "transcription", "ingest", "geo", "cor", "archi
 class SimulationConfig:
     """How long, how often, and from which random seed."""
 
-    days: float = _key(365.0, "days", "simulated time after the warm-up", 1.0, 1.0, 3650.0)
-    warmup_days: float = _key(14.0, "warmup_days", "time simulated before statistics start",
-                              1.0, 0.0, 365.0)
-    replications: int = _key(5, "replications", "independent runs (confidence intervals)",
-                             lo=1, hi=1000)
-    queue_sample_h: float = _key(6.0, "queue_sample_h", "step of the queue time series",
-                                 1.0, 0.01, 240.0)
+    days: float = option(365.0, "days", "simulated time after the warm-up", 1.0, 1.0, 3650.0)
+    warmup_days: float = option(
+        14.0, "warmup_days", "time simulated before statistics start", 1.0, 0.0, 365.0
+    )
+    replications: int = option(
+        5, "replications", "independent runs (confidence intervals)", lo=1, hi=1000
+    )
+    queue_sample_h: float = option(
+        6.0, "queue_sample_h", "step of the queue time series", 1.0, 0.01, 240.0
+    )
 
 
 @dataclass(frozen=True)
 class SatelliteConfig:
     """One satellite on the phased orbit (the pass scenario's ``[orbit]`` defaults)."""
 
-    name: str = _key("SPOT 1", "name", "name for reports")
-    cycle_offset_days: int = _key(0, "cycle_offset_days",
-                                  "days this satellite trails the first on the same track",
-                                  lo=0, hi=25)
-    hrvs: int = _key(2, "hrvs", "HRVs imaging (each on its own channel)", lo=1, hi=2)
-    xs_fraction: float = _key(0.5, "xs_fraction", "share of HRV segments taken in XS", 1.0,
-                              0.0, 1.0)
+    name: str = option("SPOT 1", "name", "name for reports")
+    cycle_offset_days: int = option(
+        0,
+        "cycle_offset_days",
+        "days this satellite trails the first on the same track",
+        lo=0,
+        hi=25,
+    )
+    hrvs: int = option(2, "hrvs", "HRVs imaging (each on its own channel)", lo=1, hi=2)
+    xs_fraction: float = option(
+        0.5, "xs_fraction", "share of HRV segments taken in XS", 1.0, 0.0, 1.0
+    )
 
 
 @dataclass(frozen=True)
 class PlanConfig:
     """The acquisition plan: which passes image and how long each HRV's segment is."""
 
-    imaging_probability: float = _key(0.8, "imaging_probability",
-                                      "share of daylight passes with a programmed segment",
-                                      1.0, 0.0, 1.0)
-    scenes_per_segment: float = _key(6.0, "scenes_per_segment",
-                                     "mean scenes per HRV segment (Poisson, at least 1)",
-                                     1.0, 0.0, 100.0)
-    scene_s: float = _key(9.0, "scene_s", "flight time of one 60 km scene", 1.0, 1.0, 60.0)
-    night_passes_image: bool = _key(False, "night_passes_image",
-                                    "whether night (ascending) passes image too")
+    imaging_probability: float = option(
+        0.8,
+        "imaging_probability",
+        "share of daylight passes with a programmed segment",
+        1.0,
+        0.0,
+        1.0,
+    )
+    scenes_per_segment: float = option(
+        6.0,
+        "scenes_per_segment",
+        "mean scenes per HRV segment (Poisson, at least 1)",
+        1.0,
+        0.0,
+        100.0,
+    )
+    scene_s: float = option(9.0, "scene_s", "flight time of one 60 km scene", 1.0, 1.0, 60.0)
+    night_passes_image: bool = option(
+        False, "night_passes_image", "whether night (ascending) passes image too"
+    )
 
 
 @dataclass(frozen=True)
 class ResourcesConfig:
     """What the station has: units per stage; ``recording`` on tape needs transcription."""
 
-    antennas: int = _key(1, "antennas", "tracking antennas", lo=1, hi=10)
-    recorders: int = _key(2, "recorders", "demodulator-recorder chains (one per HRV channel)",
-                          lo=1, hi=20)
-    recording: str = _key("tape", "recording", "high-density tape, or straight to disk",
-                          choices=("tape", "disk"))
-    transcription_speed: float = _key(1.0, "transcription_speed",
-                                      "tape playback speed (× real time)", 1.0, 0.1, 100.0)
-    transcription_units: int = _key(1, "transcription_units", "tape playback units", lo=1,
-                                    hi=20)
-    ingest_workers: int = _key(1, "ingest_workers", "decoding and L0 archiving chains",
-                               lo=1, hi=100)
-    geo_workers: int = _key(1, "geo_workers", "GEO workers (one pass and HRV at a time)",
-                            lo=1, hi=100)
-    cor_workers: int = _key(2, "cor_workers", "COR workers (one scene and level at a time)",
-                            lo=1, hi=1000)
-    archive_writers: int = _key(1, "archive_writers", "product archive writers", lo=1, hi=100)
+    antennas: int = option(1, "antennas", "tracking antennas", lo=1, hi=10)
+    recorders: int = option(
+        2, "recorders", "demodulator-recorder chains (one per HRV channel)", lo=1, hi=20
+    )
+    recording: str = option(
+        "tape", "recording", "high-density tape, or straight to disk", choices=("tape", "disk")
+    )
+    transcription_speed: float = option(
+        1.0, "transcription_speed", "tape playback speed (× real time)", 1.0, 0.1, 100.0
+    )
+    transcription_units: int = option(1, "transcription_units", "tape playback units", lo=1, hi=20)
+    ingest_workers: int = option(
+        1, "ingest_workers", "decoding and L0 archiving chains", lo=1, hi=100
+    )
+    geo_workers: int = option(
+        1, "geo_workers", "GEO workers (one pass and HRV at a time)", lo=1, hi=100
+    )
+    cor_workers: int = option(
+        2, "cor_workers", "COR workers (one scene and level at a time)", lo=1, hi=1000
+    )
+    archive_writers: int = option(1, "archive_writers", "product archive writers", lo=1, hi=100)
 
 
 @dataclass(frozen=True)
 class ShiftsConfig:
     """Operator hours (local time at the station's longitude), and who needs an operator."""
 
-    start_h: float = _key(8.0, "start_h", "shift start", 1.0, 0.0, 24.0)
-    end_h: float = _key(18.0, "end_h", "shift end", 1.0, 0.0, 24.0)
-    days_per_week: int = _key(5, "days_per_week", "staffed days, from Monday", lo=1, hi=7)
-    staffed: tuple[str, ...] = _key(["transcription"], "staffed",
-                                    "stages that start a job only on shift",
-                                    choices=STAGES[2:])
+    start_h: float = option(8.0, "start_h", "shift start", 1.0, 0.0, 24.0)
+    end_h: float = option(18.0, "end_h", "shift end", 1.0, 0.0, 24.0)
+    days_per_week: int = option(5, "days_per_week", "staffed days, from Monday", lo=1, hi=7)
+    staffed: tuple[str, ...] = option(
+        ["transcription"], "staffed", "stages that start a job only on shift", choices=STAGES[2:]
+    )
 
     def __post_init__(self) -> None:
         if self.end_h <= self.start_h:
-            raise ScenarioError(f"[shifts] end_h = {self.end_h:g} must be after start_h = "
-                                f"{self.start_h:g}")
+            raise ScenarioError(
+                f"[shifts] end_h = {self.end_h:g} must be after start_h = {self.start_h:g}"
+            )
 
 
 def _mtbf(stage: str, hours: float) -> Any:
-    return _key(hours, f"{stage}_mtbf_h", f"{stage}: mean time between failures of a unit "
-                "(0: never)", 3600.0, 0.0, 1e6)
+    return option(
+        hours,
+        f"{stage}_mtbf_h",
+        f"{stage}: mean time between failures of a unit (0: never)",
+        3600.0,
+        0.0,
+        1e6,
+    )
 
 
 def _mttr(stage: str, hours: float) -> Any:
-    return _key(hours, f"{stage}_mttr_h", f"{stage}: mean time to repair", 3600.0, 0.0, 1e4)
+    return option(hours, f"{stage}_mttr_h", f"{stage}: mean time to repair", 3600.0, 0.0, 1e4)
 
 
 @dataclass(frozen=True)
 class FailuresConfig:
     """Failures and repairs of each unit (exponential), given in hours, held in seconds."""
+
     antenna_mtbf_s: float = _mtbf("antenna", 2000.0)
     antenna_mttr_s: float = _mttr("antenna", 12.0)
     recorder_mtbf_s: float = _mtbf("recorder", 1000.0)
@@ -149,19 +182,31 @@ class FailuresConfig:
 class OrdersConfig:
     """What users order: a share of the scenes acquired, at one level each."""
 
-    ordered_fraction: float = _key(0.6, "ordered_fraction", "share of scenes ordered", 1.0,
-                                   0.0, 1.0)
-    mix: tuple[float, float, float] = _key([0.2, 0.3, 0.5], "mix",
-                                           "shares of levels 1A, 1B, 2A among orders", 1.0,
-                                           0.0, 1.0)
-    urgent_fraction: float = _key(0.1, "urgent_fraction",
-                                  "share of urgent orders (served first)", 1.0, 0.0, 1.0)
-    delay_mean_s: float = _key(24.0, "delay_mean_h",
-                               "mean time from acquisition to the order (exponential)",
-                               3600.0, 0.0, 1e4)
-    service_level_s: tuple[float, float, float] = _key(
-        [24.0, 48.0, 72.0], "service_level_h",
-        "promised time from order to product, levels 1A, 1B, 2A", 3600.0, 0.1, 1e4)
+    ordered_fraction: float = option(
+        0.6, "ordered_fraction", "share of scenes ordered", 1.0, 0.0, 1.0
+    )
+    mix: tuple[float, float, float] = option(
+        [0.2, 0.3, 0.5], "mix", "shares of levels 1A, 1B, 2A among orders", 1.0, 0.0, 1.0
+    )
+    urgent_fraction: float = option(
+        0.1, "urgent_fraction", "share of urgent orders (served first)", 1.0, 0.0, 1.0
+    )
+    delay_mean_s: float = option(
+        24.0,
+        "delay_mean_h",
+        "mean time from acquisition to the order (exponential)",
+        3600.0,
+        0.0,
+        1e4,
+    )
+    service_level_s: tuple[float, float, float] = option(
+        [24.0, 48.0, 72.0],
+        "service_level_h",
+        "promised time from order to product, levels 1A, 1B, 2A",
+        3600.0,
+        0.1,
+        1e4,
+    )
 
     def __post_init__(self) -> None:
         if abs(sum(self.mix) - 1.0) > 1e-9:
@@ -178,30 +223,36 @@ class ServiceConfig:
     hardware.
     """
 
-    file: str = _key("service_times.json", "file",
-                     "service-time file, relative to the scenario")
-    scale_ingest: float = _key(1.0, "scale_ingest", "factor on decoding", 1.0, 1e-3, 1e5)
-    scale_geo: float = _key(1.0, "scale_geo", "factor on GEO", 1.0, 1e-3, 1e5)
-    scale_cor: float = _key(1.0, "scale_cor", "factor on COR", 1.0, 1e-3, 1e5)
-    scale_archive: float = _key(1.0, "scale_archive", "factor on archiving", 1.0, 1e-3, 1e5)
-    cv: float = _key(0.2, "cv", "coefficient of variation of service times (gamma; 0: fixed)",
-                     1.0, 0.0, 3.0)
+    file: str = option("service_times.json", "file", "service-time file, relative to the scenario")
+    scale_ingest: float = option(1.0, "scale_ingest", "factor on decoding", 1.0, 1e-3, 1e5)
+    scale_geo: float = option(1.0, "scale_geo", "factor on GEO", 1.0, 1e-3, 1e5)
+    scale_cor: float = option(1.0, "scale_cor", "factor on COR", 1.0, 1e-3, 1e5)
+    scale_archive: float = option(1.0, "scale_archive", "factor on archiving", 1.0, 1e-3, 1e5)
+    cv: float = option(
+        0.2, "cv", "coefficient of variation of service times (gamma; 0: fixed)", 1.0, 0.0, 3.0
+    )
 
 
 @dataclass(frozen=True)
 class OutageConfig:
     """One stage entirely down for a while (all its units), to watch the backlog."""
 
-    stage: str = _key("cor", "stage", "which stage", choices=STAGES)
-    start_day: float = _key(120.0, "start_day", "start, days after the warm-up", 1.0, 0.0,
-                            3650.0)
-    days: float = _key(0.0, "days", "how long (0: no outage)", 1.0, 0.0, 365.0)
+    stage: str = option("cor", "stage", "which stage", choices=STAGES)
+    start_day: float = option(120.0, "start_day", "start, days after the warm-up", 1.0, 0.0, 3650.0)
+    days: float = option(0.0, "days", "how long (0: no outage)", 1.0, 0.0, 365.0)
 
 
-_SECTIONS = {"simulation": SimulationConfig, "ground_station": GroundStationConfig,
-             "plan": PlanConfig, "resources": ResourcesConfig, "shifts": ShiftsConfig,
-             "failures": FailuresConfig, "orders": OrdersConfig, "service": ServiceConfig,
-             "outage": OutageConfig}
+_SECTIONS = {
+    "simulation": SimulationConfig,
+    "ground_station": GroundStationConfig,
+    "plan": PlanConfig,
+    "resources": ResourcesConfig,
+    "shifts": ShiftsConfig,
+    "failures": FailuresConfig,
+    "orders": OrdersConfig,
+    "service": ServiceConfig,
+    "outage": OutageConfig,
+}
 
 
 @dataclass(frozen=True)
@@ -236,18 +287,26 @@ def capacity_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Capa
     for key, value in data.items():
         if key == "name" and isinstance(value, str):
             kwargs["name"] = value
-        elif key == "seed" and isinstance(value, int) and not isinstance(value, bool) \
-                and 0 <= value < 2**63:
+        elif (
+            key == "seed"
+            and isinstance(value, int)
+            and not isinstance(value, bool)
+            and 0 <= value < 2**63
+        ):
             kwargs["seed"] = value
         elif key in ("name", "seed"):
-            raise ScenarioError(f"{key} = {value!r}: expected "
-                                f"{'a string' if key == 'name' else 'an integer in [0, 2**63)'}")
+            raise ScenarioError(
+                f"{key} = {value!r}: expected "
+                f"{'a string' if key == 'name' else 'an integer in [0, 2**63)'}"
+            )
         elif key == "satellite":
             if not isinstance(value, list) or not value:
                 raise ScenarioError("satellite: expected one or more [[satellite]] tables")
-            kwargs["satellites"] = tuple(_build(SatelliteConfig, "satellite", v) for v in value)
+            kwargs["satellites"] = tuple(
+                build_section(SatelliteConfig, "satellite", v, ScenarioError) for v in value
+            )
         elif key in _SECTIONS:
-            kwargs[key] = _build(_SECTIONS[key], key, value)
+            kwargs[key] = build_section(_SECTIONS[key], key, value, ScenarioError)
         else:
             raise ScenarioError(f"unknown key {key!r}; allowed: {', '.join(allowed)}")
     return CapacityScenario(**kwargs)
@@ -258,8 +317,9 @@ def load_capacity(path: str | Path) -> CapacityScenario:
     p = Path(path)
     data, raw = read_toml(p, "capacity scenario")
     scn = capacity_from_dict(data, p.resolve().parent)
-    return dataclasses.replace(scn, source=str(p.resolve()),
-                               source_sha256=hashlib.sha256(raw).hexdigest())
+    return dataclasses.replace(
+        scn, source=str(p.resolve()), source_sha256=hashlib.sha256(raw).hexdigest()
+    )
 
 
 def with_value(scn: CapacityScenario, param: str, text: str) -> CapacityScenario:
@@ -267,8 +327,9 @@ def with_value(scn: CapacityScenario, param: str, text: str) -> CapacityScenario
     ``text`` is parsed as a TOML value ("3", "0.5", '"disk"')."""
     section, _, key = param.partition(".")
     if section not in _SECTIONS or not key:
-        raise ScenarioError(f"--sweep {param}: expected SECTION.KEY with SECTION one of "
-                            f"{', '.join(_SECTIONS)}")
+        raise ScenarioError(
+            f"--sweep {param}: expected SECTION.KEY with SECTION one of {', '.join(_SECTIONS)}"
+        )
     try:
         value = tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
@@ -288,7 +349,8 @@ def with_value(scn: CapacityScenario, param: str, text: str) -> CapacityScenario
                 v = list(v)
             table[f.metadata["key"]] = v
     if key not in table:
-        raise ScenarioError(f"--sweep {param}: [{section}] has no key {key!r}; allowed: "
-                            f"{', '.join(sorted(table))}")
+        raise ScenarioError(
+            f"--sweep {param}: [{section}] has no key {key!r}; allowed: {', '.join(sorted(table))}"
+        )
     table[key] = value
-    return dataclasses.replace(scn, **{section: _build(cls, section, table)})
+    return dataclasses.replace(scn, **{section: build_section(cls, section, table, ScenarioError)})

@@ -26,7 +26,6 @@ from a gamma law of the scenario's coefficient of variation.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 from collections.abc import Generator
@@ -36,6 +35,7 @@ from typing import Any
 import numpy as np
 import simpy
 
+from levels.geometry.times import Epoch
 from station.capacity.config import CapacityScenario
 from station.capacity.stats import time_weighted
 from station.scenario import GroundStationConfig
@@ -229,16 +229,17 @@ def pass_pattern(gs: GroundStationConfig) -> PassPattern:
     a year is this pattern laid end to end; a satellite trailing by whole days on the same
     orbit has the same pattern, delayed.
     """
-    from station.scenario import scenario_from_dict
-    from station.spacecraft.emulator import emulate
-    from station.spacecraft.orbit import TruthOrbit
+    from station.scenario import OrbitConfig, PassConfig, WorldConfig
+    from station.spacecraft.orbit import TruthOrbit, mean_element_orbit, swath_centre_view
     from station.spacecraft.passes import find_passes
 
-    scn = scenario_from_dict({"instrument": {"n_detectors": 100, "n_lines": 10},
-                              "pass": {"ground_pass_days": 0.0}, "gcps": {"count": 0}})
-    scn = dataclasses.replace(scn, ground_station=gs)
-    o = emulate(scn, render=False).orbit
-    cycle_s = scn.orbit.repeat_days * _DAY
+    # SPOT's phased orbit, placed as a default pass would place it (nadir view on the
+    # default target); only its reference state matters: the cycle is propagated from it
+    oc, pc = OrbitConfig(), PassConfig()
+    epoch = Epoch(np.datetime64(pc.date_utc, "ns"), name="00:00 UTC of the pass day")
+    o, _t = mean_element_orbit(oc, pc, epoch, (0.0, _DAY),
+                               swath_centre_view(0.0, WorldConfig().base_height_m))
+    cycle_s = oc.repeat_days * _DAY
     orbit = TruthOrbit(o.epoch, o.t_ref_s, o.r_ref_eci_m, o.v_ref_eci_m_per_s,
                        min(0.0, o.t_ref_s), cycle_s + _DAY)
     passes = [p for p in find_passes(orbit, gs.lat_rad, gs.lon_rad, gs.height_m,

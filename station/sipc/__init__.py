@@ -1,7 +1,7 @@
-"""SIPC, the processing centre: GEO once per pass and COR once per scene and level
-(:mod:`station.sipc.process`), measured against the emulator's truth
-(:mod:`station.sipc.truth`)."""
+"""SIPC on an emulated pass: ``levels`` makes the products (:mod:`levels.process`), the
+emulator's truth measures them (:mod:`station.sipc.truth`, :mod:`station.sipc.process`)."""
 
-from station.sipc.process import PassProducts, SceneProducts, process_l0, process_scenario
+from station.sipc.process import process_scenario, reprocess_l0, truth_for
+from station.sipc.truth import Truth
 
-__all__ = ["PassProducts", "SceneProducts", "process_l0", "process_scenario"]
+__all__ = ["Truth", "process_scenario", "reprocess_l0", "truth_for"]

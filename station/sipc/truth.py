@@ -49,6 +49,16 @@ class Truth:
         offset = int(np.rint((t0 - acq.line_times_s[0]) / acq.hrv.line_period_s))
         return cls(acq, offset)
 
+    def level_1b(self, scene: SceneGeometry, geometry: Level1BGeometry, band_index: int,
+                 per_side: int) -> dict:
+        """:func:`checkpoints_1b` (the :class:`levels.quality.CheckpointSource` protocol)."""
+        return checkpoints_1b(self, scene, geometry, band_index, per_side)
+
+    def level_2a(self, scene: SceneGeometry, geometry: Level2AGeometry, band_index: int,
+                 per_side: int) -> dict:
+        """:func:`checkpoints_2a` (the :class:`levels.quality.CheckpointSource` protocol)."""
+        return checkpoints_2a(self, scene, geometry, band_index, per_side)
+
     def model(self, band: int) -> PushbroomModel:
         if band not in self._models:
             self._models[band] = truth_model(self.acq, band)

@@ -22,7 +22,7 @@ from levels.geometry.ellipsoid import WGS84
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.frames import ecef_from_orbital
 from levels.geometry.model import LineClock, PushbroomModel
-from levels.geometry.sensor import look_direction, mirror_angle_rad
+from levels.geometry.sensor import mirror_angle_rad
 from levels.geometry.times import Epoch
 from station.scenario import GcpConfig, Scenario
 from station.spacecraft.attitude import GyroRecord, TruthAttitude, sample_gyros
@@ -33,11 +33,9 @@ from station.spacecraft.orbit import (
     OrbitError,
     Tle,
     TruthOrbit,
-    node_state,
-    phased_targets,
-    place_orbit,
+    mean_element_orbit,
     read_tle,
-    secular_targets,
+    swath_centre_view,
     tle_state_eci,
 )
 from station.spacecraft.passes import Pass, find_passes
@@ -94,20 +92,6 @@ class Acquisition:
     index: int = 0
 
 
-def _view_of(hrv_mirror_rad: float, height_m: float):
-    """The point seen by the centre of the swath at null attitude (for aiming the orbit)."""
-    u = look_direction(0.0, hrv_mirror_rad)
-
-    def view(orbit: TruthOrbit, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-        r, v = orbit.state_ecef(t_s)
-        los = np.einsum("nij,j->ni", ecef_from_orbital(r, v), u)
-        point, _ok = WGS84.intersect(r, los, height_m)
-        lat, lon, _h = WGS84.to_geodetic(point)
-        return lat, lon
-
-    return view
-
-
 def _world(scn: Scenario) -> World:
     wc = scn.world
     grid = read_hgt(scn.path(wc.dem_path)) if wc.kind == "dem" else None
@@ -127,16 +111,10 @@ def _tle(scn: Scenario) -> Tle:
 def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], margin_s: float,
            mirror_rad: float, tle: Tle | None) -> tuple[TruthOrbit, float]:
     oc, pc = scn.orbit, scn.pass_
-    view = _view_of(mirror_rad if pc.aim == "view" else 0.0, scn.world.base_height_m)
+    view = swath_centre_view(mirror_rad if pc.aim == "view" else 0.0,
+                             scn.world.base_height_m)
     if oc.kind in ("phased", "elements"):
-        if oc.kind == "phased":
-            period, raan_rate = phased_targets(oc.repeat_revs, oc.repeat_days)
-        else:
-            period, raan_rate = secular_targets(
-                WGS84.a_m + oc.altitude_m, oc.eccentricity, oc.inclination_rad)
-        a, i = node_state(period, raan_rate, oc.eccentricity)
-        return place_orbit(epoch, a, i, oc.eccentricity, oc.descending_node_local_time_h,
-                           pc.target_lat_rad, pc.target_lon_rad, span, view)
+        return mean_element_orbit(oc, pc, epoch, span, view)
     assert tle is not None  # kind == "tle": emulate() read it
     t0, r0, v0 = tle_state_eci(tle, epoch)
     search = TruthOrbit(epoch, t0, r0, v0, t0, t0 + pc.search_days * 86400.0)

@@ -44,12 +44,15 @@ from scipy.integrate import solve_ivp
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.frames import (
     EARTH_ROTATION_RATE_RAD_PER_S,
+    ecef_from_orbital,
     ecef_to_eci,
     eci_to_ecef,
     rot_z,
 )
+from levels.geometry.sensor import look_direction
 from levels.geometry.times import Epoch
 from station.errors import OrbitError
+from station.scenario import OrbitConfig, PassConfig
 
 __all__ = [
     "GM_M3_PER_S2",
@@ -58,6 +61,7 @@ __all__ = [
     "OrbitError",
     "Tle",
     "TruthOrbit",
+    "mean_element_orbit",
     "nadir_point",
     "node_state",
     "phased_targets",
@@ -66,6 +70,7 @@ __all__ = [
     "read_tle",
     "secular_targets",
     "state_from_elements",
+    "swath_centre_view",
 ]
 
 GM_M3_PER_S2 = 3.986004418e14  # WGS84 (IERS 2010)
@@ -457,3 +462,35 @@ def place_orbit(
         raise OrbitError("could not place the orbit over the target (no convergence)")
     lo, hi = min(span_s[0], t_node, t_cross), max(span_s[1], t_node, t_cross)
     return TruthOrbit(epoch, t_node, r0, v0, lo, hi), float(t_cross)
+
+
+def swath_centre_view(mirror_rad: float, height_m: float) -> ViewPoint:
+    """The point seen by the centre of the swath at null attitude, the mirror at
+    ``mirror_rad``, on the ellipsoid raised by ``height_m`` (for aiming the orbit)."""
+    u = look_direction(0.0, mirror_rad)
+
+    def view(orbit: TruthOrbit, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        r, v = orbit.state_ecef(t_s)
+        los = np.einsum("nij,j->ni", ecef_from_orbital(r, v), u)
+        point, _ok = WGS84.intersect(r, los, height_m)
+        lat, lon, _h = WGS84.to_geodetic(point)
+        return lat, lon
+
+    return view
+
+
+def mean_element_orbit(oc: OrbitConfig, pc: PassConfig, epoch: Epoch,
+                       span_s: tuple[float, float], view: ViewPoint = nadir_point
+                       ) -> tuple[TruthOrbit, float]:
+    """The truth orbit of a ``phased`` or ``elements`` orbit section, placed by
+    :func:`place_orbit` so that ``view`` crosses the pass's target on its day."""
+    if oc.kind == "phased":
+        period, raan_rate = phased_targets(oc.repeat_revs, oc.repeat_days)
+    elif oc.kind == "elements":
+        period, raan_rate = secular_targets(
+            WGS84.a_m + oc.altitude_m, oc.eccentricity, oc.inclination_rad)
+    else:
+        raise OrbitError(f"[orbit] kind = {oc.kind!r} is not given by mean elements")
+    a, i = node_state(period, raan_rate, oc.eccentricity)
+    return place_orbit(epoch, a, i, oc.eccentricity, oc.descending_node_local_time_h,
+                       pc.target_lat_rad, pc.target_lon_rad, span_s, view)

@@ -71,4 +71,4 @@ def record(acq: Acquisition, result: DownlinkResult, path: str | Path) -> Path:
     scn = acq.scenario
     return write_l0(path, result.decoded, acq.bulletins, acq.epoch.t0_utc, ancillary_of(acq),
                     scenario_name=scn.name,
-                    provenance={"scenario": scn.name, "seed": scn.seed})
+                    provenance=scn.provenance())

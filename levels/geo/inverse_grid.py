@@ -1,0 +1,197 @@
+"""The 2A inverse grid's kernels: the raw ``(L, C)`` of output points from the four nearest
+points of the direct grid (paper ``004_…`` §3, "nearest4"), and the bilinear reading of a grid.
+
+The direct grid maps raw breakpoints ``(L, C)`` to output pixels ``(I, J)``; each of its
+cells is inverted by Newton on its bilinear map (:func:`_walk`), moving cell by cell. The
+raw image is cut at the CCD buttings into column segments, and each segment's line is
+found over its own cells only (the line jumps across a butting). Numba kernels: a scene's
+inverse grid is tens of thousands of nodes, a checkpoint lattice hundreds of points.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from levels.errors import GeometryError
+
+__all__ = ["bilinear_grid", "invert_nodes", "invert_scattered", "segment_cells"]
+
+
+@nb.njit(cache=True, nogil=True)
+def _walk(gl, gc, gi, gj, ip, jp, a, b, u, v, b_lo, b_hi, max_moves):
+    """Raw ``(L, C)`` of output point ``(ip, jp)``: Newton on the bilinear map of direct-grid
+    cell ``(a, b)`` from local coordinates ``(u, v)``, moving to the neighbouring cell while
+    they fall outside [0, 1]. Cells are kept within rows ``0 .. na − 2`` and columns
+    ``b_lo .. b_hi − 1`` (a CCD segment's own columns); beyond them the edge cell is
+    extrapolated. The walk moves one cell at a time: a butting cell is one pixel wide, and
+    its bilinear map extrapolated far from it has spurious roots that a jump of several
+    cells would take. Returns ``(L, C, a, b, u, v)``."""
+    na = gi.shape[0]
+    for _move in range(max_moves):
+        for _it in range(6):
+            i00, i01, i10, i11 = gi[a, b], gi[a, b + 1], gi[a + 1, b], gi[a + 1, b + 1]
+            j00, j01, j10, j11 = gj[a, b], gj[a, b + 1], gj[a + 1, b], gj[a + 1, b + 1]
+            ii = (1 - u) * ((1 - v) * i00 + v * i01) + u * ((1 - v) * i10 + v * i11)
+            jj = (1 - u) * ((1 - v) * j00 + v * j01) + u * ((1 - v) * j10 + v * j11)
+            a11 = (1 - v) * (i10 - i00) + v * (i11 - i01)
+            a12 = (1 - u) * (i01 - i00) + u * (i11 - i10)
+            a21 = (1 - v) * (j10 - j00) + v * (j11 - j01)
+            a22 = (1 - u) * (j01 - j00) + u * (j11 - j10)
+            det = a11 * a22 - a12 * a21
+            ri, rj = ip - ii, jp - jj
+            du = (a22 * ri - a12 * rj) / det
+            dv = (-a21 * ri + a11 * rj) / det
+            u += du
+            v += dv
+            if abs(du) + abs(dv) < 1e-7:
+                break  # Newton's quadratic convergence: what remains is below 1e-14
+        na_ = min(max(a + (1 if u >= 1.0 else (-1 if u < 0.0 else 0)), 0), na - 2)
+        nb2 = min(max(b + (1 if v >= 1.0 else (-1 if v < 0.0 else 0)), b_lo), b_hi - 1)
+        if na_ == a and nb2 == b:
+            break
+        u -= na_ - a
+        v -= nb2 - b
+        a, b = na_, nb2
+    return gl[a] + u * (gl[a + 1] - gl[a]), gc[b] + v * (gc[b + 1] - gc[b]), a, b, u, v
+
+
+@nb.njit(cache=True, nogil=True)
+def _segment_line(gl, gc, gi, gj, ip, jp, line, a, b, u, v, b0, b1):
+    """The line of segment ``b0 .. b1 − 1`` at output point ``(ip, jp)``, from the whole
+    grid's walk (``line`` in cell ``(a, b)`` at ``(u, v)``): the same if that cell is the
+    segment's, else a walk over the segment's cells from its nearest one."""
+    if b0 <= b < b1:
+        return line
+    bs = min(max(b, b0), b1 - 1)
+    return _walk(gl, gc, gi, gj, ip, jp, a, bs, u, v + b - bs, b0, b1,
+                 gi.shape[0] + gi.shape[1])[0]
+
+
+@nb.njit(cache=True, nogil=True)
+def _invert_points(gl, gc, gi, gj, i_pts, j_pts, a0, b0, seg_b0, seg_b1, lines, col):
+    """:func:`_walk` for scattered points, each from its own first-guess cell ``(a0, b0)``,
+    over the whole grid (``col``) and over each segment's cells ``seg_b0[s] .. seg_b1[s] − 1``
+    (``lines[s]``); a point whose whole-grid cell lies in the segment has the segment's
+    answer already."""
+    n_seg = lines.shape[0]
+    na, nb_ = gi.shape
+    for k in range(i_pts.size):
+        line, c, a, b, u, v = _walk(gl, gc, gi, gj, i_pts[k], j_pts[k], a0[k], b0[k], 0.5, 0.5,
+                                    0, nb_ - 1, na + nb_)
+        col[k] = c
+        for s in range(n_seg):
+            lines[s, k] = _segment_line(gl, gc, gi, gj, i_pts[k], j_pts[k], line, a, b, u, v,
+                                        seg_b0[s], seg_b1[s])
+
+
+@nb.njit(cache=True, nogil=True)
+def invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lines, col):
+    """The inverse grid by :func:`_walk`, row by row, each node starting from the cell of
+    the node before it, at the cell coordinates extrapolated from the two nodes before it:
+    a step of the inverse grid is a fraction of a direct-grid cell, so a walk rarely moves
+    and Newton starts close (a row's first node starts from the centre of the grid).
+    Serial: a scene's grid takes milliseconds, and idle parallel threads would spin
+    against BLAS.
+
+    A segment's line is taken exactly (over its own columns, extrapolated beyond) at the
+    nodes of every inverse-grid cell whose column range meets the raw columns that belong
+    to the segment, ``[seg_lo[s], seg_hi[s])``: those are the nodes the 2A kernel's
+    bilinear interpolation reads for it. Elsewhere the field holds the whole grid's line,
+    the line of the CCD that does see there.
+    """
+    n_seg = lines.shape[0]
+    na, nb_ = gi.shape
+    nr, nc = rows.size, cols.size
+    cell_a = np.empty((nr, nc), dtype=np.int64)
+    cell_b = np.empty((nr, nc), dtype=np.int64)
+    cell_u = np.empty((nr, nc))
+    cell_v = np.empty((nr, nc))
+    whole = np.empty((nr, nc))
+    for r in range(nr):
+        a, b, u, v = (na - 1) // 2, (nb_ - 1) // 2, 0.5, 0.5
+        for c in range(nc):
+            if c >= 2:  # linear prediction in global cell coordinates
+                pu = 2.0 * (cell_a[r, c - 1] + cell_u[r, c - 1]) - (cell_a[r, c - 2]
+                                                                  + cell_u[r, c - 2])
+                pv = 2.0 * (cell_b[r, c - 1] + cell_v[r, c - 1]) - (cell_b[r, c - 2]
+                                                                  + cell_v[r, c - 2])
+                a = min(max(int(np.floor(pu)), 0), na - 2)
+                b = min(max(int(np.floor(pv)), 0), nb_ - 2)
+                u, v = pu - a, pv - b
+            moves = na + nb_ if c == 0 else 16
+            line, cc, a, b, u, v = _walk(gl, gc, gi, gj, rows[r], cols[c], a, b, u, v, 0,
+                                         nb_ - 1, moves)
+            whole[r, c], col[r, c] = line, cc
+            cell_a[r, c], cell_b[r, c], cell_u[r, c], cell_v[r, c] = a, b, u, v
+    need = np.zeros((n_seg, nr, nc), dtype=np.bool_)
+    for r in range(nr - 1):
+        for c in range(nc - 1):
+            lo = min(min(col[r, c], col[r, c + 1]), min(col[r + 1, c], col[r + 1, c + 1]))
+            hi = max(max(col[r, c], col[r, c + 1]), max(col[r + 1, c], col[r + 1, c + 1]))
+            for s in range(n_seg):
+                if lo < seg_hi[s] and hi >= seg_lo[s]:
+                    need[s, r, c] = need[s, r, c + 1] = True
+                    need[s, r + 1, c] = need[s, r + 1, c + 1] = True
+    for r in range(nr):
+        for s in range(n_seg):
+            for c in range(nc):
+                lines[s, r, c] = whole[r, c] if not need[s, r, c] else _segment_line(
+                    gl, gc, gi, gj, rows[r], cols[c], whole[r, c], cell_a[r, c], cell_b[r, c],
+                    cell_u[r, c], cell_v[r, c], seg_b0[s], seg_b1[s])
+
+
+def segment_cells(grid_column: NDArray[np.float64], segment_first_column: NDArray[np.float64]
+                   ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Direct-grid column indices of each segment's first and last detector: segment ``s``
+    owns the cells ``first[s] .. last[s] − 1``. The cell across a butting gap, between the
+    last detector of one CCD and the first of the next, belongs to neither."""
+    ends = np.append(segment_first_column[1:] - 1, grid_column[-1])
+    first = np.searchsorted(grid_column, segment_first_column)
+    last = np.searchsorted(grid_column, ends)
+    if not (np.all(grid_column[first] == segment_first_column)
+            and np.all(grid_column[last] == ends)):
+        raise GeometryError("the direct grid must hold both sides of every CCD butting")
+    return first.astype(np.int64), last.astype(np.int64)
+
+
+def invert_scattered(gl: NDArray[np.float64], gc: NDArray[np.float64],
+                      gi: NDArray[np.float64], gj: NDArray[np.float64],
+                      segment_first_column: NDArray[np.float64], i: ArrayLike, j: ArrayLike,
+                      first_guess: tuple[NDArray, NDArray]
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Line per segment ``(segments, N)`` and column ``(N,)`` of scattered output points
+    ``(I, J)``, from the four nearest direct-grid points: each point starts in the cell of
+    its ``first_guess`` ``(L, C)`` and walks (:func:`_walk`); points beyond the grid are
+    extrapolated from the edge cell."""
+    i_a, j_a = (np.ascontiguousarray(x, dtype=np.float64).ravel()
+                for x in np.broadcast_arrays(i, j))
+    na, nb_ = gi.shape
+    a = np.clip(np.searchsorted(gl, np.ravel(first_guess[0])) - 1, 0, na - 2)
+    b = np.clip(np.searchsorted(gc, np.ravel(first_guess[1])) - 1, 0, nb_ - 2)
+    seg_b0, seg_b1 = segment_cells(gc, segment_first_column)
+    lines = np.empty((segment_first_column.size, i_a.size))
+    col = np.empty(i_a.size)
+    _invert_points(np.asarray(gl, float), np.asarray(gc, float),
+                   np.ascontiguousarray(gi, dtype=np.float64),
+                   np.ascontiguousarray(gj, dtype=np.float64), i_a, j_a,
+                   a.astype(np.int64), b.astype(np.int64), seg_b0, seg_b1, lines, col)
+    return lines, col
+
+
+def bilinear_grid(rows: NDArray[np.float64], cols: NDArray[np.float64],
+                  z: NDArray[np.float64], i: ArrayLike, j: ArrayLike) -> NDArray[np.float64]:
+    """Bilinear interpolation of a field on a grid of integer steps from (0, 0), extrapolated
+    at the far edges: the arithmetic of the 2A kernel, first along rows then columns, so that
+    checks and products agree to the last bit."""
+    i_a, j_a = np.broadcast_arrays(np.asarray(i, dtype=np.float64),
+                                   np.asarray(j, dtype=np.float64))
+    step_i, step_j = rows[1] - rows[0], cols[1] - cols[0]
+    a = np.clip(np.floor(i_a / step_i).astype(np.int64), 0, rows.size - 2)
+    b = np.clip(np.floor(j_a / step_j).astype(np.int64), 0, cols.size - 2)
+    u = (i_a - a * step_i) * (1.0 / step_i)
+    v = (j_a - b * step_j) * (1.0 / step_j)
+    at_b = (1.0 - u) * z[a, b] + u * z[a + 1, b]
+    at_b1 = (1.0 - u) * z[a, b + 1] + u * z[a + 1, b + 1]
+    return (1.0 - v) * at_b + v * at_b1

@@ -1,0 +1,256 @@
+"""Declared options: TOML tables turned at once into frozen dataclasses, and the processing
+options of the processing centre.
+
+Every field of an options dataclass is declared once with :func:`option`: its TOML name
+(unit-suffixed: ``reference_height_m``, ``altitude_km``), the factor to SI, its allowed range
+and a one-line meaning. :func:`build_section` checks a parsed TOML table against those
+declarations and converts it; :func:`describe_section` lists them. The messages and the
+listing are generated from the declarations, so they cannot drift apart. The station's
+scenario and capacity files are declared the same way (they import these helpers).
+
+:class:`ProcessingOptions` is what the processing centre is asked to do with a pass: the
+``[processing]`` table of a scenario, or of a file of its own for
+``station process L0.h5 --options FILE``.
+"""
+
+from __future__ import annotations
+
+import math
+import typing
+from dataclasses import MISSING, dataclass, field, fields
+from typing import Any
+
+from levels.errors import OptionsError
+
+__all__ = [
+    "LEVELS",
+    "ProcessingOptions",
+    "build_section",
+    "describe_section",
+    "describe_value",
+    "option",
+]
+
+#: Levels the processing centre makes, in processing order.
+LEVELS = ("1A", "1B", "2A")
+
+
+def option(
+    default: Any,
+    key: str,
+    doc: str,
+    scale: float = 1.0,
+    lo: float | None = None,
+    hi: float | None = None,
+    choices: tuple[str, ...] | None = None,
+) -> Any:
+    """Declare a field: TOML ``key`` (unit-suffixed), factor to SI, range, meaning.
+
+    ``default`` is given in TOML units (degrees, km, µrad) and converted like a read value.
+    """
+    meta = {"key": key, "doc": doc, "scale": scale, "lo": lo, "hi": hi, "choices": choices}
+    if isinstance(default, list | tuple) and all(isinstance(v, str) for v in default):
+        return field(default=tuple(default), metadata=meta)
+    if isinstance(default, list | tuple):
+        si = tuple(float(v) * scale for v in default)
+        return field(default=si, metadata=meta)
+    if isinstance(default, float):
+        default = default * scale
+    return field(default=default, metadata=meta)
+
+
+def describe_value(meta: dict[str, Any], typ: Any) -> str:
+    """What a declared field accepts, in words ("a number in [0, 5]", "one of 'P', 'XS'")."""
+    if meta["choices"] and typing.get_args(typ) == (str, Ellipsis):
+        return "a list, without repeats, of " + ", ".join(repr(c) for c in meta["choices"])
+    if meta["choices"]:
+        return "one of " + ", ".join(repr(c) for c in meta["choices"])
+    kind = {int: "an integer", float: "a number", str: "a string", bool: "true or false"}.get(
+        typ, ""
+    )
+    if typing.get_origin(typ) is tuple:
+        kind = f"a list of {len(typing.get_args(typ))} numbers"
+    lo, hi = meta["lo"], meta["hi"]
+    if lo is not None and hi is not None:
+        return f"{kind} in [{lo:g}, {hi:g}]"
+    return kind
+
+
+def _convert(section: str, f: Any, typ: Any, value: Any, error: type[Exception]) -> Any:
+    meta = f.metadata
+    name = f"[{section}] {meta['key']}" if section else meta["key"]
+    allowed = describe_value(meta, typ)
+
+    def bad() -> Exception:
+        return error(f"{name} = {value!r}: expected {allowed}")
+
+    def number(v: Any) -> float:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise bad()
+        lo, hi = meta["lo"], meta["hi"]
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
+            raise bad()
+        return float(v) * meta["scale"]
+
+    if typ is bool:
+        if not isinstance(value, bool):
+            raise bad()
+        return value
+    if typ is str:
+        if not isinstance(value, str):
+            raise bad()
+        if meta["choices"] and value not in meta["choices"]:
+            raise bad()
+        return value
+    if typ is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise bad()
+        number(value)
+        return value
+    if typ is float:
+        return number(value)
+    if typing.get_args(typ) == (str, Ellipsis):
+        if (
+            not isinstance(value, list)
+            or not value
+            or len(set(value)) != len(value)
+            or any(v not in (meta["choices"] or ()) for v in value)
+        ):
+            raise bad()
+        return tuple(value)
+    if typing.get_origin(typ) is tuple:
+        n = len(typing.get_args(typ))
+        if not isinstance(value, list) or len(value) != n:
+            raise bad()
+        return tuple(number(v) for v in value)
+    raise TypeError(f"unsupported field type {typ!r}")  # a declaration bug, not user input
+
+
+def build_section(
+    cls: type, section: str, table: Any, error: type[Exception] = OptionsError
+) -> Any:
+    """An instance of the declared dataclass ``cls`` from the TOML table of ``[section]``.
+
+    An unknown key, a wrong type, a value out of range or a failed cross-field check of
+    ``__post_init__`` raises ``error`` naming the key, the value and what is allowed.
+    """
+    if not isinstance(table, dict):
+        raise error(f"[{section}] must be a table, got {table!r}")
+    hints = typing.get_type_hints(cls)
+    by_key = {f.metadata["key"]: f for f in fields(cls) if "key" in f.metadata}
+    unknown = sorted(set(table) - set(by_key))
+    if unknown:
+        raise error(f"[{section}] unknown key {unknown[0]!r}; allowed: {', '.join(sorted(by_key))}")
+    kwargs = {
+        f.name: _convert(section, f, hints[f.name], table[key], error)
+        for key, f in by_key.items()
+        if key in table
+    }
+    try:
+        return cls(**kwargs)
+    except error:
+        raise
+    except (TypeError, ValueError) as exc:  # cross-field checks of __post_init__
+        raise error(f"[{section}] {exc}") from None
+
+
+def describe_section(section: str, cls: type) -> list[str]:
+    """Lines listing every key of ``[section]``: default (TOML units), range and meaning."""
+    lines = [f"[{section}]"]
+    hints = typing.get_type_hints(cls)
+    for f in fields(cls):
+        meta = f.metadata
+        if "key" not in meta:
+            continue
+        default = f.default if f.default is not MISSING else None
+        if isinstance(default, float):
+            default = default / meta["scale"]
+        elif isinstance(default, tuple):
+            default = [v if isinstance(v, str) else round(v / meta["scale"], 12) for v in default]
+        lines.append(
+            f"  {meta['key']} = {default!r}  # {meta['doc']}; {describe_value(meta, hints[f.name])}"
+        )
+    return lines
+
+
+@dataclass(frozen=True)
+class ProcessingOptions:
+    """The processing centre: which levels, how scenes are cut, GEO's and COR's options.
+
+    The reference height is the scene's mean altitude the producer would take from a global
+    DEM: levels 1B and 2A are located on the ellipsoid raised by it. The PSF is the
+    instrument's nominal one, which the deconvolution of 1B and 2A inverts.
+    """
+
+    levels: tuple[str, ...] = option(list(LEVELS), "levels", "levels to produce", choices=LEVELS)
+    scene_lines: int = option(
+        0, "scene_lines", "lines per scene (0: as many as detectors)", lo=0, hi=10**6
+    )
+    overlap_lines: int = option(
+        0, "overlap_lines", "lines shared by consecutive scenes", lo=0, hi=10**6
+    )
+    reference_height_m: float = option(
+        450.0, "reference_height_m", "mean scene altitude of levels 1B and 2A", 1.0, -500.0, 9000.0
+    )
+    pixel_size_m: float = option(
+        0.0,
+        "pixel_size_m",
+        "output pixel (0: 10 m P, 20 m XS, times the detector scale)",
+        1.0,
+        0.0,
+        10000.0,
+    )
+    interpolation_1b: str = option(
+        "cubic", "interpolation_1b", "1B column interpolation", choices=("nearest", "cubic")
+    )
+    resampling_2a: str = option(
+        "cubic", "resampling_2a", "2A resampling", choices=("nearest", "bilinear", "cubic")
+    )
+    inverse_2a: str = option(
+        "nearest4",
+        "inverse_2a",
+        "2A inverse mapping",
+        choices=("nearest4", "poly3", "poly4", "poly5"),
+    )
+    grid_rows: str = option(
+        "attitude",
+        "grid_rows",
+        "2A direct-grid rows: at the attitude samples or INPE's regular 61",
+        choices=("attitude", "regular"),
+    )
+    crs: str = option("utm", "crs", "2A map: 'utm' (zone of the centre), 'som', or EPSG/WKT")
+    deconvolution: bool = option(True, "deconvolution", "deconvolve 1B and 2A")
+    psf_fwhm_px: float = option(
+        1.2, "psf_fwhm_px", "nominal PSF of the instrument (FWHM)", 1.0, 0.0, 5.0
+    )
+    noise_to_signal: float = option(
+        0.05,
+        "noise_to_signal",
+        "Wiener noise-to-signal ratio of the deconvolution",
+        1.0,
+        1e-4,
+        10.0,
+    )
+    checkpoints_per_side: int = option(
+        11, "checkpoints_per_side", "checkpoint lattice of the quality figures", lo=2, hi=101
+    )
+
+    def __post_init__(self) -> None:
+        if self.overlap_lines and self.scene_lines and self.overlap_lines >= self.scene_lines:
+            raise OptionsError(
+                f"overlap_lines = {self.overlap_lines} must be less than "
+                f"scene_lines = {self.scene_lines}"
+            )
+        bad = [lv for lv in self.levels if lv not in LEVELS]
+        if bad:
+            raise OptionsError(
+                f"levels = {list(self.levels)}: {bad[0]!r} is not a level "
+                f"this processing centre makes; expected some of {list(LEVELS)}"
+            )
+
+    @classmethod
+    def from_table(
+        cls, table: Any, section: str = "processing", error: type[Exception] = OptionsError
+    ) -> ProcessingOptions:
+        """Options from a parsed ``[processing]`` TOML table (module docstring)."""
+        return build_section(cls, section, table, error)

@@ -1,0 +1,294 @@
+"""The processing centre's run over one pass: GEO once, COR once per scene and level.
+
+:func:`process_l0` takes an L0 archive (:func:`levels.readers.l0.read_l0`) and
+:class:`~levels.options.ProcessingOptions`, and writes one product per scene and level
+(:mod:`levels.products`). For each scene, the raw counts are read from the archive once,
+calibrated once (level 1A), deconvolved once, and resampled into 1B and 2A: INPE's "all
+operations executed by COR require the raw image to be read only once" (paper ``004_…``
+§2.2).
+
+Every product carries its quality: the approximation errors of its geometry against the
+rigorous model (always), the stripe level before and after calibration (1A), and, when a
+:class:`~levels.quality.CheckpointSource` is given (the emulator's truth, or surveyed
+points), the checkpoint errors against it.
+
+XS bands share one output grid, computed on the first band; each band goes through its own
+1B polynomials and 2A grids onto it, so that the bands are registered.
+
+This module needs nothing of the emulator: a user with L0 archives runs it alone
+(``station process L0.h5`` is a thin command over it).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from levels import __version__
+from levels.cor.radiometry import (
+    calibrate,
+    deconvolution_taps,
+    deconvolve,
+    fir_response,
+    mtf,
+    stripe_level,
+    to_counts,
+)
+from levels.cor.resample import resample_1b, resample_2a, with_nan
+from levels.errors import GeometryError
+from levels.geo.level1b import Level1BGeometry, level1b_geometry
+from levels.geo.level2a import INVERSE_METHODS, Level2AGeometry, level2a_geometry
+from levels.geo.maps import ascending_node_lon_rad, map_crs
+from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
+from levels.geometry.sensor import LookAngleTable
+from levels.options import ProcessingOptions
+from levels.products import BandImage, MapGrid, Product, product_name, write_product
+from levels.quality import CheckpointSource, scalar_figures
+from levels.readers.l0 import L0Archive
+
+__all__ = ["PassProducts", "SceneProducts", "SkippedScene", "nominal_pixel_size_m",
+           "process_l0"]
+
+#: SPOT 1–4 mean altitude, to turn the look-angle pitch into a nominal ground pixel.
+_NOMINAL_ALTITUDE_M = 822e3
+
+
+@dataclass(frozen=True)
+class SceneProducts:
+    """What was made of one scene: product paths and headline quality per level."""
+
+    index: int
+    first_line: int
+    n_lines: int
+    paths: dict[str, Path]
+    quality: dict[str, dict[str, Any]]
+    timings_s: dict[str, float]
+
+
+@dataclass(frozen=True)
+class SkippedScene:
+    """A scene of the pass that could not be made, and why (lost in the downlink, or GEO
+    could not place it: no attitude or ephemeris over it)."""
+
+    index: int
+    first_line: int
+    n_lines: int
+    reason: str
+
+
+@dataclass(frozen=True)
+class PassProducts:
+    """All scenes of a pass, the rows left after the last whole scene, GEO's time."""
+
+    scenes: list[SceneProducts]
+    tail_lines: int
+    timings_s: dict[str, float] = field(default_factory=dict)
+    skipped: list[SkippedScene] = field(default_factory=list)
+
+
+def nominal_pixel_size_m(look: LookAngleTable) -> float:
+    """The nominal output pixel: the look table's angular pitch at 822 km, to 10 m (10 m
+    for P, 20 m for XS, and proportionally more for a reduced detector count)."""
+    pitch = float(np.median(np.abs(np.diff(look.psi_y_rad))))
+    return max(10.0, 10.0 * round(pitch * _NOMINAL_ALTITUDE_M / 10.0))
+
+
+_G = TypeVar("_G", Level1BGeometry, Level2AGeometry)
+
+
+def _per_band(scene: SceneGeometry, make: Callable[[str, _G | None], _G]) -> dict[str, _G]:
+    """A geometry per band, every band on the first band's output grid."""
+    first, *others = scene.models
+    out = {first: make(first, None)}
+    for b in others:
+        out[b] = make(b, out[first])
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _PassContext:
+    """What every scene of a pass shares: the archive, GEO's pass set-up, the options and
+    what follows from them."""
+
+    archive: L0Archive
+    pg: PassGeometry
+    options: ProcessingOptions
+    pixel_size_m: float
+    taps: NDArray[np.float64]
+    pixel_valid: dict[str, NDArray[np.bool_]]
+    out: Path
+    name: str
+    checkpoints: CheckpointSource | None
+    provenance: dict[str, Any]
+
+
+def process_l0(archive: L0Archive, options: ProcessingOptions, out_dir: str | Path, *,
+               name: str = "pass", checkpoints: CheckpointSource | None = None,
+               provenance: dict[str, Any] | None = None,
+               on_scene: Callable[[SceneProducts, int], None] | None = None) -> PassProducts:
+    """GEO and COR over a pass (module docstring); products go to ``out_dir``.
+
+    Parameters
+    ----------
+    archive
+        The pass, as :func:`levels.readers.l0.read_l0` reads it.
+    options
+        What to make and how.
+    name
+        Products are named ``<name>_s<scene>_<level>.h5``.
+    checkpoints
+        Where checkpoints truly are, for the ``checkpoints`` quality figures (optional).
+    provenance
+        Added to each product's ``provenance`` group, over the archive's own.
+    on_scene
+        Called as ``on_scene(done, n_scenes)`` after each scene (progress reporting).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    clock = time.perf_counter
+    t0 = clock()
+    band_names = list(archive.bands)
+    pg = pass_geometry(archive.epoch, archive.line_t_s, archive.line_period_s,
+                       archive.ephemeris, archive.aux_t_s, archive.gyro_rates_rad_per_s,
+                       {b: archive.bands[b].look for b in band_names})
+    n_det = archive.bands[band_names[0]].counts.shape[1]
+    scene_lines = options.scene_lines or n_det
+    cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines)
+    pixel_valid = {b: archive.bands[b].pixel_valid() for b in band_names}
+    rows_seen = np.logical_or.reduce([v.any(axis=1) for v in pixel_valid.values()])
+    scenes, skipped = [], []
+    for c in cuts:
+        if not rows_seen[c.first_line:c.first_line + c.n_lines].any():
+            skipped.append(SkippedScene(c.index, c.first_line, c.n_lines,
+                                        "no valid line: lost in the downlink"))
+            continue
+        try:
+            scenes.append(pg.scene(c, options.reference_height_m))
+        except GeometryError as exc:
+            skipped.append(SkippedScene(c.index, c.first_line, c.n_lines,
+                                        f"GEO could not place it: {exc}"))
+    res = options.pixel_size_m or nominal_pixel_size_m(pg.look_angles[band_names[0]])
+    t_geo = clock() - t0
+    taps = deconvolution_taps(options.psf_fwhm_px, options.noise_to_signal) \
+        if options.deconvolution else np.ones(1)
+    prov = {"software": f"spot-station {__version__}", "inputs": Path(archive.path).name,
+            "processing": json.dumps(asdict(options)), **archive.provenance,
+            **(provenance or {})}
+    ctx = _PassContext(archive, pg, options, res, taps, pixel_valid, out, name, checkpoints,
+                       prov)
+    results = []
+    for scene in scenes:
+        results.append(_process_scene(ctx, scene))
+        if on_scene is not None:
+            on_scene(results[-1], len(scenes))
+    tail = pg.tail_lines(scene_lines, options.overlap_lines)
+    return PassProducts(results, tail, {"geo": t_geo, "total": clock() - t0}, skipped)
+
+
+def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
+    clock = time.perf_counter
+    opt, res = ctx.options, ctx.pixel_size_m
+    timings: dict[str, float] = {}
+    t = clock()
+    rows = slice(scene.cut.first_line, scene.cut.first_line + scene.cut.n_lines)
+    g1b = g2a = None
+    if "1B" in opt.levels:
+        g1b = _per_band(scene, lambda b, like: level1b_geometry(scene, res, band=b, like=like))
+    if "2A" in opt.levels:
+        node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
+        crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
+        g2a = _per_band(scene, lambda b, like: level2a_geometry(
+            scene, res, crs, opt.inverse_2a, grid_rows=opt.grid_rows, band=b, like=like))
+    timings["geometry"] = clock() - t
+    images: dict[str, dict[str, BandImage]] = {lv: {} for lv in opt.levels}
+    stripes: dict[str, dict[str, float]] = {}
+    for bname, band in ctx.archive.bands.items():
+        t = clock()
+        counts, valid = band.counts[rows], ctx.pixel_valid[bname][rows]
+        cal = calibrate(counts, valid, band.gain, band.offset_counts)
+        stripes[bname] = {"raw_counts": stripe_level(counts.astype(np.float32), valid),
+                          "level_1a_counts": stripe_level(cal, valid)}
+        if "1A" in opt.levels:
+            images["1A"][bname] = BandImage(to_counts(cal), valid)
+        timings["1A"] = timings.get("1A", 0.0) + clock() - t
+        if g1b is None and g2a is None:
+            continue
+        t = clock()
+        dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
+        timings["deconvolution"] = timings.get("deconvolution", 0.0) + clock() - t
+        if g1b is not None:
+            t = clock()
+            images["1B"][bname] = BandImage(*resample_1b(dec, dvalid, g1b[bname],
+                                                         opt.interpolation_1b))
+            timings["1B"] = timings.get("1B", 0.0) + clock() - t
+        if g2a is not None:
+            t = clock()
+            images["2A"][bname] = BandImage(*resample_2a(with_nan(dec, dvalid), None,
+                                                         g2a[bname], opt.resampling_2a))
+            timings["2A"] = timings.get("2A", 0.0) + clock() - t
+    t = clock()
+    quality = _quality(scene, opt, g1b, g2a, stripes, ctx.taps, ctx.checkpoints)
+    timings["quality"] = clock() - t
+    t = clock()
+    common = ctx.pg.product_tree(scene)
+    paths = {}
+    for level in opt.levels:
+        geometry = dict(common)
+        if level == "1B":
+            geometry["level_1b"] = Level1BGeometry.product_tree(g1b)  # type: ignore[arg-type]
+        if level == "2A":
+            geometry["level_2a"] = Level2AGeometry.product_tree(g2a)  # type: ignore[arg-type]
+        first = next(iter(images[level].values())).image
+        attrs = {"level": level, "scene_index": scene.cut.index, "name": ctx.name,
+                 "hrv": ctx.archive.hrv, "mode": ctx.archive.mode,
+                 "mirror_step": ctx.archive.mirror_step, "n_rows": first.shape[0],
+                 "n_cols": first.shape[1], "pixel_size_m": res if level != "1A" else 0.0}
+        grid = None
+        if level == "2A":
+            g = next(iter(g2a.values()))  # type: ignore[union-attr]
+            grid = MapGrid(g.crs_wkt, g.geotransform)
+        product = Product(attrs, images[level], geometry, quality[level],
+                          {**ctx.provenance, "level": level}, grid)
+        paths[level] = write_product(
+            ctx.out / product_name(ctx.name, scene.cut.index, level), product)
+    timings["write"] = clock() - t
+    return SceneProducts(scene.cut.index, scene.cut.first_line, scene.cut.n_lines, paths,
+                         {lv: scalar_figures(q) for lv, q in quality.items()}, timings)
+
+
+def _quality(scene: SceneGeometry, opt: ProcessingOptions,
+             g1b: dict[str, Level1BGeometry] | None, g2a: dict[str, Level2AGeometry] | None,
+             stripes: dict[str, dict[str, float]], taps: NDArray[np.float64],
+             checkpoints: CheckpointSource | None) -> dict[str, dict[str, Any]]:
+    q: dict[str, dict[str, Any]] = {"1A": {"stripe_level": stripes}}
+    nyquist = np.array([0.5])
+    before = float(mtf(nyquist, opt.psf_fwhm_px)[0])
+    radiometry = {"deconvolution_taps": taps, "mtf_at_nyquist_before": before,
+                  "mtf_at_nyquist_after": before * abs(float(fir_response(taps, nyquist)[0]))}
+    per_side = opt.checkpoints_per_side
+    bands = list(scene.models)
+    if g1b is not None:
+        # the first band's figures: the others' fits are the same polynomials a few tenths
+        # of a pixel apart, and their checkpoints below measure each band
+        q["1B"] = {"radiometry": radiometry,
+                   "polynomials_vs_model": g1b[bands[0]].approximation_error(scene.model)}
+        if checkpoints is not None:
+            q["1B"]["checkpoints"] = {b: checkpoints.level_1b(scene, g1b[b], k, per_side)
+                                      for k, b in enumerate(bands)}
+    if g2a is not None:
+        g = g2a[bands[0]]
+        approx = {m: g.approximation_error(scene.model, scene.reference_height_m, m)
+                  for m in INVERSE_METHODS}
+        q["2A"] = {"radiometry": radiometry, "inverse_vs_model": approx,
+                   "inverse_method": g.method}
+        if checkpoints is not None:
+            q["2A"]["checkpoints"] = {b: checkpoints.level_2a(scene, g2a[b], k, per_side)
+                                      for k, b in enumerate(bands)}
+    return {lv: q[lv] for lv in opt.levels}
