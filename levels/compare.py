@@ -52,6 +52,10 @@ DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
 }
 
 
+#: Root attributes that say how a product is stored, not what it holds.
+_STORAGE_ATTRS = ("format_version", "Conventions")
+
+
 class CompareError(ProductError):
     """Bad input to a comparison (not products, an unknown tolerance, …)."""
 
@@ -212,7 +216,10 @@ def _metadata(a: Product, b: Product) -> list[Finding]:
     for k in sorted(set(a.attrs) | set(b.attrs)):
         va, vb = a.attrs.get(k), b.attrs.get(k)
         if _differs(va, vb):
-            out.append(Finding("metadata", f"attrs/{k}", ok=False, a=_plain(va), b=_plain(vb)))
+            # how a product is stored is not what it holds: a note, as provenance is
+            stored = k in _STORAGE_ATTRS
+            out.append(Finding("provenance" if stored else "metadata", f"attrs/{k}",
+                               ok=stored, a=_plain(va), b=_plain(vb)))
     if set(a.bands) != set(b.bands):
         out.append(Finding("metadata", "bands", ok=False, a=sorted(a.bands), b=sorted(b.bands)))
     ga, gb = a.map_grid, b.map_grid

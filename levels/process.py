@@ -52,12 +52,11 @@ from levels.options import ProcessingOptions
 from levels.products import BandImage, MapGrid, Product, product_name, write_product
 from levels.quality import CheckpointSource, scalar_figures
 from levels.readers.l0 import L0Archive
+from levels.spot import ORBIT_ALTITUDE_M
 
 __all__ = ["PassProducts", "SceneProducts", "SkippedScene", "nominal_pixel_size_m",
            "process_l0"]
 
-#: SPOT 1–4 mean altitude, to turn the look-angle pitch into a nominal ground pixel.
-_NOMINAL_ALTITUDE_M = 822e3
 
 
 @dataclass(frozen=True)
@@ -97,7 +96,7 @@ def nominal_pixel_size_m(look: LookAngleTable) -> float:
     """The nominal output pixel: the look table's angular pitch at 822 km, to 10 m (10 m
     for P, 20 m for XS, and proportionally more for a reduced detector count)."""
     pitch = float(np.median(np.abs(np.diff(look.psi_y_rad))))
-    return max(10.0, 10.0 * round(pitch * _NOMINAL_ALTITUDE_M / 10.0))
+    return max(10.0, 10.0 * round(pitch * ORBIT_ALTITUDE_M / 10.0))
 
 
 _G = TypeVar("_G", Level1BGeometry, Level2AGeometry)

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from levels.files import atomic_path
 from levels.products import Product
 
 __all__ = ["browse_image", "write_quicklook"]
@@ -115,6 +116,9 @@ def write_quicklook(product: Product, path: str | Path, max_side: int = 1024) ->
              va="center")
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi, facecolor="white")
-    plt.close(fig)
+    try:
+        with atomic_path(out) as tmp:  # a kill never leaves a truncated PNG
+            fig.savefig(tmp, dpi=dpi, facecolor="white", format="png")
+    finally:
+        plt.close(fig)
     return out

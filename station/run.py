@@ -25,11 +25,11 @@ with the same scenario and seed give identical products and the same report
 from __future__ import annotations
 
 import json
-import os
 import time
 from pathlib import Path
 from typing import Any
 
+from levels.files import json_default, write_json
 from levels.products import read_product
 from station import __version__
 from station.scenario import Scenario
@@ -103,7 +103,7 @@ def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
         "products": rows,
         "timings_s": _rounded(timings),
     }
-    _write_json(out / "report.json", report)
+    write_json(out / "report.json", report)
     stages.close()
     return report
 
@@ -172,20 +172,6 @@ def _rounded(x: Any) -> Any:
     return round(float(x), 4)
 
 
-def _write_json(path: Path, data: dict[str, Any]) -> None:
-    """Atomically: a reader never sees half a report."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
-    os.replace(tmp, path)
-
-
-def _json_default(x: Any) -> Any:
-    try:
-        return x.item()  # numpy scalars
-    except AttributeError:
-        raise TypeError(f"{type(x).__name__} is not JSON serialisable") from None
-
-
 def comparable_report(report: dict[str, Any]) -> dict[str, Any]:
     """The report without what varies between identical runs (wall times, file sizes)."""
     def strip(x: Any) -> Any:
@@ -194,7 +180,7 @@ def comparable_report(report: dict[str, Any]) -> dict[str, Any]:
         if isinstance(x, list):
             return [strip(v) for v in x]
         return x
-    return strip(json.loads(json.dumps(report, default=_json_default)))
+    return strip(json.loads(json.dumps(report, default=json_default)))
 
 
 def _fmt(x: Any, spec: str) -> str:

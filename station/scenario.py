@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from levels.options import ProcessingOptions, build_section, describe_section, option
+from levels.spot import MODES
 from station.errors import ScenarioError
 
 __all__ = [
@@ -255,7 +256,7 @@ class InstrumentConfig:
     )
 
     def __post_init__(self) -> None:
-        full = 6000 if self.mode == "P" else 3000
+        full = MODES[self.mode].detectors
         n = self.n_detectors or full
         if n > full:
             raise ScenarioError(

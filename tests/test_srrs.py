@@ -319,15 +319,48 @@ def test_l0_inconsistent_shapes_are_rejected(l0_path, tmp_path) -> None:
 
 
 def test_damaged_aux_records_do_not_move_the_line_clock(acq_p) -> None:
-    from station.srrs.receiver import _line_times, _on_the_clock, _plausible_times
+    from station.srrs.clock import line_clock, on_the_clock, plausible_times
 
     _tx, _rx, d = _send(acq_p, ber=0.0, burst_rate_per_s=0.0)
     aux = d.aux.copy()
     aux["line_time_ms"][5] += 50  # a record damaged on board: 50 ms off its line
     aux["time_ms"][9] = 2**63  # an impossible time code
-    keep = _plausible_times(aux)
+    keep = plausible_times(aux)
     assert keep.tolist().count(False) == 1 and not keep[9]
     aux = aux[keep]
-    assert _on_the_clock(aux, d.first_line_counter).tolist().count(False) == 1
-    _epoch, t, _period, _unc = _line_times(aux, d.first_line_counter, d.line_counter.size)
+    assert on_the_clock(aux, d.first_line_counter).tolist().count(False) == 1
+    _epoch, t, _period, _unc = line_clock(aux, d.first_line_counter, d.line_counter.size)
     assert np.abs(t - acq_p.line_times_s).max() < LINE_TIME_TOL_S
+
+
+#: A full pass imaged in P: 11 min of lines, the station's longest recording.
+_PASS_LINES = int(11 * 60 / 1.504e-3)
+#: Between the two fits of the codes on that strip (measured: the feasible-set middle is
+#: within 0.3 µs of the true line times, its 3500 records pinning the clock; the
+#: least-squares line through codes + 0.5 ms misses by 71 µs, the bias of the truncation's
+#: pattern): a bound of 10 µs passes the first only.
+LONG_STRIP_CLOCK_TOL_S = 10e-6
+
+
+def test_line_clock_on_a_long_strip_beats_least_squares() -> None:
+    """The clock of a whole pass from its aux records (one per 125 ms gyro sample, each
+    with its 1 ms truncated codes): the feasible-set middle (Westin's sub-millisecond
+    recovery) meets a bound that the least-squares fit misses."""
+    from station.srrs.clock import line_clock
+    from station.telemetry import format as tf
+
+    period_s, first_line = 1.504e-3 * (1 + 3e-7), 123_456  # a clock slightly off nominal
+    t0_s = 37_000.123_456_7  # the first line's start, s into the day
+    epoch = np.datetime64("1998-02-20", "ms")
+    t_rec = np.arange(0.0, _PASS_LINES * period_s - 0.2, 0.125)  # gyro samples
+    k = np.ceil((t_rec - 1e-12) / period_s).astype(np.int64)  # first line at or after
+    aux = np.zeros(t_rec.size, tf.AUX_DTYPE)
+    aux["time_ms"] = tf.ms_since_cnes_epoch(epoch, t0_s + t_rec)
+    aux["line"] = first_line + k
+    aux["line_time_ms"] = tf.ms_since_cnes_epoch(epoch, t0_s + k * period_s)
+    truth = t0_s + np.arange(_PASS_LINES) * period_s
+    miss = {}
+    for method in ("feasible", "least_squares"):
+        _e, t, _p, _u = line_clock(aux, first_line, _PASS_LINES, method=method)
+        miss[method] = float(np.abs(t - truth).max())
+    assert miss["feasible"] < LONG_STRIP_CLOCK_TOL_S < miss["least_squares"], miss

@@ -8,12 +8,13 @@ import pyproj
 
 from levels.errors import GeometryError
 from levels.geometry.ephemeris import Ephemeris
+from levels.spot import ORBIT_INCLINATION_DEG, ORBIT_PERIOD_MIN
 
 __all__ = ["ascending_node_lon_rad", "map_crs"]
 
 #: SPOT 1–4 orbit for the Space Oblique Mercator: inclination and revolution period.
-_SPOT_INCLINATION_DEG = 98.7
-_SPOT_PERIOD_DAYS = 101.4 / 1440.0
+_SPOT_INCLINATION_DEG = ORBIT_INCLINATION_DEG
+_SPOT_PERIOD_DAYS = ORBIT_PERIOD_MIN / 1440.0
 
 
 def map_crs(kind: str, centre_lat_rad: float, centre_lon_rad: float,

@@ -49,6 +49,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "apply",
+    "apply_inverse",
     "ecef_from_eci",
     "ecef_from_orbital",
     "ecef_to_eci",
@@ -167,6 +169,21 @@ def ecef_from_eci(era_rad: ArrayLike) -> NDArray[np.float64]:
     return rot_z(-np.asarray(era_rad, dtype=np.float64))
 
 
+def apply(rot: ArrayLike, vec: ArrayLike) -> NDArray[np.float64]:
+    """``rot @ vec`` for stacks: rotations ``(N, 3, 3)`` or ``(3, 3)`` applied to vectors
+    ``(N, 3)`` or ``(3,)``, one matrix per vector or one for all (the module's convention:
+    ``v_to = apply(to_from_from, v_from)``)."""
+    return np.einsum("...ij,...j->...i", np.asarray(rot, dtype=np.float64),
+                     np.asarray(vec, dtype=np.float64))
+
+
+def apply_inverse(rot: ArrayLike, vec: ArrayLike) -> NDArray[np.float64]:
+    """``rotᵀ @ vec`` for stacks, as :func:`apply`: the inverse rotation, without forming
+    the transpose (``v_from = apply_inverse(to_from_from, v_to)``)."""
+    return np.einsum("...ji,...j->...i", np.asarray(rot, dtype=np.float64),
+                     np.asarray(vec, dtype=np.float64))
+
+
 def eci_to_ecef(
     r_eci_m: ArrayLike, v_eci_m_per_s: ArrayLike, era_rad: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -180,8 +197,8 @@ def eci_to_ecef(
         Earth rotation angle at each instant, shape ``(N,)`` (``levels.geometry.times``).
     """
     rot = ecef_from_eci(era_rad)
-    r = np.einsum("...ij,...j->...i", rot, np.asarray(r_eci_m, dtype=np.float64))
-    v = np.einsum("...ij,...j->...i", rot, np.asarray(v_eci_m_per_s, dtype=np.float64))
+    r = apply(rot, r_eci_m)
+    v = apply(rot, v_eci_m_per_s)
     omega = np.array([0.0, 0.0, EARTH_ROTATION_RATE_RAD_PER_S])
     return r, v - np.cross(omega, r)
 
@@ -190,10 +207,8 @@ def ecef_to_eci(
     r_ecef_m: ArrayLike, v_ecef_m_per_s: ArrayLike, era_rad: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Inverse of :func:`eci_to_ecef`: ``r = Rᵀ r'``, ``v = Rᵀ (v' + ω × r')``."""
-    rot_t = np.swapaxes(ecef_from_eci(era_rad), -1, -2)
+    rot = ecef_from_eci(era_rad)
     r_ecef = np.asarray(r_ecef_m, dtype=np.float64)
     omega = np.array([0.0, 0.0, EARTH_ROTATION_RATE_RAD_PER_S])
     v_inertial = np.asarray(v_ecef_m_per_s, dtype=np.float64) + np.cross(omega, r_ecef)
-    r = np.einsum("...ij,...j->...i", rot_t, r_ecef)
-    v = np.einsum("...ij,...j->...i", rot_t, v_inertial)
-    return r, v
+    return apply_inverse(rot, r_ecef), apply_inverse(rot, v_inertial)

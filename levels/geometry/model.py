@@ -36,7 +36,7 @@ from levels.errors import GeometryError
 from levels.geometry.attitude import Attitude
 from levels.geometry.ellipsoid import WGS84, Ellipsoid
 from levels.geometry.ephemeris import Ephemeris
-from levels.geometry.frames import ecef_from_orbital, orbital_from_body
+from levels.geometry.frames import apply, apply_inverse, ecef_from_orbital, orbital_from_body
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch
 
@@ -164,7 +164,7 @@ class PushbroomModel:
         t_u, at = np.unique(self.clock.time_s(line_a.ravel()), return_inverse=True)
         r, axes, body = (x[at] for x in self._orientation(t_u))
         u = self.look_angles.directions(col_a.ravel())
-        los = np.einsum("nij,nj->ni", axes, np.einsum("nij,nj->ni", body, u))
+        los = apply(axes, apply(body, u))
         return r, los
 
     def image_to_ground(
@@ -203,7 +203,7 @@ class PushbroomModel:
         """Along-track angle residual and column of ground points seen from ``line``."""
         r, axes, body = self._orientation(self.clock.time_s(line))
         # sensor_from_ecef = bodyᵀ · axesᵀ, applied in turn
-        w = np.einsum("nji,nj->ni", body, np.einsum("nji,nj->ni", axes, g_ecef_m - r))
+        w = apply_inverse(body, apply_inverse(axes, g_ecef_m - r))
         with np.errstate(invalid="ignore", divide="ignore"):
             # Look direction ∝ (−tan ψy, tan ψx, −1): divide by −w_z (> 0 below the sensor).
             depth = -w[:, 2]

@@ -19,7 +19,6 @@ scene and channel:
 
 from __future__ import annotations
 
-import json
 import platform
 import tempfile
 import time
@@ -28,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from levels.files import write_json
+from levels.spot import MODES
 from station import __version__
 
 __all__ = ["FULL_BIT_RATE_BIT_PER_S", "calibrate", "write_service_times"]
@@ -37,7 +38,7 @@ _REDUCED = {  # mode: detectors, lines, bit rate (a share of 25 Mbit/s like the 
     "P": (1000, 1000, 4.0),
     "XS": (500, 500, 4.0),
 }
-_FULL_PIXELS = {"P": 6000 * 6000, "XS": 3 * 3000 * 3000}
+_FULL_PIXELS = {m: MODES[m].pixels_per_scene for m in _REDUCED}
 
 
 def _measure(mode: str, detectors: int, lines: int, rate_mbps: float, tmp: Path
@@ -98,8 +99,7 @@ def calibrate() -> dict[str, Any]:
 
 
 def write_service_times(path: str | Path, table: dict[str, Any]) -> Path:
-    """Write a service-time table as JSON."""
+    """Write a service-time table as JSON (atomically)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(table, indent=2) + "\n")
-    return p
+    return write_json(p, table)

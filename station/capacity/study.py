@@ -22,12 +22,12 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from levels.files import atomic_path, plain, write_text
 from station.capacity.config import CapacityScenario, with_value
 from station.capacity.model import LEVELS, Replication, Service, simulate
 from station.capacity.stats import mean_ci
@@ -105,11 +105,9 @@ def run_study(scn: CapacityScenario, out_dir: str | Path | None = None,
 
 
 def _write(out: Path, summary: dict[str, Any], first: Replication | None) -> None:
-    tmp = out / ".summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=2, default=_plain) + "\n")
-    os.replace(tmp, out / "summary.json")
+    write_text(out / "summary.json", json.dumps(summary, indent=2, default=_plain) + "\n")
     for kind in ("stages", "levels"):
-        with open(out / f"{kind}.csv", "w", newline="") as f:
+        with atomic_path(out / f"{kind}.csv") as tmp, open(tmp, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow([summary["sweep"] or "value", kind[:-1], "figure", "mean", "ci95", "n"])
             for run in summary["runs"]:
@@ -117,7 +115,7 @@ def _write(out: Path, summary: dict[str, Any], first: Replication | None) -> Non
                     for k, v in figs.items():
                         w.writerow([run["value"], name, k, _plain(v["mean"]),
                                     _plain(v["ci95"]), v["n"]])
-    with open(out / "station.csv", "w", newline="") as f:
+    with atomic_path(out / "station.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow([summary["sweep"] or "value", "figure", "mean", "ci95", "n"])
         for run in summary["runs"]:
@@ -126,7 +124,7 @@ def _write(out: Path, summary: dict[str, Any], first: Replication | None) -> Non
     if first is not None:
         names = list(first.series)
         t = first.series[names[0]][0]
-        with open(out / "queues.csv", "w", newline="") as f:
+        with atomic_path(out / "queues.csv") as tmp, open(tmp, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(["day", *names])
             for i, ti in enumerate(t):
@@ -134,9 +132,13 @@ def _write(out: Path, summary: dict[str, Any], first: Replication | None) -> Non
 
 
 def _plain(x: Any) -> Any:
-    if isinstance(x, float | np.floating):
-        return None if not math.isfinite(float(x)) else round(float(x), 6)
-    return x
+    """Figures as the CSVs and summary.json hold them: to 6 decimals, NaN as empty/null."""
+    return plain(x, 6)
+
+
+def _savefig(fig: Any, path: Path) -> None:
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
 
 
 def _plots(out: Path, summary: dict[str, Any], first: Replication | None) -> None:
@@ -154,7 +156,7 @@ def _plots(out: Path, summary: dict[str, Any], first: Replication | None) -> Non
         ax.set(xlabel="day", ylabel="jobs waiting", title=f"{name}: queues (replication 0)")
         ax.legend(loc="upper left", fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / "queues.png", dpi=110)
+        _savefig(fig, out / "queues.png")
         plt.close(fig)
     run = summary["runs"][0]
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -167,7 +169,7 @@ def _plots(out: Path, summary: dict[str, Any], first: Replication | None) -> Non
            + (f" ({summary['sweep']} = {run['value']})" if summary["sweep"] else ""))
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "latency.png", dpi=110)
+    _savefig(fig, out / "latency.png")
     plt.close(fig)
     if summary["sweep"]:
         _sweep_plot(out, summary, plt)
@@ -198,7 +200,7 @@ def _sweep_plot(out: Path, summary: dict[str, Any], plt: Any) -> None:
     lines2 = ax2.get_legend_handles_labels()
     ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=8, loc="upper right")
     fig.tight_layout()
-    fig.savefig(out / "sweep.png", dpi=110)
+    _savefig(fig, out / "sweep.png")
     plt.close(fig)
 
 

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.ephemeris import Ephemeris
-from levels.geometry.frames import ecef_from_orbital
+from levels.geometry.frames import apply, ecef_from_orbital
 from levels.geometry.model import LineClock, PushbroomModel
 from levels.geometry.sensor import mirror_angle_rad
 from levels.geometry.times import Epoch
@@ -145,8 +145,8 @@ def make_bulletins(
     axes = ecef_from_orbital(r, v)  # columns X (across), Y (along), Z (radial)
     along_across_radial = np.asarray(bias_m, float) + np.outer(t - t_ref_s, drift_m_per_s)
     local = along_across_radial[:, [1, 0, 2]]  # to (X, Y, Z) order
-    dr = np.einsum("nij,nj->ni", axes, local)
-    dv = np.einsum("nij,j->ni", axes, np.asarray(drift_m_per_s, float)[[1, 0, 2]])
+    dr = apply(axes, local)
+    dv = apply(axes, np.asarray(drift_m_per_s, float)[[1, 0, 2]])
     return Ephemeris(t, r + dr, v + dv)
 
 

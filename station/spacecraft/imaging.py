@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from levels.geometry.attitude import Attitude
 from levels.geometry.ellipsoid import WGS84
-from levels.geometry.frames import ecef_from_orbital, orbital_from_body
+from levels.geometry.frames import apply, ecef_from_orbital, orbital_from_body
 from station.spacecraft.instrument import COUNTS_PER_RADIANCE, BandModel, Hrv
 from station.spacecraft.orbit import TruthOrbit
 from station.spacecraft.world import BANDS, World, _reflectance, _surface, _to_xy
@@ -240,7 +240,7 @@ def trace_pixels(
     t, col = np.broadcast_arrays(np.atleast_1d(np.asarray(line_time_s, float)),
                                  np.atleast_1d(np.asarray(column, float)))
     geo = line_geometry(orbit, attitude, t)
-    dirs = np.einsum("nij,nj->ni", geo.ecef_from_sensor, band.look_true.directions(col))
+    dirs = apply(geo.ecef_from_sensor, band.look_true.directions(col))
     out, iters = _trace_rays(geo.position_ecef_m, dirs, *world.terrain_args())
     return out, iters >= 0
 

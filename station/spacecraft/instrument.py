@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from levels.geometry.sensor import LookAngleTable, mirror_angle_rad
+from levels.spot import MODES
 from station.scenario import CalibrationConfig, InstrumentConfig
 
 __all__ = [
@@ -45,9 +46,7 @@ __all__ = [
 P_PITCH_RAD = 1.1987e-5
 TWIN_SEPARATION_RAD = np.radians(3.926)
 COUNTS_PER_RADIANCE = 900.0
-P_LINE_PERIOD_S = 1.504e-3
-XS_LINE_PERIOD_S = 3.008e-3
-_CCD_USEFUL = 1500  # useful P detectors per CCD (6000 / 4)
+_CCD_USEFUL = MODES["P"].detectors // 4  # useful P detectors per CCD (1500)
 #: Along- and across-track offsets of XS bands 1..3 (rad): registration errors of about
 #: 0.1–0.3 XS pixel between the bands' lines, as on the real focal plane.
 _XS_BAND_OFFSETS_RAD = ((0.0, 0.0), (4.0e-6, -2.0e-6), (-6.0e-6, 3.0e-6))
@@ -106,7 +105,8 @@ def _smooth_error(n: int, rms_end: float, rng: np.random.Generator) -> NDArray[n
 
 def build_hrv(cfg: InstrumentConfig, cal: CalibrationConfig, rng: np.random.Generator) -> Hrv:
     """The HRV of a scenario: truth and nominal tables and radiometry (module docstring)."""
-    full = 6000 if cfg.mode == "P" else 3000
+    mode = MODES[cfg.mode]
+    full = mode.detectors
     n = cfg.n_detectors or full
     count = cfg.detector_count or n - cfg.first_detector
     scale = full / n
@@ -118,11 +118,12 @@ def build_hrv(cfg: InstrumentConfig, cal: CalibrationConfig, rng: np.random.Gene
         psi_y0 += (-0.5 if cfg.hrv == 1 else 0.5) * TWIN_SEPARATION_RAD
     # full-resolution detector number of each rendered detector → its CCD (P: 4 × 1500)
     full_index = (j + 0.5) * scale
-    ccd = np.minimum((full_index * (6000 / full) // _CCD_USEFUL).astype(int), 3)
+    ccd = np.minimum((full_index * (MODES["P"].detectors / full) // _CCD_USEFUL).astype(int),
+                     3)
     butting = np.asarray(cfg.butting_offsets_rad)[ccd]
     window = slice(cfg.first_detector, cfg.first_detector + count)
     column = np.arange(count, dtype=np.float64)
-    names = ("P",) if cfg.mode == "P" else ("XS1", "XS2", "XS3")
+    names = mode.bands
     bands = []
     for b, name in enumerate(names):
         dx, dy = (0.0, 0.0) if cfg.mode == "P" else _XS_BAND_OFFSETS_RAD[b]
@@ -143,7 +144,7 @@ def build_hrv(cfg: InstrumentConfig, cal: CalibrationConfig, rng: np.random.Gene
             table_offset_counts=(offset + cal.offset_error_counts * rng.standard_normal(n))[
                 window],
         ))
-    period = P_LINE_PERIOD_S if cfg.mode == "P" else XS_LINE_PERIOD_S
+    period = mode.line_period_s
     n_lines = cfg.n_lines or n  # one 60 km scene: square, as many lines as detectors
     return Hrv(
         number=cfg.hrv, mode=cfg.mode, mirror_step=cfg.mirror_step, twin=twin,

@@ -44,6 +44,7 @@ from scipy.integrate import solve_ivp
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.frames import (
     EARTH_ROTATION_RATE_RAD_PER_S,
+    apply,
     ecef_from_orbital,
     ecef_to_eci,
     eci_to_ecef,
@@ -471,7 +472,7 @@ def swath_centre_view(mirror_rad: float, height_m: float) -> ViewPoint:
 
     def view(orbit: TruthOrbit, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
         r, v = orbit.state_ecef(t_s)
-        los = np.einsum("nij,j->ni", ecef_from_orbital(r, v), u)
+        los = apply(ecef_from_orbital(r, v), u)
         point, _ok = WGS84.intersect(r, los, height_m)
         lat, lon, _h = WGS84.to_geodetic(point)
         return lat, lon

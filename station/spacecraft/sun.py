@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from levels.geometry.frames import rot_z
+from levels.geometry.frames import apply, rot_z
 from levels.geometry.times import Epoch
 
 __all__ = ["sun_direction_ecef", "sun_direction_eci"]
@@ -45,11 +45,11 @@ def sun_direction_eci(epoch: Epoch, t_s: ArrayLike) -> NDArray[np.float64]:
     t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
     u_equinox = _sun_equatorial(epoch.days_since_j2000(t))
     shift = epoch.era_rad(t) - epoch.gmst_rad(t)
-    return np.einsum("nij,nj->ni", rot_z(shift), u_equinox)
+    return apply(rot_z(shift), u_equinox)
 
 
 def sun_direction_ecef(epoch: Epoch, t_s: ArrayLike) -> NDArray[np.float64]:
     """Unit vectors to the Sun in ECEF: the apparent Sun as seen from the rotating Earth."""
     t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
     u_equinox = _sun_equatorial(epoch.days_since_j2000(t))
-    return np.einsum("nij,nj->ni", rot_z(-epoch.gmst_rad(t)), u_equinox)
+    return apply(rot_z(-epoch.gmst_rad(t)), u_equinox)

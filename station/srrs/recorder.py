@@ -2,15 +2,14 @@
 
 The layout is the contract between the station and the processing centre, documented in
 ``docs/l0.md`` and read back by :func:`levels.readers.l0.read_l0`. The file is written
-under a temporary name in the target directory and renamed into place only once complete
-(``os.replace`` is atomic on POSIX), so that a reader never sees half an archive.
+through :func:`levels.files.atomic_path` (a temporary name beside the target, renamed into
+place once complete), so that a reader never sees half an archive.
 Nothing depends on the clock: the same pass gives the same bytes of data.
 """
 
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
+from levels.files import atomic_path
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.sensor import LookAngleTable
 from levels.readers.l0 import L0_FORMAT, L0_VERSION
@@ -62,14 +62,8 @@ def write_l0(path: str | Path, decoded: DecodedPass, bulletins: Ephemeris,
         raise ValueError(f"{len(decoded.images)} bands decoded but ancillary for {names}")
     shift_s = float((np.datetime64(bulletin_epoch_utc, "ns")
                      - np.datetime64(decoded.epoch_utc, "ns")).astype(np.int64)) / 1e9
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with h5py.File(tmp, "w") as f:
-            _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
     return path
 
 

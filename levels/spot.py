@@ -1,0 +1,42 @@
+"""SPOT 1–4 facts, one table: the HRV's two modes and the orbit's nominal figures.
+
+Sources: ``../shared/DESIGN.md`` ("Facts to emulate"), the SPOT Geometry Handbook and the
+seeds (paper ``004_…``: 6000 P detectors of 10 m, 3000 XS of 20 m, 60 km scenes). Every
+module that needs a mode's detector count, line period, band names or nominal pixel takes
+it from :data:`MODES`; the emulator's scenario defaults, the instrument model, the
+processing centre and the capacity calibration agree by construction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["MODES", "ORBIT_ALTITUDE_M", "ORBIT_INCLINATION_DEG", "ORBIT_PERIOD_MIN",
+           "HrvMode"]
+
+#: Mean altitude at the equator, inclination and nodal period of the SPOT 1–4 orbit.
+ORBIT_ALTITUDE_M = 822e3
+ORBIT_INCLINATION_DEG = 98.7
+ORBIT_PERIOD_MIN = 101.4
+
+
+@dataclass(frozen=True)
+class HrvMode:
+    """One HRV mode: its bands, full detector count, line period and nominal pixel."""
+
+    name: str
+    bands: tuple[str, ...]
+    detectors: int
+    line_period_s: float
+    pixel_size_m: float
+
+    @property
+    def pixels_per_scene(self) -> int:
+        """Pixels of a full scene, every band: as many lines as detectors (60 km)."""
+        return len(self.bands) * self.detectors * self.detectors
+
+
+MODES: dict[str, HrvMode] = {
+    "P": HrvMode("P", ("P",), 6000, 1.504e-3, 10.0),
+    "XS": HrvMode("XS", ("XS1", "XS2", "XS3"), 3000, 3.008e-3, 20.0),
+}
