@@ -30,6 +30,7 @@ from levels.spot import MODES
 from station.errors import ScenarioError
 
 __all__ = [
+    "ERRORS_OFF",
     "AttitudeConfig",
     "BulletinConfig",
     "CalibrationConfig",
@@ -46,6 +47,7 @@ __all__ = [
     "WorldConfig",
     "describe_keys",
     "load_scenario",
+    "merge_tables",
     "read_toml",
     "scenario_from_dict",
 ]
@@ -478,6 +480,28 @@ class Scenario:
         """A path of the scenario, resolved from the scenario file's directory."""
         p = Path(relative)
         return p if p.is_absolute() else Path(self.base_dir) / p
+
+
+#: Every error source of the emulator switched off, and a flat world at the default
+#: reference height of the products: merged into a scenario's table
+#: (:func:`merge_tables`), the chain's remaining errors are its approximations alone.
+ERRORS_OFF: dict[str, dict[str, Any]] = {
+    "attitude": {"roll_offset_urad": 0.0, "pitch_offset_urad": 0.0, "yaw_offset_urad": 0.0,
+                 "drift_scale": 0.0, "jitter_amplitude_urad": [0.0, 0.0, 0.0]},
+    "bulletins": {"bias_m": [0.0, 0.0, 0.0], "drift_m_per_s": [0.0, 0.0, 0.0]},
+    "instrument": {"calibration_error_urad": 0.0},
+    "world": {"relief_m": 0.0, "base_height_m": 450.0},
+}
+
+
+def merge_tables(*tables: dict[str, Any]) -> dict[str, Any]:
+    """Scenario tables merged section by section, the later keys winning."""
+    out: dict[str, Any] = {}
+    for table in tables:
+        for section, value in table.items():
+            out[section] = ({**out.get(section, {}), **value} if isinstance(value, dict)
+                            else value)
+    return out
 
 
 def scenario_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Scenario:

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import simpy
 
 from station.capacity.config import capacity_from_dict, load_capacity, with_value
-from station.capacity.model import Shift, Stage, pass_pattern, simulate
+from station.capacity.model import Shift, pass_pattern, simulate
+from station.capacity.stage import mmc_wait_h
 from station.capacity.stats import erlang_c, erlang_c_wait_s, mean_ci, time_weighted
 from station.capacity.study import load_service, run_study
 from station.cli import main
@@ -25,29 +25,13 @@ CUIABA = ROOT / "scenarios" / "capacity" / "cuiaba.toml"
 LITTLE_REL = 0.02
 
 
-def _mmc_wait_h(lam: float, mu: float, c: int, n_jobs: int, seed: int) -> float:
-    """Mean wait of an M/M/c queue simulated through the model's own Stage."""
-    env = simpy.Environment()
-    stage = Stage(env, "mmc", c, warmup_s=200.0 / lam)  # a warm-up of 200 arrivals
-    rng = np.random.default_rng(seed)
-
-    def arrivals():
-        for _ in range(n_jobs):
-            yield env.timeout(rng.exponential(1.0 / lam))
-            env.process(stage.serve(rng.exponential(1.0 / mu)))
-
-    env.process(arrivals())
-    env.run()
-    return stage.figures(env.now)["wait_mean_h"]
-
-
 @pytest.mark.parametrize(("c", "rho"), [(1, 0.7), (3, 0.85)])
 def test_an_mmc_stage_reproduces_erlang_c(c: int, rho: float) -> None:
     """Poisson arrivals, exponential service, c servers: the mean wait of the replications
     holds Erlang C's within their 95 % confidence interval."""
     mu = 1.0 / 3600.0  # one job an hour per server
     lam = rho * c * mu
-    waits = [_mmc_wait_h(lam, mu, c, 6000, seed) for seed in range(10)]
+    waits = [mmc_wait_h(lam, mu, c, 6000, seed) for seed in range(10)]
     mean, half = mean_ci(waits)
     theory_h = erlang_c_wait_s(lam, mu, c) / 3600.0
     assert abs(mean - theory_h) <= half, (mean, half, theory_h)

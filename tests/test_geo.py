@@ -15,7 +15,7 @@ from levels.geo.level2a import INVERSE_METHODS, butting_columns, level2a_geometr
 from levels.geo.polynomial import Poly1D, Poly2D
 from levels.geo.scenes import cut_scenes, pass_geometry
 from levels.process import nominal_pixel_size_m
-from station.scenario import scenario_from_dict
+from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
 from station.sipc.truth import Truth, checkpoints_1b, checkpoints_2a
 from station.spacecraft.emulator import emulate
 
@@ -24,24 +24,6 @@ MAX_INVERSE_PX = 0.05
 #: The issue's bound on checkpoint errors of an unbiased chain (errors switched off).
 UNBIASED_PX = 0.5
 H_REF_M = 450.0
-#: Every error source of the emulator switched off; a flat world at the reference height.
-ERRORS_OFF = {
-    "attitude": {"roll_offset_urad": 0.0, "pitch_offset_urad": 0.0, "yaw_offset_urad": 0.0,
-                 "drift_scale": 0.0, "jitter_amplitude_urad": [0.0, 0.0, 0.0]},
-    "bulletins": {"bias_m": [0.0, 0.0, 0.0], "drift_m_per_s": [0.0, 0.0, 0.0]},
-    "instrument": {"calibration_error_urad": 0.0},
-    "world": {"relief_m": 0.0, "base_height_m": H_REF_M},
-}
-
-
-def _merge(*parts: dict) -> dict:
-    out: dict = {}
-    for p in parts:
-        for sec, kv in p.items():
-            out[sec] = {**out.get(sec, {}), **kv} if isinstance(kv, dict) else kv
-    return out
-
-
 def _scene(data: dict):
     acq = emulate(scenario_from_dict(data), render=False)
     b = acq.hrv.bands[0]
@@ -148,7 +130,7 @@ def test_2a_grid_and_kernel_arithmetic_agree(nadir) -> None:
 
 
 def _errors(over: dict):
-    data = _merge({"instrument": {"n_detectors": 300}}, over)
+    data = merge_tables({"instrument": {"n_detectors": 300}}, over)
     acq, scene, res = _scene(data)
     truth = Truth(acq, 0)
     g1 = level1b_geometry(scene, res)
@@ -160,7 +142,7 @@ def _errors(over: dict):
 
 @pytest.mark.parametrize("mirror_step", [48, 93])
 def test_chain_is_unbiased_with_errors_off(mirror_step) -> None:
-    e1, e2, res = _errors(_merge(ERRORS_OFF, {"instrument": {"mirror_step": mirror_step,
+    e1, e2, res = _errors(merge_tables(ERRORS_OFF, {"instrument": {"mirror_step": mirror_step,
                                                              "n_detectors": 6000}}))
     assert e2["max_px"] < UNBIASED_PX
     # 1B: its mean is unbiased; its spread is its cubics' approximation error, measured
@@ -172,10 +154,10 @@ def test_chain_is_unbiased_with_errors_off(mirror_step) -> None:
 def test_default_errors_are_the_sum_of_their_sources() -> None:
     """How the size of the default errors is checked: each source alone gives the
     displacement it implies, and together they add up."""
-    att_only = _merge(ERRORS_OFF, {"attitude": {"roll_offset_urad": 150.0,
+    att_only = merge_tables(ERRORS_OFF, {"attitude": {"roll_offset_urad": 150.0,
                                                 "pitch_offset_urad": -200.0}})
-    eph_only = _merge(ERRORS_OFF, {"bulletins": {"bias_m": [150.0, -100.0, 0.0]}})
-    both = _merge(att_only, {"bulletins": eph_only["bulletins"]})
+    eph_only = merge_tables(ERRORS_OFF, {"bulletins": {"bias_m": [150.0, -100.0, 0.0]}})
+    both = merge_tables(att_only, {"bulletins": eph_only["bulletins"]})
     _, a, _ = _errors(att_only)
     _, e, _ = _errors(eph_only)
     _, b, _ = _errors(both)
@@ -193,7 +175,7 @@ def test_xs_bands_registered_each_through_its_own_geometry() -> None:
     """XS: the three bands' look angles differ by tenths of a pixel; each gets its own 1B
     polynomials and 2A grids on the first band's output grid, and every band's checkpoints
     fall where the unbiased chain puts them."""
-    acq = emulate(scenario_from_dict(_merge(ERRORS_OFF, {"instrument": {"mode": "XS",
+    acq = emulate(scenario_from_dict(merge_tables(ERRORS_OFF, {"instrument": {"mode": "XS",
                                                                       "n_detectors": 1500}})),
                   render=False)
     looks = {b.name: b.look_nominal for b in acq.hrv.bands}

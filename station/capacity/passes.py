@@ -36,8 +36,9 @@ def pass_pattern(gs: GroundStationConfig) -> PassPattern:
     orbit has the same pattern, delayed.
     """
     from station.scenario import OrbitConfig, PassConfig, WorldConfig
-    from station.spacecraft.orbit import TruthOrbit, mean_element_orbit, swath_centre_view
+    from station.spacecraft.orbit import TruthOrbit
     from station.spacecraft.passes import find_passes
+    from station.spacecraft.placement import mean_element_orbit, swath_centre_view
 
     # SPOT's phased orbit, placed as a default pass would place it (nadir view on the
     # default target); only its reference state matters: the cycle is propagated from it

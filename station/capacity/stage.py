@@ -19,7 +19,7 @@ import simpy
 
 from station.capacity.stats import time_weighted
 
-__all__ = ["Process", "Shift", "Stage"]
+__all__ = ["Process", "Shift", "Stage", "mmc_wait_h"]
 
 _DAY = 86400.0
 #: A simpy process: a generator of events.
@@ -168,3 +168,22 @@ class Stage:
             "little_L": in_stage,
             "little_lambda_W": lam * (float(s.mean()) if s.size else 0.0),
         }
+
+
+def mmc_wait_h(arrival_rate: float, service_rate: float, c: int, n_jobs: int,
+               seed: int) -> float:
+    """Mean wait (h) of an M/M/c queue simulated through :class:`Stage`: Poisson arrivals,
+    exponential service, ``c`` units, a warm-up of 200 arrivals (the check of the stage
+    against Erlang C)."""
+    env = simpy.Environment()
+    stage = Stage(env, "mmc", c, warmup_s=200.0 / arrival_rate)
+    rng = np.random.default_rng(seed)
+
+    def arrivals() -> Process:
+        for _ in range(n_jobs):
+            yield env.timeout(rng.exponential(1.0 / arrival_rate))
+            env.process(stage.serve(rng.exponential(1.0 / service_rate)))
+
+    env.process(arrivals())
+    env.run()
+    return stage.figures(env.now)["wait_mean_h"]

@@ -29,17 +29,11 @@ from station.spacecraft.attitude import GyroRecord, TruthAttitude, sample_gyros
 from station.spacecraft.dem import read_hgt
 from station.spacecraft.imaging import RenderedBand, render_band, trace_pixels
 from station.spacecraft.instrument import TWIN_SEPARATION_RAD, Hrv, build_hrv
-from station.spacecraft.orbit import (
-    OrbitError,
-    Tle,
-    TruthOrbit,
-    mean_element_orbit,
-    read_tle,
-    swath_centre_view,
-    tle_state_eci,
-)
+from station.spacecraft.orbit import OrbitError, TruthOrbit
 from station.spacecraft.passes import Pass, find_passes
+from station.spacecraft.placement import mean_element_orbit, swath_centre_view
 from station.spacecraft.sun import sun_direction_ecef
+from station.spacecraft.tle import Tle, read_tle, tle_state_eci
 from station.spacecraft.world import World
 
 __all__ = ["Acquisition", "ControlPoints", "emulate", "emulate_pass", "make_bulletins",

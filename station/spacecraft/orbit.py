@@ -21,20 +21,13 @@ Mean elements
     (Vallado, *Fundamentals of Astrodynamics*, eqs. 9-41 and 9-42), so that ``altitude_km``
     and ``inclination_deg`` mean what a mission analyst means by them.
 
-Two-line elements
-    The TLE's Brouwer mean motion is turned into a semi-major axis (Hoots & Roehrich,
-    Spacetrack Report No. 3, "un-Kozai"), its elements into a state in TEME, and TEME into
-    ECI by a rotation about z of ERA − GMST (both frames share the pole to within
-    nutation, < 20 m at this altitude). The mean elements are used as osculating ones: the
-    truth then differs from SGP4's by a few kilometres, which does not matter — the truth is
-    what we integrate, the TLE only places it.
+Two-line elements are read and turned into a state by :mod:`station.spacecraft.tle`; the
+orbit is placed over a target by :mod:`station.spacecraft.placement`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -44,34 +37,24 @@ from scipy.integrate import solve_ivp
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.frames import (
     EARTH_ROTATION_RATE_RAD_PER_S,
-    apply,
-    ecef_from_orbital,
     ecef_to_eci,
     eci_to_ecef,
-    rot_z,
 )
-from levels.geometry.sensor import look_direction
 from levels.geometry.times import Epoch
 from station.errors import OrbitError
-from station.scenario import OrbitConfig, PassConfig
 
 __all__ = [
     "GM_M3_PER_S2",
     "J2",
     "MEAN_SUN_RATE_RAD_PER_S",
     "OrbitError",
-    "Tle",
     "TruthOrbit",
-    "mean_element_orbit",
-    "nadir_point",
+    "ascending_node_ecef",
     "node_state",
     "phased_targets",
-    "place_orbit",
     "propagate",
-    "read_tle",
     "secular_targets",
     "state_from_elements",
-    "swath_centre_view",
 ]
 
 GM_M3_PER_S2 = 3.986004418e14  # WGS84 (IERS 2010)
@@ -231,92 +214,6 @@ def node_state(
     )
 
 
-@dataclass(frozen=True)
-class Tle:
-    """One two-line element set (TEME, Brouwer mean motion)."""
-
-    name: str
-    epoch_utc: np.datetime64
-    i_rad: float
-    raan_rad: float
-    e: float
-    argp_rad: float
-    mean_anomaly_rad: float
-    mean_motion_rad_per_s: float
-
-    def semi_major_axis_m(self) -> float:
-        """Un-Kozai'd semi-major axis (Spacetrack Report No. 3, SGP4 initialisation)."""
-        ke = np.sqrt(GM_M3_PER_S2 / RE_M**3)  # per second, in Earth radii
-        n0 = self.mean_motion_rad_per_s
-        a1 = (ke / n0) ** (2 / 3)
-        c = 0.75 * J2 * (3 * np.cos(self.i_rad) ** 2 - 1) / (1 - self.e**2) ** 1.5
-        d1 = c / a1**2
-        a0 = a1 * (1 - d1 / 3 - d1**2 - 134 / 81 * d1**3)
-        d0 = c / a0**2
-        return float(a0 / (1 - d0) * RE_M)
-
-
-def _tle_checksum_ok(line: str) -> bool:
-    total = sum(int(c) if c.isdigit() else (1 if c == "-" else 0) for c in line[:68])
-    return len(line) >= 69 and line[68].isdigit() and total % 10 == int(line[68])
-
-
-def read_tle(path: str | Path) -> list[Tle]:
-    """Every element set of a TLE file (2- or 3-line records); checksums are verified."""
-    p = Path(path)
-    try:
-        lines = [ln.rstrip() for ln in p.read_text().splitlines() if ln.strip()]
-    except FileNotFoundError:
-        raise OrbitError(f"TLE file {p} not found") from None
-    out = []
-    name = ""
-    k = 0
-    while k < len(lines):
-        ln = lines[k]
-        if ln.startswith("1 ") and k + 1 < len(lines) and lines[k + 1].startswith("2 "):
-            l1, l2 = ln, lines[k + 1]
-            for number, text in ((1, l1), (2, l2)):
-                if not _tle_checksum_ok(text):
-                    raise OrbitError(f"{p}: line {number} of TLE {name!r} fails its checksum")
-            try:
-                yy = int(l1[18:20])
-                year = 1900 + yy if yy >= 57 else 2000 + yy
-                doy = float(l1[20:32])
-                epoch = np.datetime64(f"{year}-01-01", "ns") + np.timedelta64(
-                    round((doy - 1) * 86400e9), "ns")
-                out.append(Tle(
-                    name=name or l1[2:7].strip(),
-                    epoch_utc=epoch,
-                    i_rad=np.radians(float(l2[8:16])),
-                    raan_rad=np.radians(float(l2[17:25])),
-                    e=float("0." + l2[26:33].strip()),
-                    argp_rad=np.radians(float(l2[34:42])),
-                    mean_anomaly_rad=np.radians(float(l2[43:51])),
-                    mean_motion_rad_per_s=float(l2[52:63]) * 2 * np.pi / 86400.0,
-                ))
-            except ValueError as exc:
-                raise OrbitError(f"{p}: TLE {name!r} has a malformed field ({exc})") from None
-            name = ""
-            k += 2
-        else:
-            name = ln[2:].strip() if ln.startswith("0 ") else ln.strip()
-            k += 1
-    if not out:
-        raise OrbitError(f"{p}: no two-line element set found")
-    return out
-
-
-def tle_state_eci(tle: Tle, epoch: Epoch) -> tuple[float, NDArray, NDArray]:
-    """Time (s since ``epoch``), position and velocity in ECI of a TLE's elements."""
-    r_teme, v_teme = state_from_elements(
-        tle.semi_major_axis_m(), tle.e, tle.i_rad, tle.raan_rad, tle.argp_rad,
-        tle.mean_anomaly_rad,
-    )
-    t = float(epoch.seconds(tle.epoch_utc))
-    turn = rot_z(epoch.era_rad(t) - epoch.gmst_rad(t))  # TEME → ECI (module docstring)
-    return t, turn @ r_teme, turn @ v_teme
-
-
 @dataclass(frozen=True, eq=False)
 class TruthOrbit:
     """The integrated orbit over ``[t_start_s, t_end_s]`` (seconds since ``epoch``).
@@ -380,118 +277,11 @@ class TruthOrbit:
                    t_end_s)
 
 
-ViewPoint = Callable[["TruthOrbit", NDArray[np.float64]], tuple[NDArray, NDArray]]
-
-
-def nadir_point(orbit: TruthOrbit, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-    """Geodetic latitude and longitude (rad) below the satellite (ellipsoid normal)."""
-    r, _ = orbit.state_ecef(t_s)
-    lat, lon, _h = WGS84.to_geodetic(r)
-    return lat, lon
-
-
-def _wrap(angle: ArrayLike) -> NDArray[np.float64]:
-    return np.angle(np.exp(1j * np.asarray(angle, dtype=np.float64)))
-
-
-def _crossing(orbit: TruthOrbit, view: ViewPoint, lat_rad: float, t_guess_s: float,
-              ) -> tuple[float, float]:
-    """Time near ``t_guess_s`` at which the view crosses ``lat_rad``, and its longitude."""
-    t = t_guess_s
-    for _ in range(8):  # secant on time; the view's latitude changes by ~6e-3°/s
-        dt = 0.5
-        (la, lb), _lons = view(orbit, np.array([t, t + dt]))
-        step = (lat_rad - la) / ((lb - la) / dt)
-        t += step
-        if abs(step) < 1e-6:
-            break
-    _lat, lon = view(orbit, np.array([t]))
-    return t, float(lon[0])
-
-
-def place_orbit(
-    epoch: Epoch,
-    a_m: float,
-    i_rad: float,
-    e: float,
-    ltdn_h: float,
-    target_lat_rad: float,
-    target_lon_rad: float,
-    span_s: tuple[float, float],
-    view: ViewPoint = nadir_point,
-) -> tuple[TruthOrbit, float]:
-    """A truth orbit whose descending pass on the epoch's day puts ``view`` on the target.
-
-    The osculating node state (``a_m``, ``i_rad``, ``e``) comes from :func:`node_state`; the
-    node's right ascension keeps the mean local time of the ascending node at
-    ``ltdn_h + 12`` h (Ω = ERA + 2π (LTAN/24 − UT/1 d), so that λ_node = Ω − ERA is the
-    longitude where the mean Sun's hour angle is LTAN − 12 h). Along the descending branch
-    the ground track crosses latitude φ at longitude λ = 2π (LTAN − UT)/24 h + Δα(u): the
-    UT of the crossing is solved in closed form, then refined by Newton on the integrated
-    orbit until ``view`` crosses the target latitude within 1e-9 rad of its longitude.
-
-    Returns the orbit over ``span_s`` (seconds since ``epoch``) and the time at which the
-    view is on the target.
-    """
-    ltan_turns = (ltdn_h + 12.0) / 24.0
-    sin_u = np.sin(target_lat_rad) / np.sin(i_rad)
-    if abs(sin_u) > 1:
-        raise OrbitError(
-            f"target latitude {np.degrees(target_lat_rad):.2f}° is beyond the orbit's "
-            f"reach (inclination {np.degrees(i_rad):.2f}°)"
-        )
-    u = np.pi - np.arcsin(sin_u)  # descending branch
-    d_alpha = np.arctan2(np.cos(i_rad) * np.sin(u), np.cos(u))
-    period = 2 * np.pi * np.sqrt(a_m**3 / GM_M3_PER_S2)
-    ut_turns = np.mod(ltan_turns - (target_lon_rad - d_alpha) / (2 * np.pi), 1.0)
-    t_centre = ut_turns * 86400.0
-    lead = u / (2 * np.pi) * period  # node to target
-    day_rate = 2 * np.pi / 86400.0  # the track's westward drift per second of UT shift
-    for _ in range(6):
-        t_node = t_centre - lead
-        raan = float(epoch.era_rad(t_node)) + 2 * np.pi * (
-            ltan_turns - np.mod(float(epoch.days_since_j2000(t_node)) + 0.5, 1.0))
-        r0, v0 = state_from_elements(a_m, e, i_rad, raan, 0.0, 0.0, mean_anomaly=False)
-        probe = TruthOrbit(epoch, t_node, r0, v0, t_node, t_centre + 600.0)
-        t_cross, lon = _crossing(probe, view, target_lat_rad, t_centre)
-        miss = float(_wrap(target_lon_rad - lon))
-        lead = t_cross - t_node  # keep the phase that puts the view on the target latitude
-        t_centre = t_cross - miss / day_rate
-        if abs(miss) < 1e-9:
-            break
-    else:
-        raise OrbitError("could not place the orbit over the target (no convergence)")
-    lo, hi = min(span_s[0], t_node, t_cross), max(span_s[1], t_node, t_cross)
-    return TruthOrbit(epoch, t_node, r0, v0, lo, hi), float(t_cross)
-
-
-def swath_centre_view(mirror_rad: float, height_m: float) -> ViewPoint:
-    """The point seen by the centre of the swath at null attitude, the mirror at
-    ``mirror_rad``, on the ellipsoid raised by ``height_m`` (for aiming the orbit)."""
-    u = look_direction(0.0, mirror_rad)
-
-    def view(orbit: TruthOrbit, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-        r, v = orbit.state_ecef(t_s)
-        los = apply(ecef_from_orbital(r, v), u)
-        point, _ok = WGS84.intersect(r, los, height_m)
-        lat, lon, _h = WGS84.to_geodetic(point)
-        return lat, lon
-
-    return view
-
-
-def mean_element_orbit(oc: OrbitConfig, pc: PassConfig, epoch: Epoch,
-                       span_s: tuple[float, float], view: ViewPoint = nadir_point
-                       ) -> tuple[TruthOrbit, float]:
-    """The truth orbit of a ``phased`` or ``elements`` orbit section, placed by
-    :func:`place_orbit` so that ``view`` crosses the pass's target on its day."""
-    if oc.kind == "phased":
-        period, raan_rate = phased_targets(oc.repeat_revs, oc.repeat_days)
-    elif oc.kind == "elements":
-        period, raan_rate = secular_targets(
-            WGS84.a_m + oc.altitude_m, oc.eccentricity, oc.inclination_rad)
-    else:
-        raise OrbitError(f"[orbit] kind = {oc.kind!r} is not given by mean elements")
-    a, i = node_state(period, raan_rate, oc.eccentricity)
-    return place_orbit(epoch, a, i, oc.eccentricity, oc.descending_node_local_time_h,
-                       pc.target_lat_rad, pc.target_lon_rad, span_s, view)
+def ascending_node_ecef(orbit: TruthOrbit, after_s: float) -> NDArray[np.float64]:
+    """ECEF position where the orbit first crosses the equator northward after ``after_s``
+    (sampled every second over one revolution, refined linearly)."""
+    t = np.linspace(after_s, after_s + 6200.0, 6201)
+    r, _ = orbit.state_ecef(t)
+    k = np.flatnonzero(np.diff(np.sign(r[:, 2])) > 0)[0]
+    frac = -r[k, 2] / (r[k + 1, 2] - r[k, 2])
+    return r[k] + frac * (r[k + 1] - r[k])
