@@ -56,15 +56,21 @@ def main() -> None:
     sim_days = scn.simulation.days + scn.simulation.warmup_days
     total = t_passes + t_sim
     st = rep.station
-    print(f"scenario: {scn.name}, {len(scn.satellites)} satellites, "
-          f"{scn.simulation.days:g} days + {scn.simulation.warmup_days:g} of warm-up")
+    print(
+        f"scenario: {scn.name}, {len(scn.satellites)} satellites, "
+        f"{scn.simulation.days:g} days + {scn.simulation.warmup_days:g} of warm-up"
+    )
     print(f"pass prediction (one 26-day cycle, {aos.size} passes): {t_passes:.2f} s")
-    print(f"simulation: {t_sim:.2f} s for {events} events ({events / t_sim / 1e3:.0f} k/s); "
-          f"{st['passes']:.0f} passes, {st['scenes']:.0f} scenes, {st['products']:.0f} "
-          f"products")
+    print(
+        f"simulation: {t_sim:.2f} s for {events} events ({events / t_sim / 1e3:.0f} k/s); "
+        f"{st['passes']:.0f} passes, {st['scenes']:.0f} scenes, {st['products']:.0f} "
+        f"products"
+    )
     print(f"simulated time / wall time: {sim_days * 86400 / t_sim:.2e} × real time")
-    print(f"total {total:.2f} s; target < {TARGET_S:.0f} s: ratio {TARGET_S / total:.1f} "
-          f"({'met' if total < TARGET_S else 'NOT met'})")
+    print(
+        f"total {total:.2f} s; target < {TARGET_S:.0f} s: ratio {TARGET_S / total:.1f} "
+        f"({'met' if total < TARGET_S else 'NOT met'})"
+    )
 
 
 if __name__ == "__main__":

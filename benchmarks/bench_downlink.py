@@ -37,22 +37,30 @@ TARGETS = {1e-6: 10.0, 1e-4: 2.0}
 def main() -> None:
     mode = sys.argv[1] if len(sys.argv) > 1 else "P"
     n_lines = int(sys.argv[2]) if len(sys.argv) > 2 else 0
-    scn = scenario_from_dict({"instrument": {"mode": mode, "n_lines": n_lines},
-                              "pass": {"ground_pass_days": 0.0}, "gcps": {"count": 0}})
+    scn = scenario_from_dict(
+        {
+            "instrument": {"mode": mode, "n_lines": n_lines},
+            "pass": {"ground_pass_days": 0.0},
+            "gcps": {"count": 0},
+        }
+    )
     t0 = time.perf_counter()
     acq = emulate(scn)
     print(f"emulated {mode} scene {acq.bands[0].counts.shape} in {time.perf_counter() - t0:.1f} s")
     t0 = time.perf_counter()
     tx = transmit(acq, scn.downlink, np.random.default_rng(1))
     n_data = tx.sent[tx.data_vc]
-    print(f"sender: {tx.cadus.shape[0]} CADUs ({n_data} data, {tx.cadus.shape[0] - n_data} "
-          f"fill), {8 * tx.n_bytes / 1e6:.1f} Mbit, in {time.perf_counter() - t0:.2f} s")
+    print(
+        f"sender: {tx.cadus.shape[0]} CADUs ({n_data} data, {tx.cadus.shape[0] - n_data} "
+        f"fill), {8 * tx.n_bytes / 1e6:.1f} Mbit, in {time.perf_counter() - t0:.2f} s"
+    )
     elevation = np.full(tx.slot_t_s.size, np.radians(45.0))
     numba.set_num_threads(1)
     for ber, target in TARGETS.items():
         cfg = dataclasses.replace(scn.channel, ber=ber)
-        rx = impair(tx.cadus, tx.slot_t_s, elevation, cfg, tx.bit_rate_bit_per_s,
-                    np.random.default_rng(2))
+        rx = impair(
+            tx.cadus, tx.slot_t_s, elevation, cfg, tx.bit_rate_bit_per_s, np.random.default_rng(2)
+        )
         receive(rx.stream, rx.n_bits)  # compile, warm the caches
         best = np.inf
         for _ in range(3):
@@ -62,13 +70,17 @@ def main() -> None:
         real = rx.n_bits / STATION_RATE_BIT_PER_S
         acc = d.accounts[tx.data_vc]
         c = d.status_counts
-        print(f"BER {ber:.0e}: decoded {rx.n_bits / 1e6:.1f} Mbit in {best:.3f} s "
-              f"(best of 3); real time at 50 Mbit/s {real:.2f} s; "
-              f"ratio {real / best:.1f}x (target >= {target:g}x) "
-              f"{'PASS' if real / best >= target else 'FAIL'}")
-        print(f"    frames ok {c['ok']}, corrected {c['corrected']} "
-              f"({acc.symbols_corrected} data symbols), uncorrectable {c['uncorrectable']}, "
-              f"lost {acc.lost} of {acc.sent} data frames; bit errors {rx.n_bit_errors}")
+        print(
+            f"BER {ber:.0e}: decoded {rx.n_bits / 1e6:.1f} Mbit in {best:.3f} s "
+            f"(best of 3); real time at 50 Mbit/s {real:.2f} s; "
+            f"ratio {real / best:.1f}x (target >= {target:g}x) "
+            f"{'PASS' if real / best >= target else 'FAIL'}"
+        )
+        print(
+            f"    frames ok {c['ok']}, corrected {c['corrected']} "
+            f"({acc.symbols_corrected} data symbols), uncorrectable {c['uncorrectable']}, "
+            f"lost {acc.lost} of {acc.sent} data frames; bit errors {rx.n_bit_errors}"
+        )
 
 
 if __name__ == "__main__":

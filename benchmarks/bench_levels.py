@@ -65,16 +65,22 @@ def bench_chain(l0: Path, out: Path) -> None:
     cfg = ProcessingOptions()
     t_total, result = best(lambda: process_l0(read_l0(l0), cfg, out, name="bench"))
     scene = result.scenes[0]
-    print(f"\n1. L0 → 1A, 1B, 2A, full P scene, {numba.get_num_threads()} threads: "
-          f"{t_total:.2f} s (target < 10 s on 2 cores)")
+    print(
+        f"\n1. L0 → 1A, 1B, 2A, full P scene, {numba.get_num_threads()} threads: "
+        f"{t_total:.2f} s (target < 10 s on 2 cores)"
+    )
     t_read, _ = best(lambda: read_l0(l0))
-    print(f"   read L0 {t_read:.2f} s; GEO {result.timings_s['geo']:.3f} s; " + ", ".join(
-        f"{k} {v:.2f} s" for k, v in scene.timings_s.items()))
+    print(
+        f"   read L0 {t_read:.2f} s; GEO {result.timings_s['geo']:.3f} s; "
+        + ", ".join(f"{k} {v:.2f} s" for k, v in scene.timings_s.items())
+    )
     for lv, p in scene.paths.items():
         print(f"   {lv}: {p.stat().st_size / 1e6:.1f} MB")
     q2, q1 = scene.quality["2A"], scene.quality["1B"]
-    print(f"   2A inverse (nearest4) vs model: max {q2['inverse_vs_model/nearest4/max_px']:.4f}"
-          f" px; 1B polynomials vs model: max {q1['polynomials_vs_model/max_px']:.3f} px")
+    print(
+        f"   2A inverse (nearest4) vs model: max {q2['inverse_vs_model/nearest4/max_px']:.4f}"
+        f" px; 1B polynomials vs model: max {q1['polynomials_vs_model/max_px']:.3f} px"
+    )
 
 
 def bench_resampling(l0: Path) -> None:
@@ -84,16 +90,23 @@ def bench_resampling(l0: Path) -> None:
 
     archive = read_l0(l0)
     band = archive.bands["P"]
-    pg = pass_geometry(archive.epoch, archive.line_t_s, archive.line_period_s,
-                       archive.ephemeris, archive.aux_t_s, archive.gyro_rates_rad_per_s,
-                       {"P": band.look})
+    pg = pass_geometry(
+        archive.epoch,
+        archive.line_t_s,
+        archive.line_period_s,
+        archive.ephemeris,
+        archive.aux_t_s,
+        archive.gyro_rates_rad_per_s,
+        {"P": band.look},
+    )
     scene = pg.scenes(archive.n_lines, 0, 450.0)[0]
     res = nominal_pixel_size_m(band.look)
     crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
     g = level2a_geometry(scene, res, crs)
     valid = band.pixel_valid()
-    img, ok = deconvolve(calibrate(band.counts, valid, band.gain, band.offset_counts), valid,
-                         deconvolution_taps(1.2))
+    img, ok = deconvolve(
+        calibrate(band.counts, valid, band.gain, band.offset_counts), valid, deconvolution_taps(1.2)
+    )
     resample_2a(img[:64], ok[:64], g, "cubic", rows=slice(0, 8))  # compile
     n_threads = numba.get_num_threads()
     numba.set_num_threads(1)
@@ -111,39 +124,63 @@ def bench_resampling(l0: Path) -> None:
     dst = np.zeros((g.n_rows, g.n_cols), dtype=np.float32)
 
     def gdal() -> np.ndarray:
-        rasterio.warp.reproject(img, dst, src_transform=src_transform, src_crs=crs,
-                                dst_transform=dst_transform, dst_crs=crs,
-                                resampling=Resampling.cubic, num_threads=1, src_nodata=None,
-                                dst_nodata=0)
+        rasterio.warp.reproject(
+            img,
+            dst,
+            src_transform=src_transform,
+            src_crs=crs,
+            dst_transform=dst_transform,
+            dst_crs=crs,
+            resampling=Resampling.cubic,
+            num_threads=1,
+            src_nodata=None,
+            dst_nodata=0,
+        )
         return dst
 
     t_gdal, _ = best(gdal)
     mpx = g.n_rows * g.n_cols / 1e6
-    print(f"\n2. 2A cubic resampling, {g.n_rows} × {g.n_cols} output ({mpx:.1f} Mpx) from "
-          f"{img.shape[0]} × {img.shape[1]}:")
-    print(f"   ours, 1 thread: {t_one:.2f} s; ours, {n_threads} threads: {t_all:.2f} s; "
-          f"GDAL {rasterio.__gdal_version__} cubic warp, 1 thread: {t_gdal:.2f} s")
-    print(f"   ratio GDAL / ours: {t_gdal / t_one:.1f}× on one thread each, "
-          f"{t_gdal / t_all:.1f}× with ours on {n_threads} (target ≥ 4×)")
+    print(
+        f"\n2. 2A cubic resampling, {g.n_rows} × {g.n_cols} output ({mpx:.1f} Mpx) from "
+        f"{img.shape[0]} × {img.shape[1]}:"
+    )
+    print(
+        f"   ours, 1 thread: {t_one:.2f} s; ours, {n_threads} threads: {t_all:.2f} s; "
+        f"GDAL {rasterio.__gdal_version__} cubic warp, 1 thread: {t_gdal:.2f} s"
+    )
+    print(
+        f"   ratio GDAL / ours: {t_gdal / t_one:.1f}× on one thread each, "
+        f"{t_gdal / t_all:.1f}× with ours on {n_threads} (target ≥ 4×)"
+    )
     inside = ours > 0
     diff = np.abs(ours[inside].astype(float) - np.clip(np.rint(dst[inside]), 0, 255))
-    print(f"   agreement with GDAL (its affine georeferencing is off by up to a few pixels, so "
-          f"this is a sanity check only): median |Δ| {np.median(diff):.1f} counts")
+    print(
+        f"   agreement with GDAL (its affine georeferencing is off by up to a few pixels, so "
+        f"this is a sanity check only): median |Δ| {np.median(diff):.1f} counts"
+    )
 
 
 def bench_geo() -> None:
     from station.spacecraft.emulator import emulate
 
     n_scenes = 74
-    scn = scenario_from_dict({"instrument": {"n_lines": 6000 * n_scenes},
-                              "bulletins": {"margin_s": 300.0}})
+    scn = scenario_from_dict(
+        {"instrument": {"n_lines": 6000 * n_scenes}, "bulletins": {"margin_s": 300.0}}
+    )
     acq = emulate(scn, render=False)
     b = acq.hrv.bands[0]
     res = nominal_pixel_size_m(b.look_nominal)
 
     def geo() -> int:
-        pg = pass_geometry(acq.epoch, acq.line_times_s, acq.hrv.line_period_s, acq.bulletins,
-                           acq.gyros.t_s, acq.gyros.rates_rad_per_s, {b.name: b.look_nominal})
+        pg = pass_geometry(
+            acq.epoch,
+            acq.line_times_s,
+            acq.hrv.line_period_s,
+            acq.bulletins,
+            acq.gyros.t_s,
+            acq.gyros.rates_rad_per_s,
+            {b.name: b.look_nominal},
+        )
         scenes = pg.scenes(6000, 0, 450.0)
         for s in scenes:
             level1b_geometry(s, res)
@@ -152,8 +189,10 @@ def bench_geo() -> None:
 
     geo()
     t, n = best(geo)
-    print(f"\n3. GEO for a pass of {n} scenes ({n * 6000 * 1.504e-3:.0f} s of imaging): "
-          f"{t:.2f} s (target < 2 s); {t / n * 1e3:.0f} ms per scene")
+    print(
+        f"\n3. GEO for a pass of {n} scenes ({n * 6000 * 1.504e-3:.0f} s of imaging): "
+        f"{t:.2f} s (target < 2 s); {t / n * 1e3:.0f} ms per scene"
+    )
 
 
 def main() -> None:

@@ -31,8 +31,9 @@ TARGET_S = 60.0
 
 def main() -> None:
     n_lines = int(sys.argv[1]) if len(sys.argv) > 1 else 6000
-    scn = scenario_from_dict({"instrument": {"n_lines": n_lines},
-                              "pass": {"ground_pass_days": 0.0}})
+    scn = scenario_from_dict(
+        {"instrument": {"n_lines": n_lines}, "pass": {"ground_pass_days": 0.0}}
+    )
     t0 = time.perf_counter()
     acq = emulate(scn, render=False)
     setup = time.perf_counter() - t0
@@ -42,25 +43,47 @@ def main() -> None:
     def render(samples: int) -> tuple[float, object]:
         h = dataclasses.replace(hrv, psf_samples=samples)
         start = time.perf_counter()
-        out = render_band(acq.orbit, acq.attitude, h, band, acq.world, acq.line_times_s,
-                          acq.sun_ecef, np.random.default_rng(0))
+        out = render_band(
+            acq.orbit,
+            acq.attitude,
+            h,
+            band,
+            acq.world,
+            acq.line_times_s,
+            acq.sun_ecef,
+            np.random.default_rng(0),
+        )
         return time.perf_counter() - start, out
 
     warm = dataclasses.replace(hrv, psf_samples=3)
-    render_band(acq.orbit, acq.attitude, warm, band, acq.world, acq.line_times_s[:4],
-                acq.sun_ecef, np.random.default_rng(0))
+    render_band(
+        acq.orbit,
+        acq.attitude,
+        warm,
+        band,
+        acq.world,
+        acq.line_times_s[:4],
+        acq.sun_ecef,
+        np.random.default_rng(0),
+    )
     t_psf, out = render(hrv.psf_samples)
     t_centre, _ = render(1)
     px = n_lines * hrv.n_columns
-    print(f"scene: {n_lines} lines x {hrv.n_columns} detectors = {px / 1e6:.1f} Mpx, "
-          f"{numba.get_num_threads()} numba threads")
+    print(
+        f"scene: {n_lines} lines x {hrv.n_columns} detectors = {px / 1e6:.1f} Mpx, "
+        f"{numba.get_num_threads()} numba threads"
+    )
     print(f"setup (orbit over the day, attitude, gyros, bulletins): {setup:.2f} s")
-    print(f"render, PSF {hrv.psf_samples}x{hrv.psf_samples}: {t_psf:.1f} s "
-          f"({px / t_psf / 1e6:.2f} Mpx/s); target {TARGET_S:.0f} s for 6000 lines: "
-          f"{'met' if t_psf * 6000 / n_lines < TARGET_S else 'MISSED'}")
+    print(
+        f"render, PSF {hrv.psf_samples}x{hrv.psf_samples}: {t_psf:.1f} s "
+        f"({px / t_psf / 1e6:.2f} Mpx/s); target {TARGET_S:.0f} s for 6000 lines: "
+        f"{'met' if t_psf * 6000 / n_lines < TARGET_S else 'MISSED'}"
+    )
     print(f"render, centre ray only: {t_centre:.1f} s")
-    print(f"peer, real time (acquisition of these lines): {real_time:.2f} s; "
-          f"emulator / real time = {t_psf / real_time:.1f}")
+    print(
+        f"peer, real time (acquisition of these lines): {real_time:.2f} s; "
+        f"emulator / real time = {t_psf / real_time:.1f}"
+    )
     print(f"Newton iterations, worst pixel: {out.newton_max}; failed rays: {int(out.failed.sum())}")
 
 

@@ -41,12 +41,24 @@ from levels.geo.level2a import Level2AGeometry
 from levels.products import Product, read_product
 from levels.quality import scalar_figures
 
-__all__ = ["DEFAULT_TOLERANCES", "CompareError", "Comparison", "Finding", "compare_directories",
-           "compare_paths", "compare_products", "load_tolerances"]
+__all__ = [
+    "DEFAULT_TOLERANCES",
+    "CompareError",
+    "Comparison",
+    "Finding",
+    "compare_directories",
+    "compare_paths",
+    "compare_products",
+    "load_tolerances",
+]
 
 DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
-    "pixels": {"max_abs_counts": 1.0, "rms_counts": 0.01, "fraction_changed": 1e-4,
-               "mask_fraction_changed": 0.0},
+    "pixels": {
+        "max_abs_counts": 1.0,
+        "rms_counts": 0.01,
+        "fraction_changed": 1e-4,
+        "mask_fraction_changed": 0.0,
+    },
     "geometry": {"corner_shift_m": 0.01, "grid_px": 1e-4},
     "quality": {"abs": 1e-6, "rel": 1e-4},
 }
@@ -105,10 +117,16 @@ class Comparison:
         return [(k, f) for k, fs in self.findings.items() for f in fs if not f.ok]
 
     def as_dict(self) -> dict[str, Any]:
-        return {"a": self.a, "b": self.b, "ok": self.ok,
-                "outside_tolerance": sum(1 for _ in self.failures()),
-                "findings": {k: [{key: _jsonable(v) for key, v in f.__dict__.items()}
-                                 for f in fs] for k, fs in self.findings.items()}}
+        return {
+            "a": self.a,
+            "b": self.b,
+            "ok": self.ok,
+            "outside_tolerance": sum(1 for _ in self.failures()),
+            "findings": {
+                k: [{key: _jsonable(v) for key, v in f.__dict__.items()} for f in fs]
+                for k, fs in self.findings.items()
+            },
+        }
 
     def text(self) -> str:
         n = sum(len(fs) for fs in self.findings.values())
@@ -149,20 +167,24 @@ def load_tolerances(path: str | Path | None) -> dict[str, dict[str, float]]:
         raise CompareError(f"{p}: not valid TOML ({exc})") from None
     for section, values in data.items():
         if section not in tol or not isinstance(values, dict):
-            raise CompareError(f"{p}: unknown section [{section}]; expected one of "
-                               f"{', '.join(tol)}")
+            raise CompareError(
+                f"{p}: unknown section [{section}]; expected one of {', '.join(tol)}"
+            )
         for key, v in values.items():
             if key not in tol[section]:
-                raise CompareError(f"{p}: unknown key {key!r} in [{section}]; expected one of "
-                                   f"{', '.join(tol[section])}")
+                raise CompareError(
+                    f"{p}: unknown key {key!r} in [{section}]; expected one of "
+                    f"{', '.join(tol[section])}"
+                )
             if isinstance(v, bool) or not isinstance(v, int | float) or v < 0:
                 raise CompareError(f"{p}: [{section}] {key} = {v!r}: expected a number >= 0")
             tol[section][key] = float(v)
     return tol
 
 
-def compare_paths(a: str | Path, b: str | Path,
-                  tolerances: dict[str, dict[str, float]] | None = None) -> Comparison:
+def compare_paths(
+    a: str | Path, b: str | Path, tolerances: dict[str, dict[str, float]] | None = None
+) -> Comparison:
     """Compare two products, or two directories of products (matched by name)."""
     pa, pb = Path(a), Path(b)
     tol = tolerances or load_tolerances(None)
@@ -189,18 +211,24 @@ def compare_directories(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> C
     pa, pb = _products_in(a), _products_in(b)
     if not pa and not pb:
         raise CompareError(f"no level products (*.h5) in {a} or {b}")
-    out.findings[""] = [Finding("files", f"product {name}", ok=False,
-                                a="present" if name in pa else "missing",
-                                b="present" if name in pb else "missing")
-                        for name in sorted(set(pa) ^ set(pb))]
+    out.findings[""] = [
+        Finding(
+            "files",
+            f"product {name}",
+            ok=False,
+            a="present" if name in pa else "missing",
+            b="present" if name in pb else "missing",
+        )
+        for name in sorted(set(pa) ^ set(pb))
+    ]
     for name in sorted(set(pa) & set(pb)):
-        out.findings[name] = compare_products(read_product(pa[name]), read_product(pb[name]),
-                                              tol)
+        out.findings[name] = compare_products(read_product(pa[name]), read_product(pb[name]), tol)
     return out
 
 
-def compare_products(a: Product, b: Product, tol: dict[str, dict[str, float]] | None = None
-                     ) -> list[Finding]:
+def compare_products(
+    a: Product, b: Product, tol: dict[str, dict[str, float]] | None = None
+) -> list[Finding]:
     """Every check of two products (module docstring)."""
     tol = tol or load_tolerances(None)
     out = _metadata(a, b)
@@ -218,14 +246,28 @@ def _metadata(a: Product, b: Product) -> list[Finding]:
         if _differs(va, vb):
             # how a product is stored is not what it holds: a note, as provenance is
             stored = k in _STORAGE_ATTRS
-            out.append(Finding("provenance" if stored else "metadata", f"attrs/{k}",
-                               ok=stored, a=_plain(va), b=_plain(vb)))
+            out.append(
+                Finding(
+                    "provenance" if stored else "metadata",
+                    f"attrs/{k}",
+                    ok=stored,
+                    a=_plain(va),
+                    b=_plain(vb),
+                )
+            )
     if set(a.bands) != set(b.bands):
         out.append(Finding("metadata", "bands", ok=False, a=sorted(a.bands), b=sorted(b.bands)))
     ga, gb = a.map_grid, b.map_grid
     if (ga is None) != (gb is None):
-        out.append(Finding("metadata", "map grid", ok=False, a="present" if ga else "missing",
-                           b="present" if gb else "missing"))
+        out.append(
+            Finding(
+                "metadata",
+                "map grid",
+                ok=False,
+                a="present" if ga else "missing",
+                b="present" if gb else "missing",
+            )
+        )
     elif ga is not None and gb is not None:
         ca, cb = pyproj.CRS.from_wkt(ga.crs_wkt), pyproj.CRS.from_wkt(gb.crs_wkt)
         if not ca.equals(cb):
@@ -250,8 +292,11 @@ def _pixels(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
     for name in sorted(set(a.bands) & set(b.bands)):
         ia, ib = a.bands[name], b.bands[name]
         if ia.image.shape != ib.image.shape:
-            out.append(Finding("pixels", f"bands/{name}/shape", ok=False, a=ia.image.shape,
-                               b=ib.image.shape))
+            out.append(
+                Finding(
+                    "pixels", f"bands/{name}/shape", ok=False, a=ia.image.shape, b=ib.image.shape
+                )
+            )
             continue
         both = ia.valid & ib.valid
         d = ia.image[both].astype(np.int16) - ib.image[both].astype(np.int16)
@@ -263,14 +308,28 @@ def _pixels(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
         psnr = math.inf if rms == 0 else 20.0 * math.log10(255.0 / rms)
         p = f"bands/{name}"
         out += [
-            Finding("pixels", f"{p}/max_abs_counts", max_abs, tol["max_abs_counts"],
-                    max_abs <= tol["max_abs_counts"]),
-            Finding("pixels", f"{p}/rms_counts", rms, tol["rms_counts"],
-                    rms <= tol["rms_counts"]),
-            Finding("pixels", f"{p}/fraction_changed", changed, tol["fraction_changed"],
-                    changed <= tol["fraction_changed"]),
-            Finding("pixels", f"{p}/mask_fraction_changed", mask, tol["mask_fraction_changed"],
-                    mask <= tol["mask_fraction_changed"]),
+            Finding(
+                "pixels",
+                f"{p}/max_abs_counts",
+                max_abs,
+                tol["max_abs_counts"],
+                max_abs <= tol["max_abs_counts"],
+            ),
+            Finding("pixels", f"{p}/rms_counts", rms, tol["rms_counts"], rms <= tol["rms_counts"]),
+            Finding(
+                "pixels",
+                f"{p}/fraction_changed",
+                changed,
+                tol["fraction_changed"],
+                changed <= tol["fraction_changed"],
+            ),
+            Finding(
+                "pixels",
+                f"{p}/mask_fraction_changed",
+                mask,
+                tol["mask_fraction_changed"],
+                mask <= tol["mask_fraction_changed"],
+            ),
             Finding("pixels", f"{p}/psnr_db", psnr),
         ]
     return out
@@ -289,13 +348,27 @@ def _geometry(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
         lon_b = np.append(sb["corners_lon_deg"], sb["centre_lon_deg"])
         _, _, dist = _GEOD.inv(lon_a, lat_a, lon_b, lat_b)
         shift = float(np.max(dist))
-        out.append(Finding("geometry", "scene/corner_shift_m", shift, tol["corner_shift_m"],
-                           shift <= tol["corner_shift_m"]))
+        out.append(
+            Finding(
+                "geometry",
+                "scene/corner_shift_m",
+                shift,
+                tol["corner_shift_m"],
+                shift <= tol["corner_shift_m"],
+            )
+        )
     if a.map_grid is not None and b.map_grid is not None:
         ta, tb = a.map_grid.geotransform, b.map_grid.geotransform
         shift = float(np.hypot(ta[0] - tb[0], ta[3] - tb[3]))
-        out.append(Finding("geometry", "level_2a/origin_shift_m", shift, tol["corner_shift_m"],
-                           shift <= tol["corner_shift_m"]))
+        out.append(
+            Finding(
+                "geometry",
+                "level_2a/origin_shift_m",
+                shift,
+                tol["corner_shift_m"],
+                shift <= tol["corner_shift_m"],
+            )
+        )
     bands = sorted(set(a.bands) & set(b.bands))
     if "level_2a" in a.geometry and "level_2a" in b.geometry:
         for band in bands:
@@ -303,11 +376,18 @@ def _geometry(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
             gb = Level2AGeometry.from_tree(b.geometry["level_2a"], band)
             what = f"level_2a/bands/{band}/inverse_grid_px"
             if ga.inverse_line.shape != gb.inverse_line.shape:
-                out.append(Finding("geometry", what, ok=False, a=ga.inverse_line.shape,
-                                   b=gb.inverse_line.shape))
+                out.append(
+                    Finding(
+                        "geometry", what, ok=False, a=ga.inverse_line.shape, b=gb.inverse_line.shape
+                    )
+                )
                 continue
-            d = float(max(np.abs(ga.inverse_line - gb.inverse_line).max(),
-                          np.abs(ga.inverse_column - gb.inverse_column).max()))
+            d = float(
+                max(
+                    np.abs(ga.inverse_line - gb.inverse_line).max(),
+                    np.abs(ga.inverse_column - gb.inverse_column).max(),
+                )
+            )
             out.append(Finding("geometry", what, d, tol["grid_px"], d <= tol["grid_px"]))
     if "level_1b" in a.geometry and "level_1b" in b.geometry:
         for band in bands:
@@ -315,10 +395,19 @@ def _geometry(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
             gb = Level1BGeometry.from_tree(b.geometry["level_1b"], band)
             rows = np.linspace(0.0, ga.n_rows - 1.0, 101)
             cols = np.linspace(0.0, ga.n_cols - 1.0, 101)
-            d = max(float(np.abs(pa(x) - pb(x)).max())
-                    for pa, pb, x in ((ga.f, gb.f, rows), (ga.g, gb.g, cols), (ga.h, gb.h, rows)))
-            out.append(Finding("geometry", f"level_1b/bands/{band}/polynomials_px", d,
-                               tol["grid_px"], d <= tol["grid_px"]))
+            d = max(
+                float(np.abs(pa(x) - pb(x)).max())
+                for pa, pb, x in ((ga.f, gb.f, rows), (ga.g, gb.g, cols), (ga.h, gb.h, rows))
+            )
+            out.append(
+                Finding(
+                    "geometry",
+                    f"level_1b/bands/{band}/polynomials_px",
+                    d,
+                    tol["grid_px"],
+                    d <= tol["grid_px"],
+                )
+            )
     return out
 
 
@@ -328,12 +417,12 @@ def _quality(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
     for k in sorted(set(qa) | set(qb)):
         what = f"quality/{k}"
         if k not in qa or k not in qb:
-            out.append(Finding("quality", what, ok=False, a=qa.get(k, "missing"),
-                               b=qb.get(k, "missing")))
+            out.append(
+                Finding("quality", what, ok=False, a=qa.get(k, "missing"), b=qb.get(k, "missing"))
+            )
             continue
         va, vb = qa[k], qb[k]
-        if isinstance(va, int | float) and isinstance(vb, int | float) \
-                and not isinstance(va, bool):
+        if isinstance(va, int | float) and isinstance(vb, int | float) and not isinstance(va, bool):
             bound = tol["abs"] + tol["rel"] * abs(va)
             ok = abs(va - vb) <= bound or (math.isnan(va) and math.isnan(vb))
             if not ok:
@@ -360,8 +449,9 @@ def _provenance(a: Product, b: Product) -> list[Finding]:
                 ca, cb = {"processing": va}, {"processing": vb}
             for key in sorted(set(ca) | set(cb)):
                 if ca.get(key) != cb.get(key):
-                    out.append(Finding("provenance", f"processing/{key}", a=ca.get(key),
-                                       b=cb.get(key)))
+                    out.append(
+                        Finding("provenance", f"processing/{key}", a=ca.get(key), b=cb.get(key))
+                    )
         else:
             out.append(Finding("provenance", f"provenance/{k}", a=va, b=vb))
     return out

@@ -4,8 +4,7 @@ One root, :class:`LevelsError`; each subclass also inherits the builtin a caller
 expect (the rasterio habit), so ``except ValueError`` still works.
 """
 
-__all__ = ["DimapError", "GeometryError", "L0Error", "LevelsError", "OptionsError",
-           "ProductError"]
+__all__ = ["DimapError", "GeometryError", "L0Error", "LevelsError", "OptionsError", "ProductError"]
 
 
 class LevelsError(Exception):

@@ -34,8 +34,10 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
 
     level = product.level
     if level not in MAP_LEVELS:
-        raise ProductError(f"level {level} is in image geometry: GeoTIFF export is for the "
-                           f"map levels {', '.join(MAP_LEVELS)} (1A/1B would need RPCs)")
+        raise ProductError(
+            f"level {level} is in image geometry: GeoTIFF export is for the "
+            f"map levels {', '.join(MAP_LEVELS)} (1A/1B would need RPCs)"
+        )
     grid = product.map_grid
     if grid is None:
         raise ProductError(f"level {level} product without a map grid (no crs variable)")
@@ -46,20 +48,35 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     profile = {
-        "driver": "GTiff", "width": cols, "height": rows, "count": len(names),
-        "dtype": "uint8", "crs": CRS.from_wkt(grid.crs_wkt),
+        "driver": "GTiff",
+        "width": cols,
+        "height": rows,
+        "count": len(names),
+        "dtype": "uint8",
+        "crs": CRS.from_wkt(grid.crs_wkt),
         "transform": Affine.from_gdal(*grid.geotransform),
-        "tiled": True, "blockxsize": 256, "blockysize": 256, "compress": "deflate",
+        "tiled": True,
+        "blockxsize": 256,
+        "blockysize": 256,
+        "compress": "deflate",
     }
     a = product.attrs
-    with atomic_path(out) as tmp, rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True), \
-            rasterio.open(tmp, "w", **profile) as ds:
+    with (
+        atomic_path(out) as tmp,
+        rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True),
+        rasterio.open(tmp, "w", **profile) as ds,
+    ):
         for k, (name, im) in enumerate(zip(names, images, strict=True), start=1):
             ds.write(im, k)
             ds.set_band_description(k, name)
         ds.write_mask(valid)
-        ds.update_tags(level=level, scene_index=a.get("scene_index", ""),
-                       name=a.get("name", ""), hrv=a.get("hrv", ""), mode=a.get("mode", ""),
-                       pixel_size_m=a.get("pixel_size_m", ""),
-                       **{f"provenance_{k}": v for k, v in product.provenance.items()})
+        ds.update_tags(
+            level=level,
+            scene_index=a.get("scene_index", ""),
+            name=a.get("name", ""),
+            hrv=a.get("hrv", ""),
+            mode=a.get("mode", ""),
+            pixel_size_m=a.get("pixel_size_m", ""),
+            **{f"provenance_{k}": v for k, v in product.provenance.items()},
+        )
     return out

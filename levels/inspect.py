@@ -14,8 +14,14 @@ from levels.quality import scalar_figures
 __all__ = ["product_summary", "summary_text"]
 
 #: Quality figures shown in the text summary (the rest are in the JSON).
-_HEADLINE_SUFFIXES = ("line_of_sight/rms_m", "line_of_sight/max_m", "ground/rms_m",
-                      "polynomials_vs_model/max_px", "raw_counts", "level_1a_counts")
+_HEADLINE_SUFFIXES = (
+    "line_of_sight/rms_m",
+    "line_of_sight/max_m",
+    "ground/rms_m",
+    "polynomials_vs_model/max_px",
+    "raw_counts",
+    "level_1a_counts",
+)
 
 
 def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
@@ -25,34 +31,47 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
     bands = {}
     for name, b in product.bands.items():
         v = b.image[b.valid]
-        bands[name] = {"shape": list(b.image.shape), "dtype": str(b.image.dtype),
-                       "valid_fraction": round(float(b.valid.mean()), 6),
-                       "min": int(v.min()) if v.size else None,
-                       "max": int(v.max()) if v.size else None,
-                       "mean": round(float(v.mean()), 3) if v.size else None}
-    out: dict[str, Any] = {"file": p.name, "size_mb": round(p.stat().st_size / 1e6, 3),
-                           "attrs": {k: v.item() if isinstance(v, np.generic) else v
-                                     for k, v in product.attrs.items()},
-                           "bands": bands}
+        bands[name] = {
+            "shape": list(b.image.shape),
+            "dtype": str(b.image.dtype),
+            "valid_fraction": round(float(b.valid.mean()), 6),
+            "min": int(v.min()) if v.size else None,
+            "max": int(v.max()) if v.size else None,
+            "mean": round(float(v.mean()), 3) if v.size else None,
+        }
+    out: dict[str, Any] = {
+        "file": p.name,
+        "size_mb": round(p.stat().st_size / 1e6, 3),
+        "attrs": {
+            k: v.item() if isinstance(v, np.generic) else v for k, v in product.attrs.items()
+        },
+        "bands": bands,
+    }
     scene = product.geometry.get("scene")
     if scene:
-        out["scene"] = {"centre_lat_lon_deg": [float(scene["centre_lat_deg"]),
-                                               float(scene["centre_lon_deg"])],
-                        "corners_lat_lon_deg": np.column_stack(
-                            [scene["corners_lat_deg"], scene["corners_lon_deg"]]).tolist(),
-                        "first_line": int(scene["first_line"]),
-                        "n_lines": int(scene["n_lines"])}
+        out["scene"] = {
+            "centre_lat_lon_deg": [float(scene["centre_lat_deg"]), float(scene["centre_lon_deg"])],
+            "corners_lat_lon_deg": np.column_stack(
+                [scene["corners_lat_deg"], scene["corners_lon_deg"]]
+            ).tolist(),
+            "first_line": int(scene["first_line"]),
+            "n_lines": int(scene["n_lines"]),
+        }
     grid = product.map_grid
     if grid is not None:
         crs = pyproj.CRS.from_wkt(grid.crs_wkt)
-        out["map"] = {"crs": crs.name, "epsg": crs.to_epsg(),
-                      "geotransform": list(grid.geotransform),
-                      "inverse_method": product.geometry.get("level_2a", {}).get(
-                          "inverse_method")}
+        out["map"] = {
+            "crs": crs.name,
+            "epsg": crs.to_epsg(),
+            "geotransform": list(grid.geotransform),
+            "inverse_method": product.geometry.get("level_2a", {}).get("inverse_method"),
+        }
     g1b = product.geometry.get("level_1b")
     if g1b:
-        out["plane"] = {"pixel_size_m": float(g1b["pixel_size_m"]),
-                        "origin_ecef_m": np.asarray(g1b["plane_ecef_m"])[0].tolist()}
+        out["plane"] = {
+            "pixel_size_m": float(g1b["pixel_size_m"]),
+            "origin_ecef_m": np.asarray(g1b["plane_ecef_m"])[0].tolist(),
+        }
     out["quality"] = scalar_figures(product.quality)
     out["provenance"] = dict(product.provenance)
     return out
@@ -60,29 +79,38 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
 
 def summary_text(s: dict[str, Any]) -> str:
     a = s["attrs"]
-    lines = [f"{s['file']} ({s['size_mb']:.1f} MB): level {a.get('level')} of "
-             f"{a.get('name')} scene {a.get('scene_index')}, HRV{a.get('hrv')} {a.get('mode')}, "
-             f"mirror step {a.get('mirror_step')}, {a.get('n_rows')} × {a.get('n_cols')} px"
-             + (f" of {a['pixel_size_m']:g} m" if a.get("pixel_size_m") else "")]
+    lines = [
+        f"{s['file']} ({s['size_mb']:.1f} MB): level {a.get('level')} of "
+        f"{a.get('name')} scene {a.get('scene_index')}, HRV{a.get('hrv')} {a.get('mode')}, "
+        f"mirror step {a.get('mirror_step')}, {a.get('n_rows')} × {a.get('n_cols')} px"
+        + (f" of {a['pixel_size_m']:g} m" if a.get("pixel_size_m") else "")
+    ]
     for name, b in s["bands"].items():
-        lines.append(f"  band {name}: {b['shape'][0]} × {b['shape'][1]} {b['dtype']}, valid "
-                     f"{b['valid_fraction']:.3f}, counts {b['min']}–{b['max']} (mean "
-                     f"{b['mean']})")
+        lines.append(
+            f"  band {name}: {b['shape'][0]} × {b['shape'][1]} {b['dtype']}, valid "
+            f"{b['valid_fraction']:.3f}, counts {b['min']}–{b['max']} (mean "
+            f"{b['mean']})"
+        )
     if "scene" in s:
         c = s["scene"]["centre_lat_lon_deg"]
-        lines.append(f"  scene centre {c[0]:.5f}°, {c[1]:.5f}°; raw lines "
-                     f"{s['scene']['first_line']}–"
-                     f"{s['scene']['first_line'] + s['scene']['n_lines'] - 1}")
+        lines.append(
+            f"  scene centre {c[0]:.5f}°, {c[1]:.5f}°; raw lines "
+            f"{s['scene']['first_line']}–"
+            f"{s['scene']['first_line'] + s['scene']['n_lines'] - 1}"
+        )
     if "map" in s:
         m = s["map"]
         gt = m["geotransform"]
-        lines.append(f"  map: {m['crs']}, origin ({gt[0]:.1f}, {gt[3]:.1f}) m, pixel "
-                     f"{gt[1]:g} m; inverse {m['inverse_method']}")
+        lines.append(
+            f"  map: {m['crs']}, origin ({gt[0]:.1f}, {gt[3]:.1f}) m, pixel "
+            f"{gt[1]:g} m; inverse {m['inverse_method']}"
+        )
     q = {k: v for k, v in s["quality"].items() if k.endswith(_HEADLINE_SUFFIXES)}
     for k, v in q.items():
-        lines.append(f"  quality {k} = {v:.4g}" if isinstance(v, float)
-                     else f"  quality {k} = {v}")
+        lines.append(f"  quality {k} = {v:.4g}" if isinstance(v, float) else f"  quality {k} = {v}")
     prov = s["provenance"]
-    lines.append(f"  made by {prov.get('software')} from {prov.get('inputs')} (scenario "
-                 f"{prov.get('scenario')}, seed {prov.get('seed')})")
+    lines.append(
+        f"  made by {prov.get('software')} from {prov.get('inputs')} (scenario "
+        f"{prov.get('scenario')}, seed {prov.get('seed')})"
+    )
     return "\n".join(lines)

@@ -54,9 +54,7 @@ from levels.quality import CheckpointSource, scalar_figures
 from levels.readers.l0 import L0Archive
 from levels.spot import ORBIT_ALTITUDE_M
 
-__all__ = ["PassProducts", "SceneProducts", "SkippedScene", "nominal_pixel_size_m",
-           "process_l0"]
-
+__all__ = ["PassProducts", "SceneProducts", "SkippedScene", "nominal_pixel_size_m", "process_l0"]
 
 
 @dataclass(frozen=True)
@@ -128,10 +126,16 @@ class _PassContext:
     provenance: dict[str, Any]
 
 
-def process_l0(archive: L0Archive, options: ProcessingOptions, out_dir: str | Path, *,
-               name: str = "pass", checkpoints: CheckpointSource | None = None,
-               provenance: dict[str, Any] | None = None,
-               on_scene: Callable[[SceneProducts, int], None] | None = None) -> PassProducts:
+def process_l0(
+    archive: L0Archive,
+    options: ProcessingOptions,
+    out_dir: str | Path,
+    *,
+    name: str = "pass",
+    checkpoints: CheckpointSource | None = None,
+    provenance: dict[str, Any] | None = None,
+    on_scene: Callable[[SceneProducts, int], None] | None = None,
+) -> PassProducts:
     """GEO and COR over a pass (module docstring); products go to ``out_dir``.
 
     Parameters
@@ -154,9 +158,15 @@ def process_l0(archive: L0Archive, options: ProcessingOptions, out_dir: str | Pa
     clock = time.perf_counter
     t0 = clock()
     band_names = list(archive.bands)
-    pg = pass_geometry(archive.epoch, archive.line_t_s, archive.line_period_s,
-                       archive.ephemeris, archive.aux_t_s, archive.gyro_rates_rad_per_s,
-                       {b: archive.bands[b].look for b in band_names})
+    pg = pass_geometry(
+        archive.epoch,
+        archive.line_t_s,
+        archive.line_period_s,
+        archive.ephemeris,
+        archive.aux_t_s,
+        archive.gyro_rates_rad_per_s,
+        {b: archive.bands[b].look for b in band_names},
+    )
     n_det = archive.bands[band_names[0]].counts.shape[1]
     scene_lines = options.scene_lines or n_det
     cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines)
@@ -164,24 +174,34 @@ def process_l0(archive: L0Archive, options: ProcessingOptions, out_dir: str | Pa
     rows_seen = np.logical_or.reduce([v.any(axis=1) for v in pixel_valid.values()])
     scenes, skipped = [], []
     for c in cuts:
-        if not rows_seen[c.first_line:c.first_line + c.n_lines].any():
-            skipped.append(SkippedScene(c.index, c.first_line, c.n_lines,
-                                        "no valid line: lost in the downlink"))
+        if not rows_seen[c.first_line : c.first_line + c.n_lines].any():
+            skipped.append(
+                SkippedScene(
+                    c.index, c.first_line, c.n_lines, "no valid line: lost in the downlink"
+                )
+            )
             continue
         try:
             scenes.append(pg.scene(c, options.reference_height_m))
         except GeometryError as exc:
-            skipped.append(SkippedScene(c.index, c.first_line, c.n_lines,
-                                        f"GEO could not place it: {exc}"))
+            skipped.append(
+                SkippedScene(c.index, c.first_line, c.n_lines, f"GEO could not place it: {exc}")
+            )
     res = options.pixel_size_m or nominal_pixel_size_m(pg.look_angles[band_names[0]])
     t_geo = clock() - t0
-    taps = deconvolution_taps(options.psf_fwhm_px, options.noise_to_signal) \
-        if options.deconvolution else np.ones(1)
-    prov = {"software": f"spot-station {__version__}", "inputs": Path(archive.path).name,
-            "processing": json.dumps(asdict(options)), **archive.provenance,
-            **(provenance or {})}
-    ctx = _PassContext(archive, pg, options, res, taps, pixel_valid, out, name, checkpoints,
-                       prov)
+    taps = (
+        deconvolution_taps(options.psf_fwhm_px, options.noise_to_signal)
+        if options.deconvolution
+        else np.ones(1)
+    )
+    prov = {
+        "software": f"spot-station {__version__}",
+        "inputs": Path(archive.path).name,
+        "processing": json.dumps(asdict(options)),
+        **archive.provenance,
+        **(provenance or {}),
+    }
+    ctx = _PassContext(archive, pg, options, res, taps, pixel_valid, out, name, checkpoints, prov)
     results = []
     for scene in scenes:
         results.append(_process_scene(ctx, scene))
@@ -203,8 +223,12 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     if "2A" in opt.levels:
         node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
         crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
-        g2a = _per_band(scene, lambda b, like: level2a_geometry(
-            scene, res, crs, opt.inverse_2a, grid_rows=opt.grid_rows, band=b, like=like))
+        g2a = _per_band(
+            scene,
+            lambda b, like: level2a_geometry(
+                scene, res, crs, opt.inverse_2a, grid_rows=opt.grid_rows, band=b, like=like
+            ),
+        )
     timings["geometry"] = clock() - t
     images: dict[str, dict[str, BandImage]] = {lv: {} for lv in opt.levels}
     stripes: dict[str, dict[str, float]] = {}
@@ -212,8 +236,10 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         t = clock()
         counts, valid = band.counts[rows], ctx.pixel_valid[bname][rows]
         cal = calibrate(counts, valid, band.gain, band.offset_counts)
-        stripes[bname] = {"raw_counts": stripe_level(counts.astype(np.float32), valid),
-                          "level_1a_counts": stripe_level(cal, valid)}
+        stripes[bname] = {
+            "raw_counts": stripe_level(counts.astype(np.float32), valid),
+            "level_1a_counts": stripe_level(cal, valid),
+        }
         if "1A" in opt.levels:
             images["1A"][bname] = BandImage(to_counts(cal), valid)
         timings["1A"] = timings.get("1A", 0.0) + clock() - t
@@ -224,13 +250,15 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         timings["deconvolution"] = timings.get("deconvolution", 0.0) + clock() - t
         if g1b is not None:
             t = clock()
-            images["1B"][bname] = BandImage(*resample_1b(dec, dvalid, g1b[bname],
-                                                         opt.interpolation_1b))
+            images["1B"][bname] = BandImage(
+                *resample_1b(dec, dvalid, g1b[bname], opt.interpolation_1b)
+            )
             timings["1B"] = timings.get("1B", 0.0) + clock() - t
         if g2a is not None:
             t = clock()
-            images["2A"][bname] = BandImage(*resample_2a(with_nan(dec, dvalid), None,
-                                                         g2a[bname], opt.resampling_2a))
+            images["2A"][bname] = BandImage(
+                *resample_2a(with_nan(dec, dvalid), None, g2a[bname], opt.resampling_2a)
+            )
             timings["2A"] = timings.get("2A", 0.0) + clock() - t
     t = clock()
     quality = _quality(scene, opt, g1b, g2a, stripes, ctx.taps, ctx.checkpoints)
@@ -245,49 +273,77 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         if level == "2A":
             geometry["level_2a"] = Level2AGeometry.product_tree(g2a)  # type: ignore[arg-type]
         first = next(iter(images[level].values())).image
-        attrs = {"level": level, "scene_index": scene.cut.index, "name": ctx.name,
-                 "hrv": ctx.archive.hrv, "mode": ctx.archive.mode,
-                 "mirror_step": ctx.archive.mirror_step, "n_rows": first.shape[0],
-                 "n_cols": first.shape[1], "pixel_size_m": res if level != "1A" else 0.0}
+        attrs = {
+            "level": level,
+            "scene_index": scene.cut.index,
+            "name": ctx.name,
+            "hrv": ctx.archive.hrv,
+            "mode": ctx.archive.mode,
+            "mirror_step": ctx.archive.mirror_step,
+            "n_rows": first.shape[0],
+            "n_cols": first.shape[1],
+            "pixel_size_m": res if level != "1A" else 0.0,
+        }
         grid = None
         if level == "2A":
             g = next(iter(g2a.values()))  # type: ignore[union-attr]
             grid = MapGrid(g.crs_wkt, g.geotransform)
-        product = Product(attrs, images[level], geometry, quality[level],
-                          {**ctx.provenance, "level": level}, grid)
+        product = Product(
+            attrs, images[level], geometry, quality[level], {**ctx.provenance, "level": level}, grid
+        )
         paths[level] = write_product(
-            ctx.out / product_name(ctx.name, scene.cut.index, level), product)
+            ctx.out / product_name(ctx.name, scene.cut.index, level), product
+        )
     timings["write"] = clock() - t
-    return SceneProducts(scene.cut.index, scene.cut.first_line, scene.cut.n_lines, paths,
-                         {lv: scalar_figures(q) for lv, q in quality.items()}, timings)
+    return SceneProducts(
+        scene.cut.index,
+        scene.cut.first_line,
+        scene.cut.n_lines,
+        paths,
+        {lv: scalar_figures(q) for lv, q in quality.items()},
+        timings,
+    )
 
 
-def _quality(scene: SceneGeometry, opt: ProcessingOptions,
-             g1b: dict[str, Level1BGeometry] | None, g2a: dict[str, Level2AGeometry] | None,
-             stripes: dict[str, dict[str, float]], taps: NDArray[np.float64],
-             checkpoints: CheckpointSource | None) -> dict[str, dict[str, Any]]:
+def _quality(
+    scene: SceneGeometry,
+    opt: ProcessingOptions,
+    g1b: dict[str, Level1BGeometry] | None,
+    g2a: dict[str, Level2AGeometry] | None,
+    stripes: dict[str, dict[str, float]],
+    taps: NDArray[np.float64],
+    checkpoints: CheckpointSource | None,
+) -> dict[str, dict[str, Any]]:
     q: dict[str, dict[str, Any]] = {"1A": {"stripe_level": stripes}}
     nyquist = np.array([0.5])
     before = float(mtf(nyquist, opt.psf_fwhm_px)[0])
-    radiometry = {"deconvolution_taps": taps, "mtf_at_nyquist_before": before,
-                  "mtf_at_nyquist_after": before * abs(float(fir_response(taps, nyquist)[0]))}
+    radiometry = {
+        "deconvolution_taps": taps,
+        "mtf_at_nyquist_before": before,
+        "mtf_at_nyquist_after": before * abs(float(fir_response(taps, nyquist)[0])),
+    }
     per_side = opt.checkpoints_per_side
     bands = list(scene.models)
     if g1b is not None:
         # the first band's figures: the others' fits are the same polynomials a few tenths
         # of a pixel apart, and their checkpoints below measure each band
-        q["1B"] = {"radiometry": radiometry,
-                   "polynomials_vs_model": g1b[bands[0]].approximation_error(scene.model)}
+        q["1B"] = {
+            "radiometry": radiometry,
+            "polynomials_vs_model": g1b[bands[0]].approximation_error(scene.model),
+        }
         if checkpoints is not None:
-            q["1B"]["checkpoints"] = {b: checkpoints.level_1b(scene, g1b[b], k, per_side)
-                                      for k, b in enumerate(bands)}
+            q["1B"]["checkpoints"] = {
+                b: checkpoints.level_1b(scene, g1b[b], k, per_side) for k, b in enumerate(bands)
+            }
     if g2a is not None:
         g = g2a[bands[0]]
-        approx = {m: g.approximation_error(scene.model, scene.reference_height_m, m)
-                  for m in INVERSE_METHODS}
-        q["2A"] = {"radiometry": radiometry, "inverse_vs_model": approx,
-                   "inverse_method": g.method}
+        approx = {
+            m: g.approximation_error(scene.model, scene.reference_height_m, m)
+            for m in INVERSE_METHODS
+        }
+        q["2A"] = {"radiometry": radiometry, "inverse_vs_model": approx, "inverse_method": g.method}
         if checkpoints is not None:
-            q["2A"]["checkpoints"] = {b: checkpoints.level_2a(scene, g2a[b], k, per_side)
-                                      for k, b in enumerate(bands)}
+            q["2A"]["checkpoints"] = {
+                b: checkpoints.level_2a(scene, g2a[b], k, per_side) for k, b in enumerate(bands)
+            }
     return {lv: q[lv] for lv in opt.levels}

@@ -37,18 +37,33 @@ from numpy.typing import NDArray
 from levels.errors import ProductError
 from levels.files import atomic_path
 
-__all__ = ["PRODUCT_FORMAT", "PRODUCT_VERSION", "BandImage", "MapGrid", "Product",
-           "product_name", "read_product", "write_product"]
+__all__ = [
+    "PRODUCT_FORMAT",
+    "PRODUCT_VERSION",
+    "BandImage",
+    "MapGrid",
+    "Product",
+    "product_name",
+    "read_product",
+    "write_product",
+]
 
 PRODUCT_FORMAT = "SPOT-LEVEL"
 PRODUCT_VERSION = 2  # 2: netCDF-4 / CF layout (module docstring); 1 is still read
 _READABLE_VERSIONS = (1, 2)
 #: The geometry trees a product of each level must carry (``docs/products.md``).
-REQUIRED_GEOMETRY = {"1A": ("scene",), "1B": ("scene", "level_1b"),
-                     "2A": ("scene", "level_2a")}
+REQUIRED_GEOMETRY = {"1A": ("scene",), "1B": ("scene", "level_1b"), "2A": ("scene", "level_2a")}
 _CHUNK = 512
-_UNITS = (("_m_per_s", "m s-1"), ("_rad_per_s", "rad s-1"), ("_rad", "rad"), ("_deg", "degree"),
-          ("_px", "1"), ("_m", "m"), ("_s", "s"), ("_counts", "1"))
+_UNITS = (
+    ("_m_per_s", "m s-1"),
+    ("_rad_per_s", "rad s-1"),
+    ("_rad", "rad"),
+    ("_deg", "degree"),
+    ("_px", "1"),
+    ("_m", "m"),
+    ("_s", "s"),
+    ("_counts", "1"),
+)
 
 
 def product_name(name: str, scene_index: int, level: str) -> str:
@@ -73,8 +88,10 @@ class BandImage:
 
     def __post_init__(self) -> None:
         if self.image.shape != self.valid.shape or self.image.ndim != 2:
-            raise ProductError(f"band image {self.image.shape} and mask {self.valid.shape} "
-                               "must be 2-D of the same shape")
+            raise ProductError(
+                f"band image {self.image.shape} and mask {self.valid.shape} "
+                "must be 2-D of the same shape"
+            )
 
 
 @dataclass(frozen=True)
@@ -89,8 +106,10 @@ class MapGrid:
     def __post_init__(self) -> None:
         gt = tuple(float(v) for v in self.geotransform)
         if len(gt) != 6 or gt[2] != 0.0 or gt[4] != 0.0 or not gt[1] > 0 or gt[5] != -gt[1]:
-            raise ProductError(f"map grid geotransform {gt}: expected a north-up grid "
-                               "(x_min, res, 0, y_max, 0, -res)")
+            raise ProductError(
+                f"map grid geotransform {gt}: expected a north-up grid "
+                "(x_min, res, 0, y_max, 0, -res)"
+            )
         try:
             pyproj.CRS.from_wkt(self.crs_wkt)
         except pyproj.exceptions.CRSError as exc:
@@ -200,26 +219,59 @@ def write_product(path: str | Path, product: Product) -> Path:
         rows, cols = next(iter(product.bands.values())).image.shape
         grid = product.map_grid
         if grid is not None:
-            dims = (_dimension(f, "y", grid.y_m(rows), {
-                        "standard_name": "projection_y_coordinate", "axis": "Y",
-                        "units": "m", "long_name": "northing of the pixel centre"}),
-                    _dimension(f, "x", grid.x_m(cols), {
-                        "standard_name": "projection_x_coordinate", "axis": "X",
-                        "units": "m", "long_name": "easting of the pixel centre"}))
+            dims = (
+                _dimension(
+                    f,
+                    "y",
+                    grid.y_m(rows),
+                    {
+                        "standard_name": "projection_y_coordinate",
+                        "axis": "Y",
+                        "units": "m",
+                        "long_name": "northing of the pixel centre",
+                    },
+                ),
+                _dimension(
+                    f,
+                    "x",
+                    grid.x_m(cols),
+                    {
+                        "standard_name": "projection_x_coordinate",
+                        "axis": "X",
+                        "units": "m",
+                        "long_name": "easting of the pixel centre",
+                    },
+                ),
+            )
             _grid_mapping(f, grid)
         else:
-            dims = (_dimension(f, "row", np.arange(rows, dtype=np.int32),
-                               {"units": "1", "long_name": "image row (line)"}),
-                    _dimension(f, "column", np.arange(cols, dtype=np.int32),
-                               {"units": "1", "long_name": "image column"}))
+            dims = (
+                _dimension(
+                    f,
+                    "row",
+                    np.arange(rows, dtype=np.int32),
+                    {"units": "1", "long_name": "image row (line)"},
+                ),
+                _dimension(
+                    f,
+                    "column",
+                    np.arange(cols, dtype=np.int32),
+                    {"units": "1", "long_name": "image column"},
+                ),
+            )
         chunks = (min(_CHUNK, rows), min(_CHUNK, cols))
         for name, band in product.bands.items():
             for var, data, long_name in (
-                    (name, band.image, f"level {product.level} counts of band {name}"),
-                    (f"{name}_valid", band.valid.view(np.uint8),
-                     f"pixel of band {name} is valid (every raw pixel it uses arrived)")):
-                ds = f.create_dataset(var, data=data, chunks=chunks, compression="gzip",
-                                      compression_opts=1)
+                (name, band.image, f"level {product.level} counts of band {name}"),
+                (
+                    f"{name}_valid",
+                    band.valid.view(np.uint8),
+                    f"pixel of band {name} is valid (every raw pixel it uses arrived)",
+                ),
+            ):
+                ds = f.create_dataset(
+                    var, data=data, chunks=chunks, compression="gzip", compression_opts=1
+                )
                 for axis, dim in enumerate(dims):
                     ds.dims[axis].attach_scale(dim)
                 ds.attrs["units"] = "1"
@@ -240,10 +292,12 @@ def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> Non
     """Version 1 trees lacked the grid sizes that version 2 keeps beside the grids."""
     scene = geometry.get("scene", {})
     look = next(iter(geometry.get("look_angles", {}).values()), {})
-    sizes = {"n_rows": attrs.get("n_rows"), "n_cols": attrs.get("n_cols"),
-             "n_raw_lines": scene.get("n_lines"),
-             "n_raw_columns": int(np.asarray(look["column"])[-1]) + 1 if "column" in look
-             else None}
+    sizes = {
+        "n_rows": attrs.get("n_rows"),
+        "n_cols": attrs.get("n_cols"),
+        "n_raw_lines": scene.get("n_lines"),
+        "n_raw_columns": int(np.asarray(look["column"])[-1]) + 1 if "column" in look else None,
+    }
     for key in ("level_1b", "level_2a"):
         if key in geometry:
             for k, v in sizes.items():
@@ -251,12 +305,14 @@ def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> Non
                     geometry[key].setdefault(k, v)
 
 
-def _read_bands(f: h5py.File, names: list[str], version: int, images: bool
-                ) -> dict[str, BandImage]:
+def _read_bands(f: h5py.File, names: list[str], version: int, images: bool) -> dict[str, BandImage]:
     bands = {}
     for name in names:
-        image_ds, valid_ds = ((f[f"bands/{name}/image"], f[f"bands/{name}/valid"])
-                              if version == 1 else (f[name], f[f"{name}_valid"]))
+        image_ds, valid_ds = (
+            (f[f"bands/{name}/image"], f[f"bands/{name}/valid"])
+            if version == 1
+            else (f[name], f[f"{name}_valid"])
+        )
         valid = valid_ds[()].astype(bool)
         image = image_ds[()] if images else np.zeros(valid.shape, np.uint8)
         bands[name] = BandImage(image, valid)
@@ -284,32 +340,38 @@ def read_product(path: str | Path, images: bool = True) -> Product:
     try:
         f = h5py.File(where, "r")
     except OSError as exc:
-        raise ProductError(f"{where}: not a readable HDF5 file ({exc}); is it truncated?") \
-            from None
+        raise ProductError(f"{where}: not a readable HDF5 file ({exc}); is it truncated?") from None
     with f:
         if f.attrs.get("format") != PRODUCT_FORMAT:
-            raise ProductError(f"{where}: format attribute is {f.attrs.get('format')!r}, "
-                               f"expected {PRODUCT_FORMAT!r}; not a level product")
+            raise ProductError(
+                f"{where}: format attribute is {f.attrs.get('format')!r}, "
+                f"expected {PRODUCT_FORMAT!r}; not a level product"
+            )
         version = int(f.attrs.get("format_version", -1))
         if version not in _READABLE_VERSIONS:
-            raise ProductError(f"{where}: product format version "
-                               f"{f.attrs.get('format_version')!r}; this reader knows "
-                               f"versions {', '.join(map(str, _READABLE_VERSIONS))}")
-        groups = ("bands", "geometry", "quality", "provenance") if version == 1 else \
-            ("geometry", "quality", "provenance")
+            raise ProductError(
+                f"{where}: product format version "
+                f"{f.attrs.get('format_version')!r}; this reader knows "
+                f"versions {', '.join(map(str, _READABLE_VERSIONS))}"
+            )
+        groups = (
+            ("bands", "geometry", "quality", "provenance")
+            if version == 1
+            else ("geometry", "quality", "provenance")
+        )
         missing = [k for k in groups if k not in f]
         if missing:
-            raise ProductError(f"{where}: group '{missing[0]}' is missing; not a complete "
-                               "product")
+            raise ProductError(f"{where}: group '{missing[0]}' is missing; not a complete product")
         try:
-            attrs = {k: (v.item() if isinstance(v, np.generic) else v)
-                     for k, v in f.attrs.items()}
+            attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
             trees = {k: _read_tree(f[k]) for k in ("geometry", "quality", "provenance")}
             level = str(attrs.get("level"))
             lacking = [k for k in REQUIRED_GEOMETRY.get(level, ()) if k not in trees["geometry"]]
             if lacking:
-                raise ProductError(f"level {level} product without its geometry/{lacking[0]} "
-                                   "group; damaged or incomplete")
+                raise ProductError(
+                    f"level {level} product without its geometry/{lacking[0]} "
+                    "group; damaged or incomplete"
+                )
             if version == 1:
                 _upgrade_v1_geometry(trees["geometry"], attrs)
             names = json.loads(attrs.pop("band_names"))

@@ -15,8 +15,9 @@ from numpy.typing import NDArray
 __all__ = ["CheckpointSource", "error_stats", "raw_error_stats", "scalar_figures"]
 
 
-def error_stats(d1_m: NDArray[np.float64], d2_m: NDArray[np.float64], pixel_size_m: float
-                ) -> dict[str, float]:
+def error_stats(
+    d1_m: NDArray[np.float64], d2_m: NDArray[np.float64], pixel_size_m: float
+) -> dict[str, float]:
     """Mean vector, mean, RMS and max of 2-D errors, in metres and pixels.
 
     ``d1_m``, ``d2_m`` are the two components (east and north on a map, X and Y on the 1B
@@ -27,10 +28,15 @@ def error_stats(d1_m: NDArray[np.float64], d2_m: NDArray[np.float64], pixel_size
     d = np.hypot(a, b)
     if d.size == 0:
         return {"n_points": 0, "n_missing": int(ok.size)}
-    out = {"n_points": int(d.size), "n_missing": int(ok.size - d.size),
-           "mean_1_m": float(a.mean()), "mean_2_m": float(b.mean()),
-           "mean_m": float(d.mean()), "rms_m": float(np.sqrt(np.mean(d * d))),
-           "max_m": float(d.max())}
+    out = {
+        "n_points": int(d.size),
+        "n_missing": int(ok.size - d.size),
+        "mean_1_m": float(a.mean()),
+        "mean_2_m": float(b.mean()),
+        "mean_m": float(d.mean()),
+        "rms_m": float(np.sqrt(np.mean(d * d))),
+        "max_m": float(d.max()),
+    }
     for key in ("mean_m", "rms_m", "max_m"):
         out[key.replace("_m", "_px")] = out[key] / pixel_size_m
     return out
@@ -41,9 +47,13 @@ def raw_error_stats(dl: NDArray[np.float64], dc: NDArray[np.float64]) -> dict[st
     d = np.hypot(dl, dc)
     if d.size == 0:
         return {"n_points": 0}
-    return {"n_points": int(d.size), "max_px": float(d.max()),
-            "rms_px": float(np.sqrt(np.mean(d * d))), "max_line_px": float(np.abs(dl).max()),
-            "max_column_px": float(np.abs(dc).max())}
+    return {
+        "n_points": int(d.size),
+        "max_px": float(d.max()),
+        "rms_px": float(np.sqrt(np.mean(d * d))),
+        "max_line_px": float(np.abs(dl).max()),
+        "max_column_px": float(np.abs(dc).max()),
+    }
 
 
 def scalar_figures(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -71,8 +81,10 @@ class CheckpointSource(Protocol):
     :func:`error_stats` of the line of sight and of the ground, and the lattice behind them.
     """
 
-    def level_1b(self, scene: Any, geometry: Any, band_index: int, per_side: int
-                 ) -> dict[str, Any]: ...
+    def level_1b(
+        self, scene: Any, geometry: Any, band_index: int, per_side: int
+    ) -> dict[str, Any]: ...
 
-    def level_2a(self, scene: Any, geometry: Any, band_index: int, per_side: int
-                 ) -> dict[str, Any]: ...
+    def level_2a(
+        self, scene: Any, geometry: Any, band_index: int, per_side: int
+    ) -> dict[str, Any]: ...

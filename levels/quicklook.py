@@ -24,8 +24,9 @@ __all__ = ["browse_image", "write_quicklook"]
 _NO_DATA_RGB = (0.05, 0.07, 0.18)
 
 
-def _block_mean(image: NDArray[np.floating], valid: NDArray[np.bool_], k: int
-                ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+def _block_mean(
+    image: NDArray[np.floating], valid: NDArray[np.bool_], k: int
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Means of ``k × k`` blocks over valid pixels; a block is valid if half its pixels are."""
     r, c = (image.shape[0] // k) * k, (image.shape[1] // k) * k
     v = valid[:r, :c].reshape(r // k, k, c // k, k)
@@ -36,8 +37,7 @@ def _block_mean(image: NDArray[np.floating], valid: NDArray[np.bool_], k: int
     return mean, n >= 0.5 * k * k
 
 
-def browse_image(product: Product, max_side: int = 1024
-                 ) -> tuple[NDArray[np.float64], int]:
+def browse_image(product: Product, max_side: int = 1024) -> tuple[NDArray[np.float64], int]:
     """RGB browse image ``(rows, cols, 3)`` in [0, 1], and the reduction factor."""
     names = list(product.bands)
     if len(names) >= 3:
@@ -74,8 +74,12 @@ def _arrows(product: Product) -> tuple[NDArray, ...] | None:
     else:  # 1B: X south (down the rows), Y east (along the columns)
         right, up = cp["error_y_m"], -np.asarray(cp["error_x_m"])
     ok = np.isfinite(right) & np.isfinite(up)
-    return (np.asarray(cp["output_row"])[ok], np.asarray(cp["output_col"])[ok],
-            np.asarray(right)[ok], np.asarray(up)[ok])
+    return (
+        np.asarray(cp["output_row"])[ok],
+        np.asarray(cp["output_col"])[ok],
+        np.asarray(right)[ok],
+        np.asarray(up)[ok],
+    )
 
 
 def write_quicklook(product: Product, path: str | Path, max_side: int = 1024) -> Path:
@@ -93,9 +97,11 @@ def write_quicklook(product: Product, path: str | Path, max_side: int = 1024) ->
     ax = fig.add_axes((0.0, 0.0, 1.0, max(height, 400) / (max(height, 400) + 60)))
     ax.imshow(rgb, interpolation="nearest")
     ax.set_axis_off()
-    title = (f"{a.get('name', '')} scene {a.get('scene_index', '')} level {a.get('level', '')}"
-             f" — HRV{a.get('hrv', '')} {a.get('mode', '')}, {a.get('n_rows')} × "
-             f"{a.get('n_cols')} px")
+    title = (
+        f"{a.get('name', '')} scene {a.get('scene_index', '')} level {a.get('level', '')}"
+        f" — HRV{a.get('hrv', '')} {a.get('mode', '')}, {a.get('n_rows')} × "
+        f"{a.get('n_cols')} px"
+    )
     arrows = _arrows(product)
     if arrows is not None:
         row, col, right, up = arrows
@@ -104,16 +110,25 @@ def write_quicklook(product: Product, path: str | Path, max_side: int = 1024) ->
             # the median error drawn as a twentieth of the image's width
             scale = size / (0.05 * width)
             # data coordinates of an image: rows grow downward, so "up" is −row
-            ax.quiver(col / k, row / k, right, -up, color="#ffe600", angles="xy",
-                      scale_units="xy", scale=scale, width=0.003)
-            title += ("\narrows: checkpoint errors against the truth (first band), median "
-                      f"{size:.1f} m")
+            ax.quiver(
+                col / k,
+                row / k,
+                right,
+                -up,
+                color="#ffe600",
+                angles="xy",
+                scale_units="xy",
+                scale=scale,
+                width=0.003,
+            )
+            title += (
+                f"\narrows: checkpoint errors against the truth (first band), median {size:.1f} m"
+            )
             if a.get("pixel_size_m"):  # browse pixels are k product pixels
                 title += f", drawn {k * a['pixel_size_m'] / scale:.0f}× enlarged"
     ax.set_xlim(-0.5, width - 0.5)  # arrows at the edge must not widen the view
     ax.set_ylim(height - 0.5, -0.5)
-    fig.text(0.01, 1.0 - 0.5 * 60 / (max(height, 400) + 60), title, fontsize=9,
-             va="center")
+    fig.text(0.01, 1.0 - 0.5 * 60 / (max(height, 400) + 60), title, fontsize=9, va="center")
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     try:

@@ -11,8 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["MODES", "ORBIT_ALTITUDE_M", "ORBIT_INCLINATION_DEG", "ORBIT_PERIOD_MIN",
-           "HrvMode"]
+__all__ = ["MODES", "ORBIT_ALTITUDE_M", "ORBIT_INCLINATION_DEG", "ORBIT_PERIOD_MIN", "HrvMode"]
 
 #: Mean altitude at the equator, inclination and nodal period of the SPOT 1–4 orbit.
 ORBIT_ALTITUDE_M = 822e3

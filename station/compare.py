@@ -23,8 +23,9 @@ from levels.compare import (
 __all__ = ["compare_inputs", "compare_runs"]
 
 
-def compare_inputs(a: str | Path, b: str | Path,
-                   tolerances: dict[str, dict[str, float]] | None = None) -> Comparison:
+def compare_inputs(
+    a: str | Path, b: str | Path, tolerances: dict[str, dict[str, float]] | None = None
+) -> Comparison:
     """Two products (:func:`levels.compare.compare_paths`) or two run directories
     (:func:`compare_runs`)."""
     pa, pb = Path(a), Path(b)
@@ -33,8 +34,9 @@ def compare_inputs(a: str | Path, b: str | Path,
     return compare_paths(pa, pb, tolerances)
 
 
-def compare_runs(a: str | Path, b: str | Path,
-                 tolerances: dict[str, dict[str, float]] | None = None) -> Comparison:
+def compare_runs(
+    a: str | Path, b: str | Path, tolerances: dict[str, dict[str, float]] | None = None
+) -> Comparison:
     """Two run directories: their products, and their reports' decode statistics when both
     have one (counts: exact)."""
     pa, pb = Path(a), Path(b)
@@ -72,8 +74,7 @@ def _compare_reports(a: dict[str, Any], b: dict[str, Any]) -> list[Finding]:
             for k in ("lines_complete", "lines_partial", "lines_missing"):
                 va, vb = ba.get(name, {}).get(k), bb.get(name, {}).get(k)
                 if va != vb:
-                    out.append(Finding("decode", f"{where}/bands/{name}/{k}", ok=False,
-                                       a=va, b=vb))
+                    out.append(Finding("decode", f"{where}/bands/{name}/{k}", ok=False, a=va, b=vb))
     if not out:
         out.append(Finding("decode", "decode statistics", value="identical"))
     return out

@@ -34,8 +34,13 @@ from levels.products import read_product
 from station import __version__
 from station.scenario import Scenario
 
-__all__ = ["REPORT_FORMAT", "approximation_max_px", "comparable_report", "run_scenario",
-           "summary_table"]
+__all__ = [
+    "REPORT_FORMAT",
+    "approximation_max_px",
+    "comparable_report",
+    "run_scenario",
+    "summary_table",
+]
 
 REPORT_FORMAT = "spot-station-run"
 REPORT_VERSION = 2  # 2: one section per HRV ("hrvs"), products tagged by HRV
@@ -43,8 +48,9 @@ REPORT_VERSION = 2  # 2: one section per HRV ("hrvs"), products tagged by HRV
 _VARYING = ("timings_s", "size_mb", "receive_speed_x_real_time")
 
 
-def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
-                 progress: bool = False) -> dict[str, Any]:
+def run_scenario(
+    scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True, progress: bool = False
+) -> dict[str, Any]:
     """Run ``scn`` end to end into ``out_dir``; returns the report (also in report.json).
 
     ``progress`` shows progress bars on stderr (stages, then scenes).
@@ -60,8 +66,13 @@ def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
     timings: dict[str, Any] = {}
     t_start = clock()
     n_hrv = len(scn.instruments)
-    stages = tqdm(total=1 + 3 * n_hrv + quicklooks, desc="emulate", unit="stage",
-                  disable=not progress, leave=False)
+    stages = tqdm(
+        total=1 + 3 * n_hrv + quicklooks,
+        desc="emulate",
+        unit="stage",
+        disable=not progress,
+        leave=False,
+    )
     t = clock()
     acqs = emulate_pass(scn)
     timings["emulate"] = clock() - t
@@ -78,13 +89,21 @@ def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
         for level, path in s.paths.items():
             p = read_product(path)
             row: dict[str, Any] = {
-                "hrv": hrv, "scene": s.index, "level": level, "first_line": s.first_line,
-                "n_lines": s.n_lines, "file": path.name, "n_rows": p.attrs["n_rows"],
-                "n_cols": p.attrs["n_cols"], "bands": list(p.bands),
-                "valid_fraction": {b: round(float(im.valid.mean()), 6)
-                                   for b, im in p.bands.items()},
+                "hrv": hrv,
+                "scene": s.index,
+                "level": level,
+                "first_line": s.first_line,
+                "n_lines": s.n_lines,
+                "file": path.name,
+                "n_rows": p.attrs["n_rows"],
+                "n_cols": p.attrs["n_cols"],
+                "bands": list(p.bands),
+                "valid_fraction": {
+                    b: round(float(im.valid.mean()), 6) for b, im in p.bands.items()
+                },
                 "size_mb": round(path.stat().st_size / 1e6, 3),
-                "quality": s.quality[level]}
+                "quality": s.quality[level],
+            }
             if quicklooks:
                 ql = write_quicklook(p, out / "quicklooks" / f"{path.stem}.png")
                 row["quicklook"] = str(ql.relative_to(out))
@@ -95,10 +114,15 @@ def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
     stages.set_description("report")
     timings["total"] = clock() - t_start
     report = {
-        "format": REPORT_FORMAT, "format_version": REPORT_VERSION,
+        "format": REPORT_FORMAT,
+        "format_version": REPORT_VERSION,
         "software": f"spot-station {__version__}",
-        "scenario": {"name": scn.name, "file": Path(scn.source).name if scn.source else "",
-                     "sha256": scn.source_sha256, "seed": scn.seed},
+        "scenario": {
+            "name": scn.name,
+            "file": Path(scn.source).name if scn.source else "",
+            "sha256": scn.source_sha256,
+            "seed": scn.seed,
+        },
         "hrvs": hrvs,
         "products": rows,
         "timings_s": _rounded(timings),
@@ -108,8 +132,9 @@ def run_scenario(scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True,
     return report
 
 
-def _receive_and_process(acq: Any, out: Path, tag: str, timings: dict[str, Any],
-                         stages: Any, progress: bool) -> tuple[dict[str, Any], Any]:
+def _receive_and_process(
+    acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any, progress: bool
+) -> tuple[dict[str, Any], Any]:
     """One HRV's chain after the emulator: its channel, its L0 archive, GEO and COR.
 
     Adds its wall times to ``timings``; returns its report section and its products.
@@ -140,9 +165,15 @@ def _receive_and_process(acq: Any, out: Path, tag: str, timings: dict[str, Any],
         scenes.total = total
         scenes.update()
 
-    products = process_l0(archive, scn.processing, out, name=tag,
-                          checkpoints=Truth.of(acq, archive), provenance=scn.provenance(),
-                          on_scene=on_scene)
+    products = process_l0(
+        archive,
+        scn.processing,
+        out,
+        name=tag,
+        checkpoints=Truth.of(acq, archive),
+        provenance=scn.provenance(),
+        on_scene=on_scene,
+    )
     scenes.close()
     timings["geo"] = timings.get("geo", 0.0) + products.timings_s["geo"]
     cor = timings.setdefault("cor", {})
@@ -151,17 +182,35 @@ def _receive_and_process(acq: Any, out: Path, tag: str, timings: dict[str, Any],
             cor[k] = cor.get(k, 0.0) + v
     stages.update(2)
     section = {
-        "hrv": decode["hrv"], "mode": decode["mode"], "mirror_step": acq.hrv.mirror_step,
-        "lines": decode["lines"], "detectors": decode["detectors"],
-        "decode": {k: v for k, v in decode.items()
-                   if k not in ("scenario", "hrv", "mode", "lines", "detectors", "timings_s")},
-        "l0": {"file": l0.name, "size_mb": round(l0.stat().st_size / 1e6, 3),
-               "rows": archive.n_lines},
-        "processing": {"levels": list(scn.processing.levels), "scenes": len(products.scenes),
-                       "tail_lines": products.tail_lines,
-                       "skipped": [{"scene": k.index, "first_line": k.first_line,
-                                    "n_lines": k.n_lines, "reason": k.reason}
-                                   for k in products.skipped]},
+        "hrv": decode["hrv"],
+        "mode": decode["mode"],
+        "mirror_step": acq.hrv.mirror_step,
+        "lines": decode["lines"],
+        "detectors": decode["detectors"],
+        "decode": {
+            k: v
+            for k, v in decode.items()
+            if k not in ("scenario", "hrv", "mode", "lines", "detectors", "timings_s")
+        },
+        "l0": {
+            "file": l0.name,
+            "size_mb": round(l0.stat().st_size / 1e6, 3),
+            "rows": archive.n_lines,
+        },
+        "processing": {
+            "levels": list(scn.processing.levels),
+            "scenes": len(products.scenes),
+            "tail_lines": products.tail_lines,
+            "skipped": [
+                {
+                    "scene": k.index,
+                    "first_line": k.first_line,
+                    "n_lines": k.n_lines,
+                    "reason": k.reason,
+                }
+                for k in products.skipped
+            ],
+        },
     }
     return section, products
 
@@ -174,12 +223,14 @@ def _rounded(x: Any) -> Any:
 
 def comparable_report(report: dict[str, Any]) -> dict[str, Any]:
     """The report without what varies between identical runs (wall times, file sizes)."""
+
     def strip(x: Any) -> Any:
         if isinstance(x, dict):
             return {k: strip(v) for k, v in x.items() if k not in _VARYING}
         if isinstance(x, list):
             return [strip(v) for v in x]
         return x
+
     return strip(json.loads(json.dumps(report, default=json_default)))
 
 
@@ -191,26 +242,33 @@ def _fmt(x: Any, spec: str) -> str:
 def approximation_max_px(quality: dict[str, Any]) -> float | None:
     """A product's headline approximation figure: its 1B polynomials', or its 2A inverse's
     (the method it was made with), against the rigorous model; None for 1A."""
-    return quality.get("polynomials_vs_model/max_px",
-                       quality.get(f"inverse_vs_model/{quality.get('inverse_method', '')}/max_px"))
+    return quality.get(
+        "polynomials_vs_model/max_px",
+        quality.get(f"inverse_vs_model/{quality.get('inverse_method', '')}/max_px"),
+    )
 
 
 def _downlink_line(dec: dict[str, Any]) -> str:
     """One HRV's decoding in a line: frames, errors, lines, and the check against the truth."""
     link, cadus, tc = dec["link"], dec["cadus"], dec["truth_check"]
-    failed = [k for k in ("masks_match_lost_frames", "accounts_balance", "sent_as_counted")
-              if not tc[k]]
+    failed = [
+        k for k in ("masks_match_lost_frames", "accounts_balance", "sent_as_counted") if not tc[k]
+    ]
     tails_lost = [n for n, c in dec["channels"].items() if not c["tail_known"]]
     if failed == ["sent_as_counted"] and tails_lost:
         # the receiver cannot count frames sent after the last one it heard: it says so
         verdict = f"passed (frames sent after the pass's end unknown on {', '.join(tails_lost)})"
     else:
         verdict = "passed" if not failed else "FAILED: " + ", ".join(failed)
-    return (f"  downlink: {link['cadus_sent']} CADUs, {link['bit_errors']} bit errors, "
-            f"{cadus['corrected']} corrected, {cadus['uncorrectable']} uncorrectable; lines "
-            + ", ".join(f"{b['name']} {b['lines_complete']}/{b['lines_partial']}/"
-                        f"{b['lines_missing']}" for b in dec["bands"])
-            + f" (complete/partial/missing); truth check {verdict}")
+    return (
+        f"  downlink: {link['cadus_sent']} CADUs, {link['bit_errors']} bit errors, "
+        f"{cadus['corrected']} corrected, {cadus['uncorrectable']} uncorrectable; lines "
+        + ", ".join(
+            f"{b['name']} {b['lines_complete']}/{b['lines_partial']}/{b['lines_missing']}"
+            for b in dec["bands"]
+        )
+        + f" (complete/partial/missing); truth check {verdict}"
+    )
 
 
 def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> str:
@@ -218,14 +276,18 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
     name, several = report["scenario"]["name"], len(report["hrvs"]) > 1
     lines = []
     for h in report["hrvs"]:
-        lines.append(f"{name}: HRV{h['hrv']} {h['mode']}, mirror step {h['mirror_step']}, "
-                     f"{h['lines']} lines × {h['detectors']} detectors → "
-                     f"{h['processing']['scenes']} scene(s)")
+        lines.append(
+            f"{name}: HRV{h['hrv']} {h['mode']}, mirror step {h['mirror_step']}, "
+            f"{h['lines']} lines × {h['detectors']} detectors → "
+            f"{h['processing']['scenes']} scene(s)"
+        )
         lines.append(_downlink_line(h["decode"]))
     hrv_col = f"{'HRV':>3} " if several else ""
-    lines.append(f"{hrv_col}{'scene':>5} {'level':>5} {'size px':>11} {'valid':>6} "
-                 f"{'LOS rms m':>10} {'LOS max m':>10} {'ground rms m':>13} "
-                 f"{'approx max px':>14}  product")
+    lines.append(
+        f"{hrv_col}{'scene':>5} {'level':>5} {'size px':>11} {'valid':>6} "
+        f"{'LOS rms m':>10} {'LOS max m':>10} {'ground rms m':>13} "
+        f"{'approx max px':>14}  product"
+    )
     for r in report["products"]:
         q = r["quality"]
         band = r["bands"][0]
@@ -235,31 +297,49 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
         approx = approximation_max_px(q)
         valid = r["valid_fraction"].get(band)
         hrv = f"{r['hrv']:3d} " if several else ""
-        lines.append(f"{hrv}{r['scene']:5d} {r['level']:>5} {r['n_rows']:>5}×{r['n_cols']:<5} "
-                     f"{_fmt(valid, '6.3f')} {_fmt(los, '10.1f')} {_fmt(los_max, '10.1f')} "
-                     f"{_fmt(ground, '13.1f')} {_fmt(approx, '14.4f')}  {r['file']}")
+        lines.append(
+            f"{hrv}{r['scene']:5d} {r['level']:>5} {r['n_rows']:>5}×{r['n_cols']:<5} "
+            f"{_fmt(valid, '6.3f')} {_fmt(los, '10.1f')} {_fmt(los_max, '10.1f')} "
+            f"{_fmt(ground, '13.1f')} {_fmt(approx, '14.4f')}  {r['file']}"
+        )
     for h in report["hrvs"]:
         for k in h["processing"]["skipped"]:
             hrv = f"{h['hrv']:3d} " if several else ""
             lines.append(f"{hrv}{k['scene']:5d}  skipped: {k['reason']}")
-    stripes = [(f"HRV{r['hrv']} " if several else "", r["scene"], b,
-                r["quality"].get(f"stripe_level/{b}/raw_counts"),
-                r["quality"].get(f"stripe_level/{b}/level_1a_counts"))
-               for r in report["products"] if r["level"] == "1A" for b in r["bands"][:1]]
+    stripes = [
+        (
+            f"HRV{r['hrv']} " if several else "",
+            r["scene"],
+            b,
+            r["quality"].get(f"stripe_level/{b}/raw_counts"),
+            r["quality"].get(f"stripe_level/{b}/level_1a_counts"),
+        )
+        for r in report["products"]
+        if r["level"] == "1A"
+        for b in r["bands"][:1]
+    ]
     if stripes:
-        lines.append("stripes raw → 1A (counts): " + ", ".join(
-            f"{h}scene {s} {b} {raw:.2f} → {cal:.2f}" for h, s, b, raw, cal in stripes))
+        lines.append(
+            "stripes raw → 1A (counts): "
+            + ", ".join(f"{h}scene {s} {b} {raw:.2f} → {cal:.2f}" for h, s, b, raw, cal in stripes)
+        )
     t = report["timings_s"]
     cor = sum(t.get("cor", {}).values())
-    parts = [f"emulate {t['emulate']:.1f}",
-             f"downlink {t.get('transmit', 0) + t.get('channel', 0) + t.get('receive', 0):.1f}",
-             f"record {t['record']:.1f}", f"GEO {t['geo']:.2f}", f"COR {cor:.1f}"]
+    parts = [
+        f"emulate {t['emulate']:.1f}",
+        f"downlink {t.get('transmit', 0) + t.get('channel', 0) + t.get('receive', 0):.1f}",
+        f"record {t['record']:.1f}",
+        f"GEO {t['geo']:.2f}",
+        f"COR {cor:.1f}",
+    ]
     if "quicklooks" in t:
         parts.append(f"quicklooks {t['quicklooks']:.1f}")
     lines.append("timings (s): " + ", ".join(parts) + f"; total {t['total']:.1f}")
     if out_dir is not None:
         n_ql = sum("quicklook" in r for r in report["products"])
         l0 = ", ".join(h["l0"]["file"] for h in report["hrvs"])
-        lines.append(f"in {out_dir}/: report.json, {l0}, "
-                     f"{len(report['products'])} products, {n_ql} quicklooks")
+        lines.append(
+            f"in {out_dir}/: report.json, {l0}, "
+            f"{len(report['products'])} products, {n_ql} quicklooks"
+        )
     return "\n".join(lines)

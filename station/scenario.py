@@ -473,8 +473,12 @@ class Scenario:
 
     def provenance(self) -> dict[str, Any]:
         """What a product and an L0 archive record of the scenario they were made from."""
-        return {"scenario": self.name, "scenario_file": Path(self.source).name,
-                "scenario_sha256": self.source_sha256, "seed": self.seed}
+        return {
+            "scenario": self.name,
+            "scenario_file": Path(self.source).name,
+            "scenario_sha256": self.source_sha256,
+            "seed": self.seed,
+        }
 
     def path(self, relative: str) -> Path:
         """A path of the scenario, resolved from the scenario file's directory."""
@@ -486,8 +490,13 @@ class Scenario:
 #: reference height of the products: merged into a scenario's table
 #: (:func:`merge_tables`), the chain's remaining errors are its approximations alone.
 ERRORS_OFF: dict[str, dict[str, Any]] = {
-    "attitude": {"roll_offset_urad": 0.0, "pitch_offset_urad": 0.0, "yaw_offset_urad": 0.0,
-                 "drift_scale": 0.0, "jitter_amplitude_urad": [0.0, 0.0, 0.0]},
+    "attitude": {
+        "roll_offset_urad": 0.0,
+        "pitch_offset_urad": 0.0,
+        "yaw_offset_urad": 0.0,
+        "drift_scale": 0.0,
+        "jitter_amplitude_urad": [0.0, 0.0, 0.0],
+    },
     "bulletins": {"bias_m": [0.0, 0.0, 0.0], "drift_m_per_s": [0.0, 0.0, 0.0]},
     "instrument": {"calibration_error_urad": 0.0},
     "world": {"relief_m": 0.0, "base_height_m": 450.0},
@@ -499,8 +508,7 @@ def merge_tables(*tables: dict[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for table in tables:
         for section, value in table.items():
-            out[section] = ({**out.get(section, {}), **value} if isinstance(value, dict)
-                            else value)
+            out[section] = {**out.get(section, {}), **value} if isinstance(value, dict) else value
     return out
 
 

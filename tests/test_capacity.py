@@ -122,8 +122,13 @@ def test_the_station_figures_hang_together(cuiaba) -> None:
 
 
 def test_an_outage_builds_a_backlog_that_clears(cuiaba) -> None:
-    scn = _short(cuiaba, resources__cor_workers="3", outage__start_day="30",
-                 outage__days="5", failures__cor_mtbf_h="0")
+    scn = _short(
+        cuiaba,
+        resources__cor_workers="3",
+        outage__start_day="30",
+        outage__days="5",
+        failures__cor_mtbf_h="0",
+    )
     st = simulate(scn, load_service(scn), 0).station
     orders_per_day = 0.6 * st["scenes_per_day"]
     assert st["outage_backlog_peak"] >= 0.5 * 5 * orders_per_day  # most of 5 days' orders
@@ -135,8 +140,16 @@ def test_a_sweep_finds_where_the_backlog_stops_growing(cuiaba, tmp_path: Path) -
     summary = run_study(scn, tmp_path, ("resources.cor_workers", ["1", "3"]), replications=2)
     growth = [r["station"]["cor_backlog_growth_per_day"]["mean"] for r in summary["runs"]]
     assert growth[0] > 5.0 and abs(growth[1]) < 0.5  # one workstation cannot keep up
-    for name in ("summary.json", "stages.csv", "levels.csv", "station.csv", "queues.csv",
-                 "queues.png", "latency.png", "sweep.png"):
+    for name in (
+        "summary.json",
+        "stages.csv",
+        "levels.csv",
+        "station.csv",
+        "queues.csv",
+        "queues.png",
+        "latency.png",
+        "sweep.png",
+    ):
         assert (tmp_path / name).stat().st_size > 0
     with open(tmp_path / "stages.csv", newline="") as f:
         rows = list(csv.DictReader(f))
@@ -154,14 +167,17 @@ def test_replications_give_intervals_and_are_reproducible(cuiaba) -> None:
     assert cor["ci95"] > 0 and math.isfinite(cor["mean"])
 
 
-@pytest.mark.parametrize(("table", "message"), [
-    ({"resources": {"cor_workers": 0}}, "[resources] cor_workers = 0"),
-    ({"orders": {"mix": [0.5, 0.5, 0.5]}}, "must add to 1"),
-    ({"shifts": {"start_h": 18.0, "end_h": 8.0}}, "must be after start_h"),
-    ({"shifts": {"staffed": ["antenna"]}}, "[shifts] staffed"),
-    ({"satellite": {"name": "x"}}, "[[satellite]]"),
-    ({"satellites": []}, "unknown key 'satellites'"),
-])
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ({"resources": {"cor_workers": 0}}, "[resources] cor_workers = 0"),
+        ({"orders": {"mix": [0.5, 0.5, 0.5]}}, "must add to 1"),
+        ({"shifts": {"start_h": 18.0, "end_h": 8.0}}, "must be after start_h"),
+        ({"shifts": {"staffed": ["antenna"]}}, "[shifts] staffed"),
+        ({"satellite": {"name": "x"}}, "[[satellite]]"),
+        ({"satellites": []}, "unknown key 'satellites'"),
+    ],
+)
 def test_bad_capacity_scenarios_are_rejected_by_name(table: dict, message: str) -> None:
     with pytest.raises(ScenarioError) as err:
         capacity_from_dict(table)
@@ -176,11 +192,13 @@ def test_sweep_of_an_unknown_key_is_rejected(cuiaba) -> None:
 def test_capacity_command(cuiaba, tmp_path: Path, capsys) -> None:
     scn = tmp_path / "short.toml"
     text = CUIABA.read_text().replace("days = 365.0", "days = 20.0")
-    scn.write_text(text.replace('file = "service_times.json"',
-                                f'file = "{CUIABA.parent / "service_times.json"}"'))
+    scn.write_text(
+        text.replace(
+            'file = "service_times.json"', f'file = "{CUIABA.parent / "service_times.json"}"'
+        )
+    )
     out = tmp_path / "out"
-    assert main(["capacity", str(scn), "--out", str(out), "--replications", "2",
-                 "--no-plots"]) == 0
+    assert main(["capacity", str(scn), "--out", str(out), "--replications", "2", "--no-plots"]) == 0
     text_out = capsys.readouterr().out
     assert "cuiaba_capacity: 20 days" in text_out and "L/λW" in text_out
     summary = json.loads((out / "summary.json").read_text())

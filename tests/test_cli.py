@@ -61,8 +61,9 @@ def test_emulate_bad_scenario_exits_2(tmp_path: Path, capsys) -> None:
 
 def test_downlink_writes_l0_and_reports(tmp_path: Path, capsys) -> None:
     out = tmp_path / "pass.l0.h5"
-    code = main(["downlink", str(ROOT / "scenarios" / "small_test.toml"), "--out", str(out),
-                 "--json"])
+    code = main(
+        ["downlink", str(ROOT / "scenarios" / "small_test.toml"), "--out", str(out), "--json"]
+    )
     assert code == 0
     rep = json.loads(capsys.readouterr().out)
     assert out.is_file() and rep["l0"]["path"] == str(out)
@@ -70,8 +71,10 @@ def test_downlink_writes_l0_and_reports(tmp_path: Path, capsys) -> None:
         assert ch["sent"] == ch["truth_sent"] == ch["delivered"] + ch["lost"]
     band = rep["bands"][0]
     assert band["valid_pixels_as_sent"]
-    assert all(rep["truth_check"][k] for k in
-               ("masks_match_lost_frames", "accounts_balance", "sent_as_counted"))
+    assert all(
+        rep["truth_check"][k]
+        for k in ("masks_match_lost_frames", "accounts_balance", "sent_as_counted")
+    )
     assert sum(rep["cadus"].values()) >= rep["link"]["cadus_sent"] - 5
     code = main(["downlink", str(ROOT / "scenarios" / "small_test.toml"), "--out", str(out)])
     assert code == 0
@@ -87,8 +90,9 @@ def test_downlink_bad_scenario_exits_2(tmp_path: Path, capsys) -> None:
 
 
 def test_process_writes_products_and_reports(tmp_path: Path, capsys) -> None:
-    code = main(["process", str(ROOT / "scenarios" / "small_test.toml"), "--out",
-                 str(tmp_path), "--json"])
+    code = main(
+        ["process", str(ROOT / "scenarios" / "small_test.toml"), "--out", str(tmp_path), "--json"]
+    )
     assert code == 0
     rep = json.loads(capsys.readouterr().out)
     levels = {r["level"]: r for r in rep["products"]}

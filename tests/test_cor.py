@@ -28,23 +28,33 @@ FLOAT32_COUNTS = 1e-3
 
 @pytest.fixture(scope="module")
 def geometry():
-    acq = emulate(scenario_from_dict({"instrument": {"n_detectors": 400, "n_lines": 400}}),
-                  render=False)
+    acq = emulate(
+        scenario_from_dict({"instrument": {"n_detectors": 400, "n_lines": 400}}), render=False
+    )
     b = acq.hrv.bands[0]
-    pg = pass_geometry(acq.epoch, acq.line_times_s, acq.hrv.line_period_s, acq.bulletins,
-                       acq.gyros.t_s, acq.gyros.rates_rad_per_s, {b.name: b.look_nominal})
+    pg = pass_geometry(
+        acq.epoch,
+        acq.line_times_s,
+        acq.hrv.line_period_s,
+        acq.bulletins,
+        acq.gyros.t_s,
+        acq.gyros.rates_rad_per_s,
+        {b.name: b.look_nominal},
+    )
     scene = pg.scenes(400, 0, 450.0)[0]
     res = nominal_pixel_size_m(b.look_nominal)
-    g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad,
-                                              scene.centre_lon_rad))
+    g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad))
     return level1b_geometry(scene, res), g2
 
 
 def test_calibration_removes_detector_stripes() -> None:
     rng = np.random.default_rng(3)
     lines, dets = 400, 300
-    scene = 80.0 + 20.0 * np.sin(np.linspace(0, 6, dets))[None, :] \
+    scene = (
+        80.0
+        + 20.0 * np.sin(np.linspace(0, 6, dets))[None, :]
         + 5.0 * rng.standard_normal((lines, dets))
+    )
     gain = 1.0 + 0.05 * rng.standard_normal(dets)
     offset = 5.0 + 2.0 * rng.standard_normal(dets)
     counts = to_counts(gain * scene + offset)
@@ -111,12 +121,12 @@ def test_1b_kernel(geometry, interpolation) -> None:
     out, ok = resample_1b(img, valid, g1, interpolation)
     i, j = np.nonzero(ok)
     line, col = g1.raw_of(i, j)
-    expected = 20.0 + 0.3 * np.rint(line) + 0.2 * (
-        col if interpolation == "cubic" else np.rint(col))
+    expected = (
+        20.0 + 0.3 * np.rint(line) + 0.2 * (col if interpolation == "cubic" else np.rint(col))
+    )
     assert np.abs(out[i, j] - expected).max() <= 0.5 + FLOAT32_COUNTS
     tile, tok = resample_1b(img, valid, g1, interpolation, slice(50, 150), slice(100, 300))
-    assert np.array_equal(tile, out[50:150, 100:300]) and np.array_equal(tok, ok[50:150,
-                                                                                 100:300])
+    assert np.array_equal(tile, out[50:150, 100:300]) and np.array_equal(tok, ok[50:150, 100:300])
     # left skew: h(I) black, invalid pixels start each line, up to where g meets column −½
     rows = np.arange(g1.n_rows, dtype=float)
     j_left = g1.g.solve(np.full(rows.size, -0.5), np.zeros(rows.size)) + g1.h(rows)
@@ -124,4 +134,4 @@ def test_1b_kernel(geometry, interpolation) -> None:
     for r in np.flatnonzero(line_inside)[::17]:
         black = int(np.floor(j_left[r]))
         assert not ok[r, : max(black, 0)].any()
-        assert ok[r, black + 1: black + 5].all()
+        assert ok[r, black + 1 : black + 5].all()

@@ -45,11 +45,13 @@ def test_read_hgt_errors(tmp_path: Path, tile: Path) -> None:
 
 
 def test_imaging_over_a_real_dem(tile: Path) -> None:
-    scn = scenario_from_dict({
-        "world": {"kind": "dem", "dem_path": str(tile)},
-        "pass": {"target_lat_deg": 0.5, "target_lon_deg": 10.5, "ground_pass_days": 0.0},
-        "instrument": {"n_detectors": 200, "n_lines": 200, "psf_samples": 1},
-    })
+    scn = scenario_from_dict(
+        {
+            "world": {"kind": "dem", "dem_path": str(tile)},
+            "pass": {"target_lat_deg": 0.5, "target_lon_deg": 10.5, "ground_pass_days": 0.0},
+            "instrument": {"n_detectors": 200, "n_lines": 200, "psf_samples": 1},
+        }
+    )
     acq = emulate(scn)
     assert not acq.bands[0].failed.any()
     rng = np.random.default_rng(8)

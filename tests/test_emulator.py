@@ -65,8 +65,7 @@ def test_ground_points_reproject_onto_their_pixel(which: str, request) -> None:
 
 
 def test_a_window_of_the_full_array_reprojects_too() -> None:
-    acq = _acq(render=False, n_detectors=0, first_detector=2900, detector_count=200,
-               n_lines=200)
+    acq = _acq(render=False, n_detectors=0, first_detector=2900, detector_count=200, n_lines=200)
     assert acq.hrv.detector_scale == 1.0 and acq.hrv.n_columns == 200
     line, col = _random_pixels(acq, 200, 4)
     t = acq.line_times_s[0] + line * acq.hrv.line_period_s
@@ -79,8 +78,9 @@ def test_a_window_of_the_full_array_reprojects_too() -> None:
 def _swath_km(acq) -> float:
     t = acq.line_times_s[acq.hrv.n_lines // 2]
     n = acq.hrv.n_columns
-    pts, _ = trace_pixels(acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world, [t, t],
-                          [-0.5, n - 0.5])  # outer edges of the first and last detector
+    pts, _ = trace_pixels(
+        acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world, [t, t], [-0.5, n - 0.5]
+    )  # outer edges of the first and last detector
     ends = WGS84.to_ecef(pts[:, 0], pts[:, 1], pts[:, 2])
     return float(np.linalg.norm(ends[1] - ends[0]) / 1e3)
 
@@ -91,8 +91,14 @@ def test_footprints(nadir, tilted) -> None:
     # the strip is centred on the scenario's target (aim = "view"), columns run east
     scn = nadir.scenario
     t = nadir.t_centre_s
-    pts, _ = trace_pixels(nadir.orbit, nadir.attitude, nadir.hrv.bands[0], nadir.world,
-                          [t, t], [0, nadir.hrv.n_columns - 1])
+    pts, _ = trace_pixels(
+        nadir.orbit,
+        nadir.attitude,
+        nadir.hrv.bands[0],
+        nadir.world,
+        [t, t],
+        [0, nadir.hrv.n_columns - 1],
+    )
     assert np.degrees(pts[:, 0].mean() - scn.pass_.target_lat_rad) == pytest.approx(0, abs=0.02)
     assert np.degrees(pts[:, 1].mean() - scn.pass_.target_lon_rad) == pytest.approx(0, abs=0.02)
     assert pts[1, 1] > pts[0, 1]
@@ -105,8 +111,10 @@ def test_rendered_counts(nadir) -> None:
     assert band.newton_max <= 6
     assert 20 < band.counts.mean() < 200 and band.counts.std() > 5
     # counts are the detector's response to the truth radiance, plus noise
-    model = band.radiance * COUNTS_PER_RADIANCE * nadir.hrv.bands[0].gain + \
-        nadir.hrv.bands[0].offset_counts
+    model = (
+        band.radiance * COUNTS_PER_RADIANCE * nadir.hrv.bands[0].gain
+        + nadir.hrv.bands[0].offset_counts
+    )
     residual = band.counts - model
     noise = nadir.hrv.noise_counts
     quantisation = 1 / np.sqrt(12)
@@ -148,8 +156,7 @@ def test_twin_hrvs_look_3926_apart() -> None:
     hrv1 = _acq(render=False, twin=True, hrv=1, n_lines=10).hrv
     hrv2 = _acq(render=False, twin=True, hrv=2, n_lines=10).hrv
     centre = hrv1.n_columns // 2
-    d = hrv2.bands[0].look_nominal.psi_y_rad[centre] - hrv1.bands[0].look_nominal.psi_y_rad[
-        centre]
+    d = hrv2.bands[0].look_nominal.psi_y_rad[centre] - hrv1.bands[0].look_nominal.psi_y_rad[centre]
     assert d == pytest.approx(TWIN_SEPARATION_RAD, abs=1e-12)
 
 
@@ -227,12 +234,14 @@ def test_dem_export(nadir) -> None:
 
 def test_orbit_from_a_tle_of_refdata(refdata) -> None:
     tle = refdata / "tle" / "spot5_27421_20020504_orekit.tle"
-    scn = scenario_from_dict({
-        "orbit": {"kind": "tle", "tle_path": str(tle)},
-        "pass": {"target_lat_deg": 45.0, "target_lon_deg": 5.0, "ground_pass_days": 1.0},
-        "instrument": {"n_detectors": 60, "n_lines": 60},
-        "ground_station": {"lat_deg": 43.56, "lon_deg": 1.48},  # Toulouse
-    })
+    scn = scenario_from_dict(
+        {
+            "orbit": {"kind": "tle", "tle_path": str(tle)},
+            "pass": {"target_lat_deg": 45.0, "target_lon_deg": 5.0, "ground_pass_days": 1.0},
+            "instrument": {"n_detectors": 60, "n_lines": 60},
+            "ground_station": {"lat_deg": 43.56, "lon_deg": 1.48},  # Toulouse
+        }
+    )
     acq = emulate(scn, render=False)
     assert str(acq.epoch.t0_utc)[:10] == "2002-05-04"
     # the strip is on the target latitude, southbound, within the 3 days searched
@@ -241,11 +250,11 @@ def test_orbit_from_a_tle_of_refdata(refdata) -> None:
     assert np.degrees(pts[0, 0]) == pytest.approx(45.0, abs=0.05)
     _, v = acq.orbit.state_ecef([t])
     assert v[0, 2] < 0
-    assert 0 < t - float(acq.epoch.seconds(np.datetime64("2002-05-04T11:45:15.695", "ns"))) \
-        < 3 * 86400
+    assert (
+        0 < t - float(acq.epoch.seconds(np.datetime64("2002-05-04T11:45:15.695", "ns"))) < 3 * 86400
+    )
     # bulletins cover the strip; a launch-day orbit at ~800 km passes over Toulouse
-    assert acq.bulletins.t_s[0] < acq.line_times_s[0] < acq.line_times_s[-1] < \
-        acq.bulletins.t_s[-1]
+    assert acq.bulletins.t_s[0] < acq.line_times_s[0] < acq.line_times_s[-1] < acq.bulletins.t_s[-1]
     assert len(acq.passes) >= 2
 
 
@@ -259,11 +268,15 @@ def test_both_hrvs_ride_one_platform() -> None:
     """A pass imaged by both HRVs: one orbit, attitude, gyro record and set of bulletins;
     each HRV its own lines (XS twice as long), centred on the same instant; and an HRV's
     acquisition is the same emulated alone or with the other."""
-    scn = scenario_from_dict({
-        "instrument": [{**SMALL, "twin": True, "hrv": 1},
-                       {**SMALL, "twin": True, "hrv": 2, "mode": "XS", "n_detectors": 150,
-                        "n_lines": 150}],
-        "pass": NO_PASSES})
+    scn = scenario_from_dict(
+        {
+            "instrument": [
+                {**SMALL, "twin": True, "hrv": 1},
+                {**SMALL, "twin": True, "hrv": 2, "mode": "XS", "n_detectors": 150, "n_lines": 150},
+            ],
+            "pass": NO_PASSES,
+        }
+    )
     p, xs = emulate_pass(scn, render=False)
     assert (p.hrv.number, p.hrv.mode, xs.hrv.number, xs.hrv.mode) == (1, "P", 2, "XS")
     assert p.orbit is xs.orbit and p.attitude is xs.attitude and p.gyros is xs.gyros
@@ -273,14 +286,16 @@ def test_both_hrvs_ride_one_platform() -> None:
     alone = emulate(scn, render=False, instrument=1)
     assert np.array_equal(alone.line_times_s, xs.line_times_s)
     assert np.array_equal(alone.gcps.line, xs.gcps.line)  # its own streams, the same
-    assert np.array_equal(alone.hrv.bands[0].look_true.psi_y_rad,
-                          xs.hrv.bands[0].look_true.psi_y_rad)
+    assert np.array_equal(
+        alone.hrv.bands[0].look_true.psi_y_rad, xs.hrv.bands[0].look_true.psi_y_rad
+    )
     assert not np.array_equal(p.gcps.true_line, xs.gcps.true_line)  # but not the other's
     # side by side on the ground, seen at the same instant
     centres = []
     for acq in (p, xs):
-        g = truth_model(acq).image_to_ground([(acq.hrv.n_lines - 1) / 2],
-                                             [(acq.hrv.n_columns - 1) / 2], 450.0)
+        g = truth_model(acq).image_to_ground(
+            [(acq.hrv.n_lines - 1) / 2], [(acq.hrv.n_columns - 1) / 2], 450.0
+        )
         centres.append(WGS84.to_ecef(g.lat_rad[0], g.lon_rad[0], 0.0))
     distance_km = np.linalg.norm(centres[0] - centres[1]) / 1e3
     assert distance_km == pytest.approx(TWIN_CENTRES_KM, abs=TWIN_CENTRES_TOL_KM)

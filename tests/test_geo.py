@@ -24,11 +24,20 @@ MAX_INVERSE_PX = 0.05
 #: The issue's bound on checkpoint errors of an unbiased chain (errors switched off).
 UNBIASED_PX = 0.5
 H_REF_M = 450.0
+
+
 def _scene(data: dict):
     acq = emulate(scenario_from_dict(data), render=False)
     b = acq.hrv.bands[0]
-    pg = pass_geometry(acq.epoch, acq.line_times_s, acq.hrv.line_period_s, acq.bulletins,
-                       acq.gyros.t_s, acq.gyros.rates_rad_per_s, {b.name: b.look_nominal})
+    pg = pass_geometry(
+        acq.epoch,
+        acq.line_times_s,
+        acq.hrv.line_period_s,
+        acq.bulletins,
+        acq.gyros.t_s,
+        acq.gyros.rates_rad_per_s,
+        {b.name: b.look_nominal},
+    )
     scene = pg.scenes(acq.hrv.n_lines, 0, H_REF_M)[0]
     return acq, scene, nominal_pixel_size_m(b.look_nominal)
 
@@ -105,8 +114,7 @@ def test_2a_four_nearest_inverse_within_a_twentieth_of_a_pixel(case, request) ->
     _acq, scene, res = request.getfixturevalue(case)
     crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
     g = level2a_geometry(scene, res, crs)
-    errors = {m: g.approximation_error(scene.model, H_REF_M, m)["max_px"]
-              for m in INVERSE_METHODS}
+    errors = {m: g.approximation_error(scene.model, H_REF_M, m)["max_px"] for m in INVERSE_METHODS}
     assert errors["nearest4"] <= MAX_INVERSE_PX
     # the polynomials miss the attitude's high frequencies the gyros do see
     assert min(errors["poly3"], errors["poly4"], errors["poly5"]) > 2 * MAX_INVERSE_PX
@@ -120,8 +128,7 @@ def test_direct_grid_holds_both_sides_of_each_butting(nadir) -> None:
 
 def test_2a_grid_and_kernel_arithmetic_agree(nadir) -> None:
     _acq, scene, res = nadir
-    g = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad,
-                                             scene.centre_lon_rad))
+    g = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad))
     i, j = np.meshgrid(np.arange(0, g.n_rows, 997.0), np.arange(0, g.n_cols, 991.0))
     line, col = g.raw_of(i.ravel(), j.ravel())
     ii, jj = g.output_of(line, col, (i.ravel() + 3.0, j.ravel() - 2.0))
@@ -134,16 +141,19 @@ def _errors(over: dict):
     acq, scene, res = _scene(data)
     truth = Truth(acq, 0)
     g1 = level1b_geometry(scene, res)
-    g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad,
-                                              scene.centre_lon_rad))
-    return (checkpoints_1b(truth, scene, g1, 0, 11)["line_of_sight"],
-            checkpoints_2a(truth, scene, g2, 0, 11)["line_of_sight"], res)
+    g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad))
+    return (
+        checkpoints_1b(truth, scene, g1, 0, 11)["line_of_sight"],
+        checkpoints_2a(truth, scene, g2, 0, 11)["line_of_sight"],
+        res,
+    )
 
 
 @pytest.mark.parametrize("mirror_step", [48, 93])
 def test_chain_is_unbiased_with_errors_off(mirror_step) -> None:
-    e1, e2, res = _errors(merge_tables(ERRORS_OFF, {"instrument": {"mirror_step": mirror_step,
-                                                             "n_detectors": 6000}}))
+    e1, e2, res = _errors(
+        merge_tables(ERRORS_OFF, {"instrument": {"mirror_step": mirror_step, "n_detectors": 6000}})
+    )
     assert e2["max_px"] < UNBIASED_PX
     # 1B: its mean is unbiased; its spread is its cubics' approximation error, measured
     # on its own (test above)
@@ -154,8 +164,9 @@ def test_chain_is_unbiased_with_errors_off(mirror_step) -> None:
 def test_default_errors_are_the_sum_of_their_sources() -> None:
     """How the size of the default errors is checked: each source alone gives the
     displacement it implies, and together they add up."""
-    att_only = merge_tables(ERRORS_OFF, {"attitude": {"roll_offset_urad": 150.0,
-                                                "pitch_offset_urad": -200.0}})
+    att_only = merge_tables(
+        ERRORS_OFF, {"attitude": {"roll_offset_urad": 150.0, "pitch_offset_urad": -200.0}}
+    )
     eph_only = merge_tables(ERRORS_OFF, {"bulletins": {"bias_m": [150.0, -100.0, 0.0]}})
     both = merge_tables(att_only, {"bulletins": eph_only["bulletins"]})
     _, a, _ = _errors(att_only)
@@ -175,12 +186,22 @@ def test_xs_bands_registered_each_through_its_own_geometry() -> None:
     """XS: the three bands' look angles differ by tenths of a pixel; each gets its own 1B
     polynomials and 2A grids on the first band's output grid, and every band's checkpoints
     fall where the unbiased chain puts them."""
-    acq = emulate(scenario_from_dict(merge_tables(ERRORS_OFF, {"instrument": {"mode": "XS",
-                                                                      "n_detectors": 1500}})),
-                  render=False)
+    acq = emulate(
+        scenario_from_dict(
+            merge_tables(ERRORS_OFF, {"instrument": {"mode": "XS", "n_detectors": 1500}})
+        ),
+        render=False,
+    )
     looks = {b.name: b.look_nominal for b in acq.hrv.bands}
-    pg = pass_geometry(acq.epoch, acq.line_times_s, acq.hrv.line_period_s, acq.bulletins,
-                       acq.gyros.t_s, acq.gyros.rates_rad_per_s, looks)
+    pg = pass_geometry(
+        acq.epoch,
+        acq.line_times_s,
+        acq.hrv.line_period_s,
+        acq.bulletins,
+        acq.gyros.t_s,
+        acq.gyros.rates_rad_per_s,
+        looks,
+    )
     scene = pg.scenes(acq.hrv.n_lines, 0, H_REF_M)[0]
     res = nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
     crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
@@ -193,17 +214,23 @@ def test_xs_bands_registered_each_through_its_own_geometry() -> None:
     truth = Truth(acq, 0)
     shared_first = []
     for k, b in enumerate(looks):
-        assert (g2[b].geotransform, g2[b].n_rows, g2[b].n_cols) == \
-            (g2[first].geotransform, g2[first].n_rows, g2[first].n_cols)
+        assert (g2[b].geotransform, g2[b].n_rows, g2[b].n_cols) == (
+            g2[first].geotransform,
+            g2[first].n_rows,
+            g2[first].n_cols,
+        )
         assert (g1[b].i_origin, g1[b].n_cols) == (g1[first].i_origin, g1[first].n_cols)
         assert g2[b].approximation_error(scene.models[b], H_REF_M)["max_px"] <= MAX_INVERSE_PX
         own = checkpoints_2a(truth, scene, g2[b], k, 11)["line_of_sight"]
         assert own["max_px"] < UNBIASED_PX
         e1 = checkpoints_1b(truth, scene, g1[b], k, 11)["line_of_sight"]
         assert np.hypot(e1["mean_1_m"], e1["mean_2_m"]) / res < UNBIASED_PX
-        shared_first.append((own["rms_px"],
-                             checkpoints_2a(truth, scene, g2[first], k, 11)
-                             ["line_of_sight"]["rms_px"]))
+        shared_first.append(
+            (
+                own["rms_px"],
+                checkpoints_2a(truth, scene, g2[first], k, 11)["line_of_sight"]["rms_px"],
+            )
+        )
     # the band registration the shared geometry would miss, and its own geometry does not
     assert max(s for _o, s in shared_first) > 0.1
     assert max(o for o, _s in shared_first) < 0.05

@@ -56,8 +56,8 @@ def test_the_walker_sees_a_wrong_way_import(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "path", _modules("levels/geo") + _modules("levels/cor"),
-    ids=lambda p: str(p.relative_to(ROOT)))
+    "path", _modules("levels/geo") + _modules("levels/cor"), ids=lambda p: str(p.relative_to(ROOT))
+)
 def test_geo_and_cor_are_numerical(path: Path) -> None:
     forbidden = ("h5py", "levels.readers", "levels.products", "rasterio")
     if "levels/geo" in str(path):

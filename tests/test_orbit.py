@@ -94,8 +94,7 @@ def test_orbit_is_placed_on_the_target_at_1030(spot_orbit) -> None:
 
 def test_ground_track_repeats_after_26_days(spot_orbit) -> None:
     orbit, _ = spot_orbit
-    shift = np.linalg.norm(ascending_node_ecef(orbit, 26 * DAY_S)
-                           - ascending_node_ecef(orbit, 0.0))
+    shift = np.linalg.norm(ascending_node_ecef(orbit, 26 * DAY_S) - ascending_node_ecef(orbit, 0.0))
     assert shift < REPEAT_TOL_M
 
 

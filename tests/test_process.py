@@ -50,21 +50,39 @@ def test_levels_alone_processes_an_l0_archive(run_dir: Path, tmp_path: Path) -> 
                           "station": sorted(m for m in sys.modules
                                             if m.split(".")[0] == "station")}}))
     """)
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=False, cwd=tmp_path, timeout=300)
+    run = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=tmp_path,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr
     out = json.loads(run.stdout)
     assert out["station"] == []
     assert out["levels"] == ["1A", "2A"]
 
 
-def test_station_process_reproduces_a_run_bit_for_bit(run_dir: Path, tmp_path: Path,
-                                                      capsys) -> None:
+def test_station_process_reproduces_a_run_bit_for_bit(
+    run_dir: Path, tmp_path: Path, capsys
+) -> None:
     """With the scenario that made it, reprocessing the run's L0 gives the run's products,
     byte for byte (the truth is emulated again for the checkpoints)."""
     out = tmp_path / "again"
-    assert main(["process", str(run_dir / "small_test.l0.h5"), "--scenario", str(SMALL),
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "process",
+                str(run_dir / "small_test.l0.h5"),
+                "--scenario",
+                str(SMALL),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     made = sorted(p.name for p in out.glob("*.h5"))
     assert made == [f"small_test_s000_{lv}.h5" for lv in LEVELS]
     for name in made:
@@ -78,8 +96,22 @@ def test_station_process_without_the_truth(run_dir: Path, tmp_path: Path, capsys
     opts = tmp_path / "opts.toml"
     opts.write_text("[processing]\ninverse_2a = 'poly5'\n")
     out = tmp_path / "p"
-    assert main(["process", str(run_dir / "small_test.l0.h5"), "--options", str(opts),
-                 "--levels", "2A", "--out", str(out), "--json"]) == 0
+    assert (
+        main(
+            [
+                "process",
+                str(run_dir / "small_test.l0.h5"),
+                "--options",
+                str(opts),
+                "--levels",
+                "2A",
+                "--out",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
     rows = json.loads(capsys.readouterr().out)["products"]
     assert [r["level"] for r in rows] == ["2A"]
     assert not any(k.startswith("checkpoints") for k in rows[0])
@@ -88,20 +120,20 @@ def test_station_process_without_the_truth(run_dir: Path, tmp_path: Path, capsys
     assert p.provenance["scenario"] == "small_test"  # the archive's own provenance
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--levels", "1A,3"], "--levels 1A,3"),
-    (["--scenario", str(ROOT / "scenarios" / "quickstart.toml")], "recorded from scenario"),
-])
-def test_station_process_bad_input(args, message, run_dir: Path, tmp_path: Path,
-                                   capsys) -> None:
-    assert main(["process", str(run_dir / "small_test.l0.h5"), "--out", str(tmp_path),
-                 *args]) == 2
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--levels", "1A,3"], "--levels 1A,3"),
+        (["--scenario", str(ROOT / "scenarios" / "quickstart.toml")], "recorded from scenario"),
+    ],
+)
+def test_station_process_bad_input(args, message, run_dir: Path, tmp_path: Path, capsys) -> None:
+    assert main(["process", str(run_dir / "small_test.l0.h5"), "--out", str(tmp_path), *args]) == 2
     err = capsys.readouterr().err
     assert err.startswith("station: error: ") and err.count("\n") == 1 and message in err
 
 
-def test_map_product_opens_georeferenced_in_gdal_and_xarray(run_dir: Path,
-                                                           tmp_path: Path) -> None:
+def test_map_product_opens_georeferenced_in_gdal_and_xarray(run_dir: Path, tmp_path: Path) -> None:
     """GDAL's netCDF driver and xarray read the 2A product itself with the CRS and the
     transform of its GeoTIFF export, exactly."""
     src = run_dir / "small_test_s000_2A.h5"
@@ -171,8 +203,9 @@ def _as_version_1(src: Path, dst: Path) -> None:
 
 
 @pytest.mark.parametrize("level", ["1B", "2A"])
-def test_version_1_products_are_still_read_and_compared(level: str, run_dir: Path,
-                                                        tmp_path: Path) -> None:
+def test_version_1_products_are_still_read_and_compared(
+    level: str, run_dir: Path, tmp_path: Path
+) -> None:
     """A regression campaign compares products of two software versions: a version 1
     product reads as its version 2 twin and compares equal to it."""
     from levels.compare import compare_paths

@@ -48,15 +48,13 @@ def test_run_writes_products_report_and_quicklooks(run_dir: Path, capsys) -> Non
         assert png.read_bytes()[:8] == PNG_SIGNATURE and png.stat().st_size > 10_000
         if p["level"] != "1A":
             assert 100.0 < p["quality"]["checkpoints/P/line_of_sight/rms_m"] < 500.0
-    for stage in ("emulate", "transmit", "receive", "record", "geo", "cor", "quicklooks",
-                  "total"):
+    for stage in ("emulate", "transmit", "receive", "record", "geo", "cor", "quicklooks", "total"):
         assert stage in report["timings_s"]
     assert set(report["timings_s"]["cor"]) >= {"1A", "1B", "2A", "write"}
 
 
 def test_run_prints_a_summary_table(tmp_path: Path, capsys) -> None:
-    assert main(["run", str(SMALL), "--out", str(tmp_path), "--quiet",
-                 "--no-quicklooks"]) == 0
+    assert main(["run", str(SMALL), "--out", str(tmp_path), "--quiet", "--no-quicklooks"]) == 0
     out = capsys.readouterr().out
     assert "small_test: HRV1 P" in out and "truth check passed" in out
     assert out.count("small_test_s000_") == 3 and "stripes raw → 1A" in out
@@ -107,8 +105,9 @@ def test_compare_names_a_changed_parameter(run_dir: Path, tmp_path: Path, capsys
     assert data["ok"] is False and data["outside_tolerance"] >= 1
 
 
-def test_compare_sees_one_changed_pixel_and_tolerances(run_dir: Path, tmp_path: Path,
-                                                       capsys) -> None:
+def test_compare_sees_one_changed_pixel_and_tolerances(
+    run_dir: Path, tmp_path: Path, capsys
+) -> None:
     a = run_dir / "small_test_s000_1B.h5"
     b = tmp_path / a.name
     shutil.copy(a, b)
@@ -120,11 +119,12 @@ def test_compare_sees_one_changed_pixel_and_tolerances(run_dir: Path, tmp_path: 
     result = compare_paths(a, b)
     assert not result.ok
     # one pixel of 90 000 is within the changed-fraction tolerance, not within the others
-    assert {f.what for _k, f in result.failures()} == {"bands/P/max_abs_counts",
-                                                        "bands/P/rms_counts"}
+    assert {f.what for _k, f in result.failures()} == {
+        "bands/P/max_abs_counts",
+        "bands/P/rms_counts",
+    }
     loose = tmp_path / "loose.toml"
-    loose.write_text("[pixels]\nmax_abs_counts = 255\nrms_counts = 10\n"
-                     "fraction_changed = 0.01\n")
+    loose.write_text("[pixels]\nmax_abs_counts = 255\nrms_counts = 10\nfraction_changed = 0.01\n")
     assert main(["compare", str(a), str(b), "--tolerances", str(loose)]) == 0
     bad = tmp_path / "bad.toml"
     bad.write_text("[pixels]\nmax_abs = 3\n")
@@ -141,8 +141,9 @@ def test_inspect(run_dir: Path, capsys) -> None:
     assert data["attrs"]["level"] == "1B" and data["bands"]["P"]["valid_fraction"] > 0.9
 
 
-def test_geotiff_export_puts_checkpoints_where_the_product_says(run_dir: Path,
-                                                                 tmp_path: Path) -> None:
+def test_geotiff_export_puts_checkpoints_where_the_product_says(
+    run_dir: Path, tmp_path: Path
+) -> None:
     src = run_dir / "small_test_s000_2A.h5"
     tif = tmp_path / "scene.tif"
     assert main(["export", str(src), "--geotiff", "--out", str(tif)]) == 0
@@ -165,29 +166,40 @@ def test_geotiff_export_puts_checkpoints_where_the_product_says(run_dir: Path,
         assert ds.descriptions == ("P",) and ds.tags()["level"] == "2A"
 
 
-@pytest.mark.parametrize("args, message", [
-    (["run", "missing.toml"], "not found"),
-    (["run", "{bad}"], "not valid TOML"),
-    (["run", "{unknown}"], "unknown key"),
-    (["inspect", "{junk}"], "not a readable HDF5"),
-    (["inspect", "{truncated}"], ""),
-    (["inspect", "{toml}"], ""),
-    (["compare", "{junk}", "{junk}"], ""),
-    (["compare", "{run}", "{product}"], "directory with a file"),
-    (["compare", "missing_a", "missing_b"], "no such product"),
-    (["export", "{product_1b}", "--geotiff"], "image geometry"),
-])
-def test_bad_input_is_one_line_and_exit_2(args, message, run_dir: Path, tmp_path: Path,
-                                          monkeypatch, capsys) -> None:
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["run", "missing.toml"], "not found"),
+        (["run", "{bad}"], "not valid TOML"),
+        (["run", "{unknown}"], "unknown key"),
+        (["inspect", "{junk}"], "not a readable HDF5"),
+        (["inspect", "{truncated}"], ""),
+        (["inspect", "{toml}"], ""),
+        (["compare", "{junk}", "{junk}"], ""),
+        (["compare", "{run}", "{product}"], "directory with a file"),
+        (["compare", "missing_a", "missing_b"], "no such product"),
+        (["export", "{product_1b}", "--geotiff"], "image geometry"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(
+    args, message, run_dir: Path, tmp_path: Path, monkeypatch, capsys
+) -> None:
     monkeypatch.chdir(tmp_path)
     (tmp_path / "bad.toml").write_text("name = [\n")
     (tmp_path / "unknown.toml").write_text("[instrument]\nn_detector = 3\n")
     (tmp_path / "junk.h5").write_bytes(b"not hdf5 at all")
     good = run_dir / "small_test_s000_2A.h5"
     (tmp_path / "truncated.h5").write_bytes(good.read_bytes()[: good.stat().st_size // 3])
-    names = {"bad": "bad.toml", "unknown": "unknown.toml", "junk": "junk.h5",
-             "truncated": "truncated.h5", "toml": "bad.toml", "run": str(run_dir),
-             "product": str(good), "product_1b": str(run_dir / "small_test_s000_1B.h5")}
+    names = {
+        "bad": "bad.toml",
+        "unknown": "unknown.toml",
+        "junk": "junk.h5",
+        "truncated": "truncated.h5",
+        "toml": "bad.toml",
+        "run": str(run_dir),
+        "product": str(good),
+        "product_1b": str(run_dir / "small_test_s000_1B.h5"),
+    }
     assert main([a.format(**names) for a in args]) == 2
     err = capsys.readouterr().err
     assert err.startswith("station: error: ") and err.count("\n") == 1
@@ -199,10 +211,12 @@ def test_scenes_lost_in_a_fade_are_skipped_and_said(tmp_path: Path, capsys) -> N
     """A 15 s fade loses most of a five-scene pass: the run makes what it can, and the
     report names every scene it could not make and why."""
     scn = tmp_path / "fade.toml"
-    scn.write_text('name = "fade"\nseed = 5\n[instrument]\nn_detectors = 300\n'
-                   'n_lines = 1500\n[downlink]\nbit_rate_mbps = 0.2\npreamble_s = 0.1\n'
-                   'postamble_s = 0.1\n[channel]\nfade_rate_per_min = 2.0\n'
-                   'fade_duration_ms = 15000.0\n')
+    scn.write_text(
+        'name = "fade"\nseed = 5\n[instrument]\nn_detectors = 300\n'
+        "n_lines = 1500\n[downlink]\nbit_rate_mbps = 0.2\npreamble_s = 0.1\n"
+        "postamble_s = 0.1\n[channel]\nfade_rate_per_min = 2.0\n"
+        "fade_duration_ms = 15000.0\n"
+    )
     out = tmp_path / "run"
     assert main(["run", str(scn), "--out", str(out), "--quiet", "--no-quicklooks"]) == 0
     report = json.loads((out / "report.json").read_text())
@@ -220,19 +234,20 @@ def test_a_pass_of_both_hrvs_with_a_gap(tmp_path: Path, capsys) -> None:
     """Both HRVs (P and XS) on their own channels, an outage striking both: one L0 archive
     and one set of products per HRV, the lost scenes of each named, and `compare` tells
     two such runs apart HRV by HRV."""
-    text = ('name = "both"\nseed = 8\n'
-            '[[instrument]]\nhrv = 1\ntwin = true\nn_detectors = 300\nn_lines = 1200\n'
-            '[[instrument]]\nhrv = 2\nmode = "XS"\ntwin = true\nn_detectors = 150\n'
-            'n_lines = 600\n[downlink]\nbit_rate_mbps = 1.25\npreamble_s = 0.1\n'
-            'postamble_s = 0.1\n[channel]\noutage_start_s = 10.5\n'
-            'outage_duration_s = {}\n[processing]\nlevels = ["1A", "2A"]\n')
+    text = (
+        'name = "both"\nseed = 8\n'
+        "[[instrument]]\nhrv = 1\ntwin = true\nn_detectors = 300\nn_lines = 1200\n"
+        '[[instrument]]\nhrv = 2\nmode = "XS"\ntwin = true\nn_detectors = 150\n'
+        "n_lines = 600\n[downlink]\nbit_rate_mbps = 1.25\npreamble_s = 0.1\n"
+        "postamble_s = 0.1\n[channel]\noutage_start_s = 10.5\n"
+        'outage_duration_s = {}\n[processing]\nlevels = ["1A", "2A"]\n'
+    )
     runs = []
     for outage in (11.5, 1.0):
         scn = tmp_path / f"both_{outage:g}.toml"
         scn.write_text(text.format(outage))
         runs.append(tmp_path / f"run_{outage:g}")
-        assert main(["run", str(scn), "--out", str(runs[-1]), "--quiet",
-                     "--no-quicklooks"]) == 0
+        assert main(["run", str(scn), "--out", str(runs[-1]), "--quiet", "--no-quicklooks"]) == 0
     report = json.loads((runs[0] / "report.json").read_text())
     assert [(h["hrv"], h["mode"]) for h in report["hrvs"]] == [(1, "P"), (2, "XS")]
     for h in report["hrvs"]:

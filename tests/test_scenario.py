@@ -39,8 +39,10 @@ def test_both_hrvs_are_two_instrument_tables(tmp_path: Path) -> None:
 
 def test_units_converted_once_to_si() -> None:
     scn = scenario_from_dict(
-        {"orbit": {"kind": "elements", "altitude_km": 830.0, "inclination_deg": 98.0},
-         "attitude": {"roll_offset_urad": 100, "jitter_amplitude_urad": [1, 2, 3]}}
+        {
+            "orbit": {"kind": "elements", "altitude_km": 830.0, "inclination_deg": 98.0},
+            "attitude": {"roll_offset_urad": 100, "jitter_amplitude_urad": [1, 2, 3]},
+        }
     )
     assert scn.orbit.altitude_m == 830e3
     assert scn.orbit.inclination_rad == pytest.approx(math.radians(98.0), rel=1e-15)

@@ -26,8 +26,9 @@ MEAN_COUNTS_TOL = 0.05  # a few pixels rounding the other way on another CPU
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
 def test_scenario_matches_its_expected_summary(path: Path) -> None:
-    expected = json.loads((ROOT / "scenarios" / path.stem / "expected" / "summary.json")
-                          .read_text())
+    expected = json.loads(
+        (ROOT / "scenarios" / path.stem / "expected" / "summary.json").read_text()
+    )
     scn = load_scenario(path)
     acqs = emulate_pass(scn, render=scn.name in RENDERED)
     wanted = expected["hrvs"] if len(acqs) > 1 else [expected]  # one summary per HRV
@@ -41,16 +42,14 @@ def _matches_summary(name: str, acq, expected: dict) -> None:
     if name in RENDERED:  # counts of frames and lines: exact
         assert comparable(downlink_report(acq, downlink(acq))) == expected["downlink"]
     assert got["strip"] == expected["strip"] | {
-        "satellite_altitude_km": pytest.approx(expected["strip"]["satellite_altitude_km"],
-                                               abs=1e-6)
+        "satellite_altitude_km": pytest.approx(expected["strip"]["satellite_altitude_km"], abs=1e-6)
     }
     gf, ef = got["footprint"], expected["footprint"]
     assert np.ravel(gf["corners_lat_lon_deg"]) == pytest.approx(
         np.ravel(ef["corners_lat_lon_deg"]), abs=COORD_TOL_DEG
     )
     assert gf["centre_lat_lon_deg"] == pytest.approx(ef["centre_lat_lon_deg"], abs=COORD_TOL_DEG)
-    assert gf["width_first_line_km"] == pytest.approx(ef["width_first_line_km"],
-                                                      abs=LENGTH_TOL_KM)
+    assert gf["width_first_line_km"] == pytest.approx(ef["width_first_line_km"], abs=LENGTH_TOL_KM)
     assert gf["all_located"]
     assert [p["aos_utc"][:19] for p in got["passes"]] == [
         p["aos_utc"][:19] for p in expected["passes"]
@@ -73,11 +72,17 @@ RUN_REL = 1e-6  # everything else numeric (MTF figures, ...)
 
 def _close(got, want, key: str) -> bool:
     if isinstance(want, dict):
-        return isinstance(got, dict) and set(got) == set(want) and all(
-            _close(got[k], want[k], f"{key}/{k}") for k in want)
+        return (
+            isinstance(got, dict)
+            and set(got) == set(want)
+            and all(_close(got[k], want[k], f"{key}/{k}") for k in want)
+        )
     if isinstance(want, list):
-        return isinstance(got, list) and len(got) == len(want) and all(
-            _close(g, w, key) for g, w in zip(got, want, strict=True))
+        return (
+            isinstance(got, list)
+            and len(got) == len(want)
+            and all(_close(g, w, key) for g, w in zip(got, want, strict=True))
+        )
     if isinstance(want, bool) or not isinstance(want, float | int) or "n_points" in key:
         return got == want  # counts, names, flags: exact
     tol = next((t for suffix, t in RUN_TOL.items() if key.endswith(suffix)), None)
@@ -91,12 +96,21 @@ def _close(got, want, key: str) -> bool:
 def _diff(got, want, key: str = "") -> list[str]:
     """The keys where a run departs from its expected report (for the failure message)."""
     if isinstance(want, dict) and isinstance(got, dict):
-        return [d for k in sorted(set(got) | set(want))
-                for d in (_diff(got.get(k), want.get(k), f"{key}/{k}") if k in got and k in want
-                          else [f"{key}/{k}: only in {'run' if k in got else 'expected'}"])]
+        return [
+            d
+            for k in sorted(set(got) | set(want))
+            for d in (
+                _diff(got.get(k), want.get(k), f"{key}/{k}")
+                if k in got and k in want
+                else [f"{key}/{k}: only in {'run' if k in got else 'expected'}"]
+            )
+        ]
     if isinstance(want, list) and isinstance(got, list) and len(got) == len(want):
-        return [d for i, (g, w) in enumerate(zip(got, want, strict=True))
-                for d in _diff(g, w, f"{key}[{i}]")]
+        return [
+            d
+            for i, (g, w) in enumerate(zip(got, want, strict=True))
+            for d in _diff(g, w, f"{key}[{i}]")
+        ]
     return [] if _close(got, want, key) else [f"{key}: got {got!r}, expected {want!r}"]
 
 
@@ -105,8 +119,9 @@ def test_run_matches_its_expected_report(name: str, tmp_path: Path) -> None:
     from station.run import comparable_report, run_scenario
 
     want = json.loads((ROOT / "scenarios" / name / "expected" / "run.json").read_text())
-    report = run_scenario(load_scenario(ROOT / "scenarios" / f"{name}.toml"), tmp_path,
-                          quicklooks=False)
+    report = run_scenario(
+        load_scenario(ROOT / "scenarios" / f"{name}.toml"), tmp_path, quicklooks=False
+    )
     got = comparable_report(report)
     got.pop("software")  # as scenarios/update_expected.py writes it
     differences = _diff(got, want)

@@ -68,7 +68,8 @@ def test_2a_geometry_redoes_the_map(run) -> None:
     assert dx == -dy == p.attrs["pixel_size_m"]
     # the scene centre is inside the map grid
     e, n = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(
-        p.geometry["scene"]["centre_lon_deg"], p.geometry["scene"]["centre_lat_deg"])
+        p.geometry["scene"]["centre_lon_deg"], p.geometry["scene"]["centre_lat_deg"]
+    )
     assert 0 < (e - x0) / dx < p.attrs["n_cols"] and 0 < (y0 - n) / dx < p.attrs["n_rows"]
 
 

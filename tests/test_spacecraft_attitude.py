@@ -35,9 +35,7 @@ def test_westin_units_are_microdegrees() -> None:
 @pytest.fixture(scope="module")
 def ensemble() -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(2024)
-    draws = [
-        TruthAttitude.generate(0.0, 40.0, rng, drift_step_s=0.125) for _ in range(M)
-    ]
+    draws = [TruthAttitude.generate(0.0, 40.0, rng, drift_step_s=0.125) for _ in range(M)]
     return draws[0].t_grid_s, np.stack([d.drift_rad for d in draws])
 
 
@@ -62,8 +60,13 @@ def test_fractional_brownian_rejects_a_non_power_law() -> None:
 def test_offsets_and_jitter() -> None:
     rng = np.random.default_rng(5)
     att = TruthAttitude.generate(
-        0.0, 10.0, rng, offsets_rad=(1e-4, -2e-4, 3e-4), drift_scale=0.0,
-        jitter_amplitude_rad=(1e-6, 0.0, 0.0), jitter_frequency_hz=(20.0, 0.0, 0.0),
+        0.0,
+        10.0,
+        rng,
+        offsets_rad=(1e-4, -2e-4, 3e-4),
+        drift_scale=0.0,
+        jitter_amplitude_rad=(1e-6, 0.0, 0.0),
+        jitter_frequency_hz=(20.0, 0.0, 0.0),
     )
     a = att.angles_rad(np.linspace(0, 10, 20001))
     assert a[:, 1] == pytest.approx(-2e-4, abs=1e-18)

@@ -36,11 +36,20 @@ LINE_TIME_TOL_S = 1e-4
 ELEVATION_RAD = np.radians(40.0)
 
 _DOWN = {"bit_rate_mbps": 0.25, "preamble_s": 0.05, "postamble_s": 0.05}
-_P = {"name": "p", "seed": 11, "instrument": {"n_detectors": 300, "n_lines": 240},
-      "downlink": _DOWN, "gcps": {"count": 2}}
-_XS = {"name": "xs", "seed": 12,
-       "instrument": {"mode": "XS", "n_detectors": 160, "n_lines": 120, "hrv": 2},
-       "downlink": {**_DOWN, "first_frame_count": 2**24 - 40}, "gcps": {"count": 2}}
+_P = {
+    "name": "p",
+    "seed": 11,
+    "instrument": {"n_detectors": 300, "n_lines": 240},
+    "downlink": _DOWN,
+    "gcps": {"count": 2},
+}
+_XS = {
+    "name": "xs",
+    "seed": 12,
+    "instrument": {"mode": "XS", "n_detectors": 160, "n_lines": 120, "hrv": 2},
+    "downlink": {**_DOWN, "first_frame_count": 2**24 - 40},
+    "gcps": {"count": 2},
+}
 
 
 @pytest.fixture(scope="module")
@@ -58,12 +67,14 @@ def _send(acq, seed: int = 1, **channel):
     tx = transmit(acq, scn.downlink, np.random.default_rng(seed))
     cfg = dataclasses.replace(scn.channel, **channel)
     elev = np.full(tx.slot_t_s.size, ELEVATION_RAD)
-    rx = impair(tx.cadus, tx.slot_t_s, elev, cfg, tx.bit_rate_bit_per_s,
-                np.random.default_rng(seed + 1))
+    rx = impair(
+        tx.cadus, tx.slot_t_s, elev, cfg, tx.bit_rate_bit_per_s, np.random.default_rng(seed + 1)
+    )
     return tx, rx, receive(rx.stream, rx.n_bits)
 
 
 # --- clean channel ---------------------------------------------------------------------------
+
 
 def test_clean_channel_xs_is_bit_for_bit(acq_xs) -> None:
     _tx, _rx, d = _send(acq_xs, ber=0.0, burst_rate_per_s=0.0)
@@ -98,15 +109,24 @@ def test_line_times_and_gyros_come_back(acq_p) -> None:
     assert abs(err[mid]) <= d.line_clock_uncertainty_s  # the truth is where the codes allow
     assert d.line_period_s == pytest.approx(acq_p.hrv.line_period_s, rel=1e-4)
     assert np.array_equal(d.aux_t_s, np.floor(acq_p.gyros.t_s * 1e3 + 1e-6) / 1e3)
-    assert np.allclose(d.gyro_rates_rad_per_s, acq_p.gyros.rates_rad_per_s, rtol=0,
-                       atol=1e-15)  # quantised on board, sent as counts of the LSB
+    assert np.allclose(
+        d.gyro_rates_rad_per_s, acq_p.gyros.rates_rad_per_s, rtol=0, atol=1e-15
+    )  # quantised on board, sent as counts of the LSB
 
 
 # --- impaired channel: accounting and masks ---------------------------------------------------
 
-HARSH = dict(burst_rate_per_s=4.0, burst_length_bits=600.0, burst_ber=0.1,
-             fade_rate_per_min=40.0, fade_duration_s=0.03, replay_runs=3, replay_frames=8,
-             reorder_fraction=0.05, reorder_distance=3)
+HARSH = dict(
+    burst_rate_per_s=4.0,
+    burst_length_bits=600.0,
+    burst_ber=0.1,
+    fade_rate_per_min=40.0,
+    fade_duration_s=0.03,
+    replay_runs=3,
+    replay_frames=8,
+    reorder_fraction=0.05,
+    reorder_distance=3,
+)
 
 
 @pytest.mark.parametrize("ber", [1e-7, 1e-6, 1e-5, 1e-4, 1e-3])
@@ -150,12 +170,20 @@ def test_an_outage_loses_the_frames_under_it_and_only_those(acq_p, random_fades)
     frame_s = 8 * tf.CADU_BYTES / (_DOWN["bit_rate_mbps"] * 1e6)
     span = acq_p.line_times_s[-1] - acq_p.line_times_s[0]
     start, length = 0.3 * span, 0.2 * span
-    tx, rx, d = _send(acq_p, seed=3, ber=0.0, burst_rate_per_s=0.0, outage_start_s=start,
-                      outage_duration_s=length, fade_rate_per_min=random_fades,
-                      fade_duration_s=0.01)
+    tx, rx, d = _send(
+        acq_p,
+        seed=3,
+        ber=0.0,
+        burst_rate_per_s=0.0,
+        outage_start_s=start,
+        outage_duration_s=length,
+        fade_rate_per_min=random_fades,
+        fade_duration_s=0.01,
+    )
     faded = np.flatnonzero(rx.copy_faded)
-    under = np.arange(np.ceil(start / frame_s), np.floor((start + length) / frame_s) - 1,
-                      dtype=int)  # copies wholly inside the outage
+    under = np.arange(
+        np.ceil(start / frame_s), np.floor((start + length) / frame_s) - 1, dtype=int
+    )  # copies wholly inside the outage
     assert np.isin(under, faded).all()  # every copy under the outage is lost
     if not random_fades:  # and the outage alone loses no copy beyond its edges
         assert faded.min() >= under[0] - 1 and faded.max() <= under[-1] + 2
@@ -172,8 +200,9 @@ def test_markers_are_found_at_any_bit_offset(acq_xs) -> None:
     cadus = tx.cadus[:6].ravel()
     for shift in range(8):
         noise_bits = 8 * 37 + shift
-        bits = np.concatenate([rng.integers(0, 2, noise_bits, dtype=np.uint8),
-                               np.unpackbits(cadus)])
+        bits = np.concatenate(
+            [rng.integers(0, 2, noise_bits, dtype=np.uint8), np.unpackbits(cadus)]
+        )
         offsets, confirmed, _searched, _losses = find_cadus(np.packbits(bits), bits.size)
         assert offsets.tolist() == [noise_bits + 8192 * k for k in range(6)]
         assert confirmed[:5].all()
@@ -184,9 +213,9 @@ def test_markers_with_a_few_bit_errors_are_still_found(acq_xs) -> None:
     stream = tx.cadus[:7].ravel().copy()
 
     def damage(frame: int, n_bits: int) -> None:
-        bits = np.unpackbits(stream[frame * 1024:frame * 1024 + 4])
+        bits = np.unpackbits(stream[frame * 1024 : frame * 1024 + 4])
         bits[:n_bits] ^= 1
-        stream[frame * 1024:frame * 1024 + 4] = np.packbits(bits)
+        stream[frame * 1024 : frame * 1024 + 4] = np.packbits(bits)
 
     damage(0, 3)  # found by search (≤ 3 errors)
     damage(2, 12)  # beyond the lock tolerance, but the next marker is in place: coasted
@@ -199,17 +228,30 @@ def test_markers_with_a_few_bit_errors_are_still_found(acq_xs) -> None:
     assert losses == 1 and confirmed[:4].all()
 
 
-@settings(max_examples=25, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(seed=st.integers(0, 2**31), log_ber=st.floats(-7.0, -3.0),
-       bursts=st.floats(0.0, 10.0), fades=st.floats(0.0, 80.0),
-       replays=st.integers(0, 4), reorder=st.floats(0.0, 0.1))
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    seed=st.integers(0, 2**31),
+    log_ber=st.floats(-7.0, -3.0),
+    bursts=st.floats(0.0, 10.0),
+    fades=st.floats(0.0, 80.0),
+    replays=st.integers(0, 4),
+    reorder=st.floats(0.0, 0.1),
+)
 def test_round_trip_property(acq_xs, seed, log_ber, bursts, fades, replays, reorder) -> None:
     """Whatever the channel does: accounts balance, masks are exactly the segments touched
     by lost frames, and every valid pixel is what was sent."""
-    tx, _rx, d = _send(acq_xs, seed=seed, ber=10.0**log_ber, burst_rate_per_s=bursts,
-                       fade_rate_per_min=fades, replay_runs=replays, replay_frames=5,
-                       reorder_fraction=reorder)
+    tx, _rx, d = _send(
+        acq_xs,
+        seed=seed,
+        ber=10.0**log_ber,
+        burst_rate_per_s=bursts,
+        fade_rate_per_min=fades,
+        replay_runs=replays,
+        replay_frames=5,
+        reorder_fraction=reorder,
+    )
     for vc, acc in d.accounts.items():
         assert acc.delivered + acc.lost == acc.sent
         if acc.tail_known:
@@ -222,6 +264,7 @@ def test_round_trip_property(acq_xs, seed, log_ber, bursts, fades, replays, reor
 
 
 # --- bad input --------------------------------------------------------------------------------
+
 
 def test_noise_alone_is_an_error_not_a_crash() -> None:
     noise = np.random.default_rng(0).integers(0, 256, 200_000, dtype=np.uint8)
@@ -250,6 +293,7 @@ def test_fuzz_mutated_streams(clean_stream, seed: int) -> None:
 
 
 # --- L0 archive -------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def l0_path(acq_xs, tmp_path_factory):

@@ -19,8 +19,9 @@ REFERENCE = Path(__file__).parent / "reference"
 
 def _hex_table(name: str) -> np.ndarray:
     lines = (REFERENCE / name).read_text().splitlines()
-    return np.array([int(v, 16) for ln in lines if not ln.startswith("#") for v in ln.split()],
-                    np.uint8)
+    return np.array(
+        [int(v, 16) for ln in lines if not ln.startswith("#") for v in ln.split()], np.uint8
+    )
 
 
 # --- Reed–Solomon ------------------------------------------------------------------------
@@ -28,12 +29,59 @@ def _hex_table(name: str) -> np.ndarray:
 #: CCSDS 131.0-B-4 §4.3.4 / Annex: g(x) coefficients as powers of α, highest degree first
 #: (also libfec's CCSDS_poly table). The code is self-reciprocal, hence the symmetry.
 CCSDS_GENERATOR_ALPHA_LOGS = [
-    0, 249, 59, 66, 4, 43, 126, 251, 97, 30, 3, 213, 50, 66, 170, 5, 24,
-    5, 170, 66, 50, 213, 3, 30, 97, 251, 126, 43, 4, 66, 59, 249, 0,
+    0,
+    249,
+    59,
+    66,
+    4,
+    43,
+    126,
+    251,
+    97,
+    30,
+    3,
+    213,
+    50,
+    66,
+    170,
+    5,
+    24,
+    5,
+    170,
+    66,
+    50,
+    213,
+    3,
+    30,
+    97,
+    251,
+    126,
+    43,
+    4,
+    66,
+    59,
+    249,
+    0,
 ]
 #: Conventional → dual basis for bytes 0…15 (CCSDS 131.0-B Annex F; libfec's Taltab).
-CCSDS_DUAL_OF_0_TO_15 = [0x00, 0x7B, 0xAF, 0xD4, 0x99, 0xE2, 0x36, 0x4D,
-                         0xFA, 0x81, 0x55, 0x2E, 0x63, 0x18, 0xCC, 0xB7]
+CCSDS_DUAL_OF_0_TO_15 = [
+    0x00,
+    0x7B,
+    0xAF,
+    0xD4,
+    0x99,
+    0xE2,
+    0x36,
+    0x4D,
+    0xFA,
+    0x81,
+    0x55,
+    0x2E,
+    0x63,
+    0x18,
+    0xCC,
+    0xB7,
+]
 
 
 def _alpha_logs(values: np.ndarray) -> list[int]:
@@ -113,6 +161,7 @@ def test_decode_rejects_a_block_of_the_wrong_size() -> None:
 
 # --- randomiser, CRC -----------------------------------------------------------------------
 
+
 def test_randomiser_sequence_is_the_ccsds_one() -> None:
     # CCSDS 131.0-B-4 §10.4.1: the sequence begins 1111 1111 0100 1000 0000 1110 1100 0000
     # 1001 1010 ..., period 255 bits.
@@ -141,11 +190,12 @@ def test_crc16_detects_any_single_bit_flip() -> None:
 
 # --- DPCM ----------------------------------------------------------------------------------
 
+
 def test_dpcm_levels_are_symmetric_and_fit_six_bits() -> None:
     assert dpcm.LEVELS.size == 63
     assert np.array_equal(dpcm.LEVELS, -dpcm.LEVELS[::-1])
     assert np.all(np.diff(dpcm.LEVELS) > 0)
-    assert dpcm.LEVELS[31 - 8:31 + 9].tolist() == list(range(-8, 9))  # exact near zero
+    assert dpcm.LEVELS[31 - 8 : 31 + 9].tolist() == list(range(-8, 9))  # exact near zero
 
 
 @settings(max_examples=50, deadline=None)

@@ -35,18 +35,25 @@ Row = tuple[str, str, str]  # figure, measured, README
 
 # --- geometry: real scenes ----------------------------------------------------------------
 
+
 def geometry() -> Iterator[Row]:
     from station.locate import check_frame
 
-    for name, readme in (("spot5_hrg1_A_20050313_altai_METADATA.DIM", "0.053 m"),
-                         ("spot2_hrv1_P_19980220_izmit_METADATA.DIM", "2.49 m"),
-                         ("spot4_hrvir2_M_20120115_altai_METADATA.DIM", "1.56 m")):
+    for name, readme in (
+        ("spot5_hrg1_A_20050313_altai_METADATA.DIM", "0.053 m"),
+        ("spot2_hrv1_P_19980220_izmit_METADATA.DIM", "2.49 m"),
+        ("spot4_hrvir2_M_20120115_altai_METADATA.DIM", "1.56 m"),
+    ):
         check = check_frame(REFDATA / "dimap" / name)
-        yield (f"{check.scene} ({check.attitude}), max miss", f"{check.error_m.max():.3f} m",
-               readme)
+        yield (
+            f"{check.scene} ({check.attitude}), max miss",
+            f"{check.error_m.max():.3f} m",
+            readme,
+        )
 
 
 # --- the emulator ------------------------------------------------------------------------
+
 
 def emulator() -> Iterator[Row]:
     from levels.geometry.ellipsoid import WGS84
@@ -69,35 +76,47 @@ def emulator() -> Iterator[Row]:
     a, i = node_state(period, rate)
     t_node, d_raan = _node_to_node(a, i, 0.0)
     a_mean, i_mean = _mean_elements_for(period, rate, 0.0)
-    yield ("SPOT orbit solved", f"mean {(a_mean - RE_M) / 1e3:.1f} km, "
-           f"{np.degrees(i_mean):.3f}°, nodal period {t_node / 60:.2f} min, node "
-           f"{np.degrees(d_raan / t_node) * DAY_S:.5f}°/day",
-           "822.4 km, 98.698°, 101.46 min, 0.98565°/day")
+    yield (
+        "SPOT orbit solved",
+        f"mean {(a_mean - RE_M) / 1e3:.1f} km, "
+        f"{np.degrees(i_mean):.3f}°, nodal period {t_node / 60:.2f} min, node "
+        f"{np.degrees(d_raan / t_node) * DAY_S:.5f}°/day",
+        "822.4 km, 98.698°, 101.46 min, 0.98565°/day",
+    )
     cuiaba = (np.radians(-15.555), np.radians(-56.07), 200.0)
-    orbit, _ = place_orbit(Epoch("1998-02-20", name="day"), a, i, 0.0, 10.5, cuiaba[0],
-                           cuiaba[1], (0.0, 26 * DAY_S + 7000))
+    orbit, _ = place_orbit(
+        Epoch("1998-02-20", name="day"),
+        a,
+        i,
+        0.0,
+        10.5,
+        cuiaba[0],
+        cuiaba[1],
+        (0.0, 26 * DAY_S + 7000),
+    )
     shift = ascending_node_ecef(orbit, 26 * DAY_S) - ascending_node_ecef(orbit, 0.0)
-    yield ("ground-track repeat after 26 days", f"{np.linalg.norm(shift) / 1e3:.1f} km",
-           "2.3 km")
+    yield ("ground-track repeat after 26 days", f"{np.linalg.norm(shift) / 1e3:.1f} km", "2.3 km")
     from station.capacity.passes import pass_pattern
     from station.scenario import GroundStationConfig
 
     pattern = pass_pattern(GroundStationConfig())  # the default pass's orbit, one cycle
     days = pattern.cycle_s / DAY_S
-    yield ("passes over Cuiabá, 5° mask, 26 days",
-           f"{pattern.aos_s.size / days:.2f}/day, median "
-           f"{np.median(pattern.duration_s) / 60:.2f} min, "
-           f"{pattern.daylight.sum() / days:.2f}/day in daylight",
-           "3.88/day, median 11.25 min, 1.92/day in daylight")
+    yield (
+        "passes over Cuiabá, 5° mask, 26 days",
+        f"{pattern.aos_s.size / days:.2f}/day, median "
+        f"{np.median(pattern.duration_s) / 60:.2f} min, "
+        f"{pattern.daylight.sum() / days:.2f}/day in daylight",
+        "3.88/day, median 11.25 min, 1.92/day in daylight",
+    )
 
     small = {"n_detectors": 300, "n_lines": 300, "psf_samples": 2}
     cases = {
         "nadir": {"instrument": small},
         "27°": {"instrument": {**small, "mirror_step": 93}},
-        "full-array window": {"instrument": {"first_detector": 2900, "detector_count": 200,
-                                             "n_lines": 200}},
-        "XS twin": {"instrument": {"mode": "XS", "twin": True, "n_detectors": 300,
-                                   "n_lines": 300}},
+        "full-array window": {
+            "instrument": {"first_detector": 2900, "detector_count": 200, "n_lines": 200}
+        },
+        "XS twin": {"instrument": {"mode": "XS", "twin": True, "n_detectors": 300, "n_lines": 300}},
         "SRTM DEM": {},  # scenarios/tilt27_rugged.toml at 300 detectors
     }
     rugged = ROOT / "scenarios" / "tilt27_rugged.toml"
@@ -107,8 +126,9 @@ def emulator() -> Iterator[Row]:
             from station.scenario import load_scenario
 
             base = load_scenario(rugged)
-            scn = dataclasses.replace(base, instrument=dataclasses.replace(
-                base.instrument, n_detectors=300, n_lines=300))
+            scn = dataclasses.replace(
+                base, instrument=dataclasses.replace(base.instrument, n_detectors=300, n_lines=300)
+            )
         else:
             scn = scenario_from_dict(merge_tables(over, {"pass": {"ground_pass_days": 0.0}}))
         acq = emulate(scn, render=False)
@@ -118,19 +138,25 @@ def emulator() -> Iterator[Row]:
         t = acq.line_times_s[0] + line * acq.hrv.line_period_s
         pts, ok = trace_pixels(acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world, t, col)
         back = truth_model(acq).ground_to_image(pts[ok, 0], pts[ok, 1], pts[ok, 2])
-        worst[name] = max(np.abs(back.line - line[ok]).max(),
-                          np.abs(back.column - col[ok]).max())
+        worst[name] = max(np.abs(back.line - line[ok]).max(), np.abs(back.column - col[ok]).max())
         if name in ("nadir", "27°"):
             tc = acq.line_times_s[acq.hrv.n_lines // 2]
             n = acq.hrv.n_columns
-            e, _ = trace_pixels(acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world,
-                                [tc, tc], [-0.5, n - 0.5])
+            e, _ = trace_pixels(
+                acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world, [tc, tc], [-0.5, n - 0.5]
+            )
             ends = WGS84.to_ecef(e[:, 0], e[:, 1], e[:, 2])
             swath[name] = np.linalg.norm(ends[1] - ends[0]) / 1e3
-    yield ("raw pixels re-projected (2000 random pixels each)",
-           ", ".join(f"{k} {v:.1e}" for k, v in worst.items()) + " px", "≤ 3e-7 px")
-    yield ("P swath at nadir / at 27° (mid-strip line)",
-           f"{swath['nadir']:.1f} km / {swath['27°']:.1f} km", "59.4 km / 78.5–79.9 km")
+    yield (
+        "raw pixels re-projected (2000 random pixels each)",
+        ", ".join(f"{k} {v:.1e}" for k, v in worst.items()) + " px",
+        "≤ 3e-7 px",
+    )
+    yield (
+        "P swath at nadir / at 27° (mid-strip line)",
+        f"{swath['nadir']:.1f} km / {swath['27°']:.1f} km",
+        "59.4 km / 78.5–79.9 km",
+    )
 
     m = 1500
     rng = np.random.default_rng(2024)
@@ -143,18 +169,27 @@ def emulator() -> Iterator[Row]:
             inc = drift[:, 8 + k, axis] - drift[:, 8, axis]
             rel = np.mean(inc**2) / float(westin_variogram_rad2(axis, lag)) - 1.0
             worst_rel = max(worst_rel, abs(rel))
-    yield ("Westin variograms, 1500 drifts, 4 lags × 3 axes, worst relative miss",
-           f"{100 * worst_rel:.1f} % (4σ: {100 * 4 * np.sqrt(2 / m):.1f} %)",
-           "all within 4σ (±14.6 %)")
+    yield (
+        "Westin variograms, 1500 drifts, 4 lags × 3 axes, worst relative miss",
+        f"{100 * worst_rel:.1f} % (4σ: {100 * 4 * np.sqrt(2 / m):.1f} %)",
+        "all within 4σ (±14.6 %)",
+    )
 
 
 # --- the receiving station ---------------------------------------------------------------
 
+
 def receiver(full: bool) -> Iterator[Row]:
-    yield ("RS(255,223) dual basis, known-answer codewords", "pytest tests/test_telemetry.py",
-           "CCSDS 131.0-B")
-    yield ("fuzz", "python tools/fuzz_receiver.py (a long campaign)",
-           "130 000 streams, no unhandled exception")
+    yield (
+        "RS(255,223) dual basis, known-answer codewords",
+        "pytest tests/test_telemetry.py",
+        "CCSDS 131.0-B",
+    )
+    yield (
+        "fuzz",
+        "python tools/fuzz_receiver.py (a long campaign)",
+        "130 000 streams, no unhandled exception",
+    )
     if not full:
         yield ("clean channel, full P scene; line clock", "with --full", "")
         yield ("accounting, BER 1e-7 … 1e-3", "with --full (tools/accounting_sweep.py)", "")
@@ -165,24 +200,44 @@ def receiver(full: bool) -> Iterator[Row]:
     from station.srrs.session import downlink
 
     clean = {"ber": 0.0, "burst_rate_per_s": 0.0}
-    for mode, readme in (("P", "max 7, RMS 0.42 counts; line clock within 60 µs"),
-                         ("XS", "bit for bit")):
-        acq = emulate(scenario_from_dict({"instrument": {"mode": mode},
-                                          "pass": {"ground_pass_days": 0.0},
-                                          "gcps": {"count": 0}, "channel": clean}))
+    for mode, readme in (
+        ("P", "max 7, RMS 0.42 counts; line clock within 60 µs"),
+        ("XS", "bit for bit"),
+    ):
+        acq = emulate(
+            scenario_from_dict(
+                {
+                    "instrument": {"mode": mode},
+                    "pass": {"ground_pass_days": 0.0},
+                    "gcps": {"count": 0},
+                    "channel": clean,
+                }
+            )
+        )
         rep = downlink_report(acq, downlink(acq))
         b = rep["bands"][0]
-        yield (f"clean channel, full {mode} scene: error vs raw counts; line clock",
-               f"max {b['max_error_vs_raw_counts']}, RMS {b['rms_error_vs_raw_counts']:.2f}; "
-               f"clock within {rep['line_clock']['max_error_vs_truth_us']:.0f} µs", readme)
-    run = subprocess.run([sys.executable, str(ROOT / "tools" / "accounting_sweep.py")],
-                         capture_output=True, text=True, check=False)
+        yield (
+            f"clean channel, full {mode} scene: error vs raw counts; line clock",
+            f"max {b['max_error_vs_raw_counts']}, RMS {b['rms_error_vs_raw_counts']:.2f}; "
+            f"clock within {rep['line_clock']['max_error_vs_truth_us']:.0f} µs",
+            readme,
+        )
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "tools" / "accounting_sweep.py")],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     last = (run.stdout.strip().splitlines() or ["(no output)"])[-1]
-    yield ("accounting sweep (tools/accounting_sweep.py)", last,
-           "sent = delivered + lost, masks exact, pixels as sent")
+    yield (
+        "accounting sweep (tools/accounting_sweep.py)",
+        last,
+        "sent = delivered + lost, masks exact, pixels as sent",
+    )
 
 
 # --- the processing centre's levels ------------------------------------------------------
+
 
 def levels_figures() -> Iterator[Row]:
     from levels.geo.level1b import level1b_geometry
@@ -197,65 +252,98 @@ def levels_figures() -> Iterator[Row]:
     def scene(data: dict):
         acq = emulate(scenario_from_dict(data), render=False)
         looks = {b.name: b.look_nominal for b in acq.hrv.bands}
-        pg = pass_geometry(acq.epoch, acq.line_times_s, acq.hrv.line_period_s, acq.bulletins,
-                           acq.gyros.t_s, acq.gyros.rates_rad_per_s, looks)
+        pg = pass_geometry(
+            acq.epoch,
+            acq.line_times_s,
+            acq.hrv.line_period_s,
+            acq.bulletins,
+            acq.gyros.t_s,
+            acq.gyros.rates_rad_per_s,
+            looks,
+        )
         s = pg.scenes(acq.hrv.n_lines, 0, 450.0)[0]
         return acq, s, nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
 
     from station.scenario import read_toml
 
-    tables = {c: read_toml(ROOT / "scenarios" / f"cuiaba_p_{f}.toml")[0]
-              for c, f in (("nadir", "nadir"), ("27°", "27deg"))}
+    tables = {
+        c: read_toml(ROOT / "scenarios" / f"cuiaba_p_{f}.toml")[0]
+        for c, f in (("nadir", "nadir"), ("27°", "27deg"))
+    }
     inv, polys, b1 = {}, {}, {}
     for case, data in tables.items():
         _acq, s, res = scene(data)
         crs = map_crs("utm", s.centre_lat_rad, s.centre_lon_rad)
         for rows in ("attitude", "regular"):
             g = level2a_geometry(s, res, crs, grid_rows=rows)
-            errs = {m: g.approximation_error(s.model, 450.0, m)["max_px"]
-                    for m in ("nearest4", "poly3", "poly4", "poly5")}
+            errs = {
+                m: g.approximation_error(s.model, 450.0, m)["max_px"]
+                for m in ("nearest4", "poly3", "poly4", "poly5")
+            }
             inv[case, rows] = errs["nearest4"]
             if rows == "attitude":
                 polys[case] = [errs[m] for m in ("poly3", "poly4", "poly5")]
         e = level1b_geometry(s, res).approximation_error(s.model)
         b1[case] = (e["max_px"], e["rms_px"])
-    yield ("2A inverse, four nearest points, max vs model (attitude rows; regular 61)",
-           f"nadir {inv['nadir', 'attitude']:.3f}, 27° {inv['27°', 'attitude']:.3f} px "
-           f"({inv['nadir', 'regular']:.3f}, {inv['27°', 'regular']:.3f})",
-           "nadir 0.008, 27° 0.026 px (0.058, 0.045)")
-    yield ("2A polynomial inverses, order 3, 4, 5, max",
-           "; ".join(f"{c} " + ", ".join(f"{v:.2f}" for v in p) for c, p in polys.items())
-           + " px", "nadir 0.43, 0.28, 0.21; 27° 0.49, 0.46, 0.23 px")
-    yield ("1B polynomials f, g, h, max (RMS) vs model",
-           ", ".join(f"{c} {m:.2f} ({r:.2f})" for c, (m, r) in b1.items()) + " px",
-           "nadir 0.88 (0.35), 27° 2.19 (0.69) px")
+    yield (
+        "2A inverse, four nearest points, max vs model (attitude rows; regular 61)",
+        f"nadir {inv['nadir', 'attitude']:.3f}, 27° {inv['27°', 'attitude']:.3f} px "
+        f"({inv['nadir', 'regular']:.3f}, {inv['27°', 'regular']:.3f})",
+        "nadir 0.008, 27° 0.026 px (0.058, 0.045)",
+    )
+    yield (
+        "2A polynomial inverses, order 3, 4, 5, max",
+        "; ".join(f"{c} " + ", ".join(f"{v:.2f}" for v in p) for c, p in polys.items()) + " px",
+        "nadir 0.43, 0.28, 0.21; 27° 0.49, 0.46, 0.23 px",
+    )
+    yield (
+        "1B polynomials f, g, h, max (RMS) vs model",
+        ", ".join(f"{c} {m:.2f} ({r:.2f})" for c, (m, r) in b1.items()) + " px",
+        "nadir 0.88 (0.35), 27° 2.19 (0.69) px",
+    )
 
     def errors(over: dict) -> tuple[dict, dict, float]:
         acq, s, res = scene(over)
         truth = Truth(acq, 0)
         crs = map_crs("utm", s.centre_lat_rad, s.centre_lon_rad)
-        return (checkpoints_1b(truth, s, level1b_geometry(s, res), 0, 11)["line_of_sight"],
-                checkpoints_2a(truth, s, level2a_geometry(s, res, crs), 0, 11)
-                ["line_of_sight"], res)
+        return (
+            checkpoints_1b(truth, s, level1b_geometry(s, res), 0, 11)["line_of_sight"],
+            checkpoints_2a(truth, s, level2a_geometry(s, res, crs), 0, 11)["line_of_sight"],
+            res,
+        )
 
     off = {}
     for case, table in tables.items():
         e1, e2, res = errors(merge_tables(table, ERRORS_OFF))
-        off[case] = (e2["max_px"], np.hypot(e1["mean_1_m"], e1["mean_2_m"]) / res,
-                     e1["max_px"])
-    yield ("checkpoints, errors off: 2A max; 1B mean, max",
-           "; ".join(f"{c} 2A {a:.2f}, 1B {m:.2f} / {x:.1f}" for c, (a, m, x) in off.items())
-           + " px", "2A 0.09 nadir, 0.07 at 27°; 1B mean 0.01, max 0.70 / 2.1 px")
+        off[case] = (e2["max_px"], np.hypot(e1["mean_1_m"], e1["mean_2_m"]) / res, e1["max_px"])
+    yield (
+        "checkpoints, errors off: 2A max; 1B mean, max",
+        "; ".join(f"{c} 2A {a:.2f}, 1B {m:.2f} / {x:.1f}" for c, (a, m, x) in off.items()) + " px",
+        "2A 0.09 nadir, 0.07 at 27°; 1B mean 0.01, max 0.70 / 2.1 px",
+    )
     e1, e2, res = errors(tables["nadir"])
-    yield ("checkpoints, default errors, nadir (2A, 1B RMS)",
-           f"{e2['rms_m']:.0f} m, {e1['rms_m']:.0f} m ({e2['rms_px']:.1f} px)",
-           "about 216 m (21.5 px)")
+    yield (
+        "checkpoints, default errors, nadir (2A, 1B RMS)",
+        f"{e2['rms_m']:.0f} m, {e1['rms_m']:.0f} m ({e2['rms_px']:.1f} px)",
+        "about 216 m (21.5 px)",
+    )
 
-    acq = emulate(scenario_from_dict(merge_tables(ERRORS_OFF, {"instrument": {
-        "mode": "XS", "n_detectors": 1500}})), render=False)
+    acq = emulate(
+        scenario_from_dict(
+            merge_tables(ERRORS_OFF, {"instrument": {"mode": "XS", "n_detectors": 1500}})
+        ),
+        render=False,
+    )
     looks = {b.name: b.look_nominal for b in acq.hrv.bands}
-    pg = pass_geometry(acq.epoch, acq.line_times_s, acq.hrv.line_period_s, acq.bulletins,
-                       acq.gyros.t_s, acq.gyros.rates_rad_per_s, looks)
+    pg = pass_geometry(
+        acq.epoch,
+        acq.line_times_s,
+        acq.hrv.line_period_s,
+        acq.bulletins,
+        acq.gyros.t_s,
+        acq.gyros.rates_rad_per_s,
+        looks,
+    )
     s = pg.scenes(acq.hrv.n_lines, 0, 450.0)[0]
     res = nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
     crs = map_crs("utm", s.centre_lat_rad, s.centre_lon_rad)
@@ -264,13 +352,22 @@ def levels_figures() -> Iterator[Row]:
     for b in others:
         g2[b] = level2a_geometry(s, res, crs, band=b, like=g2[first])
     truth = Truth(acq, 0)
-    own = [checkpoints_2a(truth, s, g2[b], k, 11)["line_of_sight"]["rms_px"]
-           for k, b in enumerate(looks)]
-    shared = [checkpoints_2a(truth, s, g2[first], k, 11)["line_of_sight"]["rms_px"]
-              for k, b in enumerate(looks)]
-    yield ("XS band registration, errors off, 2A checkpoints RMS (band 1's grids for all)",
-           ", ".join(f"{v:.3f}" for v in own) + " px (" + ", ".join(
-               f"{v:.2f}" for v in shared[1:]) + ")", "0.015 px each (0.09, 0.14)")
+    own = [
+        checkpoints_2a(truth, s, g2[b], k, 11)["line_of_sight"]["rms_px"]
+        for k, b in enumerate(looks)
+    ]
+    shared = [
+        checkpoints_2a(truth, s, g2[first], k, 11)["line_of_sight"]["rms_px"]
+        for k, b in enumerate(looks)
+    ]
+    yield (
+        "XS band registration, errors off, 2A checkpoints RMS (band 1's grids for all)",
+        ", ".join(f"{v:.3f}" for v in own)
+        + " px ("
+        + ", ".join(f"{v:.2f}" for v in shared[1:])
+        + ")",
+        "0.015 px each (0.09, 0.14)",
+    )
 
     import tempfile
 
@@ -283,15 +380,19 @@ def levels_figures() -> Iterator[Row]:
     acq = emulate(scn)
     with tempfile.TemporaryDirectory() as tmp:
         l0 = record(acq, downlink(acq), Path(tmp) / "s.l0.h5")
-        made = process_l0(read_l0(l0), dataclasses.replace(scn.processing, levels=("1A",)),
-                          tmp, name="s")
+        made = process_l0(
+            read_l0(l0), dataclasses.replace(scn.processing, levels=("1A",)), tmp, name="s"
+        )
     q = made.scenes[0].quality["1A"]
-    yield ("stripes raw → 1A (scenarios/small_test.toml, 300 lines)",
-           f"{q['stripe_level/P/raw_counts']:.2f} → {q['stripe_level/P/level_1a_counts']:.2f}"
-           " counts", "4.57 → 1.24 counts")
+    yield (
+        "stripes raw → 1A (scenarios/small_test.toml, 300 lines)",
+        f"{q['stripe_level/P/raw_counts']:.2f} → {q['stripe_level/P/level_1a_counts']:.2f} counts",
+        "4.57 → 1.24 counts",
+    )
 
 
 # --- capacity ----------------------------------------------------------------------------
+
 
 def capacity() -> Iterator[Row]:
 
@@ -306,82 +407,111 @@ def capacity() -> Iterator[Row]:
         mu = 1.0 / 3600.0
         lam = rho * c * mu
         mean, half = mean_ci([mmc_wait_h(lam, mu, c, 6000, s) for s in range(10)])
-        out.append(f"M/M/{c} ρ {rho}: {mean:.2f} ± {half:.2f} h vs "
-                   f"{erlang_c_wait_s(lam, mu, c) / 3600:.2f} h")
-    yield ("M/M/c stage vs Erlang C (10 replications × 6000 jobs)", "; ".join(out),
-           "2.31 ± 0.19 h vs 2.33 h; 1.64 ± 0.29 h vs 1.62 h")
+        out.append(
+            f"M/M/{c} ρ {rho}: {mean:.2f} ± {half:.2f} h vs "
+            f"{erlang_c_wait_s(lam, mu, c) / 3600:.2f} h"
+        )
+    yield (
+        "M/M/c stage vs Erlang C (10 replications × 6000 jobs)",
+        "; ".join(out),
+        "2.31 ± 0.19 h vs 2.33 h; 1.64 ± 0.29 h vs 1.62 h",
+    )
     cuiaba = load_capacity(ROOT / "scenarios" / "capacity" / "cuiaba.toml")
     scn = with_value(with_value(cuiaba, "resources.cor_workers", "3"), "outage.days", "0")
     rep = simulate(scn, load_service(scn), 0)
-    worst = max((abs(s["little_L"] / s["little_lambda_W"] - 1.0), name)
-                for name, s in rep.stages.items()
-                if s["arrivals_per_day"] > 0 and s["little_lambda_W"] > 0)
-    yield ("Little's law L = λW per stage (a year, 3 COR workers), worst",
-           f"{100 * worst[0]:.2f} % ({worst[1]})", "within 0.11 % (COR)")
-    summary = run_study(cuiaba, None, ("resources.cor_workers", ["1", "2", "3", "4"]), 3,
-                        plots=False)
+    worst = max(
+        (abs(s["little_L"] / s["little_lambda_W"] - 1.0), name)
+        for name, s in rep.stages.items()
+        if s["arrivals_per_day"] > 0 and s["little_lambda_W"] > 0
+    )
+    yield (
+        "Little's law L = λW per stage (a year, 3 COR workers), worst",
+        f"{100 * worst[0]:.2f} % ({worst[1]})",
+        "within 0.11 % (COR)",
+    )
+    summary = run_study(
+        cuiaba, None, ("resources.cor_workers", ["1", "2", "3", "4"]), 3, plots=False
+    )
     growth = [r["station"]["cor_backlog_growth_per_day"] for r in summary["runs"]]
     busy = [r["stages"]["cor"]["utilisation"]["mean"] for r in summary["runs"]]
-    yield ("COR workers 1–4 (3 replications): backlog growth, jobs/day",
-           ", ".join(f"{g['mean']:.2f} ± {g['ci95']:.2f}" for g in growth),
-           "11.3 ± 0.9, 0.4 ± 0.9, 0.00 ± 0.02, 0.00 ± 0.01")
-    yield ("COR workers 1–4: COR busy", ", ".join(f"{100 * b:.0f} %" for b in busy),
-           "99, 98, 66, 50 %")
+    yield (
+        "COR workers 1–4 (3 replications): backlog growth, jobs/day",
+        ", ".join(f"{g['mean']:.2f} ± {g['ci95']:.2f}" for g in growth),
+        "11.3 ± 0.9, 0.4 ± 0.9, 0.00 ± 0.02, 0.00 ± 0.01",
+    )
+    yield (
+        "COR workers 1–4: COR busy",
+        ", ".join(f"{100 * b:.0f} %" for b in busy),
+        "99, 98, 66, 50 %",
+    )
 
 
 # --- speed ---------------------------------------------------------------------------------
 
+
 def bench() -> Iterator[Row]:
     for script in sorted((ROOT / "benchmarks").glob("bench_*.py")):
         t0 = time.perf_counter()
-        run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                             check=False, cwd=ROOT)
+        run = subprocess.run(
+            [sys.executable, str(script)], capture_output=True, text=True, check=False, cwd=ROOT
+        )
         lines = [ln for ln in run.stdout.strip().splitlines() if ln.strip()]
         for ln in lines:
             yield (script.name, ln.strip(), "README: speed tables")
         if run.returncode != 0:
-            yield (script.name, f"FAILED ({run.returncode}): "
-                   + (run.stderr.strip().splitlines() or [""])[-1], "")
+            yield (
+                script.name,
+                f"FAILED ({run.returncode}): " + (run.stderr.strip().splitlines() or [""])[-1],
+                "",
+            )
         yield (script.name, f"({time.perf_counter() - t0:.0f} s)", "")
 
 
 def _header() -> str:
     def git(*args: str) -> str:
-        r = subprocess.run(["git", *args], capture_output=True, text=True, cwd=ROOT,
-                           check=False)
+        r = subprocess.run(["git", *args], capture_output=True, text=True, cwd=ROOT, check=False)
         return r.stdout.strip()
 
     import numba
     import scipy
 
     dirty = " (with uncommitted changes)" if git("status", "--porcelain") else ""
-    return (f"commit {git('rev-parse', '--short', 'HEAD') or '?'}{dirty}; "
-            f"{platform.node()}, {platform.machine()}, {os.cpu_count()} cores, "
-            f"{platform.python_implementation()} {platform.python_version()}, numpy "
-            f"{np.__version__}, scipy {scipy.__version__}, numba {numba.__version__}; "
-            f"{time.strftime('%Y-%m-%d %H:%M:%S %Z')}")
+    return (
+        f"commit {git('rev-parse', '--short', 'HEAD') or '?'}{dirty}; "
+        f"{platform.node()}, {platform.machine()}, {os.cpu_count()} cores, "
+        f"{platform.python_implementation()} {platform.python_version()}, numpy "
+        f"{np.__version__}, scipy {scipy.__version__}, numba {numba.__version__}; "
+        f"{time.strftime('%Y-%m-%d %H:%M:%S %Z')}"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--section", action="append",
-                   choices=["geometry", "emulator", "receiver", "levels", "capacity"],
-                   help="only these sections (repeatable)")
+    p.add_argument(
+        "--section",
+        action="append",
+        choices=["geometry", "emulator", "receiver", "levels", "capacity"],
+        help="only these sections (repeatable)",
+    )
     p.add_argument("--full", action="store_true", help="full-size receiver figures too")
     p.add_argument("--bench", action="store_true", help="run the benchmarks too")
     args = p.parse_args(argv)
     sections: dict[str, Callable[[], Iterator[Row]]] = {
-        "geometry": geometry, "emulator": emulator,
-        "receiver": lambda: receiver(args.full), "levels": levels_figures,
-        "capacity": capacity}
+        "geometry": geometry,
+        "emulator": emulator,
+        "receiver": lambda: receiver(args.full),
+        "levels": levels_figures,
+        "capacity": capacity,
+    }
     chosen = args.section or list(sections)
     print(_header())
     for name in chosen:
         t0 = time.perf_counter()
         print(f"\n## {name}")
         for figure, measured, readme in sections[name]():
-            print(f"- {figure}: {measured}" + (f"   [README: {readme}]" if readme else ""),
-                  flush=True)
+            print(
+                f"- {figure}: {measured}" + (f"   [README: {readme}]" if readme else ""), flush=True
+            )
         print(f"  ({time.perf_counter() - t0:.0f} s)")
     if args.bench:
         print("\n## speed (benchmarks/)")

@@ -26,8 +26,7 @@ from station.srrs.receiver import ReceiverError, receive
 _DOWN = {"bit_rate_mbps": 0.25, "preamble_s": 0.02, "postamble_s": 0.02}
 BASES = [
     {"seed": 1, "instrument": {"n_detectors": 200, "n_lines": 60}, "downlink": _DOWN},
-    {"seed": 2, "instrument": {"mode": "XS", "n_detectors": 100, "n_lines": 40},
-     "downlink": _DOWN},
+    {"seed": 2, "instrument": {"mode": "XS", "n_detectors": 100, "n_lines": 40}, "downlink": _DOWN},
 ]
 
 
@@ -36,8 +35,7 @@ def main() -> int:
     seed = int(sys.argv[2]) if len(sys.argv) > 2 else 0
     bases = []
     for spec in BASES:
-        scn = scenario_from_dict({**spec, "pass": {"ground_pass_days": 0.0},
-                                  "gcps": {"count": 0}})
+        scn = scenario_from_dict({**spec, "pass": {"ground_pass_days": 0.0}, "gcps": {"count": 0}})
         acq = emulate(scn)
         tx = transmit(acq, scn.downlink, np.random.default_rng(0))
         bases.append((tx.cadus.ravel(), frames_of(tx.cadus)))
@@ -61,8 +59,7 @@ def main() -> int:
             print(f"input {i} (seed [{seed}, {i}], {kind}): unhandled exception")
             traceback.print_exc()
         if (i + 1) % 10_000 == 0:
-            print(f"{i + 1} inputs, {time.perf_counter() - t0:.0f} s: {dict(outcomes)}",
-                  flush=True)
+            print(f"{i + 1} inputs, {time.perf_counter() - t0:.0f} s: {dict(outcomes)}", flush=True)
     print(f"{n} inputs in {time.perf_counter() - t0:.0f} s: {dict(outcomes)}")
     return 1 if failures else 0
 

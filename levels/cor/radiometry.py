@@ -29,19 +29,31 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-__all__ = ["calibrate", "deconvolution_taps", "deconvolve", "fir_response", "mtf",
-           "stripe_level", "to_counts"]
+__all__ = [
+    "calibrate",
+    "deconvolution_taps",
+    "deconvolve",
+    "fir_response",
+    "mtf",
+    "stripe_level",
+    "to_counts",
+]
 
 #: Detectors in the running median of the stripe metric.
 _STRIPE_WINDOW = 15
 
 
-def calibrate(counts: NDArray[np.uint8], valid: NDArray[np.bool_], gain: NDArray[np.float64],
-              offset_counts: NDArray[np.float64]) -> NDArray[np.float32]:
+def calibrate(
+    counts: NDArray[np.uint8],
+    valid: NDArray[np.bool_],
+    gain: NDArray[np.float64],
+    offset_counts: NDArray[np.float64],
+) -> NDArray[np.float32]:
     """Level 1A: each detector's counts normalised by the calibration table (float32, 0 where
     not valid)."""
-    out = (counts.astype(np.float32) - offset_counts.astype(np.float32)) \
-        * (1.0 / gain).astype(np.float32)
+    out = (counts.astype(np.float32) - offset_counts.astype(np.float32)) * (1.0 / gain).astype(
+        np.float32
+    )
     out[~valid] = 0.0
     return out
 
@@ -63,8 +75,9 @@ def fir_response(taps: NDArray[np.float64], nu: NDArray[np.float64]) -> NDArray[
     return np.cos(2.0 * np.pi * np.outer(np.asarray(nu, dtype=np.float64), k)) @ taps
 
 
-def deconvolution_taps(psf_fwhm_px: float, noise_to_signal: float = 0.05, n_taps: int = 7
-                       ) -> NDArray[np.float64]:
+def deconvolution_taps(
+    psf_fwhm_px: float, noise_to_signal: float = 0.05, n_taps: int = 7
+) -> NDArray[np.float64]:
     """Symmetric FIR approximating the Wiener restoration ``H / (H² + k)`` (module docstring),
     Hann-windowed, unit DC gain."""
     if n_taps < 1 or n_taps % 2 == 0:
@@ -75,12 +88,13 @@ def deconvolution_taps(psf_fwhm_px: float, noise_to_signal: float = 0.05, n_taps
     r = h / (h * h + noise_to_signal)
     kernel = np.fft.fftshift(np.fft.irfft(r, n_fft))
     c, half = n_fft // 2, n_taps // 2
-    taps = kernel[c - half: c + half + 1] * np.hanning(n_taps + 2)[1:-1]
+    taps = kernel[c - half : c + half + 1] * np.hanning(n_taps + 2)[1:-1]
     return taps / taps.sum()
 
 
-def deconvolve(image: NDArray[np.float32], valid: NDArray[np.bool_], taps: NDArray[np.float64]
-               ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+def deconvolve(
+    image: NDArray[np.float32], valid: NDArray[np.bool_], taps: NDArray[np.float64]
+) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
     """The separable FIR along lines then columns, and the validity it leaves."""
     w = taps.astype(np.float32)
     out = ndimage.convolve1d(image, w, axis=1, mode="nearest")

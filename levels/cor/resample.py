@@ -104,20 +104,33 @@ def _kernel_1b(img, valid, f, g, h, row0, col0, cubic, out, ok):
                 ok[r, k] = True
 
 
-def resample_1b(image: NDArray[np.float32], valid: NDArray[np.bool_], geom: Level1BGeometry,
-                interpolation: str = "cubic", rows: slice | None = None,
-                cols: slice | None = None) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
+def resample_1b(
+    image: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    geom: Level1BGeometry,
+    interpolation: str = "cubic",
+    rows: slice | None = None,
+    cols: slice | None = None,
+) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
     """Level 1B image (or a tile of it: ``rows``, ``cols`` of the output) and its mask."""
     if interpolation not in INTERPOLATIONS_1B:
-        raise ValueError(f"1B interpolation {interpolation!r}: expected one of "
-                         f"{INTERPOLATIONS_1B}")
+        raise ValueError(f"1B interpolation {interpolation!r}: expected one of {INTERPOLATIONS_1B}")
     r0, r1, _ = (rows or slice(0, geom.n_rows)).indices(geom.n_rows)
     c0, c1, _ = (cols or slice(0, geom.n_cols)).indices(geom.n_cols)
     out = np.empty((r1 - r0, c1 - c0), dtype=np.uint8)
     ok = np.empty(out.shape, dtype=bool)
-    _kernel_1b(np.ascontiguousarray(image, dtype=np.float32), np.ascontiguousarray(valid),
-               geom.f.as_array(), geom.g.as_array(), geom.h.as_array(), r0, c0,
-               interpolation == "cubic", out, ok)
+    _kernel_1b(
+        np.ascontiguousarray(image, dtype=np.float32),
+        np.ascontiguousarray(valid),
+        geom.f.as_array(),
+        geom.g.as_array(),
+        geom.h.as_array(),
+        r0,
+        c0,
+        interpolation == "cubic",
+        out,
+        ok,
+    )
     return out, ok
 
 
@@ -173,14 +186,36 @@ def _pixel_2a(img, c, b, v, line_row, seg_of, method):
         c0, c1, c2, c3 = _keys(c - cf)
         r0, r1, r2, r3 = _keys(line - lf)
         lo = lf - 1
-        return (r0 * (c0 * img[lo, first] + c1 * img[lo, first + 1] + c2 * img[lo, first + 2]
-                      + c3 * img[lo, first + 3])
-                + r1 * (c0 * img[lo + 1, first] + c1 * img[lo + 1, first + 1]
-                        + c2 * img[lo + 1, first + 2] + c3 * img[lo + 1, first + 3])
-                + r2 * (c0 * img[lo + 2, first] + c1 * img[lo + 2, first + 1]
-                        + c2 * img[lo + 2, first + 2] + c3 * img[lo + 2, first + 3])
-                + r3 * (c0 * img[lo + 3, first] + c1 * img[lo + 3, first + 1]
-                        + c2 * img[lo + 3, first + 2] + c3 * img[lo + 3, first + 3]))
+        return (
+            r0
+            * (
+                c0 * img[lo, first]
+                + c1 * img[lo, first + 1]
+                + c2 * img[lo, first + 2]
+                + c3 * img[lo, first + 3]
+            )
+            + r1
+            * (
+                c0 * img[lo + 1, first]
+                + c1 * img[lo + 1, first + 1]
+                + c2 * img[lo + 1, first + 2]
+                + c3 * img[lo + 1, first + 3]
+            )
+            + r2
+            * (
+                c0 * img[lo + 2, first]
+                + c1 * img[lo + 2, first + 1]
+                + c2 * img[lo + 2, first + 2]
+                + c3 * img[lo + 2, first + 3]
+            )
+            + r3
+            * (
+                c0 * img[lo + 3, first]
+                + c1 * img[lo + 3, first + 1]
+                + c2 * img[lo + 3, first + 2]
+                + c3 * img[lo + 3, first + 3]
+            )
+        )
     acc = 0.0
     for m in range(last - first + 1):
         cm = min(max(first + m, 0), n_cols - 1)
@@ -253,10 +288,14 @@ def with_nan(image: NDArray[np.float32], valid: NDArray[np.bool_]) -> NDArray[np
     return np.where(valid, image, np.float32(np.nan)).astype(np.float32, copy=False)
 
 
-def resample_2a(image: NDArray[np.float32], valid: NDArray[np.bool_] | None,
-                geom: Level2AGeometry,
-                resampling: str = "cubic", rows: slice | None = None,
-                cols: slice | None = None) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
+def resample_2a(
+    image: NDArray[np.float32],
+    valid: NDArray[np.bool_] | None,
+    geom: Level2AGeometry,
+    resampling: str = "cubic",
+    rows: slice | None = None,
+    cols: slice | None = None,
+) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
     """Level 2A image (or a tile of it) and its mask, through ``geom``'s inverse grid.
 
     ``valid=None`` means ``image`` already holds NaN where not valid (:func:`with_nan`),
@@ -271,7 +310,17 @@ def resample_2a(image: NDArray[np.float32], valid: NDArray[np.bool_] | None,
     step_i, step_j = geom.inverse_step
     img = image if valid is None else with_nan(image, valid)
     seg_of = geom.segment_of(np.arange(img.shape[1])).astype(np.int64)
-    _kernel_2a(np.ascontiguousarray(img, dtype=np.float32), step_i, step_j,
-               np.ascontiguousarray(geom.inverse_line), np.ascontiguousarray(geom.inverse_column),
-               seg_of, r0, c0, RESAMPLINGS_2A.index(resampling), out, ok)
+    _kernel_2a(
+        np.ascontiguousarray(img, dtype=np.float32),
+        step_i,
+        step_j,
+        np.ascontiguousarray(geom.inverse_line),
+        np.ascontiguousarray(geom.inverse_column),
+        seg_of,
+        r0,
+        c0,
+        RESAMPLINGS_2A.index(resampling),
+        out,
+        ok,
+    )
     return out, ok

@@ -65,8 +65,7 @@ def _segment_line(gl, gc, gi, gj, ip, jp, line, a, b, u, v, b0, b1):
     if b0 <= b < b1:
         return line
     bs = min(max(b, b0), b1 - 1)
-    return _walk(gl, gc, gi, gj, ip, jp, a, bs, u, v + b - bs, b0, b1,
-                 gi.shape[0] + gi.shape[1])[0]
+    return _walk(gl, gc, gi, gj, ip, jp, a, bs, u, v + b - bs, b0, b1, gi.shape[0] + gi.shape[1])[0]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -78,12 +77,14 @@ def _invert_points(gl, gc, gi, gj, i_pts, j_pts, a0, b0, seg_b0, seg_b1, lines, 
     n_seg = lines.shape[0]
     na, nb_ = gi.shape
     for k in range(i_pts.size):
-        line, c, a, b, u, v = _walk(gl, gc, gi, gj, i_pts[k], j_pts[k], a0[k], b0[k], 0.5, 0.5,
-                                    0, nb_ - 1, na + nb_)
+        line, c, a, b, u, v = _walk(
+            gl, gc, gi, gj, i_pts[k], j_pts[k], a0[k], b0[k], 0.5, 0.5, 0, nb_ - 1, na + nb_
+        )
         col[k] = c
         for s in range(n_seg):
-            lines[s, k] = _segment_line(gl, gc, gi, gj, i_pts[k], j_pts[k], line, a, b, u, v,
-                                        seg_b0[s], seg_b1[s])
+            lines[s, k] = _segment_line(
+                gl, gc, gi, gj, i_pts[k], j_pts[k], line, a, b, u, v, seg_b0[s], seg_b1[s]
+            )
 
 
 @nb.njit(cache=True, nogil=True)
@@ -113,16 +114,19 @@ def invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lin
         a, b, u, v = (na - 1) // 2, (nb_ - 1) // 2, 0.5, 0.5
         for c in range(nc):
             if c >= 2:  # linear prediction in global cell coordinates
-                pu = 2.0 * (cell_a[r, c - 1] + cell_u[r, c - 1]) - (cell_a[r, c - 2]
-                                                                  + cell_u[r, c - 2])
-                pv = 2.0 * (cell_b[r, c - 1] + cell_v[r, c - 1]) - (cell_b[r, c - 2]
-                                                                  + cell_v[r, c - 2])
+                pu = 2.0 * (cell_a[r, c - 1] + cell_u[r, c - 1]) - (
+                    cell_a[r, c - 2] + cell_u[r, c - 2]
+                )
+                pv = 2.0 * (cell_b[r, c - 1] + cell_v[r, c - 1]) - (
+                    cell_b[r, c - 2] + cell_v[r, c - 2]
+                )
                 a = min(max(int(np.floor(pu)), 0), na - 2)
                 b = min(max(int(np.floor(pv)), 0), nb_ - 2)
                 u, v = pu - a, pv - b
             moves = na + nb_ if c == 0 else 16
-            line, cc, a, b, u, v = _walk(gl, gc, gi, gj, rows[r], cols[c], a, b, u, v, 0,
-                                         nb_ - 1, moves)
+            line, cc, a, b, u, v = _walk(
+                gl, gc, gi, gj, rows[r], cols[c], a, b, u, v, 0, nb_ - 1, moves
+            )
             whole[r, c], col[r, c] = line, cc
             cell_a[r, c], cell_b[r, c], cell_u[r, c], cell_v[r, c] = a, b, u, v
     need = np.zeros((n_seg, nr, nc), dtype=np.bool_)
@@ -137,56 +141,94 @@ def invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lin
     for r in range(nr):
         for s in range(n_seg):
             for c in range(nc):
-                lines[s, r, c] = whole[r, c] if not need[s, r, c] else _segment_line(
-                    gl, gc, gi, gj, rows[r], cols[c], whole[r, c], cell_a[r, c], cell_b[r, c],
-                    cell_u[r, c], cell_v[r, c], seg_b0[s], seg_b1[s])
+                lines[s, r, c] = (
+                    whole[r, c]
+                    if not need[s, r, c]
+                    else _segment_line(
+                        gl,
+                        gc,
+                        gi,
+                        gj,
+                        rows[r],
+                        cols[c],
+                        whole[r, c],
+                        cell_a[r, c],
+                        cell_b[r, c],
+                        cell_u[r, c],
+                        cell_v[r, c],
+                        seg_b0[s],
+                        seg_b1[s],
+                    )
+                )
 
 
-def segment_cells(grid_column: NDArray[np.float64], segment_first_column: NDArray[np.float64]
-                   ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def segment_cells(
+    grid_column: NDArray[np.float64], segment_first_column: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Direct-grid column indices of each segment's first and last detector: segment ``s``
     owns the cells ``first[s] .. last[s] − 1``. The cell across a butting gap, between the
     last detector of one CCD and the first of the next, belongs to neither."""
     ends = np.append(segment_first_column[1:] - 1, grid_column[-1])
     first = np.searchsorted(grid_column, segment_first_column)
     last = np.searchsorted(grid_column, ends)
-    if not (np.all(grid_column[first] == segment_first_column)
-            and np.all(grid_column[last] == ends)):
+    if not (
+        np.all(grid_column[first] == segment_first_column) and np.all(grid_column[last] == ends)
+    ):
         raise GeometryError("the direct grid must hold both sides of every CCD butting")
     return first.astype(np.int64), last.astype(np.int64)
 
 
-def invert_scattered(gl: NDArray[np.float64], gc: NDArray[np.float64],
-                      gi: NDArray[np.float64], gj: NDArray[np.float64],
-                      segment_first_column: NDArray[np.float64], i: ArrayLike, j: ArrayLike,
-                      first_guess: tuple[NDArray, NDArray]
-                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def invert_scattered(
+    gl: NDArray[np.float64],
+    gc: NDArray[np.float64],
+    gi: NDArray[np.float64],
+    gj: NDArray[np.float64],
+    segment_first_column: NDArray[np.float64],
+    i: ArrayLike,
+    j: ArrayLike,
+    first_guess: tuple[NDArray, NDArray],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Line per segment ``(segments, N)`` and column ``(N,)`` of scattered output points
     ``(I, J)``, from the four nearest direct-grid points: each point starts in the cell of
     its ``first_guess`` ``(L, C)`` and walks (:func:`_walk`); points beyond the grid are
     extrapolated from the edge cell."""
-    i_a, j_a = (np.ascontiguousarray(x, dtype=np.float64).ravel()
-                for x in np.broadcast_arrays(i, j))
+    i_a, j_a = (
+        np.ascontiguousarray(x, dtype=np.float64).ravel() for x in np.broadcast_arrays(i, j)
+    )
     na, nb_ = gi.shape
     a = np.clip(np.searchsorted(gl, np.ravel(first_guess[0])) - 1, 0, na - 2)
     b = np.clip(np.searchsorted(gc, np.ravel(first_guess[1])) - 1, 0, nb_ - 2)
     seg_b0, seg_b1 = segment_cells(gc, segment_first_column)
     lines = np.empty((segment_first_column.size, i_a.size))
     col = np.empty(i_a.size)
-    _invert_points(np.asarray(gl, float), np.asarray(gc, float),
-                   np.ascontiguousarray(gi, dtype=np.float64),
-                   np.ascontiguousarray(gj, dtype=np.float64), i_a, j_a,
-                   a.astype(np.int64), b.astype(np.int64), seg_b0, seg_b1, lines, col)
+    _invert_points(
+        np.asarray(gl, float),
+        np.asarray(gc, float),
+        np.ascontiguousarray(gi, dtype=np.float64),
+        np.ascontiguousarray(gj, dtype=np.float64),
+        i_a,
+        j_a,
+        a.astype(np.int64),
+        b.astype(np.int64),
+        seg_b0,
+        seg_b1,
+        lines,
+        col,
+    )
     return lines, col
 
 
-def bilinear_grid(rows: NDArray[np.float64], cols: NDArray[np.float64],
-                  z: NDArray[np.float64], i: ArrayLike, j: ArrayLike) -> NDArray[np.float64]:
+def bilinear_grid(
+    rows: NDArray[np.float64],
+    cols: NDArray[np.float64],
+    z: NDArray[np.float64],
+    i: ArrayLike,
+    j: ArrayLike,
+) -> NDArray[np.float64]:
     """Bilinear interpolation of a field on a grid of integer steps from (0, 0), extrapolated
     at the far edges: the arithmetic of the 2A kernel, first along rows then columns, so that
     checks and products agree to the last bit."""
-    i_a, j_a = np.broadcast_arrays(np.asarray(i, dtype=np.float64),
-                                   np.asarray(j, dtype=np.float64))
+    i_a, j_a = np.broadcast_arrays(np.asarray(i, dtype=np.float64), np.asarray(j, dtype=np.float64))
     step_i, step_j = rows[1] - rows[0], cols[1] - cols[0]
     a = np.clip(np.floor(i_a / step_i).astype(np.int64), 0, rows.size - 2)
     b = np.clip(np.floor(j_a / step_j).astype(np.int64), 0, cols.size - 2)

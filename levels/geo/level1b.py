@@ -34,8 +34,7 @@ from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
 from levels.quality import raw_error_stats
 
-__all__ = ["N_BREAKPOINTS", "Level1BGeometry", "TangentPlane", "level1b_geometry",
-           "raw_border"]
+__all__ = ["N_BREAKPOINTS", "Level1BGeometry", "TangentPlane", "level1b_geometry", "raw_border"]
 
 #: INPE's two sets of 61 breakpoints.
 N_BREAKPOINTS = 61
@@ -51,8 +50,9 @@ class TangentPlane:
     y_axis: NDArray[np.float64]
     normal: NDArray[np.float64]
 
-    def intersect(self, r_ecef_m: NDArray[np.float64], los_ecef: NDArray[np.float64]
-                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def intersect(
+        self, r_ecef_m: NDArray[np.float64], los_ecef: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Plane coordinates ``x, y`` (m) where the rays ``r + t·los`` meet the plane."""
         with np.errstate(divide="ignore", invalid="ignore"):
             t = ((self.origin_ecef_m - r_ecef_m) @ self.normal) / (los_ecef @ self.normal)
@@ -82,8 +82,9 @@ class TangentPlane:
         return cls(*(row.copy() for row in a))
 
 
-def raw_border(n_lines: int, n_columns: int, per_side: int = N_BREAKPOINTS
-               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def raw_border(
+    n_lines: int, n_columns: int, per_side: int = N_BREAKPOINTS
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Lines and columns of points along the four edges of a raw image."""
     s = np.linspace(0.0, 1.0, per_side)
     nl, nc = n_lines - 1.0, n_columns - 1.0
@@ -114,18 +115,20 @@ class Level1BGeometry:
     n_raw_lines: int
     n_raw_columns: int
 
-    def raw_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64],
-                                                          NDArray[np.float64]]:
+    def raw_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Raw ``(L, C)`` of corrected pixels ``(I, J)`` (INPE eqs. 1–3)."""
-        i_a, j_a = np.broadcast_arrays(np.asarray(i, dtype=np.float64),
-                                       np.asarray(j, dtype=np.float64))
+        i_a, j_a = np.broadcast_arrays(
+            np.asarray(i, dtype=np.float64), np.asarray(j, dtype=np.float64)
+        )
         return self.f(i_a), self.g(j_a - self.h(i_a))  # INPE eqs. (1)–(3)
 
-    def corrected_of(self, line: ArrayLike, column: ArrayLike) -> tuple[NDArray[np.float64],
-                                                                       NDArray[np.float64]]:
+    def corrected_of(
+        self, line: ArrayLike, column: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Corrected ``(I, J)`` of raw pixels ``(L, C)``: the polynomials inverted."""
-        la, ca = np.broadcast_arrays(np.asarray(line, dtype=np.float64),
-                                     np.asarray(column, dtype=np.float64))
+        la, ca = np.broadcast_arrays(
+            np.asarray(line, dtype=np.float64), np.asarray(column, dtype=np.float64)
+        )
         bl, bc = self.centre_column_breakpoints, self.centre_line_breakpoints
         i = self.f.solve(la, np.interp(la, bl[:, 0], bl[:, 2]))
         if bc[-1, 1] > bc[0, 1]:
@@ -135,36 +138,53 @@ class Level1BGeometry:
         j = self.g.solve(ca, j0) + self.h(i)
         return i, j
 
-    def plane_xy(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64],
-                                                            NDArray[np.float64]]:
+    def plane_xy(
+        self, i: ArrayLike, j: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Plane coordinates (m) of corrected pixels."""
-        return ((np.asarray(i, dtype=np.float64) + self.i_origin) * self.pixel_size_m,
-                (np.asarray(j, dtype=np.float64) + self.j_origin) * self.pixel_size_m)
+        return (
+            (np.asarray(i, dtype=np.float64) + self.i_origin) * self.pixel_size_m,
+            (np.asarray(j, dtype=np.float64) + self.j_origin) * self.pixel_size_m,
+        )
 
-    def ij_of_plane(self, x_m: ArrayLike, y_m: ArrayLike) -> tuple[NDArray[np.float64],
-                                                                  NDArray[np.float64]]:
+    def ij_of_plane(
+        self, x_m: ArrayLike, y_m: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Corrected pixel coordinates of plane points."""
-        return (np.asarray(x_m, dtype=np.float64) / self.pixel_size_m - self.i_origin,
-                np.asarray(y_m, dtype=np.float64) / self.pixel_size_m - self.j_origin)
+        return (
+            np.asarray(x_m, dtype=np.float64) / self.pixel_size_m - self.i_origin,
+            np.asarray(y_m, dtype=np.float64) / self.pixel_size_m - self.j_origin,
+        )
 
     @staticmethod
     def product_tree(bands: dict[str, Level1BGeometry]) -> dict[str, Any]:
         """The ``geometry/level_1b`` tree of a product whose bands have these geometries
         (they share the first band's plane and grid; ``docs/products.md``)."""
         g = next(iter(bands.values()))
-        return {"pixel_size_m": g.pixel_size_m, "i_origin": g.i_origin,
-                "j_origin": g.j_origin, "n_rows": g.n_rows, "n_cols": g.n_cols,
-                "n_raw_lines": g.n_raw_lines, "n_raw_columns": g.n_raw_columns,
-                "plane_ecef_m": g.plane.as_array(),
-                "plane_note": "rows: origin, X (south), Y (east), normal (up); ECEF",
-                "polynomial_note": "[centre, scale, c0..c3]: p(x) = sum c_k ((x - centre)/"
-                                   "scale)^k; L = f(I), C = g(J - h(I))",
-                "breakpoints_note": "columns L, C, I, J",
-                "bands": {b: {"f": band.f.as_array(), "g": band.g.as_array(),
-                              "h": band.h.as_array(),
-                              "centre_column_breakpoints": band.centre_column_breakpoints,
-                              "centre_line_breakpoints": band.centre_line_breakpoints}
-                          for b, band in bands.items()}}
+        return {
+            "pixel_size_m": g.pixel_size_m,
+            "i_origin": g.i_origin,
+            "j_origin": g.j_origin,
+            "n_rows": g.n_rows,
+            "n_cols": g.n_cols,
+            "n_raw_lines": g.n_raw_lines,
+            "n_raw_columns": g.n_raw_columns,
+            "plane_ecef_m": g.plane.as_array(),
+            "plane_note": "rows: origin, X (south), Y (east), normal (up); ECEF",
+            "polynomial_note": "[centre, scale, c0..c3]: p(x) = sum c_k ((x - centre)/"
+            "scale)^k; L = f(I), C = g(J - h(I))",
+            "breakpoints_note": "columns L, C, I, J",
+            "bands": {
+                b: {
+                    "f": band.f.as_array(),
+                    "g": band.g.as_array(),
+                    "h": band.h.as_array(),
+                    "centre_column_breakpoints": band.centre_column_breakpoints,
+                    "centre_line_breakpoints": band.centre_line_breakpoints,
+                }
+                for b, band in bands.items()
+            },
+        }
 
     @classmethod
     def from_tree(cls, tree: dict[str, Any], band: str | None = None) -> Level1BGeometry:
@@ -175,30 +195,40 @@ class Level1BGeometry:
             b = bands[band if band is not None else next(iter(bands))]
             return cls(
                 plane=TangentPlane.from_array(tree["plane_ecef_m"]),
-                pixel_size_m=float(tree["pixel_size_m"]), n_rows=int(tree["n_rows"]),
-                n_cols=int(tree["n_cols"]), i_origin=float(tree["i_origin"]),
-                j_origin=float(tree["j_origin"]), f=Poly1D.from_array(b["f"]),
-                g=Poly1D.from_array(b["g"]), h=Poly1D.from_array(b["h"]),
+                pixel_size_m=float(tree["pixel_size_m"]),
+                n_rows=int(tree["n_rows"]),
+                n_cols=int(tree["n_cols"]),
+                i_origin=float(tree["i_origin"]),
+                j_origin=float(tree["j_origin"]),
+                f=Poly1D.from_array(b["f"]),
+                g=Poly1D.from_array(b["g"]),
+                h=Poly1D.from_array(b["h"]),
                 centre_column_breakpoints=b["centre_column_breakpoints"],
                 centre_line_breakpoints=b["centre_line_breakpoints"],
-                n_raw_lines=int(tree["n_raw_lines"]), n_raw_columns=int(tree["n_raw_columns"]))
+                n_raw_lines=int(tree["n_raw_lines"]),
+                n_raw_columns=int(tree["n_raw_columns"]),
+            )
         except (KeyError, TypeError, ValueError, StopIteration) as exc:
-            raise ProductError(f"level 1B geometry tree is incomplete or damaged "
-                               f"({type(exc).__name__}: {exc})") from None
+            raise ProductError(
+                f"level 1B geometry tree is incomplete or damaged ({type(exc).__name__}: {exc})"
+            ) from None
 
-    def approximation_error(self, model: PushbroomModel, per_side: int = 41
-                            ) -> dict[str, float]:
+    def approximation_error(self, model: PushbroomModel, per_side: int = 41) -> dict[str, float]:
         """How far the polynomials put raw pixels from the rigorous model, in raw pixels.
 
         A lattice of corrected pixels is mapped by the polynomials to ``(L, C)`` and, by the
         model, from its plane point back to the raw image by iteration; points whose
         polynomial ``(L, C)`` falls outside the raw image are left out.
         """
-        i, j = np.meshgrid(np.linspace(0, self.n_rows - 1, per_side),
-                           np.linspace(0, self.n_cols - 1, per_side), indexing="ij")
+        i, j = np.meshgrid(
+            np.linspace(0, self.n_rows - 1, per_side),
+            np.linspace(0, self.n_cols - 1, per_side),
+            indexing="ij",
+        )
         lp, cp = self.raw_of(i.ravel(), j.ravel())
-        inside = ((lp >= 0) & (lp <= self.n_raw_lines - 1) & (cp >= 0)
-                  & (cp <= self.n_raw_columns - 1))
+        inside = (
+            (lp >= 0) & (lp <= self.n_raw_lines - 1) & (cp >= 0) & (cp <= self.n_raw_columns - 1)
+        )
         x, y = self.plane_xy(i.ravel()[inside], j.ravel()[inside])
         lat, lon, h = model.ellipsoid.to_geodetic(self.plane.to_ecef(x, y))
         exact = model.ground_to_image(lat, lon, h, first_line=lp[inside])
@@ -208,9 +238,13 @@ class Level1BGeometry:
         return raw_error_stats(dl[ok], dc[ok])
 
 
-def level1b_geometry(scene: SceneGeometry, pixel_size_m: float,
-                     n_breakpoints: int = N_BREAKPOINTS, band: str | None = None,
-                     like: Level1BGeometry | None = None) -> Level1BGeometry:
+def level1b_geometry(
+    scene: SceneGeometry,
+    pixel_size_m: float,
+    n_breakpoints: int = N_BREAKPOINTS,
+    band: str | None = None,
+    like: Level1BGeometry | None = None,
+) -> Level1BGeometry:
     """GEO for level 1B: tangent plane, breakpoints, polynomials f, g, h, image size.
 
     ``band`` names the band whose model is fitted (the first by default). ``like``, the
@@ -244,31 +278,41 @@ def level1b_geometry(scene: SceneGeometry, pixel_size_m: float,
         n_cols = int(np.floor(yb.max() / res) - j_origin) + 1
     else:
         if like.pixel_size_m != res:
-            raise GeometryError(f"level 1B: pixel size {res} m differs from the shared grid's "
-                                f"{like.pixel_size_m} m")
-        i_origin, j_origin, n_rows, n_cols = like.i_origin, like.j_origin, like.n_rows, \
-            like.n_cols
+            raise GeometryError(
+                f"level 1B: pixel size {res} m differs from the shared grid's {like.pixel_size_m} m"
+            )
+        i_origin, j_origin, n_rows, n_cols = like.i_origin, like.j_origin, like.n_rows, like.n_cols
     ik, jk = xk / res - i_origin, yk / res - j_origin
     il, jl = xl / res - i_origin, yl / res - j_origin
-    f = Poly1D.fit(ik, line_k, 3)                     # INPE eq. (1): L = f(I)
-    h = Poly1D.fit(ik, jk - (-j_origin), 3)          # INPE eq. (3): ΔJ = h(I), from J_centre
-    g = Poly1D.fit(jl - h(il), col_c, 3)             # INPE eq. (2): C = g(J − h(I))
+    f = Poly1D.fit(ik, line_k, 3)  # INPE eq. (1): L = f(I)
+    h = Poly1D.fit(ik, jk - (-j_origin), 3)  # INPE eq. (3): ΔJ = h(I), from J_centre
+    g = Poly1D.fit(jl - h(il), col_c, 3)  # INPE eq. (2): C = g(J − h(I))
     return Level1BGeometry(
-        plane=plane, pixel_size_m=res, n_rows=n_rows, n_cols=n_cols, i_origin=i_origin,
-        j_origin=j_origin, f=f, g=g, h=h,
+        plane=plane,
+        pixel_size_m=res,
+        n_rows=n_rows,
+        n_cols=n_cols,
+        i_origin=i_origin,
+        j_origin=j_origin,
+        f=f,
+        g=g,
+        h=h,
         centre_column_breakpoints=np.stack([line_k, np.full(n_breakpoints, cc), ik, jk], 1),
         centre_line_breakpoints=np.stack([line_c, col_c, il, jl], 1),
-        n_raw_lines=nl, n_raw_columns=nc,
+        n_raw_lines=nl,
+        n_raw_columns=nc,
     )
 
 
-def _tangent_plane(scene: SceneGeometry, model: PushbroomModel, r: NDArray[np.float64],
-                   los: NDArray[np.float64]) -> TangentPlane:
+def _tangent_plane(
+    scene: SceneGeometry, model: PushbroomModel, r: NDArray[np.float64], los: NDArray[np.float64]
+) -> TangentPlane:
     """The plane tangent to the reference surface at the scene centre, Y along the centre
     line (``r``, ``los``: its breakpoints' sight) eastward, X = Y × up southward."""
     ell = model.ellipsoid
-    origin = ell.to_ecef(scene.centre_lat_rad, scene.centre_lon_rad,
-                         scene.reference_height_m).reshape(3)
+    origin = ell.to_ecef(
+        scene.centre_lat_rad, scene.centre_lon_rad, scene.reference_height_m
+    ).reshape(3)
     up = ell.up(scene.centre_lat_rad, scene.centre_lon_rad).reshape(3)
     east = np.array([-np.sin(scene.centre_lon_rad), np.cos(scene.centre_lon_rad), 0.0])
     draft = TangentPlane(origin, np.cross(east, up), east, up)

@@ -43,8 +43,14 @@ from levels.geometry.model import PushbroomModel
 from levels.geometry.sensor import butting_columns
 from levels.quality import raw_error_stats
 
-__all__ = ["INVERSE_METHODS", "Level2AGeometry", "bilinear_grid", "butting_columns",
-           "level2a_geometry", "map_crs"]
+__all__ = [
+    "INVERSE_METHODS",
+    "Level2AGeometry",
+    "bilinear_grid",
+    "butting_columns",
+    "level2a_geometry",
+    "map_crs",
+]
 
 INVERSE_METHODS = ("nearest4", "poly3", "poly4", "poly5")
 
@@ -85,8 +91,7 @@ class Level2AGeometry:
         """Spacing of the inverse grid in output rows and columns (integers, from 0)."""
         si = self.inverse_rows[1] - self.inverse_rows[0]
         sj = self.inverse_cols[1] - self.inverse_cols[0]
-        if self.inverse_rows[0] != 0 or self.inverse_cols[0] != 0 or si != int(si) \
-                or sj != int(sj):
+        if self.inverse_rows[0] != 0 or self.inverse_cols[0] != 0 or si != int(si) or sj != int(sj):
             raise GeometryError("the inverse grid must start at 0 with integer steps")
         return int(si), int(sj)
 
@@ -95,62 +100,81 @@ class Level2AGeometry:
         """GDAL geotransform of the output grid (upper-left corner of the first pixel)."""
         return (self.x_min_m, self.pixel_size_m, 0.0, self.y_max_m, 0.0, -self.pixel_size_m)
 
-    def map_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64],
-                                                          NDArray[np.float64]]:
+    def map_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Map coordinates (E, N) of output pixel coordinates."""
-        return (self.x_min_m + (np.asarray(j, dtype=np.float64) + 0.5) * self.pixel_size_m,
-                self.y_max_m - (np.asarray(i, dtype=np.float64) + 0.5) * self.pixel_size_m)
+        return (
+            self.x_min_m + (np.asarray(j, dtype=np.float64) + 0.5) * self.pixel_size_m,
+            self.y_max_m - (np.asarray(i, dtype=np.float64) + 0.5) * self.pixel_size_m,
+        )
 
-    def ij_of_map(self, e_m: ArrayLike, n_m: ArrayLike) -> tuple[NDArray[np.float64],
-                                                                NDArray[np.float64]]:
+    def ij_of_map(
+        self, e_m: ArrayLike, n_m: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Output pixel coordinates of map coordinates."""
-        return ((self.y_max_m - np.asarray(n_m, dtype=np.float64)) / self.pixel_size_m - 0.5,
-                (np.asarray(e_m, dtype=np.float64) - self.x_min_m) / self.pixel_size_m - 0.5)
+        return (
+            (self.y_max_m - np.asarray(n_m, dtype=np.float64)) / self.pixel_size_m - 0.5,
+            (np.asarray(e_m, dtype=np.float64) - self.x_min_m) / self.pixel_size_m - 0.5,
+        )
 
     def segment_of(self, column: ArrayLike) -> NDArray[np.int64]:
         """Segment of (fractional) raw columns: a column belongs to the segment of its
         nearest detector."""
         c = np.floor(np.asarray(column, dtype=np.float64) + 0.5)
-        return np.clip(np.searchsorted(self.segment_first_column, c, side="right") - 1, 0,
-                       self.segment_first_column.size - 1)
+        return np.clip(
+            np.searchsorted(self.segment_first_column, c, side="right") - 1,
+            0,
+            self.segment_first_column.size - 1,
+        )
 
-    def _nodes(self, i: NDArray[np.float64], j: NDArray[np.float64], method: str
-               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def _nodes(
+        self, i: NDArray[np.float64], j: NDArray[np.float64], method: str
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Line per segment ``(segments, N)`` and column ``(N,)`` of output points."""
         if method == "nearest4":
             # first guesses from the cubic inverse: near enough for the walk between cells
             pl3, pc3 = self.inverse_polynomials[3]
-            return invert_scattered(self.grid_line, self.grid_column, self.grid_i,
-                                     self.grid_j, self.segment_first_column, i, j,
-                                     (pl3[0](i, j), pc3(i, j)))
+            return invert_scattered(
+                self.grid_line,
+                self.grid_column,
+                self.grid_i,
+                self.grid_j,
+                self.segment_first_column,
+                i,
+                j,
+                (pl3[0](i, j), pc3(i, j)),
+            )
         pl, pc = self.inverse_polynomials[_order(method)]
         return np.stack([p(i, j) for p in pl]), pc(i, j)
 
-    def inverse_at(self, i: ArrayLike, j: ArrayLike, method: str | None = None
-                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def inverse_at(
+        self, i: ArrayLike, j: ArrayLike, method: str | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Raw ``(L, C)`` of output points by an inversion method, without the inverse grid."""
-        i_a, j_a = np.broadcast_arrays(np.asarray(i, dtype=np.float64),
-                                       np.asarray(j, dtype=np.float64))
+        i_a, j_a = np.broadcast_arrays(
+            np.asarray(i, dtype=np.float64), np.asarray(j, dtype=np.float64)
+        )
         lines, col = self._nodes(i_a.ravel(), j_a.ravel(), method or self.method)
         line = np.take_along_axis(lines, self.segment_of(col)[None], 0)[0]
         return line.reshape(i_a.shape), col.reshape(i_a.shape)
 
-    def raw_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64],
-                                                          NDArray[np.float64]]:
+    def raw_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Raw ``(L, C)`` of output pixels through the inverse grid (what COR uses)."""
-        i_a, j_a = np.broadcast_arrays(np.asarray(i, dtype=np.float64),
-                                       np.asarray(j, dtype=np.float64))
+        i_a, j_a = np.broadcast_arrays(
+            np.asarray(i, dtype=np.float64), np.asarray(j, dtype=np.float64)
+        )
         col = bilinear_grid(self.inverse_rows, self.inverse_cols, self.inverse_column, i_a, j_a)
         seg = self.segment_of(col)
         line = np.empty_like(col)
         for s in np.unique(seg):
             k = seg == s
-            line[k] = bilinear_grid(self.inverse_rows, self.inverse_cols,
-                                    self.inverse_line[s], i_a[k], j_a[k])
+            line[k] = bilinear_grid(
+                self.inverse_rows, self.inverse_cols, self.inverse_line[s], i_a[k], j_a[k]
+            )
         return line, col
 
-    def output_of(self, line: ArrayLike, column: ArrayLike, first_guess: tuple[NDArray, NDArray]
-                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def output_of(
+        self, line: ArrayLike, column: ArrayLike, first_guess: tuple[NDArray, NDArray]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Output ``(I, J)`` where the inverse grid sends raw ``(L, C)``: where a raw pixel
         appears in the product. Newton from ``first_guess``, with the grid's Jacobian."""
         la, ca = (np.asarray(x, dtype=np.float64).ravel() for x in (line, column))
@@ -168,9 +192,14 @@ class Level2AGeometry:
             j = j + (-a21 * rl + a11 * rc) / det
         return i, j
 
-    def approximation_error(self, model: PushbroomModel, reference_height_m: float,
-                            method: str | None = None, per_side: int = 61,
-                            through_grid: bool = True) -> dict[str, float]:
+    def approximation_error(
+        self,
+        model: PushbroomModel,
+        reference_height_m: float,
+        method: str | None = None,
+        per_side: int = 61,
+        through_grid: bool = True,
+    ) -> dict[str, float]:
         """How far an inversion puts output pixels from the rigorous model, in raw pixels.
 
         A lattice of output pixels is taken back to the ground (map → geodetic at the
@@ -181,22 +210,28 @@ class Level2AGeometry:
         first of the next: no detector sees there, and the model's answer is only the linear
         interpolation of the look-angle table across the gap.
         """
-        i, j = np.meshgrid(np.linspace(0, self.n_rows - 1, per_side),
-                           np.linspace(0, self.n_cols - 1, per_side), indexing="ij")
+        i, j = np.meshgrid(
+            np.linspace(0, self.n_rows - 1, per_side),
+            np.linspace(0, self.n_cols - 1, per_side),
+            indexing="ij",
+        )
         i, j = i.ravel(), j.ravel()
         if through_grid:
             grid = self if method in (None, self.method) else self.with_inverse(method)
             la, ca = grid.raw_of(i, j)
         else:
             la, ca = self.inverse_at(i, j, method)
-        inside = ((la >= 0) & (la <= self.n_raw_lines - 1) & (ca >= 0)
-                  & (ca <= self.n_raw_columns - 1))
+        inside = (
+            (la >= 0) & (la <= self.n_raw_lines - 1) & (ca >= 0) & (ca <= self.n_raw_columns - 1)
+        )
         e, n = self.map_of(i[inside], j[inside])
-        to_geo = pyproj.Transformer.from_crs(pyproj.CRS.from_wkt(self.crs_wkt), "EPSG:4326",
-                                             always_xy=True)
+        to_geo = pyproj.Transformer.from_crs(
+            pyproj.CRS.from_wkt(self.crs_wkt), "EPSG:4326", always_xy=True
+        )
         lon, lat = to_geo.transform(e, n)
-        exact = model.ground_to_image(np.radians(lat), np.radians(lon), reference_height_m,
-                                      first_line=la[inside])
+        exact = model.ground_to_image(
+            np.radians(lat), np.radians(lon), reference_height_m, first_line=la[inside]
+        )
         gap = np.zeros(exact.column.size, dtype=bool)
         for first in self.segment_first_column[1:]:
             gap |= (exact.column > first - 1) & (exact.column < first)
@@ -208,22 +243,39 @@ class Level2AGeometry:
         """The ``geometry/level_2a`` tree of a product whose bands have these geometries
         (they share the first band's map grid; ``docs/products.md``)."""
         g = next(iter(bands.values()))
-        return {"crs_wkt": g.crs_wkt, "geotransform": np.asarray(g.geotransform),
-                "pixel_size_m": g.pixel_size_m, "inverse_method": g.method,
-                "n_rows": g.n_rows, "n_cols": g.n_cols, "n_raw_lines": g.n_raw_lines,
-                "n_raw_columns": g.n_raw_columns,
-                "bands": {b: band._band_tree() for b, band in bands.items()}}
+        return {
+            "crs_wkt": g.crs_wkt,
+            "geotransform": np.asarray(g.geotransform),
+            "pixel_size_m": g.pixel_size_m,
+            "inverse_method": g.method,
+            "n_rows": g.n_rows,
+            "n_cols": g.n_cols,
+            "n_raw_lines": g.n_raw_lines,
+            "n_raw_columns": g.n_raw_columns,
+            "bands": {b: band._band_tree() for b, band in bands.items()},
+        }
 
     def _band_tree(self) -> dict[str, Any]:
-        polys = {f"poly{o}": {"line": np.stack([p.as_array() for p in pl]),
-                              "column": pc.as_array()}
-                 for o, (pl, pc) in self.inverse_polynomials.items()}
-        return {"direct_grid": {"line": self.grid_line, "column": self.grid_column,
-                                "i": self.grid_i, "j": self.grid_j},
-                "segment_first_column": self.segment_first_column,
-                "inverse_grid": {"rows": self.inverse_rows, "cols": self.inverse_cols,
-                                 "line": self.inverse_line, "column": self.inverse_column},
-                "inverse_polynomials": polys}
+        polys = {
+            f"poly{o}": {"line": np.stack([p.as_array() for p in pl]), "column": pc.as_array()}
+            for o, (pl, pc) in self.inverse_polynomials.items()
+        }
+        return {
+            "direct_grid": {
+                "line": self.grid_line,
+                "column": self.grid_column,
+                "i": self.grid_i,
+                "j": self.grid_j,
+            },
+            "segment_first_column": self.segment_first_column,
+            "inverse_grid": {
+                "rows": self.inverse_rows,
+                "cols": self.inverse_cols,
+                "line": self.inverse_line,
+                "column": self.inverse_column,
+            },
+            "inverse_polynomials": polys,
+        }
 
     @classmethod
     def from_tree(cls, tree: dict[str, Any], band: str | None = None) -> Level2AGeometry:
@@ -234,8 +286,10 @@ class Level2AGeometry:
             b = bands[band if band is not None else next(iter(bands))]
             gt = [float(x) for x in np.asarray(tree["geotransform"]).ravel()]
             if len(gt) != 6 or gt[2] != 0.0 or gt[4] != 0.0 or gt[1] <= 0 or gt[5] != -gt[1]:
-                raise ProductError(f"level 2A geotransform {gt}: expected a north-up grid "
-                                   "(x_min, res, 0, y_max, 0, -res)")
+                raise ProductError(
+                    f"level 2A geotransform {gt}: expected a north-up grid "
+                    "(x_min, res, 0, y_max, 0, -res)"
+                )
             pyproj.CRS.from_wkt(str(tree["crs_wkt"]))
             polys = {}
             for name, p in b["inverse_polynomials"].items():
@@ -243,20 +297,32 @@ class Level2AGeometry:
                 polys[int(name.removeprefix("poly"))] = (lines, Poly2D.from_array(p["column"]))
             d, inv = b["direct_grid"], b["inverse_grid"]
             return cls(
-                crs_wkt=str(tree["crs_wkt"]), pixel_size_m=float(tree["pixel_size_m"]),
-                x_min_m=gt[0], y_max_m=gt[3], n_rows=int(tree["n_rows"]),
-                n_cols=int(tree["n_cols"]), grid_line=d["line"], grid_column=d["column"],
-                grid_i=d["i"], grid_j=d["j"], segment_first_column=b["segment_first_column"],
-                inverse_polynomials=polys, method=str(tree["inverse_method"]),
-                inverse_rows=inv["rows"], inverse_cols=inv["cols"], inverse_line=inv["line"],
-                inverse_column=inv["column"], n_raw_lines=int(tree["n_raw_lines"]),
-                n_raw_columns=int(tree["n_raw_columns"]))
-        except (KeyError, TypeError, ValueError, StopIteration,
-                pyproj.exceptions.CRSError) as exc:
+                crs_wkt=str(tree["crs_wkt"]),
+                pixel_size_m=float(tree["pixel_size_m"]),
+                x_min_m=gt[0],
+                y_max_m=gt[3],
+                n_rows=int(tree["n_rows"]),
+                n_cols=int(tree["n_cols"]),
+                grid_line=d["line"],
+                grid_column=d["column"],
+                grid_i=d["i"],
+                grid_j=d["j"],
+                segment_first_column=b["segment_first_column"],
+                inverse_polynomials=polys,
+                method=str(tree["inverse_method"]),
+                inverse_rows=inv["rows"],
+                inverse_cols=inv["cols"],
+                inverse_line=inv["line"],
+                inverse_column=inv["column"],
+                n_raw_lines=int(tree["n_raw_lines"]),
+                n_raw_columns=int(tree["n_raw_columns"]),
+            )
+        except (KeyError, TypeError, ValueError, StopIteration, pyproj.exceptions.CRSError) as exc:
             if isinstance(exc, ProductError):
                 raise
-            raise ProductError(f"level 2A geometry tree is incomplete or damaged "
-                               f"({type(exc).__name__}: {exc})") from None
+            raise ProductError(
+                f"level 2A geometry tree is incomplete or damaged ({type(exc).__name__}: {exc})"
+            ) from None
 
     def with_inverse(self, method: str) -> Level2AGeometry:
         """The same geometry with the inverse grid computed by another method."""
@@ -270,16 +336,27 @@ class Level2AGeometry:
             # the raw columns each segment's line serves: those its nearest detector is in
             seg_lo = np.append(-np.inf, self.segment_first_column[1:] - 0.5)
             seg_hi = np.append(self.segment_first_column[1:] - 0.5, np.inf)
-            invert_nodes(self.grid_line, self.grid_column, self.grid_i, self.grid_j,
-                          np.asarray(self.inverse_rows, dtype=np.float64),
-                          np.asarray(self.inverse_cols, dtype=np.float64),
-                          seg_b0, seg_b1, seg_lo, seg_hi, lines, col)
+            invert_nodes(
+                self.grid_line,
+                self.grid_column,
+                self.grid_i,
+                self.grid_j,
+                np.asarray(self.inverse_rows, dtype=np.float64),
+                np.asarray(self.inverse_cols, dtype=np.float64),
+                seg_b0,
+                seg_b1,
+                seg_lo,
+                seg_hi,
+                lines,
+                col,
+            )
         else:
             i, j = np.meshgrid(self.inverse_rows, self.inverse_cols, indexing="ij")
             lines, col = self._nodes(i.ravel(), j.ravel(), method)
             lines, col = lines.reshape(-1, *shape), col.reshape(shape)
-        return Level2AGeometry(**{**self.__dict__, "method": method, "inverse_line": lines,
-                                  "inverse_column": col})
+        return Level2AGeometry(
+            **{**self.__dict__, "method": method, "inverse_line": lines, "inverse_column": col}
+        )
 
 
 def _order(method: str) -> int:
@@ -288,11 +365,17 @@ def _order(method: str) -> int:
     return int(method[-1])
 
 
-def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
-                     method: str = "nearest4", n_breakpoints: int = N_BREAKPOINTS,
-                     inverse_step_px: int = 0, grid_rows: str = "attitude",
-                     band: str | None = None, like: Level2AGeometry | None = None
-                     ) -> Level2AGeometry:
+def level2a_geometry(
+    scene: SceneGeometry,
+    pixel_size_m: float,
+    crs: pyproj.CRS,
+    method: str = "nearest4",
+    n_breakpoints: int = N_BREAKPOINTS,
+    inverse_step_px: int = 0,
+    grid_rows: str = "attitude",
+    band: str | None = None,
+    like: Level2AGeometry | None = None,
+) -> Level2AGeometry:
     """GEO for level 2A (module docstring).
 
     Parameters
@@ -321,20 +404,25 @@ def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
         raise GeometryError(f"grid_rows {grid_rows!r}: expected 'attitude' or 'regular'")
     model = scene.models[band] if band is not None else scene.model
     nl, nc = scene.cut.n_lines, model.n_columns
-    gl = (scene.attitude_lines() if grid_rows == "attitude"
-          else np.linspace(0.0, nl - 1.0, n_breakpoints))
+    gl = (
+        scene.attitude_lines()
+        if grid_rows == "attitude"
+        else np.linspace(0.0, nl - 1.0, n_breakpoints)
+    )
     butting = butting_columns(model.look_angles)
     gc = np.union1d(np.linspace(0.0, nc - 1.0, n_breakpoints), butting)
     ll, cc = np.meshgrid(gl, gc, indexing="ij")
     g = model.image_to_ground(ll.ravel(), cc.ravel(), scene.reference_height_m)
     if not np.all(g.ok):
-        raise GeometryError(f"level 2A: {np.count_nonzero(~g.ok)} direct-grid breakpoints of "
-                            f"scene {scene.cut.index} not located")
+        raise GeometryError(
+            f"level 2A: {np.count_nonzero(~g.ok)} direct-grid breakpoints of "
+            f"scene {scene.cut.index} not located"
+        )
     if like is not None:
-        if like.pixel_size_m != float(pixel_size_m) or not pyproj.CRS.from_wkt(
-                like.crs_wkt).equals(crs):
-            raise GeometryError("level 2A: a shared map grid must have the same CRS and "
-                                "pixel size")
+        if like.pixel_size_m != float(pixel_size_m) or not pyproj.CRS.from_wkt(like.crs_wkt).equals(
+            crs
+        ):
+            raise GeometryError("level 2A: a shared map grid must have the same CRS and pixel size")
         crs = pyproj.CRS.from_wkt(like.crs_wkt)
     to_map = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
     e, n = to_map.transform(np.degrees(g.lon_rad), np.degrees(g.lat_rad))
@@ -355,17 +443,30 @@ def level2a_geometry(scene: SceneGeometry, pixel_size_m: float, crs: pyproj.CRS,
     gj = (e - x_min) / res - 0.5
     seg_first = np.concatenate([[0.0], butting[1::2]])
     # each segment's own grid columns, its first detector to its last
-    segments = [slice(f, last + 1) for f, last in zip(*segment_cells(gc, seg_first),
-                                                       strict=True)]
+    segments = [slice(f, last + 1) for f, last in zip(*segment_cells(gc, seg_first), strict=True)]
     orders = (3, 4, 5)
     line_fits = [Poly2D.fit_orders(gi[:, k], gj[:, k], ll[:, k], orders) for k in segments]
     col_fits = Poly2D.fit_orders(gi, gj, cc, orders)
     polys = {o: (tuple(f[o] for f in line_fits), col_fits[o]) for o in orders}
     geom = Level2AGeometry(
-        crs_wkt=crs.to_wkt(), pixel_size_m=res, x_min_m=x_min, y_max_m=y_max, n_rows=n_rows,
-        n_cols=n_cols, grid_line=gl, grid_column=gc, grid_i=gi, grid_j=gj,
-        segment_first_column=seg_first, inverse_polynomials=polys, method=method,
-        inverse_rows=rows, inverse_cols=cols,
+        crs_wkt=crs.to_wkt(),
+        pixel_size_m=res,
+        x_min_m=x_min,
+        y_max_m=y_max,
+        n_rows=n_rows,
+        n_cols=n_cols,
+        grid_line=gl,
+        grid_column=gc,
+        grid_i=gi,
+        grid_j=gj,
+        segment_first_column=seg_first,
+        inverse_polynomials=polys,
+        method=method,
+        inverse_rows=rows,
+        inverse_cols=cols,
         inverse_line=np.empty((seg_first.size, rows.size, cols.size)),
-        inverse_column=np.empty((rows.size, cols.size)), n_raw_lines=nl, n_raw_columns=nc)
+        inverse_column=np.empty((rows.size, cols.size)),
+        n_raw_lines=nl,
+        n_raw_columns=nc,
+    )
     return geom.with_inverse(method)

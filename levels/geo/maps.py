@@ -1,5 +1,4 @@
-"""The map of level 2A products: UTM, the SPOT orbit's Space Oblique Mercator, or any CRS.
-"""
+"""The map of level 2A products: UTM, the SPOT orbit's Space Oblique Mercator, or any CRS."""
 
 from __future__ import annotations
 
@@ -17,8 +16,12 @@ _SPOT_INCLINATION_DEG = ORBIT_INCLINATION_DEG
 _SPOT_PERIOD_DAYS = ORBIT_PERIOD_MIN / 1440.0
 
 
-def map_crs(kind: str, centre_lat_rad: float, centre_lon_rad: float,
-            ascending_node_lon_rad: float | None = None) -> pyproj.CRS:
+def map_crs(
+    kind: str,
+    centre_lat_rad: float,
+    centre_lon_rad: float,
+    ascending_node_lon_rad: float | None = None,
+) -> pyproj.CRS:
     """The map projection of a product.
 
     ``"utm"``: the UTM zone of the scene centre (WGS84, north or south); ``"som"``: the Space
@@ -33,12 +36,14 @@ def map_crs(kind: str, centre_lat_rad: float, centre_lon_rad: float,
             raise GeometryError("SOM needs the longitude of the ascending node")
         return pyproj.CRS.from_proj4(
             f"+proj=som +inc_angle={_SPOT_INCLINATION_DEG} +ps_rev={_SPOT_PERIOD_DAYS:.9f} "
-            f"+asc_lon={np.degrees(ascending_node_lon_rad):.9f} +ellps=WGS84 +units=m +no_defs")
+            f"+asc_lon={np.degrees(ascending_node_lon_rad):.9f} +ellps=WGS84 +units=m +no_defs"
+        )
     try:
         return pyproj.CRS.from_user_input(kind)
     except pyproj.exceptions.CRSError as exc:
-        raise GeometryError(f"map CRS {kind!r}: {exc}; use 'utm', 'som', an EPSG code or "
-                            "a WKT") from None
+        raise GeometryError(
+            f"map CRS {kind!r}: {exc}; use 'utm', 'som', an EPSG code or a WKT"
+        ) from None
 
 
 def ascending_node_lon_rad(ephemeris: Ephemeris) -> float:

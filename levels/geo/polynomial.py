@@ -53,8 +53,10 @@ class Poly1D:
 
     def derivative(self, x: ArrayLike) -> NDArray[np.float64]:
         u = (np.asarray(x, dtype=np.float64) - self.centre) / self.scale
-        return np.polynomial.polynomial.polyval(u, np.polynomial.polynomial.polyder(self.coef)) \
+        return (
+            np.polynomial.polynomial.polyval(u, np.polynomial.polynomial.polyder(self.coef))
             / self.scale
+        )
 
     def solve(self, y: ArrayLike, x0: ArrayLike, iterations: int = 6) -> NDArray[np.float64]:
         """``x`` with ``p(x) = y`` by Newton from ``x0`` (the maps are monotonic)."""
@@ -76,8 +78,9 @@ class Poly1D:
 
 def _exponents(order: int) -> NDArray[np.int64]:
     """(p, q) of every monomial ``u^p v^q`` with ``p + q <= order``."""
-    return np.array([(p, t - p) for t in range(order + 1) for p in range(t, -1, -1)],
-                    dtype=np.int64)
+    return np.array(
+        [(p, t - p) for t in range(order + 1) for p in range(t, -1, -1)], dtype=np.int64
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,8 +97,9 @@ class Poly2D:
         return cls.fit_orders(x, y, z, (order,))[order]
 
     @classmethod
-    def fit_orders(cls, x: ArrayLike, y: ArrayLike, z: ArrayLike, orders: Sequence[int]
-                   ) -> dict[int, Poly2D]:
+    def fit_orders(
+        cls, x: ArrayLike, y: ArrayLike, z: ArrayLike, orders: Sequence[int]
+    ) -> dict[int, Poly2D]:
         """The least-squares fits of several orders on the same points, from one QR
         factorisation: the monomials are ordered by total degree, so the design matrix of a
         lower order is the leading columns of the highest's, and so is its R."""
@@ -126,8 +130,9 @@ class Poly2D:
         return pu[:, e[:, 0]] * pv[:, e[:, 1]]
 
     def __call__(self, x: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
-        xa, ya = np.broadcast_arrays(np.asarray(x, dtype=np.float64),
-                                     np.asarray(y, dtype=np.float64))
+        xa, ya = np.broadcast_arrays(
+            np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        )
         return (self._design(xa.ravel(), ya.ravel()) @ self.coef).reshape(xa.shape)
 
     def as_array(self) -> NDArray[np.float64]:

@@ -59,7 +59,8 @@ def cut_scenes(n_lines: int, scene_lines: int, overlap_lines: int = 0) -> list[S
     if scene_lines < 2 or not 0 <= overlap_lines < scene_lines:
         raise GeometryError(
             f"scene_lines={scene_lines}, overlap_lines={overlap_lines}: need scene_lines >= 2 "
-            "and 0 <= overlap_lines < scene_lines")
+            "and 0 <= overlap_lines < scene_lines"
+        )
     if n_lines < 2:
         raise GeometryError(f"a pass of {n_lines} lines cannot be cut into scenes")
     if n_lines <= scene_lines:
@@ -157,8 +158,10 @@ class PassGeometry:
         t_c = float(clock.time_s(cut.centre_line))
         att = self.attitude.zeroed_at(t_c)  # INPE §2.1: null attitude at scene centre
         at_centre = self.attitude.angles_rad(np.array([t_c]))[0]
-        models = {name: PushbroomModel(self.epoch, clock, self.ephemeris, att, look, cut.n_lines)
-                  for name, look in self.look_angles.items()}
+        models = {
+            name: PushbroomModel(self.epoch, clock, self.ephemeris, att, look, cut.n_lines)
+            for name, look in self.look_angles.items()
+        }
         model = next(iter(models.values()))
         nl, nc = cut.n_lines - 1, model.n_columns - 1
         line = np.array([cut.centre_line, 0, 0, nl, nl], dtype=np.float64)
@@ -171,10 +174,19 @@ class PassGeometry:
                 f"scene {cut.index}: centre or corners not located (its lines "
                 f"{clock.time_s(0):.2f}–{t_end:.2f} s; attitude known over "
                 f"{t_att[0]:.2f}–{t_att[-1]:.2f} s, ephemeris over "
-                f"{self.ephemeris.span_s[0]:.0f}–{self.ephemeris.span_s[1]:.0f} s)")
-        return SceneGeometry(cut, t_c, models, at_centre, reference_height_m,
-                             float(g.lat_rad[0]), float(g.lon_rad[0]), g.lat_rad[1:],
-                             g.lon_rad[1:])
+                f"{self.ephemeris.span_s[0]:.0f}–{self.ephemeris.span_s[1]:.0f} s)"
+            )
+        return SceneGeometry(
+            cut,
+            t_c,
+            models,
+            at_centre,
+            reference_height_m,
+            float(g.lat_rad[0]),
+            float(g.lon_rad[0]),
+            g.lat_rad[1:],
+            g.lon_rad[1:],
+        )
 
     def product_tree(self, scene: SceneGeometry) -> dict[str, Any]:
         """The part of a product's ``geometry`` tree every level shares: the epoch, the
@@ -183,38 +195,56 @@ class PassGeometry:
         att = scene.model.attitude
         t = att.t_s  # type: ignore[attr-defined]
         margin_s = 2.0
-        keep = (t >= scene.model.clock.time_s(0) - margin_s) & \
-            (t <= scene.model.clock.time_s(scene.cut.n_lines - 1) + margin_s)
+        keep = (t >= scene.model.clock.time_s(0) - margin_s) & (
+            t <= scene.model.clock.time_s(scene.cut.n_lines - 1) + margin_s
+        )
         return {
             "epoch_utc": str(self.epoch.t0_utc),
             "reference_height_m": scene.reference_height_m,
-            "scene": {"first_line": scene.cut.first_line, "n_lines": scene.cut.n_lines,
-                      "t_centre_s": scene.t_centre_s,
-                      "centre_lat_deg": float(np.degrees(scene.centre_lat_rad)),
-                      "centre_lon_deg": float(np.degrees(scene.centre_lon_rad)),
-                      "corners_lat_deg": np.degrees(scene.corners_lat_rad),
-                      "corners_lon_deg": np.degrees(scene.corners_lon_rad)},
-            "clock": {"t_first_line_s": float(scene.model.clock.time_s(0)),
-                      "line_period_s": scene.model.clock.period_s},
-            "ephemeris": {"t_s": self.ephemeris.t_s, "r_ecef_m": self.ephemeris.r_ecef_m,
-                          "v_ecef_m_per_s": self.ephemeris.v_ecef_m_per_s,
-                          "lagrange_points": self.ephemeris.n_points},
-            "attitude": {"t_s": t[keep],
-                         "angles_rad": att.angles_rad_samples[keep],  # type: ignore
-                         "integrated_at_centre_rad": scene.attitude_at_centre_rad,
-                         "note": "gyro rates integrated from a null first record, zeroed at "
-                                 "the scene centre (INPE)"},
-            "look_angles": {name: {"column": m.look_angles.column,
-                                   "psi_x_rad": m.look_angles.psi_x_rad,
-                                   "psi_y_rad": m.look_angles.psi_y_rad}
-                            for name, m in scene.models.items()},
+            "scene": {
+                "first_line": scene.cut.first_line,
+                "n_lines": scene.cut.n_lines,
+                "t_centre_s": scene.t_centre_s,
+                "centre_lat_deg": float(np.degrees(scene.centre_lat_rad)),
+                "centre_lon_deg": float(np.degrees(scene.centre_lon_rad)),
+                "corners_lat_deg": np.degrees(scene.corners_lat_rad),
+                "corners_lon_deg": np.degrees(scene.corners_lon_rad),
+            },
+            "clock": {
+                "t_first_line_s": float(scene.model.clock.time_s(0)),
+                "line_period_s": scene.model.clock.period_s,
+            },
+            "ephemeris": {
+                "t_s": self.ephemeris.t_s,
+                "r_ecef_m": self.ephemeris.r_ecef_m,
+                "v_ecef_m_per_s": self.ephemeris.v_ecef_m_per_s,
+                "lagrange_points": self.ephemeris.n_points,
+            },
+            "attitude": {
+                "t_s": t[keep],
+                "angles_rad": att.angles_rad_samples[keep],  # type: ignore
+                "integrated_at_centre_rad": scene.attitude_at_centre_rad,
+                "note": "gyro rates integrated from a null first record, zeroed at "
+                "the scene centre (INPE)",
+            },
+            "look_angles": {
+                name: {
+                    "column": m.look_angles.column,
+                    "psi_x_rad": m.look_angles.psi_x_rad,
+                    "psi_y_rad": m.look_angles.psi_y_rad,
+                }
+                for name, m in scene.models.items()
+            },
         }
 
-    def scenes(self, scene_lines: int, overlap_lines: int = 0,
-               reference_height_m: float = 0.0) -> list[SceneGeometry]:
+    def scenes(
+        self, scene_lines: int, overlap_lines: int = 0, reference_height_m: float = 0.0
+    ) -> list[SceneGeometry]:
         """GEO for every scene of the pass (:func:`cut_scenes`)."""
-        return [self.scene(c, reference_height_m)
-                for c in cut_scenes(self.n_lines, scene_lines, overlap_lines)]
+        return [
+            self.scene(c, reference_height_m)
+            for c in cut_scenes(self.n_lines, scene_lines, overlap_lines)
+        ]
 
     def tail_lines(self, scene_lines: int, overlap_lines: int = 0) -> int:
         """Rows after the last whole scene (not processed)."""
@@ -222,14 +252,25 @@ class PassGeometry:
         return self.n_lines - (cuts[-1].first_line + cuts[-1].n_lines)
 
 
-def pass_geometry(epoch: Epoch, line_t_s: NDArray[np.float64], line_period_s: float,
-                  ephemeris: Ephemeris, gyro_t_s: NDArray[np.float64],
-                  gyro_rates_rad_per_s: NDArray[np.float64],
-                  look_angles: dict[str, LookAngleTable]) -> PassGeometry:
+def pass_geometry(
+    epoch: Epoch,
+    line_t_s: NDArray[np.float64],
+    line_period_s: float,
+    ephemeris: Ephemeris,
+    gyro_t_s: NDArray[np.float64],
+    gyro_rates_rad_per_s: NDArray[np.float64],
+    look_angles: dict[str, LookAngleTable],
+) -> PassGeometry:
     """GEO's pass set-up: integrate the gyro rates from a null attitude at the first record."""
     order = np.argsort(gyro_t_s, kind="stable")
     t, keep = np.unique(np.asarray(gyro_t_s)[order], return_index=True)
     rates = np.asarray(gyro_rates_rad_per_s)[order][keep]
     attitude = integrate_rates(t, rates)  # INPE §2.1: null attitude at the first record
-    return PassGeometry(epoch, np.asarray(line_t_s, float), float(line_period_s), ephemeris,
-                        attitude, dict(look_angles))
+    return PassGeometry(
+        epoch,
+        np.asarray(line_t_s, float),
+        float(line_period_s),
+        ephemeris,
+        attitude,
+        dict(look_angles),
+    )

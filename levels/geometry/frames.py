@@ -173,15 +173,17 @@ def apply(rot: ArrayLike, vec: ArrayLike) -> NDArray[np.float64]:
     """``rot @ vec`` for stacks: rotations ``(N, 3, 3)`` or ``(3, 3)`` applied to vectors
     ``(N, 3)`` or ``(3,)``, one matrix per vector or one for all (the module's convention:
     ``v_to = apply(to_from_from, v_from)``)."""
-    return np.einsum("...ij,...j->...i", np.asarray(rot, dtype=np.float64),
-                     np.asarray(vec, dtype=np.float64))
+    return np.einsum(
+        "...ij,...j->...i", np.asarray(rot, dtype=np.float64), np.asarray(vec, dtype=np.float64)
+    )
 
 
 def apply_inverse(rot: ArrayLike, vec: ArrayLike) -> NDArray[np.float64]:
     """``rotᵀ @ vec`` for stacks, as :func:`apply`: the inverse rotation, without forming
     the transpose (``v_from = apply_inverse(to_from_from, v_to)``)."""
-    return np.einsum("...ji,...j->...i", np.asarray(rot, dtype=np.float64),
-                     np.asarray(vec, dtype=np.float64))
+    return np.einsum(
+        "...ji,...j->...i", np.asarray(rot, dtype=np.float64), np.asarray(vec, dtype=np.float64)
+    )
 
 
 def eci_to_ecef(

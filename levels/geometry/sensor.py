@@ -20,8 +20,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
 
-__all__ = ["MIRROR_STEP_RAD", "MIRROR_ZERO_STEP", "LookAngleTable", "butting_columns",
-           "mirror_angle_rad"]
+__all__ = [
+    "MIRROR_STEP_RAD",
+    "MIRROR_ZERO_STEP",
+    "LookAngleTable",
+    "butting_columns",
+    "mirror_angle_rad",
+]
 
 #: HRV mirror: 0.6° per step, nadir at step 48 (SPOT 1–4; 91 positions, ±27°).
 MIRROR_STEP_RAD = np.deg2rad(0.6)

@@ -29,8 +29,9 @@ L0_FORMAT = "SPOT-L0"
 L0_VERSION = 1
 
 
-def pixel_mask(valid: NDArray[np.bool_], segment_first_detector: NDArray[np.int64],
-               n_detectors: int) -> NDArray[np.bool_]:
+def pixel_mask(
+    valid: NDArray[np.bool_], segment_first_detector: NDArray[np.int64], n_detectors: int
+) -> NDArray[np.bool_]:
     """A (lines, segments) validity mask expanded to every pixel (lines, detectors)."""
     seg = np.searchsorted(segment_first_detector, np.arange(n_detectors), side="right") - 1
     return valid[:, seg]
@@ -105,8 +106,15 @@ _REQUIRED = {
     "ephemeris/r_ecef_m": 2,
     "ephemeris/v_ecef_m_per_s": 2,
 }
-_BAND = {"counts": 2, "valid": 2, "look_angles/column": 1, "look_angles/psi_x_rad": 1,
-         "look_angles/psi_y_rad": 1, "calibration/gain": 1, "calibration/offset_counts": 1}
+_BAND = {
+    "counts": 2,
+    "valid": 2,
+    "look_angles/column": 1,
+    "look_angles/psi_x_rad": 1,
+    "look_angles/psi_y_rad": 1,
+    "calibration/gain": 1,
+    "calibration/offset_counts": 1,
+}
 
 
 def _get(f: h5py.File, name: str, ndim: int, where: Path) -> np.ndarray:
@@ -115,11 +123,11 @@ def _get(f: h5py.File, name: str, ndim: int, where: Path) -> np.ndarray:
     try:
         data = f[name][()]
     except (OSError, RuntimeError) as exc:  # a chunk cut off or damaged
-        raise L0Error(f"{where}: dataset '{name}' cannot be read ({exc}); "
-                      "the file is damaged or truncated") from None
+        raise L0Error(
+            f"{where}: dataset '{name}' cannot be read ({exc}); the file is damaged or truncated"
+        ) from None
     if np.ndim(data) != ndim:
-        raise L0Error(f"{where}: dataset '{name}' has {np.ndim(data)} dimensions, "
-                      f"expected {ndim}")
+        raise L0Error(f"{where}: dataset '{name}' has {np.ndim(data)} dimensions, expected {ndim}")
     return data
 
 
@@ -140,29 +148,53 @@ def read_l0(path: str | Path) -> L0Archive:
     with f:
         attrs = dict(f.attrs)
         if attrs.get("format") != L0_FORMAT:
-            raise L0Error(f"{where}: format attribute is {attrs.get('format')!r}, "
-                          f"expected {L0_FORMAT!r}; not an L0 archive")
+            raise L0Error(
+                f"{where}: format attribute is {attrs.get('format')!r}, "
+                f"expected {L0_FORMAT!r}; not an L0 archive"
+            )
         if int(attrs.get("format_version", -1)) != L0_VERSION:
-            raise L0Error(f"{where}: L0 format version {attrs.get('format_version')!r}; "
-                          f"this reader knows version {L0_VERSION}")
-        for key in ("epoch_utc", "hrv", "mode", "mirror_step", "twin", "n_lines",
-                    "n_detectors", "band_names"):
+            raise L0Error(
+                f"{where}: L0 format version {attrs.get('format_version')!r}; "
+                f"this reader knows version {L0_VERSION}"
+            )
+        for key in (
+            "epoch_utc",
+            "hrv",
+            "mode",
+            "mirror_step",
+            "twin",
+            "n_lines",
+            "n_detectors",
+            "band_names",
+        ):
             _need(key in attrs, where, f"root attribute '{key}' is missing")
         d = {name: _get(f, name, ndim, where) for name, ndim in _REQUIRED.items()}
         n_lines, n_det = int(attrs["n_lines"]), int(attrs["n_detectors"])
         seg = d["bands/segment_first_detector"].astype(np.int64)
-        _need(seg.size >= 1 and seg[0] == 0 and np.all(np.diff(seg) > 0)
-              and seg[-1] < n_det, where, "segment_first_detector is not increasing from 0")
-        _need(d["lines/line_counter"].shape == (n_lines,), where,
-              f"lines/line_counter has {d['lines/line_counter'].shape[0]} entries, "
-              f"n_lines = {n_lines}")
+        _need(
+            seg.size >= 1 and seg[0] == 0 and np.all(np.diff(seg) > 0) and seg[-1] < n_det,
+            where,
+            "segment_first_detector is not increasing from 0",
+        )
+        _need(
+            d["lines/line_counter"].shape == (n_lines,),
+            where,
+            f"lines/line_counter has {d['lines/line_counter'].shape[0]} entries, "
+            f"n_lines = {n_lines}",
+        )
         _need(d["lines/t_s"].shape == (n_lines,), where, "lines/t_s does not match n_lines")
-        _need(d["aux/gyro_rates_rad_per_s"].shape == (d["aux/t_s"].size, 3), where,
-              "aux/gyro_rates_rad_per_s is not (records, 3)")
+        _need(
+            d["aux/gyro_rates_rad_per_s"].shape == (d["aux/t_s"].size, 3),
+            where,
+            "aux/gyro_rates_rad_per_s is not (records, 3)",
+        )
         n_eph = d["ephemeris/t_s"].size
-        _need(d["ephemeris/r_ecef_m"].shape == (n_eph, 3)
-              and d["ephemeris/v_ecef_m_per_s"].shape == (n_eph, 3), where,
-              "ephemeris arrays are not (points, 3) with one time each")
+        _need(
+            d["ephemeris/r_ecef_m"].shape == (n_eph, 3)
+            and d["ephemeris/v_ecef_m_per_s"].shape == (n_eph, 3),
+            where,
+            "ephemeris arrays are not (points, 3) with one time each",
+        )
         try:
             names = json.loads(attrs["band_names"])
         except (TypeError, ValueError):
@@ -170,40 +202,71 @@ def read_l0(path: str | Path) -> L0Archive:
         bands = {}
         for name in names:
             b = {k: _get(f, f"bands/{name}/{k}", nd, where) for k, nd in _BAND.items()}
-            _need(b["counts"].shape == (n_lines, n_det), where,
-                  f"bands/{name}/counts is {b['counts'].shape}, expected {(n_lines, n_det)}")
-            _need(b["valid"].shape == (n_lines, seg.size), where,
-                  f"bands/{name}/valid is {b['valid'].shape}, expected {(n_lines, seg.size)}")
-            look = LookAngleTable(b["look_angles/column"], b["look_angles/psi_x_rad"],
-                                  b["look_angles/psi_y_rad"],
-                                  int(f[f"bands/{name}/look_angles"].attrs["n_columns"]))
-            _need(b["calibration/gain"].shape == (n_det,), where,
-                  f"bands/{name}/calibration/gain does not have {n_det} entries")
-            bands[name] = L0Band(name, b["counts"], b["valid"].astype(bool), look,
-                                 b["calibration/gain"], b["calibration/offset_counts"], seg)
+            _need(
+                b["counts"].shape == (n_lines, n_det),
+                where,
+                f"bands/{name}/counts is {b['counts'].shape}, expected {(n_lines, n_det)}",
+            )
+            _need(
+                b["valid"].shape == (n_lines, seg.size),
+                where,
+                f"bands/{name}/valid is {b['valid'].shape}, expected {(n_lines, seg.size)}",
+            )
+            look = LookAngleTable(
+                b["look_angles/column"],
+                b["look_angles/psi_x_rad"],
+                b["look_angles/psi_y_rad"],
+                int(f[f"bands/{name}/look_angles"].attrs["n_columns"]),
+            )
+            _need(
+                b["calibration/gain"].shape == (n_det,),
+                where,
+                f"bands/{name}/calibration/gain does not have {n_det} entries",
+            )
+            bands[name] = L0Band(
+                name,
+                b["counts"],
+                b["valid"].astype(bool),
+                look,
+                b["calibration/gain"],
+                b["calibration/offset_counts"],
+                seg,
+            )
         decode = {}
         if "decode" in f:
             dec = f["decode"]
-            decode = {k: (json.loads(v) if k in ("packets", "status_counts", "status_names")
-                          else v) for k, v in dec.attrs.items()}
+            decode = {
+                k: (json.loads(v) if k in ("packets", "status_counts", "status_names") else v)
+                for k, v in dec.attrs.items()
+            }
             if "channels" in dec:
-                decode["channels"] = {k: {a: v.item() if hasattr(v, "item") else v
-                                          for a, v in g.attrs.items()}
-                                      for k, g in dec["channels"].items()}
+                decode["channels"] = {
+                    k: {a: v.item() if hasattr(v, "item") else v for a, v in g.attrs.items()}
+                    for k, g in dec["channels"].items()
+                }
         t_attrs = dict(f["lines/t_s"].attrs)
     try:
         epoch = Epoch(np.datetime64(str(attrs["epoch_utc"]), "ns"), name="00:00 UTC, pass day")
-        ephemeris = Ephemeris(d["ephemeris/t_s"], d["ephemeris/r_ecef_m"],
-                              d["ephemeris/v_ecef_m_per_s"])
+        ephemeris = Ephemeris(
+            d["ephemeris/t_s"], d["ephemeris/r_ecef_m"], d["ephemeris/v_ecef_m_per_s"]
+        )
     except ValueError as exc:
         raise L0Error(f"{where}: {exc}") from None
     return L0Archive(
-        path=where, epoch=epoch, hrv=int(attrs["hrv"]), mode=str(attrs["mode"]),
-        mirror_step=int(attrs["mirror_step"]), twin=bool(attrs["twin"]), bands=bands,
-        line_counter=d["lines/line_counter"].astype(np.int64), line_t_s=d["lines/t_s"],
+        path=where,
+        epoch=epoch,
+        hrv=int(attrs["hrv"]),
+        mode=str(attrs["mode"]),
+        mirror_step=int(attrs["mirror_step"]),
+        twin=bool(attrs["twin"]),
+        bands=bands,
+        line_counter=d["lines/line_counter"].astype(np.int64),
+        line_t_s=d["lines/t_s"],
         line_period_s=float(t_attrs.get("line_period_s", np.nan)),
-        aux_t_s=d["aux/t_s"], aux_line_counter=d["aux/line_counter"].astype(np.int64),
-        gyro_rates_rad_per_s=d["aux/gyro_rates_rad_per_s"], ephemeris=ephemeris,
-        decode=decode, attrs={k: (v.item() if hasattr(v, "item") else v)
-                              for k, v in attrs.items()},
+        aux_t_s=d["aux/t_s"],
+        aux_line_counter=d["aux/line_counter"].astype(np.int64),
+        gyro_rates_rad_per_s=d["aux/gyro_rates_rad_per_s"],
+        ephemeris=ephemeris,
+        decode=decode,
+        attrs={k: (v.item() if hasattr(v, "item") else v) for k, v in attrs.items()},
     )

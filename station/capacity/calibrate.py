@@ -41,19 +41,25 @@ _REDUCED = {  # mode: detectors, lines, bit rate (a share of 25 Mbit/s like the 
 _FULL_PIXELS = {m: MODES[m].pixels_per_scene for m in _REDUCED}
 
 
-def _measure(mode: str, detectors: int, lines: int, rate_mbps: float, tmp: Path
-             ) -> dict[str, float]:
+def _measure(
+    mode: str, detectors: int, lines: int, rate_mbps: float, tmp: Path
+) -> dict[str, float]:
     from levels.process import process_l0
     from levels.readers.l0 import read_l0
     from station.scenario import scenario_from_dict
     from station.spacecraft.emulator import emulate
     from station.srrs.session import downlink, record
 
-    scn = scenario_from_dict({
-        "name": f"calibrate_{mode}", "seed": 7,
-        "instrument": {"mode": mode, "n_detectors": detectors, "n_lines": lines},
-        "downlink": {"bit_rate_mbps": rate_mbps, "preamble_s": 0.1, "postamble_s": 0.1},
-        "pass": {"ground_pass_days": 0.0}, "processing": {"scene_lines": lines}})
+    scn = scenario_from_dict(
+        {
+            "name": f"calibrate_{mode}",
+            "seed": 7,
+            "instrument": {"mode": mode, "n_detectors": detectors, "n_lines": lines},
+            "downlink": {"bit_rate_mbps": rate_mbps, "preamble_s": 0.1, "postamble_s": 0.1},
+            "pass": {"ground_pass_days": 0.0},
+            "processing": {"scene_lines": lines},
+        }
+    )
     acq = emulate(scn)
     result = downlink(acq)
     t = time.perf_counter()
@@ -65,11 +71,15 @@ def _measure(mode: str, detectors: int, lines: int, rate_mbps: float, tmp: Path
     c = scene.timings_s
     n_bands = len(acq.bands)
     return {
-        "receive_and_record_s": result.timings_s["receive"] + t_record, "bits": float(bits),
+        "receive_and_record_s": result.timings_s["receive"] + t_record,
+        "bits": float(bits),
         "geo_s": products.timings_s["geo"] + c["geometry"],
-        "1A_s": c["1A"], "1B_s": c["1A"] + c["deconvolution"] + c["1B"],
-        "2A_s": c["1A"] + c["deconvolution"] + c["2A"], "write_s": c["write"],
-        "products": float(len(scene.paths)), "pixels": float(detectors * lines * n_bands),
+        "1A_s": c["1A"],
+        "1B_s": c["1A"] + c["deconvolution"] + c["1B"],
+        "2A_s": c["1A"] + c["deconvolution"] + c["2A"],
+        "write_s": c["write"],
+        "products": float(len(scene.paths)),
+        "pixels": float(detectors * lines * n_bands),
     }
 
 
@@ -81,20 +91,25 @@ def calibrate() -> dict[str, Any]:
     per_bit = np.mean([r["receive_and_record_s"] / r["bits"] for r in raw.values()])
     scale = {m: _FULL_PIXELS[m] / r["pixels"] for m, r in raw.items()}
     return {
-        "format": "spot-station-service-times", "format_version": 1,
+        "format": "spot-station-service-times",
+        "format_version": 1,
         "software": f"spot-station {__version__}",
         "machine": f"{platform.node()}: {platform.processor() or platform.machine()}, "
-                   f"Python {platform.python_version()}",
+        f"Python {platform.python_version()}",
         "measured_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "reduced": {m: {"detectors": d, "lines": n, "bit_rate_mbps": b}
-                    for m, (d, n, b) in _REDUCED.items()},
+        "reduced": {
+            m: {"detectors": d, "lines": n, "bit_rate_mbps": b} for m, (d, n, b) in _REDUCED.items()
+        },
         "raw": raw,
         "ingest_s_per_signal_s": float(per_bit * FULL_BIT_RATE_BIT_PER_S),
         "geo_s_per_scene": {m: r["geo_s"] for m, r in raw.items()},
-        "cor_s": {m: {lv: r[f"{lv}_s"] * scale[m] for lv in ("1A", "1B", "2A")}
-                  for m, r in raw.items()},
-        "archive_s": {m: {lv: r["write_s"] / r["products"] * scale[m]
-                          for lv in ("1A", "1B", "2A")} for m, r in raw.items()},
+        "cor_s": {
+            m: {lv: r[f"{lv}_s"] * scale[m] for lv in ("1A", "1B", "2A")} for m, r in raw.items()
+        },
+        "archive_s": {
+            m: {lv: r["write_s"] / r["products"] * scale[m] for lv in ("1A", "1B", "2A")}
+            for m, r in raw.items()
+        },
     }
 
 

@@ -36,8 +36,17 @@ from station.capacity.config import CapacityScenario
 from station.capacity.passes import PassPattern, pass_pattern
 from station.capacity.stage import Process, Shift, Stage
 
-__all__ = ["LEVELS", "PassPattern", "Replication", "Service", "Shift", "Stage",
-           "StationSimulation", "pass_pattern", "simulate"]
+__all__ = [
+    "LEVELS",
+    "PassPattern",
+    "Replication",
+    "Service",
+    "Shift",
+    "Stage",
+    "StationSimulation",
+    "pass_pattern",
+    "simulate",
+]
 
 _DAY = 86400.0
 
@@ -54,9 +63,13 @@ class Service:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Service:
-        return cls(float(d["ingest_s_per_signal_s"]), dict(d["geo_s_per_scene"]),
-                   {m: dict(v) for m, v in d["cor_s"].items()},
-                   {m: dict(v) for m, v in d["archive_s"].items()}, str(d.get("machine", "")))
+        return cls(
+            float(d["ingest_s_per_signal_s"]),
+            dict(d["geo_s_per_scene"]),
+            {m: dict(v) for m, v in d["cor_s"].items()},
+            {m: dict(v) for m, v in d["archive_s"].items()},
+            str(d.get("machine", "")),
+        )
 
 
 @dataclass
@@ -90,16 +103,27 @@ class StationSimulation:
         self.pattern = pass_pattern(scn.ground_station)
         self.env = env = simpy.Environment()
         sh = scn.shifts
-        shift = Shift(sh.start_h, sh.end_h, sh.days_per_week, scn.ground_station.lon_rad,
-                      self.pattern.weekday0)
+        shift = Shift(
+            sh.start_h,
+            sh.end_h,
+            sh.days_per_week,
+            scn.ground_station.lon_rad,
+            self.pattern.weekday0,
+        )
         sample = sim.queue_sample_h * 3600.0
-        units = {"antenna": res.antennas, "recorder": res.recorders,
-                 "transcription": res.transcription_units, "ingest": res.ingest_workers,
-                 "geo": res.geo_workers, "cor": res.cor_workers,
-                 "archive": res.archive_writers}
-        self.stages = {name: Stage(env, name, n, self.warmup,
-                                   shift if name in sh.staffed else None, sample)
-                       for name, n in units.items()}
+        units = {
+            "antenna": res.antennas,
+            "recorder": res.recorders,
+            "transcription": res.transcription_units,
+            "ingest": res.ingest_workers,
+            "geo": res.geo_workers,
+            "cor": res.cor_workers,
+            "archive": res.archive_writers,
+        }
+        self.stages = {
+            name: Stage(env, name, n, self.warmup, shift if name in sh.staffed else None, sample)
+            for name, n in units.items()
+        }
         if res.recording == "disk":
             del self.stages["transcription"]
         fl = scn.failures
@@ -109,12 +133,20 @@ class StationSimulation:
                 env.process(st.failures(mtbf, mttr, rng_fail.spawn(1)[0]))
         og = scn.outage
         if og.days > 0 and og.stage in self.stages:
-            env.process(self.stages[og.stage].outage(self.warmup + og.start_day * _DAY,
-                                                     og.days * _DAY))
+            env.process(
+                self.stages[og.stage].outage(self.warmup + og.start_day * _DAY, og.days * _DAY)
+            )
         self.latency: dict[str, list[float]] = {lv: [] for lv in LEVELS}
         self.in_sla: dict[str, list[bool]] = {lv: [] for lv in LEVELS}
-        self.counts = {"passes": 0, "imaging_passes": 0, "segments": 0, "segments_lost": 0,
-                       "scenes": 0, "orders": 0, "products": 0}
+        self.counts = {
+            "passes": 0,
+            "imaging_passes": 0,
+            "segments": 0,
+            "segments_lost": 0,
+            "scenes": 0,
+            "orders": 0,
+            "products": 0,
+        }
         self.mix = np.cumsum(scn.orders.mix)
 
     def _draw(self, mean_s: float, scale: float) -> float:
@@ -126,17 +158,18 @@ class StationSimulation:
         od, sv, stages, env = self.scn.orders, self.scn.service, self.stages, self.env
         rng = self.rng_orders
         delay = rng.exponential(od.delay_mean_s) if od.delay_mean_s > 0 else 0.0
-        level = LEVELS[int(np.searchsorted(self.mix, rng.random() * self.mix[-1],
-                                           side="right"))]
+        level = LEVELS[int(np.searchsorted(self.mix, rng.random() * self.mix[-1], side="right"))]
         urgent = rng.random() < od.urgent_fraction
         yield env.timeout(delay)
         t_order = env.now
         if not geo_done.triggered:
             yield geo_done
-        yield from stages["cor"].serve(self._draw(self.service.cor_s[mode][level],
-                                                  sv.scale_cor), priority=0 if urgent else 1)
-        yield from stages["archive"].serve(self._draw(self.service.archive_s[mode][level],
-                                                      sv.scale_archive))
+        yield from stages["cor"].serve(
+            self._draw(self.service.cor_s[mode][level], sv.scale_cor), priority=0 if urgent else 1
+        )
+        yield from stages["archive"].serve(
+            self._draw(self.service.archive_s[mode][level], sv.scale_archive)
+        )
         if t_acq >= self.warmup:
             self.counts["products"] += 1
             self.latency[level].append(env.now - t_acq)
@@ -149,11 +182,13 @@ class StationSimulation:
         signal_s = n_scenes * pl.scene_s
         if "transcription" in stages:
             yield from stages["transcription"].serve(signal_s / res.transcription_speed)
-        ingest = max(signal_s, self._draw(self.service.ingest_s_per_signal_s * signal_s,
-                                          sv.scale_ingest))  # at least real time
+        ingest = max(
+            signal_s, self._draw(self.service.ingest_s_per_signal_s * signal_s, sv.scale_ingest)
+        )  # at least real time
         yield from stages["ingest"].serve(ingest)
-        yield from stages["geo"].serve(self._draw(
-            self.service.geo_s_per_scene[mode] * n_scenes, sv.scale_geo))
+        yield from stages["geo"].serve(
+            self._draw(self.service.geo_s_per_scene[mode] * n_scenes, sv.scale_geo)
+        )
 
     def hrv_channel(self, mode: str, n_scenes: int, t_acq: float, duration: float) -> None:
         """An HRV's segment at AOS: a recorder, or the segment is lost; then its orders."""
@@ -177,8 +212,7 @@ class StationSimulation:
         pl = self.scn.plan
         counted = t_aos >= self.warmup
         self.counts["passes"] += counted
-        imaging = (day or pl.night_passes_image) and \
-            self.rng_plan.random() < pl.imaging_probability
+        imaging = (day or pl.night_passes_image) and self.rng_plan.random() < pl.imaging_probability
         if not imaging or not self.stages["antenna"].take(duration):
             return  # nothing programmed, or lost at the antenna (taken, or down)
         self.counts["imaging_passes"] += counted
@@ -196,8 +230,9 @@ class StationSimulation:
         offset = sat.cycle_offset_days * _DAY
         while True:
             base = k0 * pattern.cycle_s + offset
-            for t, d, day in zip(pattern.aos_s + base, pattern.duration_s, pattern.daylight,
-                                 strict=True):
+            for t, d, day in zip(
+                pattern.aos_s + base, pattern.duration_s, pattern.daylight, strict=True
+            ):
                 if t >= self.t_end:
                     return
                 if t >= 0.0:
@@ -220,23 +255,32 @@ class StationSimulation:
         levels = {}
         for lv in LEVELS:
             x = np.asarray(self.latency[lv]) / 3600.0
-            levels[lv] = {"products": int(x.size), **(
-                {f"latency_p{q}_h": float(np.percentile(x, q)) for q in (50, 90, 95, 99)}
-                if x.size else {f"latency_p{q}_h": math.nan for q in (50, 90, 95, 99)}),
-                "within_service_level": float(np.mean(self.in_sla[lv])) if self.in_sla[lv]
-                else math.nan}
+            levels[lv] = {
+                "products": int(x.size),
+                **(
+                    {f"latency_p{q}_h": float(np.percentile(x, q)) for q in (50, 90, 95, 99)}
+                    if x.size
+                    else {f"latency_p{q}_h": math.nan for q in (50, 90, 95, 99)}
+                ),
+                "within_service_level": float(np.mean(self.in_sla[lv]))
+                if self.in_sla[lv]
+                else math.nan,
+            }
         days, counts = self.scn.simulation.days, self.counts
         station = {k: float(v) for k, v in counts.items()} | {
             "scenes_per_day": counts["scenes"] / days,
             "products_per_day": counts["products"] / days,
-            "passes_lost": float(stages["antenna"].lost)}
+            "passes_lost": float(stages["antenna"].lost),
+        }
         cor = stages["cor"]
         st, sq = np.asarray(cor.series_t), np.asarray(cor.series_wait, dtype=float)
-        station["cor_backlog_growth_per_day"] = float(np.polyfit(st / _DAY, sq, 1)[0]) \
-            if st.size > 2 else 0.0
+        station["cor_backlog_growth_per_day"] = (
+            float(np.polyfit(st / _DAY, sq, 1)[0]) if st.size > 2 else 0.0
+        )
         if og.days > 0 and og.stage in stages:
-            station |= _clearing(stages[og.stage], self.warmup + og.start_day * _DAY,
-                                 og.days * _DAY)
+            station |= _clearing(
+                stages[og.stage], self.warmup + og.start_day * _DAY, og.days * _DAY
+            )
         series = {name: (s.series_t, s.series_wait) for name, s in stages.items()}
         return Replication(figures, levels, station, series)
 
@@ -257,5 +301,7 @@ def _clearing(stage: Stage, start_s: float, duration_s: float) -> dict[str, floa
     after = (t >= end) & (q <= max(level, 0.0) + 0.5)
     peak = q[(t >= start_s) & (t <= end + _DAY)]
     cleared = t[after]
-    return {"outage_backlog_peak": float(peak.max()) if peak.size else 0.0,
-            "outage_clear_days": float((cleared[0] - end) / _DAY) if cleared.size else math.nan}
+    return {
+        "outage_backlog_peak": float(peak.max()) if peak.size else 0.0,
+        "outage_clear_days": float((cleared[0] - end) / _DAY) if cleared.size else math.nan,
+    }

@@ -44,17 +44,31 @@ def pass_pattern(gs: GroundStationConfig) -> PassPattern:
     # default target); only its reference state matters: the cycle is propagated from it
     oc, pc = OrbitConfig(), PassConfig()
     epoch = Epoch(np.datetime64(pc.date_utc, "ns"), name="00:00 UTC of the pass day")
-    o, _t = mean_element_orbit(oc, pc, epoch, (0.0, _DAY),
-                               swath_centre_view(0.0, WorldConfig().base_height_m))
+    o, _t = mean_element_orbit(
+        oc, pc, epoch, (0.0, _DAY), swath_centre_view(0.0, WorldConfig().base_height_m)
+    )
     cycle_s = oc.repeat_days * _DAY
-    orbit = TruthOrbit(o.epoch, o.t_ref_s, o.r_ref_eci_m, o.v_ref_eci_m_per_s,
-                       min(0.0, o.t_ref_s), cycle_s + _DAY)
-    passes = [p for p in find_passes(orbit, gs.lat_rad, gs.lon_rad, gs.height_m,
-                                     gs.elevation_mask_rad, 0.0, cycle_s + _DAY, step_s=20.0)
-              if p.aos_s < cycle_s]
+    orbit = TruthOrbit(
+        o.epoch, o.t_ref_s, o.r_ref_eci_m, o.v_ref_eci_m_per_s, min(0.0, o.t_ref_s), cycle_s + _DAY
+    )
+    passes = [
+        p
+        for p in find_passes(
+            orbit,
+            gs.lat_rad,
+            gs.lon_rad,
+            gs.height_m,
+            gs.elevation_mask_rad,
+            0.0,
+            cycle_s + _DAY,
+            step_s=20.0,
+        )
+        if p.aos_s < cycle_s
+    ]
     return PassPattern(
         aos_s=np.array([p.aos_s for p in passes]),
         duration_s=np.array([p.duration_s for p in passes]),
         daylight=np.array([p.daylight and p.descending for p in passes]),
         cycle_s=cycle_s,
-        weekday0=int((o.epoch.t0_utc.astype("datetime64[D]").astype(np.int64) + 3) % 7))
+        weekday0=int((o.epoch.t0_utc.astype("datetime64[D]").astype(np.int64) + 3) % 7),
+    )

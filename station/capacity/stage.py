@@ -30,8 +30,9 @@ class Shift:
     """Operator hours: ``start_h`` to ``end_h`` local mean time, ``days_per_week`` days from
     Monday; ``t = 0`` falls on ``weekday0`` (0 = Monday) at 00:00 UTC."""
 
-    def __init__(self, start_h: float, end_h: float, days_per_week: int, lon_rad: float,
-                 weekday0: int) -> None:
+    def __init__(
+        self, start_h: float, end_h: float, days_per_week: int, lon_rad: float, weekday0: int
+    ) -> None:
         self.start_s, self.end_s = start_h * 3600.0, end_h * 3600.0
         self.days = days_per_week
         self.offset_s = lon_rad / (2 * math.pi) * _DAY + weekday0 * _DAY
@@ -54,8 +55,15 @@ class Stage:
     """A pool of ``units`` identical servers with a priority queue, and its measurements
     (module docstring). ``shift``: jobs start only on shift."""
 
-    def __init__(self, env: simpy.Environment, name: str, units: int, warmup_s: float,
-                 shift: Shift | None = None, sample_s: float = 3600.0) -> None:
+    def __init__(
+        self,
+        env: simpy.Environment,
+        name: str,
+        units: int,
+        warmup_s: float,
+        shift: Shift | None = None,
+        sample_s: float = 3600.0,
+    ) -> None:
         self.env, self.name, self.units = env, name, units
         self.res = simpy.PriorityResource(env, capacity=units)
         self.warmup_s, self.shift = warmup_s, shift
@@ -170,8 +178,7 @@ class Stage:
         }
 
 
-def mmc_wait_h(arrival_rate: float, service_rate: float, c: int, n_jobs: int,
-               seed: int) -> float:
+def mmc_wait_h(arrival_rate: float, service_rate: float, c: int, n_jobs: int, seed: int) -> float:
     """Mean wait (h) of an M/M/c queue simulated through :class:`Stage`: Poisson arrivals,
     exponential service, ``c`` units, a warm-up of 200 arrivals (the check of the stage
     against Erlang C)."""

@@ -35,8 +35,9 @@ def erlang_c_wait_s(arrival_rate: float, service_rate: float, c: int) -> float:
     return erlang_c(c, arrival_rate / service_rate) / (c * service_rate - arrival_rate)
 
 
-def time_weighted(t: ArrayLike, n: ArrayLike, t_end: float,
-                  quantiles: tuple[float, ...] = (0.95,)) -> dict[str, float]:
+def time_weighted(
+    t: ArrayLike, n: ArrayLike, t_end: float, quantiles: tuple[float, ...] = (0.95,)
+) -> dict[str, float]:
     """Mean, quantiles and max of a count that holds ``n[i]`` from ``t[i]`` to ``t[i+1]``
     (the last value until ``t_end``), weighted by time."""
     t = np.asarray(t, dtype=np.float64)
@@ -64,5 +65,3 @@ def mean_ci(values: ArrayLike, level: float = 0.95) -> tuple[float, float]:
         return float(x[0]), math.nan
     half = stats.t.ppf(0.5 + level / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size)
     return float(x.mean()), float(half)
-
-

@@ -42,8 +42,10 @@ def load_service(scn: CapacityScenario) -> Service:
     try:
         return Service.from_dict(json.loads(p.read_text(encoding="utf-8")))
     except FileNotFoundError:
-        raise ScenarioError(f"[service] file = {scn.service.file!r}: {p} not found; "
-                            "make one with `station capacity calibrate --out FILE`") from None
+        raise ScenarioError(
+            f"[service] file = {scn.service.file!r}: {p} not found; "
+            "make one with `station capacity calibrate --out FILE`"
+        ) from None
     except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError) as exc:
         raise ScenarioError(f"{p}: not a service-time file ({exc})") from None
 
@@ -53,8 +55,9 @@ def parse_sweep(text: str) -> tuple[str, list[str]]:
     param, sep, values = text.partition("=")
     vals = [v.strip() for v in values.split(",") if v.strip()]
     if not sep or not vals or "." not in param:
-        raise ScenarioError(f"--sweep {text!r}: expected SECTION.KEY=V1,V2,... "
-                            "(e.g. resources.cor_workers=1,2,3,4)")
+        raise ScenarioError(
+            f"--sweep {text!r}: expected SECTION.KEY=V1,V2,... (e.g. resources.cor_workers=1,2,3,4)"
+        )
     return param.strip(), vals
 
 
@@ -66,17 +69,26 @@ def _ci(values: list[float]) -> dict[str, float]:
 
 
 def _aggregate(reps: list[Replication]) -> dict[str, Any]:
-    stages = {name: {k: _ci([float(r.stages[name][k]) for r in reps])
-                     for k in reps[0].stages[name]} for name in reps[0].stages}
-    levels = {lv: {k: _ci([float(r.levels[lv][k]) for r in reps]) for k in reps[0].levels[lv]}
-              for lv in LEVELS}
+    stages = {
+        name: {k: _ci([float(r.stages[name][k]) for r in reps]) for k in reps[0].stages[name]}
+        for name in reps[0].stages
+    }
+    levels = {
+        lv: {k: _ci([float(r.levels[lv][k]) for r in reps]) for k in reps[0].levels[lv]}
+        for lv in LEVELS
+    }
     station = {k: _ci([float(r.station[k]) for r in reps]) for k in reps[0].station}
     return {"stages": stages, "levels": levels, "station": station}
 
 
-def run_study(scn: CapacityScenario, out_dir: str | Path | None = None,
-              sweep: tuple[str, list[str]] | None = None, replications: int | None = None,
-              plots: bool = True, service: Service | None = None) -> dict[str, Any]:
+def run_study(
+    scn: CapacityScenario,
+    out_dir: str | Path | None = None,
+    sweep: tuple[str, list[str]] | None = None,
+    replications: int | None = None,
+    plots: bool = True,
+    service: Service | None = None,
+) -> dict[str, Any]:
     """Replicate the scenario (for each sweep value); write the outputs to ``out_dir``."""
     service = service or load_service(scn)
     n = replications or scn.simulation.replications
@@ -88,12 +100,20 @@ def run_study(scn: CapacityScenario, out_dir: str | Path | None = None,
         first = first or reps[0]
         runs.append({"value": value, **_aggregate(reps)})
     summary = {
-        "format": "spot-station-capacity", "format_version": 1,
-        "scenario": {"name": scn.name, "file": Path(scn.source).name if scn.source else "",
-                     "sha256": scn.source_sha256, "seed": scn.seed},
+        "format": "spot-station-capacity",
+        "format_version": 1,
+        "scenario": {
+            "name": scn.name,
+            "file": Path(scn.source).name if scn.source else "",
+            "sha256": scn.source_sha256,
+            "seed": scn.seed,
+        },
         "service": {"file": scn.service.file, "machine": service.machine},
-        "simulated_days": scn.simulation.days, "warmup_days": scn.simulation.warmup_days,
-        "replications": n, "sweep": param, "runs": runs,
+        "simulated_days": scn.simulation.days,
+        "warmup_days": scn.simulation.warmup_days,
+        "replications": n,
+        "sweep": param,
+        "runs": runs,
     }
     if out_dir is not None:
         out = Path(out_dir)
@@ -113,8 +133,9 @@ def _write(out: Path, summary: dict[str, Any], first: Replication | None) -> Non
             for run in summary["runs"]:
                 for name, figs in run[kind].items():
                     for k, v in figs.items():
-                        w.writerow([run["value"], name, k, _plain(v["mean"]),
-                                    _plain(v["ci95"]), v["n"]])
+                        w.writerow(
+                            [run["value"], name, k, _plain(v["mean"]), _plain(v["ci95"]), v["n"]]
+                        )
     with atomic_path(out / "station.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow([summary["sweep"] or "value", "figure", "mean", "ci95", "n"])
@@ -165,8 +186,11 @@ def _plots(out: Path, summary: dict[str, Any], first: Replication | None) -> Non
         means = [run["levels"][lv][f"latency_p{q}_h"]["mean"] for q in qs]
         ax.bar(np.arange(len(qs)) + 0.27 * (i - 1), means, 0.27, label=f"level {lv}")
     ax.set_xticks(range(len(qs)), [f"p{q}" for q in qs])
-    ax.set(ylabel="hours from acquisition", title=f"{name}: latency to each level"
-           + (f" ({summary['sweep']} = {run['value']})" if summary["sweep"] else ""))
+    ax.set(
+        ylabel="hours from acquisition",
+        title=f"{name}: latency to each level"
+        + (f" ({summary['sweep']} = {run['value']})" if summary["sweep"] else ""),
+    )
     ax.legend(fontsize=8)
     fig.tight_layout()
     _savefig(fig, out / "latency.png")
@@ -182,20 +206,35 @@ def _sweep_plot(out: Path, summary: dict[str, Any], plt: Any) -> None:
     lat = [r["levels"]["2A"]["latency_p95_h"] for r in summary["runs"]]
     util = [r["stages"]["cor"]["utilisation"]["mean"] for r in summary["runs"]]
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    ax.errorbar(x, [g["mean"] for g in growth],
-                yerr=[0 if not math.isfinite(g["ci95"]) else g["ci95"] for g in growth],
-                marker="o", capsize=3, color="C3", label="COR backlog growth (jobs/day)")
+    ax.errorbar(
+        x,
+        [g["mean"] for g in growth],
+        yerr=[0 if not math.isfinite(g["ci95"]) else g["ci95"] for g in growth],
+        marker="o",
+        capsize=3,
+        color="C3",
+        label="COR backlog growth (jobs/day)",
+    )
     ax.axhline(0.0, color="grey", lw=0.6)
-    ax.set(xlabel=summary["sweep"], ylabel="COR backlog growth, jobs per day",
-           title=f"{summary['scenario']['name']}: sweep of {summary['sweep']}")
+    ax.set(
+        xlabel=summary["sweep"],
+        ylabel="COR backlog growth, jobs per day",
+        title=f"{summary['scenario']['name']}: sweep of {summary['sweep']}",
+    )
     ax.set_xticks(x, values)
     ax2 = ax.twinx()
     ax2.plot(x, [v["mean"] for v in lat], "s--", color="C0", label="2A latency p95 (h)")
     ax2.set_yscale("log")
     ax2.set_ylabel("2A latency p95, hours (log)")
     for xi, u in zip(x, util, strict=True):
-        ax.annotate(f"COR {100 * u:.0f} % busy", (xi, 0), textcoords="offset points",
-                    xytext=(0, 8), ha="center", fontsize=7)
+        ax.annotate(
+            f"COR {100 * u:.0f} % busy",
+            (xi, 0),
+            textcoords="offset points",
+            xytext=(0, 8),
+            ha="center",
+            fontsize=7,
+        )
     lines = ax.get_legend_handles_labels()
     lines2 = ax2.get_legend_handles_labels()
     ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=8, loc="upper right")
@@ -206,9 +245,11 @@ def _sweep_plot(out: Path, summary: dict[str, Any], plt: Any) -> None:
 
 def study_table(summary: dict[str, Any]) -> str:
     """The human summary of a study: per sweep value, the station, its stages, its levels."""
-    lines = [f"{summary['scenario']['name']}: {summary['simulated_days']:g} days after "
-             f"{summary['warmup_days']:g} of warm-up, {summary['replications']} replication(s);"
-             " mean ± 95 % CI"]
+    lines = [
+        f"{summary['scenario']['name']}: {summary['simulated_days']:g} days after "
+        f"{summary['warmup_days']:g} of warm-up, {summary['replications']} replication(s);"
+        " mean ± 95 % CI"
+    ]
 
     def f(v: dict[str, float], spec: str = ".2f") -> str:
         m, h = v["mean"], v["ci95"]
@@ -220,18 +261,24 @@ def study_table(summary: dict[str, Any]) -> str:
         st = run["station"]
         if summary["sweep"]:
             lines.append(f"— {summary['sweep']} = {run['value']}")
-        lines.append(f"passes {f(st['passes'], '.0f')} (imaging {f(st['imaging_passes'], '.0f')}"
-                     f", lost at the antenna {f(st['passes_lost'], '.1f')}); scenes/day "
-                     f"{f(st['scenes_per_day'], '.1f')}, products/day "
-                     f"{f(st['products_per_day'], '.1f')}; COR backlog growth "
-                     f"{f(st['cor_backlog_growth_per_day'], '.3f')} jobs/day")
+        lines.append(
+            f"passes {f(st['passes'], '.0f')} (imaging {f(st['imaging_passes'], '.0f')}"
+            f", lost at the antenna {f(st['passes_lost'], '.1f')}); scenes/day "
+            f"{f(st['scenes_per_day'], '.1f')}, products/day "
+            f"{f(st['products_per_day'], '.1f')}; COR backlog growth "
+            f"{f(st['cor_backlog_growth_per_day'], '.3f')} jobs/day"
+        )
         if "outage_clear_days" in st:
             clear = st["outage_clear_days"]
-            lines.append(f"outage: backlog peak {f(st['outage_backlog_peak'], '.0f')} jobs; "
-                         f"cleared in {clear['n']} of {summary['replications']} "
-                         f"replication(s), {f(clear, '.1f')} days after it ended")
-        lines.append(f"{'stage':>13} {'units':>5} {'busy %':>12} {'down %':>6} "
-                     f"{'queue mean':>14} {'p95':>5} {'max':>5} {'wait h':>14} {'L/λW':>6}")
+            lines.append(
+                f"outage: backlog peak {f(st['outage_backlog_peak'], '.0f')} jobs; "
+                f"cleared in {clear['n']} of {summary['replications']} "
+                f"replication(s), {f(clear, '.1f')} days after it ended"
+            )
+        lines.append(
+            f"{'stage':>13} {'units':>5} {'busy %':>12} {'down %':>6} "
+            f"{'queue mean':>14} {'p95':>5} {'max':>5} {'wait h':>14} {'L/λW':>6}"
+        )
         for name, s in run["stages"].items():
             lw = s["little_lambda_W"]["mean"]
             little = s["little_L"]["mean"] / lw if lw > 0 else math.nan
@@ -240,15 +287,17 @@ def study_table(summary: dict[str, Any]) -> str:
                 f"{f({k: 100 * v for k, v in s['utilisation'].items()}, '.1f'):>12} "
                 f"{100 * s['down_fraction']['mean']:6.2f} {f(s['queue_mean']):>14} "
                 f"{s['queue_p95']['mean']:5.1f} {s['queue_max']['mean']:5.0f} "
-                f"{f(s['wait_mean_h']):>14} {little:6.3f}")
-        lines.append(f"{'level':>13} {'products':>8} {'p50 h':>8} {'p90 h':>8} {'p95 h':>8} "
-                     f"{'p99 h':>8} {'within service level':>21}")
+                f"{f(s['wait_mean_h']):>14} {little:6.3f}"
+            )
+        lines.append(
+            f"{'level':>13} {'products':>8} {'p50 h':>8} {'p90 h':>8} {'p95 h':>8} "
+            f"{'p99 h':>8} {'within service level':>21}"
+        )
         for lv, v in run["levels"].items():
             lines.append(
                 f"{lv:>13} {v['products']['mean']:8.0f} {v['latency_p50_h']['mean']:8.1f} "
                 f"{v['latency_p90_h']['mean']:8.1f} {v['latency_p95_h']['mean']:8.1f} "
                 f"{v['latency_p99_h']['mean']:8.1f} "
-                f"{f({k: 100 * x for k, x in v['within_service_level'].items()}, '.1f'):>19} %")
+                f"{f({k: 100 * x for k, x in v['within_service_level'].items()}, '.1f'):>19} %"
+            )
     return "\n".join(lines)
-
-

@@ -26,7 +26,8 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="station",
         description="Emulated SPOT direct-receiving station and processing centre. Without "
-                    "a command, runs the default scenario end to end (station run).")
+        "a command, runs the default scenario end to end (station run).",
+    )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for family in _FAMILIES:

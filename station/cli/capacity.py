@@ -15,17 +15,21 @@ __all__ = ["register"]
 
 def register(sub: Any) -> None:
     cap = sub.add_parser(
-        "capacity", help="capacity planning: a simpy model of the station, or `calibrate`",
+        "capacity",
+        help="capacity planning: a simpy model of the station, or `calibrate`",
         description="Simulate a station's passes, recording and processing queues over a "
-                    "capacity scenario (scenarios/capacity/), with replications and what-if "
-                    "sweeps; or `station capacity calibrate` to measure this code's service "
-                    "times on this machine.")
+        "capacity scenario (scenarios/capacity/), with replications and what-if "
+        "sweeps; or `station capacity calibrate` to measure this code's service "
+        "times on this machine.",
+    )
     cap.add_argument("scenario", help="a capacity scenario (.toml), or 'calibrate'")
-    cap.add_argument("--sweep", help="SECTION.KEY=V1,V2,... (e.g. "
-                                     "resources.cor_workers=1,2,3,4)")
+    cap.add_argument("--sweep", help="SECTION.KEY=V1,V2,... (e.g. resources.cor_workers=1,2,3,4)")
     cap.add_argument("--replications", type=int, help="replications (default: the scenario's)")
-    add_out(cap, "output directory (default runs/<name>/); for calibrate, the service-time "
-                 "file (default service_times.json)")
+    add_out(
+        cap,
+        "output directory (default runs/<name>/); for calibrate, the service-time "
+        "file (default service_times.json)",
+    )
     add_json(cap, "the summary as JSON")
     cap.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     cap.set_defaults(func=_capacity)
@@ -40,12 +44,17 @@ def _capacity(args: argparse.Namespace) -> int:
         print("measuring this code's stages on this machine ...", file=sys.stderr)
         table = calibrate()
         path = write_service_times(args.out or "service_times.json", table)
-        print(f"wrote {path}: ingest {table['ingest_s_per_signal_s']:.3f} s per s of signal; "
-              "per full scene, GEO " + ", ".join(
-                  f"{m} {v:.3f}" for m, v in table["geo_s_per_scene"].items())
-              + " s; COR " + "; ".join(
-                  f"{m} " + ", ".join(f"{lv} {t:.2f}" for lv, t in lvs.items())
-                  for m, lvs in table["cor_s"].items()) + " s")
+        print(
+            f"wrote {path}: ingest {table['ingest_s_per_signal_s']:.3f} s per s of signal; "
+            "per full scene, GEO "
+            + ", ".join(f"{m} {v:.3f}" for m, v in table["geo_s_per_scene"].items())
+            + " s; COR "
+            + "; ".join(
+                f"{m} " + ", ".join(f"{lv} {t:.2f}" for lv, t in lvs.items())
+                for m, lvs in table["cor_s"].items()
+            )
+            + " s"
+        )
         return 0
     from station.capacity.config import load_capacity
     from station.capacity.study import parse_sweep, run_study, study_table
@@ -56,8 +65,8 @@ def _capacity(args: argparse.Namespace) -> int:
         raise StationError(f"--replications {args.replications}: expected at least 1")
     out = Path(args.out) if args.out else Path("runs") / scn.name
     summary = run_study(scn, out, sweep, args.replications, plots=not args.no_plots)
-    files = ("summary.json, stages.csv, levels.csv, station.csv, queues.csv"
-             + ("" if args.no_plots else ", queues.png, latency.png"
-                + (", sweep.png" if sweep else "")))
+    files = "summary.json, stages.csv, levels.csv, station.csv, queues.csv" + (
+        "" if args.no_plots else ", queues.png, latency.png" + (", sweep.png" if sweep else "")
+    )
     emit(args, summary, lambda s: f"{study_table(s)}\nin {out}/: {files}")
     return 0

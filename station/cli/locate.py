@@ -12,15 +12,19 @@ __all__ = ["register"]
 
 def register(sub: Any) -> None:
     p = sub.add_parser(
-        "locate", help="predict the frame of a real SPOT scene from its METADATA.DIM",
+        "locate",
+        help="predict the frame of a real SPOT scene from its METADATA.DIM",
         description="Predict the frame corners and centre of a real SPOT 1–5 level-1A scene "
-                    "from its DIMAP metadata (ephemeris, attitude, look angles) and compare "
-                    "them with the producer's Dataset_Frame.")
+        "from its DIMAP metadata (ephemeris, attitude, look angles) and compare "
+        "them with the producer's Dataset_Frame.",
+    )
     p.add_argument("metadata", help="path to a SPOT level-1A METADATA.DIM")
-    p.add_argument("--attitude", default="auto",
-                   choices=["auto", "corrected", "none", "aocs", "integrated",
-                            "integrated_zeroed"],
-                   help="attitude model (default: auto, see levels.readers.dimap)")
+    p.add_argument(
+        "--attitude",
+        default="auto",
+        choices=["auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed"],
+        help="attitude model (default: auto, see levels.readers.dimap)",
+    )
     add_json(p)
     p.set_defaults(func=_locate)
 
@@ -34,13 +38,17 @@ def _locate(args: argparse.Namespace) -> int:
 
 
 def _text(check: Any) -> str:
-    lines = [f"{check.scene}  (attitude: {check.attitude})",
-             f"{'point':>12} {'lat °':>12} {'lon °':>12} {'pred lat °':>12} "
-             f"{'pred lon °':>12} {'error m':>8} {'closure px':>10}"]
+    lines = [
+        f"{check.scene}  (attitude: {check.attitude})",
+        f"{'point':>12} {'lat °':>12} {'lon °':>12} {'pred lat °':>12} "
+        f"{'pred lon °':>12} {'error m':>8} {'closure px':>10}",
+    ]
     labels = ["corner 1", "corner 2", "corner 3", "corner 4", "centre"]
     for i, label in enumerate(labels):
-        lines.append(f"{label:>12} {check.lat_deg[i]:12.7f} {check.lon_deg[i]:12.7f} "
-                     f"{check.predicted_lat_deg[i]:12.7f} {check.predicted_lon_deg[i]:12.7f} "
-                     f"{check.error_m[i]:8.3f} {check.roundtrip_px[i]:10.2e}")
+        lines.append(
+            f"{label:>12} {check.lat_deg[i]:12.7f} {check.lon_deg[i]:12.7f} "
+            f"{check.predicted_lat_deg[i]:12.7f} {check.predicted_lon_deg[i]:12.7f} "
+            f"{check.error_m[i]:8.3f} {check.roundtrip_px[i]:10.2e}"
+        )
     lines.append(f"max error {check.error_m.max():.3f} m")
     return "\n".join(lines)

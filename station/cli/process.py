@@ -17,19 +17,28 @@ __all__ = ["register"]
 
 def register(sub: Any) -> None:
     p = sub.add_parser(
-        "process", help="make level products of an L0 archive (or of a scenario's pass)",
+        "process",
+        help="make level products of an L0 archive (or of a scenario's pass)",
         description="Run GEO and COR over a pass into one product per scene and level. "
-                    "SOURCE is an L0 archive (.h5), reprocessed as recorded: with "
-                    "--scenario (the scenario that made it) the checkpoints are measured "
-                    "against its truth and the products are those of its run, bit for bit. "
-                    "SOURCE may also be a scenario (.toml), emulated and received first.")
+        "SOURCE is an L0 archive (.h5), reprocessed as recorded: with "
+        "--scenario (the scenario that made it) the checkpoints are measured "
+        "against its truth and the products are those of its run, bit for bit. "
+        "SOURCE may also be a scenario (.toml), emulated and received first.",
+    )
     p.add_argument("source", help="an L0 archive (.h5) or a scenario (.toml)")
-    p.add_argument("--scenario", help="the scenario that made the L0 archive: its "
-                                      "[processing] options and its truth for the checkpoints")
-    p.add_argument("--options", help="a TOML file whose [processing] table sets the options "
-                                     "(a scenario file will do); overrides --scenario's")
-    p.add_argument("--levels", help="comma-separated levels to make (e.g. 1A,2A); overrides "
-                                    "the options'")
+    p.add_argument(
+        "--scenario",
+        help="the scenario that made the L0 archive: its "
+        "[processing] options and its truth for the checkpoints",
+    )
+    p.add_argument(
+        "--options",
+        help="a TOML file whose [processing] table sets the options "
+        "(a scenario file will do); overrides --scenario's",
+    )
+    p.add_argument(
+        "--levels", help="comma-separated levels to make (e.g. 1A,2A); overrides the options'"
+    )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     add_out(p, "directory of the products (default: <name>_products)")
     add_json(p)
@@ -50,8 +59,10 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
         known = ProcessingOptions.__dataclass_fields__["levels"].metadata["choices"]
         bad = [lv for lv in levels if lv not in known] or ([] if levels else [args.levels])
         if bad or len(set(levels)) != len(levels):
-            raise ScenarioError(f"--levels {args.levels}: expected a comma-separated list, "
-                                f"without repeats, of {', '.join(known)}")
+            raise ScenarioError(
+                f"--levels {args.levels}: expected a comma-separated list, "
+                f"without repeats, of {', '.join(known)}"
+            )
         opts = dataclasses.replace(opts, levels=tuple(levels))
     return opts
 
@@ -65,11 +76,13 @@ def _process(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario) if args.scenario else None
     if source.suffix == ".toml":
         if scenario is not None:
-            raise StationError("give --scenario only with an L0 archive; a .toml SOURCE is "
-                               "the scenario")
+            raise StationError(
+                "give --scenario only with an L0 archive; a .toml SOURCE is the scenario"
+            )
         scn = load_scenario(source)
-        scn = dataclasses.replace(scn, processing=_options(args, scn.processing),
-                                  name=args.name or scn.name)
+        scn = dataclasses.replace(
+            scn, processing=_options(args, scn.processing), name=args.name or scn.name
+        )
         out = Path(args.out) if args.out else Path(f"{scn.name}_products")
         products, l0 = process_scenario(scn, out)
     else:
@@ -77,13 +90,28 @@ def _process(args: argparse.Namespace) -> int:
         l0 = source
         name = args.name or source.name.removesuffix(".h5").removesuffix(".l0")
         out = Path(args.out) if args.out else Path(f"{name}_products")
-        products = reprocess_l0(source, out, options=_options(args, base), scenario=scenario,
-                                name=name)
-    rows = [{"scene": s.index, "level": lv, "path": str(s.paths[lv]), **s.quality[lv],
-             "timings_s": s.timings_s} for s in products.scenes for lv in s.paths]
-    data = {"l0": str(l0), "out": str(out), "tail_lines": products.tail_lines,
-            "timings_s": products.timings_s, "products": rows,
-            "skipped": [dataclasses.asdict(k) for k in products.skipped]}
+        products = reprocess_l0(
+            source, out, options=_options(args, base), scenario=scenario, name=name
+        )
+    rows = [
+        {
+            "scene": s.index,
+            "level": lv,
+            "path": str(s.paths[lv]),
+            **s.quality[lv],
+            "timings_s": s.timings_s,
+        }
+        for s in products.scenes
+        for lv in s.paths
+    ]
+    data = {
+        "l0": str(l0),
+        "out": str(out),
+        "tail_lines": products.tail_lines,
+        "timings_s": products.timings_s,
+        "products": rows,
+        "skipped": [dataclasses.asdict(k) for k in products.skipped],
+    }
     emit(args, data, _text)
     return 0
 
@@ -100,10 +128,12 @@ def _text(data: dict[str, Any]) -> str:
     from station.run import approximation_max_px
 
     t = data["timings_s"]
-    lines = [f"{len(data['products'])} product(s) from {data['l0']} into {data['out']}/; "
-             f"GEO {t['geo']:.3f} s, all {t['total']:.1f} s",
-             f"{'scene':>5} {'level':>5} {'LOS rms m':>10} {'max px':>7} {'ground rms m':>13} "
-             f"{'approx max px':>14}  stripes raw → 1A"]
+    lines = [
+        f"{len(data['products'])} product(s) from {data['l0']} into {data['out']}/; "
+        f"GEO {t['geo']:.3f} s, all {t['total']:.1f} s",
+        f"{'scene':>5} {'level':>5} {'LOS rms m':>10} {'max px':>7} {'ground rms m':>13} "
+        f"{'approx max px':>14}  stripes raw → 1A",
+    ]
     nan = float("nan")
     for r in data["products"]:
         band = _first_band(r)
@@ -111,11 +141,16 @@ def _text(data: dict[str, Any]) -> str:
         los_px = r.get(f"checkpoints/{band}/line_of_sight/max_px", nan)
         ground = r.get(f"checkpoints/{band}/ground/rms_m", nan)
         approx = approximation_max_px(r)
-        stripes = (f"{r[f'stripe_level/{band}/raw_counts']:.2f} → "
-                   f"{r[f'stripe_level/{band}/level_1a_counts']:.2f}"
-                   if r["level"] == "1A" else "")
-        lines.append(f"{r['scene']:5d} {r['level']:>5} {los:10.1f} {los_px:7.2f} "
-                     f"{ground:13.1f} {nan if approx is None else approx:14.4f}  {stripes}")
+        stripes = (
+            f"{r[f'stripe_level/{band}/raw_counts']:.2f} → "
+            f"{r[f'stripe_level/{band}/level_1a_counts']:.2f}"
+            if r["level"] == "1A"
+            else ""
+        )
+        lines.append(
+            f"{r['scene']:5d} {r['level']:>5} {los:10.1f} {los_px:7.2f} "
+            f"{ground:13.1f} {nan if approx is None else approx:14.4f}  {stripes}"
+        )
         lines.append(f"{'':11}{r['path']}")
     for k in data["skipped"]:
         lines.append(f"{k['index']:5d}  skipped: {k['reason']}")

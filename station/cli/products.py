@@ -13,32 +13,43 @@ __all__ = ["register"]
 
 def register(sub: Any) -> None:
     comp = sub.add_parser(
-        "compare", help="compare two products or two run directories (exit 0 within "
-                        "tolerances, 1 outside, 2 on bad input)",
+        "compare",
+        help="compare two products or two run directories (exit 0 within "
+        "tolerances, 1 outside, 2 on bad input)",
         description="Compare two level products, or two run directories (their products "
-                    "matched by name, and their reports' decode statistics), with named "
-                    "tolerances (docs/compare.md). Exit 0 within the tolerances, 1 outside, "
-                    "naming each difference; 2 on bad input.")
+        "matched by name, and their reports' decode statistics), with named "
+        "tolerances (docs/compare.md). Exit 0 within the tolerances, 1 outside, "
+        "naming each difference; 2 on bad input.",
+    )
     comp.add_argument("a", help="a product (.h5) or a run directory")
     comp.add_argument("b", help="the product or run directory to compare it with")
-    comp.add_argument("--tolerances", help="TOML file overriding the default tolerances "
-                                           "(docs/compare.md)")
+    comp.add_argument(
+        "--tolerances", help="TOML file overriding the default tolerances (docs/compare.md)"
+    )
     add_json(comp)
     comp.set_defaults(func=_compare)
     insp = sub.add_parser(
-        "inspect", help="what a level product holds, at a glance",
+        "inspect",
+        help="what a level product holds, at a glance",
         description="Summarise a level product: its bands, scene, map grid, headline "
-                    "quality figures and provenance.")
+        "quality figures and provenance.",
+    )
     insp.add_argument("product", help="a level product (.h5)")
     add_json(insp)
     insp.set_defaults(func=_inspect)
     expo = sub.add_parser(
-        "export", help="export a map-level product (2A) as a GeoTIFF",
+        "export",
+        help="export a map-level product (2A) as a GeoTIFF",
         description="Write a map-level product as a tiled, compressed GeoTIFF with its CRS, "
-                    "geotransform and validity mask, for GDAL and QGIS.")
+        "geotransform and validity mask, for GDAL and QGIS.",
+    )
     expo.add_argument("product", help="a level product (.h5)")
-    expo.add_argument("--geotiff", action="store_true", required=True,
-                      help="GeoTIFF through GDAL (the only format so far)")
+    expo.add_argument(
+        "--geotiff",
+        action="store_true",
+        required=True,
+        help="GeoTIFF through GDAL (the only format so far)",
+    )
     add_out(expo, "output file (default: the product's name with .tif)")
     expo.set_defaults(func=_export)
 

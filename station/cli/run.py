@@ -18,13 +18,16 @@ DEFAULT_SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "quicksta
 
 def register(sub: Any) -> None:
     p = sub.add_parser(
-        "run", help="run a scenario end to end (the default scenario without one)",
+        "run",
+        help="run a scenario end to end (the default scenario without one)",
         description="Run a scenario end to end: emulate the pass, send it through the "
-                    "channel, receive and record the L0 archive, run GEO and COR into level "
-                    "products, measure each against the truth, draw quicklooks and write "
-                    "report.json into the run directory.")
-    p.add_argument("scenario", nargs="?",
-                   help="path to a scenario .toml (default: scenarios/quickstart.toml)")
+        "channel, receive and record the L0 archive, run GEO and COR into level "
+        "products, measure each against the truth, draw quicklooks and write "
+        "report.json into the run directory.",
+    )
+    p.add_argument(
+        "scenario", nargs="?", help="path to a scenario .toml (default: scenarios/quickstart.toml)"
+    )
     add_out(p, "run directory (default: runs/<scenario name>)")
     add_json(p, "the report instead of a table")
     p.add_argument("--no-quicklooks", action="store_true", help="skip the quicklook PNGs")
@@ -40,13 +43,16 @@ def _run(args: argparse.Namespace) -> int:
 
     path = Path(args.scenario) if args.scenario else DEFAULT_SCENARIO
     if not args.scenario and not path.is_file():
-        raise StationError(f"the default scenario {path} is not there (an install without "
-                           "the repository's scenarios/); give a scenario file")
+        raise StationError(
+            f"the default scenario {path} is not there (an install without "
+            "the repository's scenarios/); give a scenario file"
+        )
     scn = load_scenario(path)
     out = Path(args.out) if args.out else Path("runs") / scn.name
     if not args.json:
         print(f"running {path} into {out}/ ...", file=sys.stderr)
-    report = run_scenario(scn, out, quicklooks=not args.no_quicklooks,
-                          progress=not args.quiet and sys.stderr.isatty())
+    report = run_scenario(
+        scn, out, quicklooks=not args.no_quicklooks, progress=not args.quiet and sys.stderr.isatty()
+    )
     print(json.dumps(report, indent=2) if args.json else summary_table(report, out))
     return 0

@@ -33,24 +33,33 @@ def truth_for(scn: Scenario, archive: L0Archive) -> Truth:
 
     prov = archive.provenance
     if prov.get("scenario", scn.name) != scn.name or (
-            prov.get("scenario_sha256") and scn.source_sha256
-            and prov["scenario_sha256"] != scn.source_sha256):
+        prov.get("scenario_sha256")
+        and scn.source_sha256
+        and prov["scenario_sha256"] != scn.source_sha256
+    ):
         raise ScenarioError(
             f"{archive.path} was recorded from scenario {prov.get('scenario')!r} "
             f"(sha256 {str(prov.get('scenario_sha256', '?'))[:12]}…), not from {scn.source} "
-            f"({scn.name!r}, {scn.source_sha256[:12]}…); give the scenario that made it")
+            f"({scn.name!r}, {scn.source_sha256[:12]}…); give the scenario that made it"
+        )
     numbers = [i.hrv for i in scn.instruments]
     if archive.hrv not in numbers:
-        raise ScenarioError(f"{archive.path} holds HRV{archive.hrv}; scenario {scn.name!r} "
-                            f"images with HRV{numbers}")
+        raise ScenarioError(
+            f"{archive.path} holds HRV{archive.hrv}; scenario {scn.name!r} images with HRV{numbers}"
+        )
     # geometry only: the truth of a checkpoint is where its pixel looks, not what it saw
     acq = emulate(scn, render=False, instrument=numbers.index(archive.hrv))
     return Truth.of(acq, archive)
 
 
-def reprocess_l0(l0_path: str | Path, out_dir: str | Path, *,
-                 options: ProcessingOptions | None = None, scenario: Scenario | None = None,
-                 name: str | None = None) -> PassProducts:
+def reprocess_l0(
+    l0_path: str | Path,
+    out_dir: str | Path,
+    *,
+    options: ProcessingOptions | None = None,
+    scenario: Scenario | None = None,
+    name: str | None = None,
+) -> PassProducts:
     """Process a recorded L0 archive again into ``out_dir``.
 
     ``options`` default to the scenario's ``[processing]``, else to the defaults; with the
@@ -67,8 +76,9 @@ def reprocess_l0(l0_path: str | Path, out_dir: str | Path, *,
     return process_l0(archive, opts, out_dir, name=name or stem, checkpoints=truth)
 
 
-def process_scenario(scn: Scenario, out_dir: str | Path, l0_path: str | Path | None = None
-                     ) -> tuple[PassProducts, Path]:
+def process_scenario(
+    scn: Scenario, out_dir: str | Path, l0_path: str | Path | None = None
+) -> tuple[PassProducts, Path]:
     """Emulate, downlink, record and process a scenario; products measured against truth."""
     from station.spacecraft.emulator import emulate
     from station.srrs.session import downlink, record
@@ -79,6 +89,12 @@ def process_scenario(scn: Scenario, out_dir: str | Path, l0_path: str | Path | N
     result = downlink(acq)
     l0 = record(acq, result, l0_path or out / f"{scn.name}.l0.h5")
     archive = read_l0(l0)
-    products = process_l0(archive, scn.processing, out, name=scn.name,
-                          checkpoints=Truth.of(acq, archive), provenance=scn.provenance())
+    products = process_l0(
+        archive,
+        scn.processing,
+        out,
+        name=scn.name,
+        checkpoints=Truth.of(acq, archive),
+        provenance=scn.provenance(),
+    )
     return products, l0

@@ -49,13 +49,15 @@ class Truth:
         offset = int(np.rint((t0 - acq.line_times_s[0]) / acq.hrv.line_period_s))
         return cls(acq, offset)
 
-    def level_1b(self, scene: SceneGeometry, geometry: Level1BGeometry, band_index: int,
-                 per_side: int) -> dict:
+    def level_1b(
+        self, scene: SceneGeometry, geometry: Level1BGeometry, band_index: int, per_side: int
+    ) -> dict:
         """:func:`checkpoints_1b` (the :class:`levels.quality.CheckpointSource` protocol)."""
         return checkpoints_1b(self, scene, geometry, band_index, per_side)
 
-    def level_2a(self, scene: SceneGeometry, geometry: Level2AGeometry, band_index: int,
-                 per_side: int) -> dict:
+    def level_2a(
+        self, scene: SceneGeometry, geometry: Level2AGeometry, band_index: int, per_side: int
+    ) -> dict:
         """:func:`checkpoints_2a` (the :class:`levels.quality.CheckpointSource` protocol)."""
         return checkpoints_2a(self, scene, geometry, band_index, per_side)
 
@@ -64,20 +66,24 @@ class Truth:
             self._models[band] = truth_model(self.acq, band)
         return self._models[band]
 
-    def lattice(self, scene: SceneGeometry, per_side: int
-                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def lattice(
+        self, scene: SceneGeometry, per_side: int
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Checkpoint lines (scene numbering) and columns: whole pixels, as a real
         checkpoint is measured (a fractional column may fall between two butted CCDs)."""
-        line, col = np.meshgrid(np.rint(np.linspace(0, scene.cut.n_lines - 1, per_side)),
-                                np.rint(np.linspace(0, scene.model.n_columns - 1, per_side)),
-                                indexing="ij")
+        line, col = np.meshgrid(
+            np.rint(np.linspace(0, scene.cut.n_lines - 1, per_side)),
+            np.rint(np.linspace(0, scene.model.n_columns - 1, per_side)),
+            indexing="ij",
+        )
         return line.ravel(), col.ravel()
 
     def truth_lines(self, scene: SceneGeometry, line: NDArray[np.float64]) -> NDArray:
         return line + scene.cut.first_line + self.row_offset
 
-    def ground(self, band: int, lines: NDArray[np.float64], col: NDArray[np.float64]
-               ) -> NDArray[np.float64]:
+    def ground(
+        self, band: int, lines: NDArray[np.float64], col: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
         """ECEF points of the terrain truly seen (NaN where the ray missed), (N, 3)."""
         acq = self.acq
         t = acq.line_times_s[0] + lines * acq.hrv.line_period_s
@@ -87,8 +93,9 @@ class Truth:
         return g
 
 
-def checkpoints_1b(truth: Truth, scene: SceneGeometry, geom: Level1BGeometry, band: int,
-                   per_side: int) -> dict:
+def checkpoints_1b(
+    truth: Truth, scene: SceneGeometry, geom: Level1BGeometry, band: int, per_side: int
+) -> dict:
     """Checkpoint errors of a 1B product on its tangent plane (X south, Y east)."""
     line, col = truth.lattice(scene, per_side)
     i, j = geom.corrected_of(line, col)
@@ -99,15 +106,22 @@ def checkpoints_1b(truth: Truth, scene: SceneGeometry, geom: Level1BGeometry, ba
     g = truth.ground(band, tl, col) - geom.plane.origin_ecef_m
     xg, yg = g @ geom.plane.x_axis, g @ geom.plane.y_axis
     res = geom.pixel_size_m
-    return {"axes": "1: X (south), 2: Y (east) of the tangent plane",
-            "line_of_sight": error_stats(x - xt, y - yt, res),
-            "ground": error_stats(x - xg, y - yg, res),
-            "raw_line": line, "raw_column": col, "output_row": i, "output_col": j,
-            "error_x_m": x - xt, "error_y_m": y - yt}
+    return {
+        "axes": "1: X (south), 2: Y (east) of the tangent plane",
+        "line_of_sight": error_stats(x - xt, y - yt, res),
+        "ground": error_stats(x - xg, y - yg, res),
+        "raw_line": line,
+        "raw_column": col,
+        "output_row": i,
+        "output_col": j,
+        "error_x_m": x - xt,
+        "error_y_m": y - yt,
+    }
 
 
-def checkpoints_2a(truth: Truth, scene: SceneGeometry, geom: Level2AGeometry, band: int,
-                   per_side: int) -> dict:
+def checkpoints_2a(
+    truth: Truth, scene: SceneGeometry, geom: Level2AGeometry, band: int, per_side: int
+) -> dict:
     """Checkpoint errors of a 2A product in its map (easting, northing)."""
     line, col = truth.lattice(scene, per_side)
     h_ref = scene.reference_height_m
@@ -130,8 +144,14 @@ def checkpoints_2a(truth: Truth, scene: SceneGeometry, geom: Level2AGeometry, ba
     lat, lon, _h = truth.model(band).ellipsoid.to_geodetic(g)
     eg, ng = en(lat, lon)
     res = geom.pixel_size_m
-    return {"axes": "1: easting, 2: northing of the map",
-            "line_of_sight": error_stats(e - et, n - nt, res),
-            "ground": error_stats(e - eg, n - ng, res),
-            "raw_line": line, "raw_column": col, "output_row": i, "output_col": j,
-            "error_e_m": e - et, "error_n_m": n - nt}
+    return {
+        "axes": "1: easting, 2: northing of the map",
+        "line_of_sight": error_stats(e - et, n - nt, res),
+        "ground": error_stats(e - eg, n - ng, res),
+        "raw_line": line,
+        "raw_column": col,
+        "output_row": i,
+        "output_col": j,
+        "error_e_m": e - et,
+        "error_n_m": n - nt,
+    }

@@ -79,9 +79,7 @@ def fractional_brownian(
         raise ValueError(f"alpha = {alpha}: a power-law variogram needs 0 < alpha < 2")
     m = max(n - 1, 1)
     k = np.arange(m + 1, dtype=np.float64)
-    cov = 0.5 * c * step_s**alpha * (
-        np.abs(k + 1) ** alpha + np.abs(k - 1) ** alpha - 2 * k**alpha
-    )
+    cov = 0.5 * c * step_s**alpha * (np.abs(k + 1) ** alpha + np.abs(k - 1) ** alpha - 2 * k**alpha)
     row = np.concatenate([cov, cov[-2:0:-1]])  # circulant of length 2m
     eig = np.fft.rfft(row).real
     eig = np.clip(eig, 0.0, None)  # only round-off can make them negative for fGn
@@ -96,7 +94,10 @@ def fractional_brownian(
 
 
 def random_harmonic(
-    t_s: NDArray[np.float64], c: float, omega_rad_per_s: float, rng: np.random.Generator,
+    t_s: NDArray[np.float64],
+    c: float,
+    omega_rad_per_s: float,
+    rng: np.random.Generator,
     size: int = 1,
 ) -> NDArray[np.float64]:
     """``size`` paths of ``A cos ωt + B sin ωt`` with 2γ(Δt) = c (1 − cos ωΔt), shape (size, N)."""

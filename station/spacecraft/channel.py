@@ -73,8 +73,9 @@ def _frame_order(n: int, cfg: ChannelConfig, rng: np.random.Generator) -> NDArra
     return order
 
 
-def _poisson_times(rate_per_s: NDArray[np.float64], t_s: NDArray[np.float64],
-                   rng: np.random.Generator) -> NDArray[np.float64]:
+def _poisson_times(
+    rate_per_s: NDArray[np.float64], t_s: NDArray[np.float64], rng: np.random.Generator
+) -> NDArray[np.float64]:
     """Arrival times of a Poisson process of varying rate (sampled at ``t_s``), by thinning."""
     top = float(rate_per_s.max(initial=0.0))
     if top <= 0 or t_s.size < 2:
@@ -87,8 +88,9 @@ def _poisson_times(rate_per_s: NDArray[np.float64], t_s: NDArray[np.float64],
 
 
 @numba.njit(cache=True, nogil=True)
-def _copy_bits(src: NDArray[np.uint8], src_bit: int, n_bits: int, dst: NDArray[np.uint8],
-               dst_bit: int) -> None:
+def _copy_bits(
+    src: NDArray[np.uint8], src_bit: int, n_bits: int, dst: NDArray[np.uint8], dst_bit: int
+) -> None:
     for i in range(n_bits):
         s = src_bit + i
         bit = (src[s >> 3] >> (7 - (s & 7))) & 1
@@ -102,9 +104,14 @@ def _flip(stream: NDArray[np.uint8], positions: NDArray[np.int64]) -> None:
     np.bitwise_xor.at(stream, positions >> 3, (1 << (7 - (positions & 7))).astype(np.uint8))
 
 
-def impair(cadus: NDArray[np.uint8], slot_t_s: NDArray[np.float64],
-           elevation_rad: NDArray[np.float64], cfg: ChannelConfig, bit_rate_bit_per_s: float,
-           rng: np.random.Generator) -> Reception:
+def impair(
+    cadus: NDArray[np.uint8],
+    slot_t_s: NDArray[np.float64],
+    elevation_rad: NDArray[np.float64],
+    cfg: ChannelConfig,
+    bit_rate_bit_per_s: float,
+    rng: np.random.Generator,
+) -> Reception:
     """Send CADUs (n, 1024) through the channel (module docstring).
 
     ``elevation_rad`` is the satellite's elevation at each slot time; the stream's time runs
@@ -116,8 +123,11 @@ def impair(cadus: NDArray[np.uint8], slot_t_s: NDArray[np.float64],
     bit_s = 1.0 / bit_rate_bit_per_s
     t_bits = slot_t_s[0] + np.arange(0, n_bits + 1, 8 * tf.CADU_BYTES) * bit_s
     elev = np.interp(t_bits, slot_t_s, elevation_rad)
-    errors = [rng.choice(n_bits, rng.binomial(n_bits, cfg.ber), replace=True)
-              if cfg.ber > 0 else np.zeros(0, np.int64)]
+    errors = [
+        rng.choice(n_bits, rng.binomial(n_bits, cfg.ber), replace=True)
+        if cfg.ber > 0
+        else np.zeros(0, np.int64)
+    ]
     rate = cfg.burst_rate_per_s / np.sin(np.maximum(elev, _MIN_ELEVATION_RAD)) ** 2
     bursts = _poisson_times(rate, t_bits, rng) if cfg.burst_rate_per_s > 0 else np.zeros(0)
     if bursts.size:
@@ -142,8 +152,9 @@ def impair(cadus: NDArray[np.uint8], slot_t_s: NDArray[np.float64],
     fades = np.zeros(0)
     if cfg.fade_rate_per_min > 0:
         span = (t_bits[0], t_bits[-1])
-        fades = np.sort(rng.uniform(*span, rng.poisson(cfg.fade_rate_per_min / 60.0
-                                                       * (span[1] - span[0]))))
+        fades = np.sort(
+            rng.uniform(*span, rng.poisson(cfg.fade_rate_per_min / 60.0 * (span[1] - span[0])))
+        )
     lasts = rng.exponential(cfg.fade_duration_s, fades.size) if fades.size else fades
     if cfg.outage_duration_s > 0:
         fades = np.append(fades, slot_t_s[0] + cfg.outage_start_s)
@@ -160,8 +171,9 @@ def impair(cadus: NDArray[np.uint8], slot_t_s: NDArray[np.float64],
         noise_len = np.maximum(cut1 - cut0 + rng.integers(-7, 8, cut0.size), 0)
         first_copy = cut0 // (8 * tf.CADU_BYTES)
         last_copy = (np.maximum(cut1, cut0 + 1) - 1) // (8 * tf.CADU_BYTES)
-        span_copies = np.concatenate([np.arange(a, b + 1)
-                                      for a, b in zip(first_copy, last_copy, strict=True)])
+        span_copies = np.concatenate(
+            [np.arange(a, b + 1) for a, b in zip(first_copy, last_copy, strict=True)]
+        )
         faded[np.minimum(span_copies, order.size - 1)] = True
         out_bits = n_bits - int((cut1 - cut0).sum()) + int(noise_len.sum())
         out = np.zeros((out_bits + 7) // 8, np.uint8)
@@ -176,7 +188,12 @@ def impair(cadus: NDArray[np.uint8], slot_t_s: NDArray[np.float64],
         _copy_bits(stream, src, n_bits - src, out, dst)
         stream, n_bits = out, out_bits
     return Reception(
-        stream=stream, n_bits=n_bits, copy_slot=order, copy_faded=faded,
-        copy_max_symbol_errors=max_sym, n_bit_errors=int(np.unique(err).size),
-        n_fades=int(fades.size), n_bursts=int(bursts.size),
+        stream=stream,
+        n_bits=n_bits,
+        copy_slot=order,
+        copy_faded=faded,
+        copy_max_symbol_errors=max_sym,
+        n_bit_errors=int(np.unique(err).size),
+        n_fades=int(fades.size),
+        n_bursts=int(bursts.size),
     )

@@ -101,13 +101,13 @@ def _image_packets(acq: Acquisition, first_line: int) -> tuple[list, tuple, NDAr
         counts = band.counts
         decoded = np.empty_like(counts)
         for s, (c0, nc) in enumerate(zip(seg_first, seg_count, strict=True)):
-            seg = np.ascontiguousarray(counts[:, c0:c0 + nc])
+            seg = np.ascontiguousarray(counts[:, c0 : c0 + nc])
             if hrv.mode == "P":
                 payload, recon = dpcm.encode_segments(seg)
                 encoding = tf.ENCODING_DPCM6
             else:
                 payload, recon, encoding = seg, seg, tf.ENCODING_RAW8
-            decoded[:, c0:c0 + nc] = recon
+            decoded[:, c0 : c0 + nc] = recon
             sec = np.zeros(n_lines, tf.IMAGE_HEADER_DTYPE)
             sec["line"] = first_line + np.arange(n_lines)
             sec["band"] = b
@@ -115,8 +115,15 @@ def _image_packets(acq: Acquisition, first_line: int) -> tuple[list, tuple, NDAr
             sec["first_detector"] = c0
             sec["count"] = nc
             rows = np.arange(n_lines)
-            groups.append((_packets(tf.APID_IMAGE + hrv.number, sec, payload), ready_t,
-                           rows, np.full(n_lines, b), np.full(n_lines, s)))
+            groups.append(
+                (
+                    _packets(tf.APID_IMAGE + hrv.number, sec, payload),
+                    ready_t,
+                    rows,
+                    np.full(n_lines, b),
+                    np.full(n_lines, s),
+                )
+            )
         ground.append(decoded)
     return groups, tuple(ground), seg_first
 
@@ -146,8 +153,9 @@ def _aux_records(acq: Acquisition, first_line: int) -> NDArray:
     return rec
 
 
-def _zone_stream(groups: list) -> tuple[NDArray[np.uint8], NDArray[np.int64],
-                                        NDArray[np.float64], NDArray[np.int64], int]:
+def _zone_stream(
+    groups: list,
+) -> tuple[NDArray[np.uint8], NDArray[np.int64], NDArray[np.float64], NDArray[np.int64], int]:
     """Lay the packets of all groups end to end in the order they become available.
 
     Returns the packet zone bytes (padded to whole frames with an idle packet), each
@@ -166,19 +174,20 @@ def _zone_stream(groups: list) -> tuple[NDArray[np.uint8], NDArray[np.int64],
     for g in groups:
         data = g[0]
         m, size = data.shape
-        idx = start[offset:offset + m, None] + np.arange(size)
+        idx = start[offset : offset + m, None] + np.arange(size)
         zone[idx] = data
         offset += m
     idle = np.zeros(1, tf.PACKET_HEADER_DTYPE)
     idle["id"] = tf.APID_IDLE
     idle["sequence"] = 0xC000
     idle["length"] = pad - 7
-    zone[total:total + 6] = idle.view(np.uint8)
+    zone[total : total + 6] = idle.view(np.uint8)
     return zone, start, times, order, total
 
 
-def _sequence_counts(zone: NDArray[np.uint8], start: NDArray[np.int64],
-                     order: NDArray[np.int64]) -> None:
+def _sequence_counts(
+    zone: NDArray[np.uint8], start: NDArray[np.int64], order: NDArray[np.int64]
+) -> None:
     """Fill each packet's 14-bit sequence count, per APID, in sending order."""
     s = start[order]
     apid = ((zone[s].astype(np.int64) << 8) | zone[s + 1]) & 0x7FF
@@ -199,23 +208,31 @@ def frames_to_cadus(frames: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return np.concatenate([asm, blocks], axis=1)
 
 
-def _frame_headers(frames: NDArray[np.uint8], vc: NDArray[np.int64], count: NDArray[np.int64],
-                   fhp: NDArray[np.int64]) -> None:
+def _frame_headers(
+    frames: NDArray[np.uint8],
+    vc: NDArray[np.int64],
+    count: NDArray[np.int64],
+    fhp: NDArray[np.int64],
+) -> None:
     head = np.zeros(vc.size, tf.FRAME_HEADER_DTYPE)
     head["id"] = (1 << 14) | (tf.SPACECRAFT_ID << 6) | vc
     head["count"] = tf.u24(count)
     head["mpdu"] = fhp
-    frames[:, :tf.FRAME_HEADER_BYTES] = head.view(np.uint8).reshape(-1, tf.FRAME_HEADER_BYTES)
+    frames[:, : tf.FRAME_HEADER_BYTES] = head.view(np.uint8).reshape(-1, tf.FRAME_HEADER_BYTES)
 
 
 def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) -> Transmission:
     """Packetise, frame and schedule an acquisition's data (module docstring)."""
     if not acq.bands:
         raise ValueError("the acquisition was emulated without rendering: nothing to send")
-    first_line = cfg.first_line_counter if cfg.first_line_counter >= 0 else int(
-        rng.integers(10**5, 10**9))
-    first_count = cfg.first_frame_count if cfg.first_frame_count >= 0 else int(
-        rng.integers(0, tf.VC_FRAME_COUNT_MODULUS))
+    first_line = (
+        cfg.first_line_counter if cfg.first_line_counter >= 0 else int(rng.integers(10**5, 10**9))
+    )
+    first_count = (
+        cfg.first_frame_count
+        if cfg.first_frame_count >= 0
+        else int(rng.integers(0, tf.VC_FRAME_COUNT_MODULUS))
+    )
     fill_first = int(rng.integers(0, tf.VC_FRAME_COUNT_MODULUS))
     hrv = acq.hrv
     data_vc = tf.vc_of_hrv(hrv.number)
@@ -223,8 +240,15 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
     groups, ground, seg_first = _image_packets(acq, first_line)
     aux = _aux_records(acq, first_line)
     no_payload = np.zeros((aux.size, 0), np.uint8)  # the record is the secondary header
-    groups.append((_packets(tf.APID_AUX + hrv.number, aux, no_payload), acq.gyros.t_s,
-                   np.full(aux.size, -1), np.full(aux.size, -1), np.full(aux.size, -1)))
+    groups.append(
+        (
+            _packets(tf.APID_AUX + hrv.number, aux, no_payload),
+            acq.gyros.t_s,
+            np.full(aux.size, -1),
+            np.full(aux.size, -1),
+            np.full(aux.size, -1),
+        )
+    )
     zone, start, times, order, idle_at = _zone_stream(groups)
     _sequence_counts(zone, start, order)
 
@@ -233,8 +257,9 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
     sorted_start = start[order]  # packets in sending order are laid out in order
     headers = np.append(sorted_start, idle_at)  # every packet header, the idle one last
     nxt = headers[np.minimum(np.searchsorted(headers, frame_start), headers.size - 1)]
-    fhp = np.where((nxt >= frame_start) & (nxt < frame_start + tf.ZONE_BYTES),
-                   nxt - frame_start, tf.FHP_NONE)
+    fhp = np.where(
+        (nxt >= frame_start) & (nxt < frame_start + tf.ZONE_BYTES), nxt - frame_start, tf.FHP_NONE
+    )
 
     # When each data frame is full: the time of the packet holding its last byte.
     t_sorted = times[order]
@@ -256,13 +281,15 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
     count %= tf.VC_FRAME_COUNT_MODULUS
 
     frames = np.zeros((n_slots, tf.FRAME_BYTES), np.uint8)
-    frames[slot_of_frame, tf.FRAME_HEADER_BYTES:tf.FRAME_HEADER_BYTES + tf.ZONE_BYTES] = \
+    frames[slot_of_frame, tf.FRAME_HEADER_BYTES : tf.FRAME_HEADER_BYTES + tf.ZONE_BYTES] = (
         zone.reshape(n_data, tf.ZONE_BYTES)
+    )
     slot_fhp = np.full(n_slots, tf.FHP_IDLE, np.int64)
     slot_fhp[slot_of_frame] = fhp
     _frame_headers(frames, vc, count, slot_fhp)
-    _status_records(frames, is_fill, data_vc, first_count, data_sent, fill_first,
-                    fill_index, n_data)
+    _status_records(
+        frames, is_fill, data_vc, first_count, data_sent, fill_first, fill_index, n_data
+    )
     crc = crc16_rows(frames, tf.FRAME_BYTES - 2)
     frames[:, -2] = crc >> 8
     frames[:, -1] = crc & 0xFF
@@ -274,21 +301,34 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
     return Transmission(
         cadus=frames_to_cadus(frames),
         slot_t_s=t_session + slot_s * np.arange(n_slots),
-        vc=vc, count=count, data_vc=data_vc,
+        vc=vc,
+        count=count,
+        data_vc=data_vc,
         first_count={data_vc: first_count, tf.VC_FILL: fill_first},
         sent={data_vc: n_data, tf.VC_FILL: int(is_fill.sum())},
         first_line_counter=first_line,
         segment_first_detector=seg_first,
-        packet_row=row[img], packet_band=band[img], packet_segment=segment[img],
+        packet_row=row[img],
+        packet_band=band[img],
+        packet_segment=segment[img],
         packet_first_frame=p_start // tf.ZONE_BYTES,
         packet_last_frame=(p_start + p_size - 1) // tf.ZONE_BYTES,
-        ground_bands=ground, aux=aux, bit_rate_bit_per_s=cfg.bit_rate_bit_per_s,
+        ground_bands=ground,
+        aux=aux,
+        bit_rate_bit_per_s=cfg.bit_rate_bit_per_s,
     )
 
 
-def _status_records(frames: NDArray[np.uint8], is_fill: NDArray[np.bool_], data_vc: int,
-                    first_count: int, data_sent: NDArray[np.int64], fill_first: int,
-                    fill_index: NDArray[np.int64], n_data: int) -> None:
+def _status_records(
+    frames: NDArray[np.uint8],
+    is_fill: NDArray[np.bool_],
+    data_vc: int,
+    first_count: int,
+    data_sent: NDArray[np.int64],
+    fill_first: int,
+    fill_index: NDArray[np.int64],
+    n_data: int,
+) -> None:
     """The session status in every fill frame's data field (docs/telemetry.md)."""
     rows = np.flatnonzero(is_fill)
     n_fill = rows.size
@@ -303,7 +343,7 @@ def _status_records(frames: NDArray[np.uint8], is_fill: NDArray[np.bool_], data_
     entries[:, 1]["sent"] = fill_index[rows] + 1
     z0 = tf.FRAME_HEADER_BYTES
     magic = np.frombuffer(tf.STATUS_MAGIC, np.uint8)
-    frames[rows, z0:z0 + 4] = magic
+    frames[rows, z0 : z0 + 4] = magic
     frames[rows, z0 + 4] = 2
     body = entries.view(np.uint8).reshape(n_fill, -1)
-    frames[rows, z0 + 5:z0 + 5 + body.shape[1]] = body
+    frames[rows, z0 + 5 : z0 + 5 + body.shape[1]] = body

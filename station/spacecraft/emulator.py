@@ -36,8 +36,14 @@ from station.spacecraft.sun import sun_direction_ecef
 from station.spacecraft.tle import Tle, read_tle, tle_state_eci
 from station.spacecraft.world import World
 
-__all__ = ["Acquisition", "ControlPoints", "emulate", "emulate_pass", "make_bulletins",
-           "truth_model"]
+__all__ = [
+    "Acquisition",
+    "ControlPoints",
+    "emulate",
+    "emulate_pass",
+    "make_bulletins",
+    "truth_model",
+]
 
 _ATTITUDE_MARGIN_S = 3.0  # truth attitude and gyros beyond the strip's ends
 
@@ -97,16 +103,23 @@ def _tle(scn: Scenario) -> Tle:
     oc = scn.orbit
     sets = read_tle(scn.path(oc.tle_path))
     if oc.tle_index >= len(sets):
-        raise OrbitError(f"{oc.tle_path} has {len(sets)} element sets; tle_index = "
-                         f"{oc.tle_index} is out of range")
+        raise OrbitError(
+            f"{oc.tle_path} has {len(sets)} element sets; tle_index = "
+            f"{oc.tle_index} is out of range"
+        )
     return sets[oc.tle_index]
 
 
-def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], margin_s: float,
-           mirror_rad: float, tle: Tle | None) -> tuple[TruthOrbit, float]:
+def _orbit(
+    scn: Scenario,
+    epoch: Epoch,
+    span: tuple[float, float],
+    margin_s: float,
+    mirror_rad: float,
+    tle: Tle | None,
+) -> tuple[TruthOrbit, float]:
     oc, pc = scn.orbit, scn.pass_
-    view = swath_centre_view(mirror_rad if pc.aim == "view" else 0.0,
-                             scn.world.base_height_m)
+    view = swath_centre_view(mirror_rad if pc.aim == "view" else 0.0, scn.world.base_height_m)
     if oc.kind in ("phased", "elements"):
         return mean_element_orbit(oc, pc, epoch, span, view)
     assert tle is not None  # kind == "tle": emulate() read it
@@ -126,8 +139,13 @@ def _orbit(scn: Scenario, epoch: Epoch, span: tuple[float, float], margin_s: flo
 
 
 def make_bulletins(
-    orbit: TruthOrbit, t_from_s: float, t_to_s: float, period_s: float,
-    bias_m: NDArray[np.float64], drift_m_per_s: NDArray[np.float64], t_ref_s: float,
+    orbit: TruthOrbit,
+    t_from_s: float,
+    t_to_s: float,
+    period_s: float,
+    bias_m: NDArray[np.float64],
+    drift_m_per_s: NDArray[np.float64],
+    t_ref_s: float,
 ) -> Ephemeris:
     """Bulletin points every ``period_s`` (on multiples of it) covering [from, to], with a
     position error ``bias + drift (t − t_ref)`` along, across track and radially (the local
@@ -151,13 +169,24 @@ def truth_model(acq: Acquisition, band: int = 0, step_s: float = 1.0) -> Pushbro
     t = np.arange(t0, t1 + step_s, step_s)
     r, v = acq.orbit.state_ecef(t)
     clock = LineClock(float(acq.line_times_s[0]), 0.0, acq.hrv.line_period_s)
-    return PushbroomModel(acq.epoch, clock, Ephemeris(t, r, v), acq.attitude,
-                          acq.hrv.bands[band].look_true, acq.line_times_s.size)
+    return PushbroomModel(
+        acq.epoch,
+        clock,
+        Ephemeris(t, r, v),
+        acq.attitude,
+        acq.hrv.bands[band].look_true,
+        acq.line_times_s.size,
+    )
 
 
 def _control_points(
-    cfg: GcpConfig, hrv: Hrv, times: NDArray[np.float64], orbit: TruthOrbit,
-    attitude: TruthAttitude, world: World, rng: np.random.Generator,
+    cfg: GcpConfig,
+    hrv: Hrv,
+    times: NDArray[np.float64],
+    orbit: TruthOrbit,
+    attitude: TruthAttitude,
+    world: World,
+    rng: np.random.Generator,
 ) -> ControlPoints:
     n = cfg.count
     line = rng.uniform(0.05, 0.95, n) * (times.size - 1)
@@ -173,7 +202,11 @@ def _control_points(
         lat_rad=lat + north / radius,
         lon_rad=lon + east / (radius * np.cos(lat)),
         h_m=h + cfg.vertical_error_m * rng.standard_normal(n),
-        true_line=line, true_column=col, true_lat_rad=lat, true_lon_rad=lon, true_h_m=h,
+        true_line=line,
+        true_column=col,
+        true_lat_rad=lat,
+        true_lon_rad=lon,
+        true_h_m=h,
     )
 
 
@@ -187,8 +220,9 @@ def emulate(scn: Scenario, render: bool = True, instrument: int = 0) -> Acquisit
     return emulate_pass(scn, render, (instrument,))[0]
 
 
-def emulate_pass(scn: Scenario, render: bool = True,
-                 instruments: tuple[int, ...] | None = None) -> tuple[Acquisition, ...]:
+def emulate_pass(
+    scn: Scenario, render: bool = True, instruments: tuple[int, ...] | None = None
+) -> tuple[Acquisition, ...]:
     """The acquisitions of every HRV of the pass (or of those listed), in scenario order.
 
     Both HRVs ride the same platform: one orbit (aimed at the first HRV's view), one truth
@@ -207,7 +241,8 @@ def emulate_pass(scn: Scenario, render: bool = True,
     rng_att, rng_hrv, rng_gyro, rng_noise, rng_gcp, rng_more = streams
     # per HRV: (detectors, noise, control points); the first keeps the original streams
     per_hrv = [(rng_hrv, rng_noise, rng_gcp)] + [
-        tuple(g.spawn(3)) for g in rng_more.spawn(len(configs))[1:]]
+        tuple(g.spawn(3)) for g in rng_more.spawn(len(configs))[1:]
+    ]
     hrvs = [build_hrv(c, scn.calibration, per_hrv[k][0]) for k, c in enumerate(configs)]
     first = hrvs[0]
     tle = _tle(scn) if scn.orbit.kind == "tle" else None
@@ -228,26 +263,47 @@ def emulate_pass(scn: Scenario, render: bool = True,
     strip = (t_c - half_s, t_c + half_s)
     ac = scn.attitude
     attitude = TruthAttitude.generate(
-        strip[0] - _ATTITUDE_MARGIN_S, strip[1] + _ATTITUDE_MARGIN_S, rng_att,
-        offsets_rad=(ac.roll0_rad, ac.pitch0_rad, ac.yaw0_rad), drift_scale=ac.drift_scale,
+        strip[0] - _ATTITUDE_MARGIN_S,
+        strip[1] + _ATTITUDE_MARGIN_S,
+        rng_att,
+        offsets_rad=(ac.roll0_rad, ac.pitch0_rad, ac.yaw0_rad),
+        drift_scale=ac.drift_scale,
         jitter_amplitude_rad=ac.jitter_amplitude_rad,
         jitter_frequency_hz=ac.jitter_frequency_hz,
     )
     g0 = np.ceil((strip[0] - 2.0) / ac.gyro_period_s) * ac.gyro_period_s
     n_gyro = int((strip[1] + 2.0 - g0) / ac.gyro_period_s) + 1
-    gyros = sample_gyros(attitude, g0, n_gyro, ac.gyro_period_s, ac.gyro_noise_rad_per_s,
-                         ac.gyro_lsb_rad_per_s, rng_gyro)
+    gyros = sample_gyros(
+        attitude,
+        g0,
+        n_gyro,
+        ac.gyro_period_s,
+        ac.gyro_noise_rad_per_s,
+        ac.gyro_lsb_rad_per_s,
+        rng_gyro,
+    )
     world = _world(scn)
     sun = sun_direction_ecef(epoch, [t_c])[0]
     bc = scn.bulletins
     bulletins = make_bulletins(
-        orbit, strip[0] - bc.margin_s, strip[1] + bc.margin_s, bc.period_s,
-        np.asarray(bc.bias_m), np.asarray(bc.drift_m_per_s), t_c,
+        orbit,
+        strip[0] - bc.margin_s,
+        strip[1] + bc.margin_s,
+        bc.period_s,
+        np.asarray(bc.bias_m),
+        np.asarray(bc.drift_m_per_s),
+        t_c,
     )
     gs = scn.ground_station
-    passes = tuple(find_passes(orbit, gs.lat_rad, gs.lon_rad, gs.height_m,
-                               gs.elevation_mask_rad, day[0], day[1])) \
-        if scn.pass_.ground_pass_days > 0 else ()
+    passes = (
+        tuple(
+            find_passes(
+                orbit, gs.lat_rad, gs.lon_rad, gs.height_m, gs.elevation_mask_rad, day[0], day[1]
+            )
+        )
+        if scn.pass_.ground_pass_days > 0
+        else ()
+    )
     out = []
     for k in chosen:  # one HRV each: two at most
         hrv = hrvs[k]
@@ -260,9 +316,23 @@ def emulate_pass(scn: Scenario, render: bool = True,
                 for b in hrv.bands
             )
         gcps = _control_points(scn.gcps, hrv, line_times, orbit, attitude, world, rng_gcp_k)
-        out.append(Acquisition(
-            scenario=scn, epoch=epoch, orbit=orbit, attitude=attitude, hrv=hrv, world=world,
-            t_centre_s=t_c, line_times_s=line_times, bands=bands, gyros=gyros,
-            bulletins=bulletins, gcps=gcps, passes=passes, sun_ecef=sun, index=k,
-        ))
+        out.append(
+            Acquisition(
+                scenario=scn,
+                epoch=epoch,
+                orbit=orbit,
+                attitude=attitude,
+                hrv=hrv,
+                world=world,
+                t_centre_s=t_c,
+                line_times_s=line_times,
+                bands=bands,
+                gyros=gyros,
+                bulletins=bulletins,
+                gcps=gcps,
+                passes=passes,
+                sun_ecef=sun,
+                index=k,
+            )
+        )
     return tuple(out)

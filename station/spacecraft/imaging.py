@@ -147,8 +147,9 @@ def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed, grid, 
 
 
 @nb.njit(cache=True, parallel=True)
-def _trace_grid(pos, rot, look, lon0, base, relief, seed, grid, geo, lat, lon, h, x, y, gx, gy,
-                iters):
+def _trace_grid(
+    pos, rot, look, lon0, base, relief, seed, grid, geo, lat, lon, h, x, y, gx, gy, iters
+):
     n_lines, n_det = lat.shape
     for li in nb.prange(n_lines):
         r = rot[li]
@@ -158,11 +159,29 @@ def _trace_grid(pos, rot, look, lon0, base, relief, seed, grid, geo, lat, lon, h
             dx = r[0, 0] * u0 + r[0, 1] * u1 + r[0, 2] * u2
             dy = r[1, 0] * u0 + r[1, 1] * u1 + r[1, 2] * u2
             dz = r[2, 0] * u0 + r[2, 1] * u1 + r[2, 2] * u2
-            out = _intersect(pos[li, 0], pos[li, 1], pos[li, 2], dx, dy, dz, hg, lon0, base,
-                             relief, seed, grid, geo)
+            out = _intersect(
+                pos[li, 0],
+                pos[li, 1],
+                pos[li, 2],
+                dx,
+                dy,
+                dz,
+                hg,
+                lon0,
+                base,
+                relief,
+                seed,
+                grid,
+                geo,
+            )
             lat[li, d], lon[li, d], h[li, d] = out[0], out[1], out[2]
             x[li, d], y[li, d], gx[li, d], gy[li, d], iters[li, d] = (
-                out[3], out[4], out[5], out[6], out[7])
+                out[3],
+                out[4],
+                out[5],
+                out[6],
+                out[7],
+            )
             if out[7] >= 0:
                 hg = out[2]
 
@@ -173,8 +192,21 @@ def _trace_rays(pos, dirs, lon0, base, relief, seed, grid, geo):
     out = np.empty((n, 3))
     iters = np.empty(n, dtype=np.int64)
     for k in nb.prange(n):
-        r = _intersect(pos[k, 0], pos[k, 1], pos[k, 2], dirs[k, 0], dirs[k, 1], dirs[k, 2],
-                       base, lon0, base, relief, seed, grid, geo)
+        r = _intersect(
+            pos[k, 0],
+            pos[k, 1],
+            pos[k, 2],
+            dirs[k, 0],
+            dirs[k, 1],
+            dirs[k, 2],
+            base,
+            lon0,
+            base,
+            relief,
+            seed,
+            grid,
+            geo,
+        )
         out[k, 0], out[k, 1], out[k, 2], iters[k] = r[0], r[1], r[2], r[7]
     return out, iters
 
@@ -237,8 +269,9 @@ def trace_pixels(
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Ground points (lat, lon, h) of pixels acquired at ``line_time_s`` by (fractional)
     ``column``, shape (N, 3), and whether each ray met the terrain."""
-    t, col = np.broadcast_arrays(np.atleast_1d(np.asarray(line_time_s, float)),
-                                 np.atleast_1d(np.asarray(column, float)))
+    t, col = np.broadcast_arrays(
+        np.atleast_1d(np.asarray(line_time_s, float)), np.atleast_1d(np.asarray(column, float))
+    )
     geo = line_geometry(orbit, attitude, t)
     dirs = apply(geo.ecef_from_sensor, band.look_true.directions(col))
     out, iters = _trace_rays(geo.position_ecef_m, dirs, *world.terrain_args())
@@ -268,18 +301,43 @@ def render_band(
     wargs = world.terrain_args()
     for l0 in range(0, n_lines, block_lines):
         l1 = min(l0 + block_lines, n_lines)
-        t = np.concatenate([[line_times_s[l0] - period], line_times_s[l0:l1],
-                            [line_times_s[l1 - 1] + period]])
+        t = np.concatenate(
+            [[line_times_s[l0] - period], line_times_s[l0:l1], [line_times_s[l1 - 1] + period]]
+        )
         geo = line_geometry(orbit, attitude, t)
         shape = (t.size, n_det)
         lat, lon, h, x, y, gx, gy = (np.empty(shape) for _ in range(7))
         iters = np.empty(shape, dtype=np.int64)
-        _trace_grid(geo.position_ecef_m, geo.ecef_from_sensor, look, *wargs,
-                    lat, lon, h, x, y, gx, gy, iters)
+        _trace_grid(
+            geo.position_ecef_m,
+            geo.ecef_from_sensor,
+            look,
+            *wargs,
+            lat,
+            lon,
+            h,
+            x,
+            y,
+            gx,
+            gy,
+            iters,
+        )
         newton_max = max(newton_max, int(iters.max()))
         out = np.empty((l1 - l0, n_det))
-        _radiance(lat, lon, x, y, gx, gy, np.asarray(sun_ecef, float), band_index, wargs[3],
-                  offsets, weights, out)
+        _radiance(
+            lat,
+            lon,
+            x,
+            y,
+            gx,
+            gy,
+            np.asarray(sun_ecef, float),
+            band_index,
+            wargs[3],
+            offsets,
+            weights,
+            out,
+        )
         radiance[l0:l1] = out
     failed = ~np.isfinite(radiance)
     signal = band.gain * COUNTS_PER_RADIANCE * np.nan_to_num(radiance) + band.offset_counts

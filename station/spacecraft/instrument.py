@@ -118,8 +118,7 @@ def build_hrv(cfg: InstrumentConfig, cal: CalibrationConfig, rng: np.random.Gene
         psi_y0 += (-0.5 if cfg.hrv == 1 else 0.5) * TWIN_SEPARATION_RAD
     # full-resolution detector number of each rendered detector → its CCD (P: 4 × 1500)
     full_index = (j + 0.5) * scale
-    ccd = np.minimum((full_index * (MODES["P"].detectors / full) // _CCD_USEFUL).astype(int),
-                     3)
+    ccd = np.minimum((full_index * (MODES["P"].detectors / full) // _CCD_USEFUL).astype(int), 3)
     butting = np.asarray(cfg.butting_offsets_rad)[ccd]
     window = slice(cfg.first_detector, cfg.first_detector + count)
     column = np.arange(count, dtype=np.float64)
@@ -133,22 +132,35 @@ def build_hrv(cfg: InstrumentConfig, cal: CalibrationConfig, rng: np.random.Gene
         err_y = _smooth_error(n, cfg.calibration_error_rad, rng)
         gain = 1.0 + cfg.gain_spread * rng.standard_normal(n)
         offset = 5.0 + cfg.offset_spread_counts * rng.standard_normal(n)
-        bands.append(BandModel(
-            name=name,
-            look_true=LookAngleTable(column, (psi_x_nom + err_x)[window],
-                                     (psi_y_nom + err_y)[window], count),
-            look_nominal=LookAngleTable(column, psi_x_nom[window], psi_y_nom[window], count),
-            gain=gain[window],
-            offset_counts=offset[window],
-            table_gain=(gain * (1 + cal.gain_error * rng.standard_normal(n)))[window],
-            table_offset_counts=(offset + cal.offset_error_counts * rng.standard_normal(n))[
-                window],
-        ))
+        bands.append(
+            BandModel(
+                name=name,
+                look_true=LookAngleTable(
+                    column, (psi_x_nom + err_x)[window], (psi_y_nom + err_y)[window], count
+                ),
+                look_nominal=LookAngleTable(column, psi_x_nom[window], psi_y_nom[window], count),
+                gain=gain[window],
+                offset_counts=offset[window],
+                table_gain=(gain * (1 + cal.gain_error * rng.standard_normal(n)))[window],
+                table_offset_counts=(offset + cal.offset_error_counts * rng.standard_normal(n))[
+                    window
+                ],
+            )
+        )
     period = mode.line_period_s
     n_lines = cfg.n_lines or n  # one 60 km scene: square, as many lines as detectors
     return Hrv(
-        number=cfg.hrv, mode=cfg.mode, mirror_step=cfg.mirror_step, twin=twin,
-        line_period_s=period * scale, n_lines=n_lines, bands=tuple(bands), n_detectors=n,
-        first_detector=cfg.first_detector, detector_scale=scale,
-        noise_counts=cfg.noise_counts, psf_fwhm_px=cfg.psf_fwhm_px, psf_samples=cfg.psf_samples,
+        number=cfg.hrv,
+        mode=cfg.mode,
+        mirror_step=cfg.mirror_step,
+        twin=twin,
+        line_period_s=period * scale,
+        n_lines=n_lines,
+        bands=tuple(bands),
+        n_detectors=n,
+        first_detector=cfg.first_detector,
+        detector_scale=scale,
+        noise_counts=cfg.noise_counts,
+        psf_fwhm_px=cfg.psf_fwhm_px,
+        psf_samples=cfg.psf_samples,
     )

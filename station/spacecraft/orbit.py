@@ -89,13 +89,23 @@ def propagate(r0_eci_m: ArrayLike, v0_eci_m_per_s: ArrayLike, t_end_s: float) ->
     """
     y0 = np.concatenate([np.asarray(r0_eci_m, float), np.asarray(v0_eci_m_per_s, float)])
     return solve_ivp(
-        _rhs, (0.0, float(t_end_s)), y0, method="DOP853", rtol=_RTOL, atol=_ATOL_M,
+        _rhs,
+        (0.0, float(t_end_s)),
+        y0,
+        method="DOP853",
+        rtol=_RTOL,
+        atol=_ATOL_M,
         dense_output=True,
     )
 
 
 def state_from_elements(
-    a_m: float, e: float, i_rad: float, raan_rad: float, argp_rad: float, anomaly_rad: float,
+    a_m: float,
+    e: float,
+    i_rad: float,
+    raan_rad: float,
+    argp_rad: float,
+    anomaly_rad: float,
     mean_anomaly: bool = True,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Position and velocity (inertial) of Keplerian elements; anomaly mean or true."""
@@ -136,8 +146,13 @@ def _node_to_node(a_m: float, i_rad: float, e: float) -> tuple[float, float]:
     ascending.direction = 1.0  # type: ignore[attr-defined]
     period_guess = 2 * np.pi * np.sqrt(a_m**3 / GM_M3_PER_S2)
     sol = solve_ivp(
-        _rhs, (0.0, 1.2 * period_guess), np.concatenate([r0, v0]), method="DOP853",
-        rtol=_RTOL, atol=_ATOL_M, events=ascending,
+        _rhs,
+        (0.0, 1.2 * period_guess),
+        np.concatenate([r0, v0]),
+        method="DOP853",
+        rtol=_RTOL,
+        atol=_ATOL_M,
+        events=ascending,
     )
     later = np.flatnonzero(sol.t_events[0] > 0.5 * period_guess)  # not the start node
     if later.size == 0:
@@ -176,23 +191,27 @@ def phased_targets(repeat_revs: int, repeat_days: int) -> tuple[float, float]:
 def _mean_elements_for(period_s: float, raan_rate: float, e: float) -> tuple[float, float]:
     """First-order mean (a, i) with the given nodal period and node rate (Newton, 2×2)."""
     a = (GM_M3_PER_S2 * (period_s / (2 * np.pi)) ** 2) ** (1 / 3)
-    i = np.arccos(np.clip(-raan_rate / (1.5 * np.sqrt(GM_M3_PER_S2 / a**3) * J2 *
-                                        (RE_M / a) ** 2), -1, 1))
+    i = np.arccos(
+        np.clip(-raan_rate / (1.5 * np.sqrt(GM_M3_PER_S2 / a**3) * J2 * (RE_M / a) ** 2), -1, 1)
+    )
     for _ in range(20):
         f0 = np.array(secular_targets(a, e, i)) - (period_s, raan_rate)
         if abs(f0[0]) < 1e-9 and abs(f0[1]) < 1e-18:
             break
         jac = np.empty((2, 2))
         for k, (da, di) in enumerate(((1.0, 0.0), (0.0, 1e-7))):
-            jac[:, k] = (np.array(secular_targets(a + da, e, i + di)) - (period_s, raan_rate)
-                         - f0) / (da + di)
+            jac[:, k] = (
+                np.array(secular_targets(a + da, e, i + di)) - (period_s, raan_rate) - f0
+            ) / (da + di)
         a, i = np.array([a, i]) - np.linalg.solve(jac, f0)
     return float(a), float(i)
 
 
 def node_state(
-    period_s: float, raan_rate_rad_per_s: float, e: float = 0.0, guess: tuple[float, float]
-    | None = None,
+    period_s: float,
+    raan_rate_rad_per_s: float,
+    e: float = 0.0,
+    guess: tuple[float, float] | None = None,
 ) -> tuple[float, float]:
     """Osculating (a, i) at the ascending node whose integrated orbit has the given nodal
     period and node regression (module docstring). Returns (a_m, i_rad)."""
@@ -252,8 +271,10 @@ class TruthOrbit:
         y = np.full((t.size, 6), np.nan)
         back, fwd = self._segments  # type: ignore[attr-defined]
         dt = t - self.t_ref_s
-        for seg, mask in ((back, (dt < 0) & (t >= self.t_start_s)),
-                          (fwd, (dt >= 0) & (t <= self.t_end_s))):
+        for seg, mask in (
+            (back, (dt < 0) & (t >= self.t_start_s)),
+            (fwd, (dt >= 0) & (t <= self.t_end_s)),
+        ):
             if seg is not None and mask.any():
                 y[mask] = seg(dt[mask]).T
             elif seg is None and mask.any():
@@ -268,13 +289,17 @@ class TruthOrbit:
 
     @classmethod
     def from_ecef(
-        cls, epoch: Epoch, t_ref_s: float, r_ecef_m: ArrayLike, v_ecef_m_per_s: ArrayLike,
-        t_start_s: float, t_end_s: float,
+        cls,
+        epoch: Epoch,
+        t_ref_s: float,
+        r_ecef_m: ArrayLike,
+        v_ecef_m_per_s: ArrayLike,
+        t_start_s: float,
+        t_end_s: float,
     ) -> TruthOrbit:
         """The orbit through an ECEF state (Earth-fixed velocity) at ``t_ref_s``."""
         r, v = ecef_to_eci(r_ecef_m, v_ecef_m_per_s, epoch.era_rad(t_ref_s))
-        return cls(epoch, t_ref_s, np.asarray(r, float), np.asarray(v, float), t_start_s,
-                   t_end_s)
+        return cls(epoch, t_ref_s, np.asarray(r, float), np.asarray(v, float), t_start_s, t_end_s)
 
 
 def ascending_node_ecef(orbit: TruthOrbit, after_s: float) -> NDArray[np.float64]:

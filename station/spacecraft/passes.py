@@ -88,9 +88,14 @@ def find_passes(
         k = int(np.argmax(el))
         _, v = orbit.state_ecef(tt[k : k + 1])
         sun = sun_direction_ecef(orbit.epoch, tt[k : k + 1])[0]
-        passes.append(Pass(
-            aos_s=float(a), los_s=float(b), max_elevation_rad=float(el[k]), t_max_s=float(tt[k]),
-            descending=bool(v[0, 2] < 0),
-            daylight=bool(sun @ WGS84.up(lat_rad, lon_rad) > 0),
-        ))
+        passes.append(
+            Pass(
+                aos_s=float(a),
+                los_s=float(b),
+                max_elevation_rad=float(el[k]),
+                t_max_s=float(tt[k]),
+                descending=bool(v[0, 2] < 0),
+                daylight=bool(sun @ WGS84.up(lat_rad, lon_rad) > 0),
+            )
+        )
     return passes

@@ -23,8 +23,7 @@ from station.spacecraft.orbit import (
     state_from_elements,
 )
 
-__all__ = ["ViewPoint", "mean_element_orbit", "nadir_point", "place_orbit",
-           "swath_centre_view"]
+__all__ = ["ViewPoint", "mean_element_orbit", "nadir_point", "place_orbit", "swath_centre_view"]
 
 
 ViewPoint = Callable[["TruthOrbit", NDArray[np.float64]], tuple[NDArray, NDArray]]
@@ -41,8 +40,12 @@ def _wrap(angle: ArrayLike) -> NDArray[np.float64]:
     return np.angle(np.exp(1j * np.asarray(angle, dtype=np.float64)))
 
 
-def _crossing(orbit: TruthOrbit, view: ViewPoint, lat_rad: float, t_guess_s: float,
-              ) -> tuple[float, float]:
+def _crossing(
+    orbit: TruthOrbit,
+    view: ViewPoint,
+    lat_rad: float,
+    t_guess_s: float,
+) -> tuple[float, float]:
     """Time near ``t_guess_s`` at which the view crosses ``lat_rad``, and its longitude."""
     t = t_guess_s
     for _ in range(8):  # secant on time; the view's latitude changes by ~6e-3°/s
@@ -97,7 +100,8 @@ def place_orbit(
     for _ in range(6):
         t_node = t_centre - lead
         raan = float(epoch.era_rad(t_node)) + 2 * np.pi * (
-            ltan_turns - np.mod(float(epoch.days_since_j2000(t_node)) + 0.5, 1.0))
+            ltan_turns - np.mod(float(epoch.days_since_j2000(t_node)) + 0.5, 1.0)
+        )
         r0, v0 = state_from_elements(a_m, e, i_rad, raan, 0.0, 0.0, mean_anomaly=False)
         probe = TruthOrbit(epoch, t_node, r0, v0, t_node, t_centre + 600.0)
         t_cross, lon = _crossing(probe, view, target_lat_rad, t_centre)
@@ -127,18 +131,32 @@ def swath_centre_view(mirror_rad: float, height_m: float) -> ViewPoint:
     return view
 
 
-def mean_element_orbit(oc: OrbitConfig, pc: PassConfig, epoch: Epoch,
-                       span_s: tuple[float, float], view: ViewPoint = nadir_point
-                       ) -> tuple[TruthOrbit, float]:
+def mean_element_orbit(
+    oc: OrbitConfig,
+    pc: PassConfig,
+    epoch: Epoch,
+    span_s: tuple[float, float],
+    view: ViewPoint = nadir_point,
+) -> tuple[TruthOrbit, float]:
     """The truth orbit of a ``phased`` or ``elements`` orbit section, placed by
     :func:`place_orbit` so that ``view`` crosses the pass's target on its day."""
     if oc.kind == "phased":
         period, raan_rate = phased_targets(oc.repeat_revs, oc.repeat_days)
     elif oc.kind == "elements":
         period, raan_rate = secular_targets(
-            WGS84.a_m + oc.altitude_m, oc.eccentricity, oc.inclination_rad)
+            WGS84.a_m + oc.altitude_m, oc.eccentricity, oc.inclination_rad
+        )
     else:
         raise OrbitError(f"[orbit] kind = {oc.kind!r} is not given by mean elements")
     a, i = node_state(period, raan_rate, oc.eccentricity)
-    return place_orbit(epoch, a, i, oc.eccentricity, oc.descending_node_local_time_h,
-                       pc.target_lat_rad, pc.target_lon_rad, span_s, view)
+    return place_orbit(
+        epoch,
+        a,
+        i,
+        oc.eccentricity,
+        oc.descending_node_local_time_h,
+        pc.target_lat_rad,
+        pc.target_lon_rad,
+        span_s,
+        view,
+    )

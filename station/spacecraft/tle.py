@@ -76,17 +76,20 @@ def read_tle(path: str | Path) -> list[Tle]:
                 year = 1900 + yy if yy >= 57 else 2000 + yy
                 doy = float(l1[20:32])
                 epoch = np.datetime64(f"{year}-01-01", "ns") + np.timedelta64(
-                    round((doy - 1) * 86400e9), "ns")
-                out.append(Tle(
-                    name=name or l1[2:7].strip(),
-                    epoch_utc=epoch,
-                    i_rad=np.radians(float(l2[8:16])),
-                    raan_rad=np.radians(float(l2[17:25])),
-                    e=float("0." + l2[26:33].strip()),
-                    argp_rad=np.radians(float(l2[34:42])),
-                    mean_anomaly_rad=np.radians(float(l2[43:51])),
-                    mean_motion_rad_per_s=float(l2[52:63]) * 2 * np.pi / 86400.0,
-                ))
+                    round((doy - 1) * 86400e9), "ns"
+                )
+                out.append(
+                    Tle(
+                        name=name or l1[2:7].strip(),
+                        epoch_utc=epoch,
+                        i_rad=np.radians(float(l2[8:16])),
+                        raan_rad=np.radians(float(l2[17:25])),
+                        e=float("0." + l2[26:33].strip()),
+                        argp_rad=np.radians(float(l2[34:42])),
+                        mean_anomaly_rad=np.radians(float(l2[43:51])),
+                        mean_motion_rad_per_s=float(l2[52:63]) * 2 * np.pi / 86400.0,
+                    )
+                )
             except ValueError as exc:
                 raise OrbitError(f"{p}: TLE {name!r} has a malformed field ({exc})") from None
             name = ""
@@ -102,7 +105,11 @@ def read_tle(path: str | Path) -> list[Tle]:
 def tle_state_eci(tle: Tle, epoch: Epoch) -> tuple[float, NDArray, NDArray]:
     """Time (s since ``epoch``), position and velocity in ECI of a TLE's elements."""
     r_teme, v_teme = state_from_elements(
-        tle.semi_major_axis_m(), tle.e, tle.i_rad, tle.raan_rad, tle.argp_rad,
+        tle.semi_major_axis_m(),
+        tle.e,
+        tle.i_rad,
+        tle.raan_rad,
+        tle.argp_rad,
         tle.mean_anomaly_rad,
     )
     t = float(epoch.seconds(tle.epoch_utc))

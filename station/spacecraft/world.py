@@ -113,8 +113,9 @@ def _to_xy(lat: float, lon: float, lon0: float) -> tuple[float, float]:
 
 
 @nb.njit(cache=True)
-def _terrain(x: float, y: float, base: float, relief: float, seed: np.int64
-             ) -> tuple[float, float, float]:
+def _terrain(
+    x: float, y: float, base: float, relief: float, seed: np.int64
+) -> tuple[float, float, float]:
     """Height (m) and its gradient (m/m) at metric (x, y)."""
     h, gx, gy = 0.0, 0.0, 0.0
     freq = 1.0 / _TERRAIN_WAVELENGTH_M
@@ -241,10 +242,22 @@ class World:
         else:
             d = self.terrain_grid
             grid = np.ascontiguousarray(d.height_m, dtype=np.float64)
-            geo = np.array([d.lat_rad[0], d.lon_rad[0], d.lat_rad[1] - d.lat_rad[0],
-                            d.lon_rad[1] - d.lon_rad[0]])
-        return (self.lon0_rad, float(self.base_height_m), float(self.relief_m),
-                np.int64(self.seed), grid, geo)
+            geo = np.array(
+                [
+                    d.lat_rad[0],
+                    d.lon_rad[0],
+                    d.lat_rad[1] - d.lat_rad[0],
+                    d.lon_rad[1] - d.lon_rad[0],
+                ]
+            )
+        return (
+            self.lon0_rad,
+            float(self.base_height_m),
+            float(self.relief_m),
+            np.int64(self.seed),
+            grid,
+            geo,
+        )
 
     def height(
         self, lat_rad: ArrayLike, lon_rad: ArrayLike
@@ -258,7 +271,10 @@ class World:
         """Reflectance of ``band`` (one of :data:`BANDS`) at (φ, λ)."""
         lat, lon = np.broadcast_arrays(np.asarray(lat_rad, float), np.asarray(lon_rad, float))
         out = _reflectance_many(
-            lat.ravel(), lon.ravel(), self.lon0_rad, np.int64(BANDS.index(band)),
+            lat.ravel(),
+            lon.ravel(),
+            self.lon0_rad,
+            np.int64(BANDS.index(band)),
             np.int64(self.seed),
         )
         return out.reshape(lat.shape)

@@ -17,11 +17,29 @@ from numpy.typing import NDArray
 
 from station.telemetry import format as tf
 
-__all__ = ["CORRECTED", "DUPLICATE", "FALSE_SYNC", "FILL", "OK", "OUT_OF_ORDER",
-           "STATUS_NAMES", "UNCORRECTABLE", "ChannelAccount", "account", "status_tables"]
+__all__ = [
+    "CORRECTED",
+    "DUPLICATE",
+    "FALSE_SYNC",
+    "FILL",
+    "OK",
+    "OUT_OF_ORDER",
+    "STATUS_NAMES",
+    "UNCORRECTABLE",
+    "ChannelAccount",
+    "account",
+    "status_tables",
+]
 
-STATUS_NAMES = ("ok", "corrected", "uncorrectable", "duplicate", "out_of_order", "fill",
-                "false_sync")
+STATUS_NAMES = (
+    "ok",
+    "corrected",
+    "uncorrectable",
+    "duplicate",
+    "out_of_order",
+    "fill",
+    "false_sync",
+)
 OK, CORRECTED, UNCORRECTABLE, DUPLICATE, OUT_OF_ORDER, FILL, FALSE_SYNC = range(7)
 _HALF = tf.VC_FRAME_COUNT_MODULUS // 2
 
@@ -65,7 +83,7 @@ def status_tables(frames: NDArray[np.uint8], rows: NDArray[np.int64]) -> dict[in
     z0 = tf.FRAME_HEADER_BYTES
     out: dict[int, dict] = {}
     magic = np.frombuffer(tf.STATUS_MAGIC, np.uint8)
-    good = rows[np.all(frames[rows, z0:z0 + 4] == magic, axis=1)]
+    good = rows[np.all(frames[rows, z0 : z0 + 4] == magic, axis=1)]
     if good.size == 0:
         return out
     most = (tf.ZONE_BYTES - 5) // tf.STATUS_ENTRY_DTYPE.itemsize
@@ -73,21 +91,30 @@ def status_tables(frames: NDArray[np.uint8], rows: NDArray[np.int64]) -> dict[in
     width = tf.STATUS_ENTRY_DTYPE.itemsize
     for k in range(int(n_entries.max(initial=0))):  # a handful of channels
         has = good[n_entries > k]
-        raw = np.ascontiguousarray(frames[has, z0 + 5 + k * width:z0 + 5 + (k + 1) * width])
+        raw = np.ascontiguousarray(frames[has, z0 + 5 + k * width : z0 + 5 + (k + 1) * width])
         e = raw.view(tf.STATUS_ENTRY_DTYPE).ravel()
         vc = (e["vc"] & 0x3F).astype(np.int64)
         closed = (e["vc"] & 0x80) != 0
         first = tf.from_u24(e["first_count"])
         for v in np.unique(vc):
             sel = vc == v
-            out[int(v)] = {"first": int(first[sel][0]), "sent": int(e["sent"][sel].max()),
-                           "closed": bool(closed[sel].any())}
+            out[int(v)] = {
+                "first": int(first[sel][0]),
+                "sent": int(e["sent"][sel].max()),
+                "closed": bool(closed[sel].any()),
+            }
     return out
 
 
-def account(vc: int, rows: NDArray[np.int64], count24: NDArray[np.int64],
-             corrected: NDArray[np.int64], status: NDArray[np.int64], table: dict | None,
-             unwrapped: NDArray[np.int64]) -> ChannelAccount:
+def account(
+    vc: int,
+    rows: NDArray[np.int64],
+    count24: NDArray[np.int64],
+    corrected: NDArray[np.int64],
+    status: NDArray[np.int64],
+    table: dict | None,
+    unwrapped: NDArray[np.int64],
+) -> ChannelAccount:
     """Classify a channel's good frames in arrival order and account for its frames."""
     u = _unwrap(count24[rows])
     unwrapped[rows] = u
@@ -112,10 +139,16 @@ def account(vc: int, rows: NDArray[np.int64], count24: NDArray[np.int64],
     expected = hi - lo + 1
     inner_gaps = int(np.count_nonzero(np.diff(uniq) > 1))
     return ChannelAccount(
-        vc=vc, sent=expected, delivered=delivered, lost=expected - delivered,
+        vc=vc,
+        sent=expected,
+        delivered=delivered,
+        lost=expected - delivered,
         gaps=inner_gaps + int(uniq[0] > lo) + int(uniq[-1] < hi),
-        duplicates=int((~is_first).sum()), out_of_order=int(late.sum()),
+        duplicates=int((~is_first).sum()),
+        out_of_order=int(late.sum()),
         corrected=int((is_first & (n_corr > 0)).sum()),
         symbols_corrected=int(n_corr[is_first].sum()),
-        head_known=head_known, tail_known=tail_known, first_count=lo,
+        head_known=head_known,
+        tail_known=tail_known,
+        first_count=lo,
     )

@@ -43,8 +43,9 @@ def on_the_clock(aux: NDArray, first_line: int) -> NDArray[np.bool_]:
     return np.abs(y - icept - slope * x) <= 2.0
 
 
-def line_clock(aux: NDArray, first_line: int, n_lines: int, method: str = "feasible"
-               ) -> tuple[np.datetime64, NDArray[np.float64], float, float]:
+def line_clock(
+    aux: NDArray, first_line: int, n_lines: int, method: str = "feasible"
+) -> tuple[np.datetime64, NDArray[np.float64], float, float]:
     """Line times from the (line counter, time code) pairs of the aux records.
 
     A time code is latched, truncated to the millisecond, at the start of its line: the
@@ -74,16 +75,19 @@ def line_clock(aux: NDArray, first_line: int, n_lines: int, method: str = "feasi
     xc = x - x_mid
     y_ms = (ms - ms.min()).astype(np.float64)
     slope, icept = np.polyfit(xc, y_ms + 0.5, 1)
-    a_ms, p_ms, spread = icept, slope, float(np.sqrt(np.mean(
-        (y_ms + 0.5 - icept - slope * xc) ** 2))) * 1e-3
+    a_ms, p_ms, spread = (
+        icept,
+        slope,
+        float(np.sqrt(np.mean((y_ms + 0.5 - icept - slope * xc) ** 2))) * 1e-3,
+    )
     # T <= a + P x < T + 1  as  A z <= b, z = (a, P)
-    a_ub = np.concatenate([np.stack([-np.ones_like(xc), -xc], 1),
-                           np.stack([np.ones_like(xc), xc], 1)])
+    a_ub = np.concatenate(
+        [np.stack([-np.ones_like(xc), -xc], 1), np.stack([np.ones_like(xc), xc], 1)]
+    )
     b_ub = np.concatenate([-y_ms, y_ms + 1.0 - 1e-9])
     ext = []
     for c in ([1, 0], [-1, 0], [0, 1], [0, -1]) if method == "feasible" else ():
-        r = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=[(None, None), (None, None)],
-                    method="highs")
+        r = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=[(None, None), (None, None)], method="highs")
         if r.status != 0:
             break
         ext.append(r.x)

@@ -55,8 +55,15 @@ def _word_at(stream: NDArray[np.uint8], bit: int) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _find(stream: NDArray[np.uint8], n_bits: int, asm: int, search_tol: int, lock_tol: int,
-          offsets: NDArray[np.int64], confirmed: NDArray[np.bool_]) -> tuple[int, int, int]:
+def _find(
+    stream: NDArray[np.uint8],
+    n_bits: int,
+    asm: int,
+    search_tol: int,
+    lock_tol: int,
+    offsets: NDArray[np.int64],
+    confirmed: NDArray[np.bool_],
+) -> tuple[int, int, int]:
     n = 0
     searched = 0
     losses = 0
@@ -75,8 +82,10 @@ def _find(stream: NDArray[np.uint8], n_bits: int, asm: int, search_tol: int, loc
                 last = expected
                 continue
             after = expected + _CADU_BITS  # coast: is the marker after it where it should be?
-            if after + _CADU_BITS <= n_bits and \
-                    _popcount32(_word_at(stream, after) ^ asm) <= lock_tol:
+            if (
+                after + _CADU_BITS <= n_bits
+                and _popcount32(_word_at(stream, after) ^ asm) <= lock_tol
+            ):
                 offsets[n] = expected  # a damaged marker; the code block may still decode
                 confirmed[n] = True
                 n += 1
@@ -106,8 +115,9 @@ def _find(stream: NDArray[np.uint8], n_bits: int, asm: int, search_tol: int, loc
     return n, searched, losses
 
 
-def find_cadus(stream: NDArray[np.uint8], n_bits: int, search_tolerance: int = 3,
-               lock_tolerance: int = 8) -> tuple[NDArray[np.int64], NDArray[np.bool_], int, int]:
+def find_cadus(
+    stream: NDArray[np.uint8], n_bits: int, search_tolerance: int = 3, lock_tolerance: int = 8
+) -> tuple[NDArray[np.int64], NDArray[np.bool_], int, int]:
     """Bit offsets of the CADUs in a stream, whether each was confirmed, the bits scanned
     while searching and the number of times the lock was lost (module docstring)."""
     stream = np.ascontiguousarray(stream, np.uint8)
@@ -116,19 +126,29 @@ def find_cadus(stream: NDArray[np.uint8], n_bits: int, search_tolerance: int = 3
     while True:  # false markers can be 32 bits apart in noise: grow if ever needed
         offsets = np.zeros(cap, np.int64)
         confirmed = np.zeros(cap, np.bool_)
-        n, searched, losses = _find(stream, n_bits, tf.ASM_WORD, search_tolerance,
-                                    lock_tolerance, offsets, confirmed)
+        n, searched, losses = _find(
+            stream, n_bits, tf.ASM_WORD, search_tolerance, lock_tolerance, offsets, confirmed
+        )
         if n < cap:
             return offsets[:n], confirmed[:n], int(searched), int(losses)
         cap *= 4
 
 
 @numba.njit(cache=True, nogil=True)
-def _decode(stream: NDArray[np.uint8], offsets: NDArray[np.int64], pn: NDArray[np.uint8],
-            syndrome_rows: NDArray[np.uint64], exp_b: NDArray[np.int64],
-            log_b: NDArray[np.int64], to_dual: NDArray[np.uint8], table: NDArray[np.uint16],
-            blocks: NDArray[np.uint8], corrected: NDArray[np.int64], rs_ok: NDArray[np.bool_],
-            crc_ok: NDArray[np.bool_]) -> None:
+def _decode(
+    stream: NDArray[np.uint8],
+    offsets: NDArray[np.int64],
+    pn: NDArray[np.uint8],
+    syndrome_rows: NDArray[np.uint64],
+    exp_b: NDArray[np.int64],
+    log_b: NDArray[np.int64],
+    to_dual: NDArray[np.uint8],
+    table: NDArray[np.uint16],
+    blocks: NDArray[np.uint8],
+    corrected: NDArray[np.int64],
+    rs_ok: NDArray[np.bool_],
+    crc_ok: NDArray[np.bool_],
+) -> None:
     nb = blocks.shape[1]
     for f in range(offsets.size):
         start = offsets[f] + 32
@@ -147,12 +167,12 @@ def _decode(stream: NDArray[np.uint8], offsets: NDArray[np.int64], pn: NDArray[n
         rs_ok[f] = decode_codeblock(blk, syndrome_rows, exp_b, log_b, to_dual, corrected[f])
         if rs_ok[f]:
             crc = crc16_kernel(blk, tf.FRAME_BYTES - 2, table)
-            crc_ok[f] = crc == ((np.int64(blk[tf.FRAME_BYTES - 2]) << 8)
-                                | blk[tf.FRAME_BYTES - 1])
+            crc_ok[f] = crc == ((np.int64(blk[tf.FRAME_BYTES - 2]) << 8) | blk[tf.FRAME_BYTES - 1])
 
 
-def decode_cadus(stream: NDArray[np.uint8], offsets: NDArray[np.int64]) -> tuple[
-        NDArray[np.uint8], NDArray[np.int64], NDArray[np.bool_], NDArray[np.bool_]]:
+def decode_cadus(
+    stream: NDArray[np.uint8], offsets: NDArray[np.int64]
+) -> tuple[NDArray[np.uint8], NDArray[np.int64], NDArray[np.bool_], NDArray[np.bool_]]:
     """Extract, derandomise, RS-decode and CRC-check the CADUs at ``offsets``.
 
     Returns the transfer frames (n, 892), the symbols corrected per codeword (n, 4; −1 where
@@ -164,7 +184,18 @@ def decode_cadus(stream: NDArray[np.uint8], offsets: NDArray[np.int64]) -> tuple
     corrected = np.zeros((n, 4), np.int64)
     rs_ok = np.zeros(n, np.bool_)
     crc_ok = np.zeros(n, np.bool_)
-    _decode(np.ascontiguousarray(stream, np.uint8), np.asarray(offsets, np.int64),
-            np.ascontiguousarray(pn_sequence(tf.CODE_BLOCK_BYTES)), t.syndrome_rows,
-            t.exp_b, t.log_b, t.to_dual, crc_table(), blocks, corrected, rs_ok, crc_ok)
-    return blocks[:, :tf.FRAME_BYTES], corrected, rs_ok, crc_ok
+    _decode(
+        np.ascontiguousarray(stream, np.uint8),
+        np.asarray(offsets, np.int64),
+        np.ascontiguousarray(pn_sequence(tf.CODE_BLOCK_BYTES)),
+        t.syndrome_rows,
+        t.exp_b,
+        t.log_b,
+        t.to_dual,
+        crc_table(),
+        blocks,
+        corrected,
+        rs_ok,
+        crc_ok,
+    )
+    return blocks[:, : tf.FRAME_BYTES], corrected, rs_ok, crc_ok

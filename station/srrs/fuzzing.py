@@ -29,7 +29,7 @@ Mutator = Callable[[NDArray[np.uint8], np.random.Generator], NDArray[np.uint8]]
 def frames_of(cadus: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """The transfer frames (n, 892) inside clean CADUs (n, 1024): the code is systematic,
     so a frame is the first 892 bytes of its derandomised code block."""
-    return cadus[:, 4:4 + tf.FRAME_BYTES] ^ pn_sequence(tf.FRAME_BYTES)
+    return cadus[:, 4 : 4 + tf.FRAME_BYTES] ^ pn_sequence(tf.FRAME_BYTES)
 
 
 def _reencode(frames: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -70,8 +70,11 @@ def _slip(s: NDArray, rng: np.random.Generator) -> NDArray:
     a = int(rng.integers(0, s.size))
     bits = np.unpackbits(s[a:])
     k = int(rng.integers(1, 8))
-    tail = bits[k:] if rng.random() < 0.5 else np.concatenate(
-        [rng.integers(0, 2, k, dtype=np.uint8), bits])
+    tail = (
+        bits[k:]
+        if rng.random() < 0.5
+        else np.concatenate([rng.integers(0, 2, k, dtype=np.uint8), bits])
+    )
     return np.concatenate([s[:a], np.packbits(tail)])
 
 
@@ -79,7 +82,7 @@ def _bit_storm(s: NDArray, rng: np.random.Generator) -> NDArray:
     s = s.copy()
     ber = 10 ** rng.uniform(-4, -0.3)
     flips = rng.random(s.size * 8) < ber
-    return s ^ np.packbits(flips)[:s.size]
+    return s ^ np.packbits(flips)[: s.size]
 
 
 def _truncate(s: NDArray, rng: np.random.Generator) -> NDArray:
@@ -123,8 +126,9 @@ MUTATORS: dict[str, Mutator] = {
 }
 
 
-def mutate(stream: NDArray[np.uint8], frames: NDArray[np.uint8],
-           rng: np.random.Generator) -> tuple[str, NDArray[np.uint8]]:
+def mutate(
+    stream: NDArray[np.uint8], frames: NDArray[np.uint8], rng: np.random.Generator
+) -> tuple[str, NDArray[np.uint8]]:
     """One hostile input: its kind and its bytes. Half start from frames with valid codes
     and garbage inside; then 0 to 2 stream mutations are stacked."""
     chosen, s = [], stream

@@ -38,8 +38,13 @@ def _first_break(seq: NDArray[np.int64], a: int, b: int) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _cut_packets(zone: NDArray[np.uint8], seq: NDArray[np.int64], fhp: NDArray[np.int64],
-                 starts: NDArray[np.int64], lengths: NDArray[np.int64]) -> tuple[int, int]:
+def _cut_packets(
+    zone: NDArray[np.uint8],
+    seq: NDArray[np.int64],
+    fhp: NDArray[np.int64],
+    starts: NDArray[np.int64],
+    lengths: NDArray[np.int64],
+) -> tuple[int, int]:
     """Find the complete packets in the packet zones of a channel's frames, laid end to end
     in frame-count order (``seq`` strictly increasing, possibly with gaps).
 
@@ -87,29 +92,36 @@ def _cut_packets(zone: NDArray[np.uint8], seq: NDArray[np.int64], fhp: NDArray[n
 
 
 @numba.njit(cache=True, nogil=True)
-def _place_segments(zone: NDArray[np.uint8], starts: NDArray[np.int64],
-                    row: NDArray[np.int64], band: NDArray[np.int64],
-                    first_det: NDArray[np.int64], count: NDArray[np.int64],
-                    encoding: NDArray[np.int64], value: NDArray[np.uint8],
-                    payload: int, images: NDArray[np.uint8]) -> None:
+def _place_segments(
+    zone: NDArray[np.uint8],
+    starts: NDArray[np.int64],
+    row: NDArray[np.int64],
+    band: NDArray[np.int64],
+    first_det: NDArray[np.int64],
+    count: NDArray[np.int64],
+    encoding: NDArray[np.int64],
+    value: NDArray[np.uint8],
+    payload: int,
+    images: NDArray[np.uint8],
+) -> None:
     for k in range(starts.size):
-        out = images[band[k], row[k], first_det[k]:first_det[k] + count[k]]
+        out = images[band[k], row[k], first_det[k] : first_det[k] + count[k]]
         p = starts[k] + payload
         if encoding[k] == ENCODING_RAW8:
-            out[:] = zone[p:p + count[k]]
+            out[:] = zone[p : p + count[k]]
         else:
             dpcm.decode_one(zone, p, count[k], value, out)
 
 
-def packets_of(frames: NDArray[np.uint8], rows: NDArray[np.int64],
-                unwrapped: NDArray[np.int64]) -> tuple[NDArray[np.uint8], NDArray[np.int64],
-                                                       NDArray[np.int64], int]:
+def packets_of(
+    frames: NDArray[np.uint8], rows: NDArray[np.int64], unwrapped: NDArray[np.int64]
+) -> tuple[NDArray[np.uint8], NDArray[np.int64], NDArray[np.int64], int]:
     """Complete packets of one channel: the zone bytes, packet starts and lengths, drops."""
     u = unwrapped[rows]
     uniq, idx = np.unique(u, return_index=True)  # sorted, one copy each
     sel = rows[idx]
     h0 = tf.FRAME_HEADER_BYTES
-    zone = np.ascontiguousarray(frames[sel, h0:h0 + tf.ZONE_BYTES]).ravel()
+    zone = np.ascontiguousarray(frames[sel, h0 : h0 + tf.ZONE_BYTES]).ravel()
     fhp = ((frames[sel, 6].astype(np.int64) << 8) | frames[sel, 7]) & 0x7FF
     cap = zone.size // 7 + 1
     starts = np.zeros(cap, np.int64)
@@ -118,8 +130,9 @@ def packets_of(frames: NDArray[np.uint8], rows: NDArray[np.int64],
     return zone, starts[:n], lengths[:n], int(dropped)
 
 
-def lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
-                        lengths: NDArray[np.int64]) -> dict:
+def lines_from_packets(
+    zone: NDArray[np.uint8], starts: NDArray[np.int64], lengths: NDArray[np.int64]
+) -> dict:
     """Sort packets by APID, read the aux records, place the image segments."""
     pid = ((zone[starts].astype(np.int64) << 8) | zone[starts + 1]) & 0x7FF
     stats = {"complete": int(starts.size), "idle": int((pid == tf.APID_IDLE).sum())}
@@ -142,10 +155,13 @@ def lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
     n_det, n_bands, hrv = int(ref["n_detectors"]), int(ref["n_bands"]), int(ref["hrv"])
     seg_first = np.arange(0, n_det, tf.SEGMENT_DETECTORS)
 
-    if not (1 <= n_lines <= _MAX_LINES and 1 <= n_det <= _MAX_DETECTORS
-            and 1 <= n_bands <= _MAX_BANDS):
-        raise ReceiverError(f"the auxiliary data describe an impossible strip: {n_lines} lines "
-                            f"of {n_bands} bands × {n_det} detectors")
+    if not (
+        1 <= n_lines <= _MAX_LINES and 1 <= n_det <= _MAX_DETECTORS and 1 <= n_bands <= _MAX_BANDS
+    ):
+        raise ReceiverError(
+            f"the auxiliary data describe an impossible strip: {n_lines} lines "
+            f"of {n_bands} bands × {n_det} detectors"
+        )
     hdr_size = tf.IMAGE_HEADER_DTYPE.itemsize
     is_img = (pid == tf.APID_IMAGE + hrv) & (lengths >= 6 + hdr_size + 1)
     idx = starts[is_img][:, None] + 6 + np.arange(hdr_size)
@@ -157,27 +173,51 @@ def lines_from_packets(zone: NDArray[np.uint8], starts: NDArray[np.int64],
     band = hdr["band"].astype(np.int64)
     need = np.where(enc == tf.ENCODING_DPCM6, dpcm.payload_bytes(count), count)
     seg = first_det // tf.SEGMENT_DETECTORS
-    sane = ((row >= 0) & (row < n_lines) & (band < n_bands) & (count >= 1)
-            & (first_det % tf.SEGMENT_DETECTORS == 0) & (first_det + count <= n_det)
-            & (count == np.minimum(tf.SEGMENT_DETECTORS, n_det - first_det))
-            & ((enc == tf.ENCODING_RAW8) | (enc == tf.ENCODING_DPCM6))
-            & (lengths[is_img] == 6 + hdr_size + need))
+    sane = (
+        (row >= 0)
+        & (row < n_lines)
+        & (band < n_bands)
+        & (count >= 1)
+        & (first_det % tf.SEGMENT_DETECTORS == 0)
+        & (first_det + count <= n_det)
+        & (count == np.minimum(tf.SEGMENT_DETECTORS, n_det - first_det))
+        & ((enc == tf.ENCODING_RAW8) | (enc == tf.ENCODING_DPCM6))
+        & (lengths[is_img] == 6 + hdr_size + need)
+    )
     stats["image"] = int(sane.sum())
     stats["image_rejected"] = int((~sane).sum())
     images = np.zeros((n_bands, n_lines, n_det), np.uint8)
     valid = np.zeros((n_bands, n_lines, seg_first.size), bool)
     _code, value = dpcm.reconstruction_table()
-    _place_segments(zone, starts[is_img][sane], row[sane], band[sane], first_det[sane],
-                    count[sane], enc[sane], value, 6 + hdr_size, images)
+    _place_segments(
+        zone,
+        starts[is_img][sane],
+        row[sane],
+        band[sane],
+        first_det[sane],
+        count[sane],
+        enc[sane],
+        value,
+        6 + hdr_size,
+        images,
+    )
     valid[band[sane], row[sane], seg[sane]] = True
     stats["other"] = int(starts.size - stats["idle"] - is_aux.sum() - is_img.sum())
     epoch_utc, line_t, period, rms = line_clock(aux, first_line, n_lines)
     return {
-        "epoch_utc": epoch_utc, "line_t_s": line_t, "line_period_s": period,
+        "epoch_utc": epoch_utc,
+        "line_t_s": line_t,
+        "line_period_s": period,
         "line_clock_uncertainty_s": rms,
-        "hrv": hrv, "mode": "P" if int(ref["mode"]) == 0 else "XS",
-        "mirror_step": int(ref["mirror_step"]), "twin": bool(int(ref["status"]) & 2),
-        "first_line_counter": first_line, "images": tuple(images), "valid": tuple(valid),
+        "hrv": hrv,
+        "mode": "P" if int(ref["mode"]) == 0 else "XS",
+        "mirror_step": int(ref["mirror_step"]),
+        "twin": bool(int(ref["status"]) & 2),
+        "first_line_counter": first_line,
+        "images": tuple(images),
+        "valid": tuple(valid),
         "segment_first_detector": seg_first,
-        "line_counter": first_line + np.arange(n_lines), "aux": aux, "packets": stats,
+        "line_counter": first_line + np.arange(n_lines),
+        "aux": aux,
+        "packets": stats,
     }

@@ -62,6 +62,7 @@ __all__ = [
     "receive",
 ]
 
+
 @dataclass(frozen=True, eq=False)
 class DecodedPass:
     """What the receiver made of a pass: per-frame log, accounting, lines and aux."""
@@ -104,8 +105,7 @@ class DecodedPass:
 
     def pixel_valid(self, band: int) -> NDArray[np.bool_]:
         """The segment mask of a band expanded to every pixel (lines, detectors)."""
-        return pixel_mask(self.valid[band], self.segment_first_detector,
-                          self.images[band].shape[1])
+        return pixel_mask(self.valid[band], self.segment_first_detector, self.images[band].shape[1])
 
     @property
     def status_counts(self) -> dict[str, int]:
@@ -113,15 +113,22 @@ class DecodedPass:
         return {name: int(c) for name, c in zip(STATUS_NAMES, counts, strict=True)}
 
 
-def receive(stream: NDArray[np.uint8], n_bits: int | None = None,
-            search_tolerance: int = 3, lock_tolerance: int = 8) -> DecodedPass:
+def receive(
+    stream: NDArray[np.uint8],
+    n_bits: int | None = None,
+    search_tolerance: int = 3,
+    lock_tolerance: int = 8,
+) -> DecodedPass:
     """Decode a recorded pass (module docstring). Raises :class:`ReceiverError` only when
     nothing usable is in it; every defect short of that is counted, not raised."""
-    stream = np.ascontiguousarray(np.frombuffer(stream, np.uint8)
-                                  if isinstance(stream, bytes | bytearray) else stream, np.uint8)
+    stream = np.ascontiguousarray(
+        np.frombuffer(stream, np.uint8) if isinstance(stream, bytes | bytearray) else stream,
+        np.uint8,
+    )
     n_bits = stream.size * 8 if n_bits is None else int(n_bits)
-    offsets, confirmed, searched, losses = find_cadus(stream, n_bits, search_tolerance,
-                                                       lock_tolerance)
+    offsets, confirmed, searched, losses = find_cadus(
+        stream, n_bits, search_tolerance, lock_tolerance
+    )
     frames, corrected, rs_ok, crc_ok = decode_cadus(stream, offsets)
     head = np.ascontiguousarray(frames[:, :6])
     word = (head[:, 0].astype(np.int64) << 8) | head[:, 1]
@@ -137,25 +144,36 @@ def receive(stream: NDArray[np.uint8], n_bits: int | None = None,
     accounts = {}
     for v in np.unique(vc[good]):  # a few channels
         rows = np.flatnonzero(good & (vc == v))
-        accounts[int(v)] = account(int(v), rows, count24, n_corr, status,
-                                    tables.get(int(v)), unwrapped)
+        accounts[int(v)] = account(
+            int(v), rows, count24, n_corr, status, tables.get(int(v)), unwrapped
+        )
     for v, t in tables.items():  # channels that sent frames none of which arrived
         if v not in accounts:
-            accounts[v] = ChannelAccount(v, t["sent"], 0, t["sent"], 1, 0, 0, 0, 0, True,
-                                         t["closed"], t["first"])
+            accounts[v] = ChannelAccount(
+                v, t["sent"], 0, t["sent"], 1, 0, 0, 0, 0, True, t["closed"], t["first"]
+            )
     status[fill & (status != DUPLICATE)] = FILL
 
     data_vcs = [v for v in accounts if v != tf.VC_FILL and np.any(good & (vc == v))]
     if not data_vcs:
-        raise ReceiverError("no data frame could be decoded in the stream "
-                            f"({offsets.size} markers found in {n_bits} bits)")
+        raise ReceiverError(
+            "no data frame could be decoded in the stream "
+            f"({offsets.size} markers found in {n_bits} bits)"
+        )
     data_vc = data_vcs[0]
     rows = np.flatnonzero(good & (vc == data_vc))
     zone, starts, lengths, dropped = packets_of(frames, rows, unwrapped)
     decoded = lines_from_packets(zone, starts, lengths)
     decoded["packets"]["dropped_at_gaps"] = dropped
     return DecodedPass(
-        frame_bit_offset=offsets, frame_status=status, frame_vc=np.where(good, vc, -1),
-        frame_count=unwrapped, frame_symbols_corrected=n_corr, accounts=accounts,
-        bits_in=n_bits, bits_searched=searched, sync_losses=losses, **decoded,
+        frame_bit_offset=offsets,
+        frame_status=status,
+        frame_vc=np.where(good, vc, -1),
+        frame_count=unwrapped,
+        frame_symbols_corrected=n_corr,
+        accounts=accounts,
+        bits_in=n_bits,
+        bits_searched=searched,
+        sync_losses=losses,
+        **decoded,
     )

@@ -40,17 +40,24 @@ class BandAncillary:
     offset_counts: NDArray[np.float64]
 
 
-def _dataset(group: h5py.Group, name: str, data: np.ndarray, units: str, long_name: str,
-             **kwargs) -> h5py.Dataset:
+def _dataset(
+    group: h5py.Group, name: str, data: np.ndarray, units: str, long_name: str, **kwargs
+) -> h5py.Dataset:
     ds = group.create_dataset(name, data=data, **kwargs)
     ds.attrs["units"] = units
     ds.attrs["long_name"] = long_name
     return ds
 
 
-def write_l0(path: str | Path, decoded: DecodedPass, bulletins: Ephemeris,
-             bulletin_epoch_utc: np.datetime64, ancillary: list[BandAncillary],
-             scenario_name: str = "", provenance: dict | None = None) -> Path:
+def write_l0(
+    path: str | Path,
+    decoded: DecodedPass,
+    bulletins: Ephemeris,
+    bulletin_epoch_utc: np.datetime64,
+    ancillary: list[BandAncillary],
+    scenario_name: str = "",
+    provenance: dict | None = None,
+) -> Path:
     """Write the L0 archive of a pass atomically; returns the path written.
 
     ``bulletins`` carry times in seconds since ``bulletin_epoch_utc``; they are stored on
@@ -60,15 +67,28 @@ def write_l0(path: str | Path, decoded: DecodedPass, bulletins: Ephemeris,
     names = [a.name for a in ancillary]
     if len(names) != len(decoded.images):
         raise ValueError(f"{len(decoded.images)} bands decoded but ancillary for {names}")
-    shift_s = float((np.datetime64(bulletin_epoch_utc, "ns")
-                     - np.datetime64(decoded.epoch_utc, "ns")).astype(np.int64)) / 1e9
+    shift_s = (
+        float(
+            (
+                np.datetime64(bulletin_epoch_utc, "ns") - np.datetime64(decoded.epoch_utc, "ns")
+            ).astype(np.int64)
+        )
+        / 1e9
+    )
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
     return path
 
 
-def _write(f: h5py.File, d: DecodedPass, bulletins: Ephemeris, shift_s: float,
-           ancillary: list[BandAncillary], scenario_name: str, provenance: dict) -> None:
+def _write(
+    f: h5py.File,
+    d: DecodedPass,
+    bulletins: Ephemeris,
+    shift_s: float,
+    ancillary: list[BandAncillary],
+    scenario_name: str,
+    provenance: dict,
+) -> None:
     n_lines, n_det = d.images[0].shape
     a = f.attrs
     a["format"] = L0_FORMAT
@@ -87,15 +107,30 @@ def _write(f: h5py.File, d: DecodedPass, bulletins: Ephemeris, shift_s: float,
     a["provenance"] = json.dumps(provenance, sort_keys=True)
 
     bands = f.create_group("bands")
-    _dataset(bands, "segment_first_detector", d.segment_first_detector, "1",
-             "first detector of each image segment (one packet per band, line, segment)")
+    _dataset(
+        bands,
+        "segment_first_detector",
+        d.segment_first_detector,
+        "1",
+        "first detector of each image segment (one packet per band, line, segment)",
+    )
     chunks = (min(_CHUNK_LINES, n_lines), n_det)
     for anc, img, ok in zip(ancillary, d.images, d.valid, strict=True):
         g = bands.create_group(anc.name)
-        _dataset(g, "counts", img, "1", f"raw counts of band {anc.name}",
-                 chunks=chunks, compression="gzip", compression_opts=1, shuffle=True)
-        _dataset(g, "valid", ok, "1", "segment received complete (per line, segment)",
-                 compression="gzip")
+        _dataset(
+            g,
+            "counts",
+            img,
+            "1",
+            f"raw counts of band {anc.name}",
+            chunks=chunks,
+            compression="gzip",
+            compression_opts=1,
+            shuffle=True,
+        )
+        _dataset(
+            g, "valid", ok, "1", "segment received complete (per line, segment)", compression="gzip"
+        )
         look = g.create_group("look_angles")
         look.attrs["n_columns"] = anc.look.n_columns
         _dataset(look, "column", anc.look.column, "1", "detector column of each entry")
@@ -103,8 +138,13 @@ def _write(f: h5py.File, d: DecodedPass, bulletins: Ephemeris, shift_s: float,
         _dataset(look, "psi_y_rad", anc.look.psi_y_rad, "rad", "nominal across-track angle")
         cal = g.create_group("calibration")
         _dataset(cal, "gain", anc.gain, "1", "relative gain of each detector (table)")
-        _dataset(cal, "offset_counts", anc.offset_counts, "1",
-                 "dark offset of each detector (table), counts")
+        _dataset(
+            cal,
+            "offset_counts",
+            anc.offset_counts,
+            "1",
+            "dark offset of each detector (table), counts",
+        )
 
     lines = f.create_group("lines")
     _dataset(lines, "line_counter", d.line_counter, "1", "instrument line counter")
@@ -114,18 +154,43 @@ def _write(f: h5py.File, d: DecodedPass, bulletins: Ephemeris, shift_s: float,
     t.attrs["fit_records"] = int(d.aux.size)
 
     aux = f.create_group("aux")
-    _dataset(aux, "time_ms", d.aux["time_ms"].astype(np.int64), "ms",
-             "time code of the gyro sample, ms since 1950-01-01 (CNES day 0)")
+    _dataset(
+        aux,
+        "time_ms",
+        d.aux["time_ms"].astype(np.int64),
+        "ms",
+        "time code of the gyro sample, ms since 1950-01-01 (CNES day 0)",
+    )
     _dataset(aux, "t_s", d.aux_t_s, "s", "time code, s since epoch_utc")
-    _dataset(aux, "line_counter", d.aux["line"].astype(np.int64), "1",
-             "first line starting at or after the time code")
-    _dataset(aux, "line_time_ms", d.aux["line_time_ms"].astype(np.int64), "ms",
-             "time code latched at that line's start, ms since 1950-01-01")
-    _dataset(aux, "gyro_rates_rad_per_s", d.gyro_rates_rad_per_s, "rad s-1",
-             "gyro rates about roll, pitch, yaw")
+    _dataset(
+        aux,
+        "line_counter",
+        d.aux["line"].astype(np.int64),
+        "1",
+        "first line starting at or after the time code",
+    )
+    _dataset(
+        aux,
+        "line_time_ms",
+        d.aux["line_time_ms"].astype(np.int64),
+        "ms",
+        "time code latched at that line's start, ms since 1950-01-01",
+    )
+    _dataset(
+        aux,
+        "gyro_rates_rad_per_s",
+        d.gyro_rates_rad_per_s,
+        "rad s-1",
+        "gyro rates about roll, pitch, yaw",
+    )
     _dataset(aux, "mirror_step", d.aux["mirror_step"].astype(np.int64), "1", "mirror step")
-    _dataset(aux, "status", d.aux["status"].astype(np.int64), "1",
-             "bit 0 imaging, bit 1 twin configuration")
+    _dataset(
+        aux,
+        "status",
+        d.aux["status"].astype(np.int64),
+        "1",
+        "bit 0 imaging, bit 1 twin configuration",
+    )
 
     eph = f.create_group("ephemeris")
     eph.attrs["source"] = "ephemeris bulletins handed to the station"
@@ -145,8 +210,13 @@ def _write(f: h5py.File, d: DecodedPass, bulletins: Ephemeris, shift_s: float,
     _dataset(fr, "status", d.frame_status.astype(np.int8), "1", "index into status_names")
     _dataset(fr, "vc", d.frame_vc.astype(np.int8), "1", "virtual channel (−1: unknown)")
     _dataset(fr, "count", d.frame_count, "1", "unwrapped frame count (−1: unknown)")
-    _dataset(fr, "symbols_corrected", d.frame_symbols_corrected.astype(np.int16), "1",
-             "Reed–Solomon symbols corrected")
+    _dataset(
+        fr,
+        "symbols_corrected",
+        d.frame_symbols_corrected.astype(np.int16),
+        "1",
+        "Reed–Solomon symbols corrected",
+    )
     ch = dec.create_group("channels")
     for vc, acc in sorted(d.accounts.items()):
         g = ch.create_group(f"vc{vc:02d}")

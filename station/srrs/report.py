@@ -55,45 +55,53 @@ def downlink_report(acq: Acquisition, result: DownlinkResult) -> dict:
         ok = d.pixel_valid(b)
         got, sent, raw = d.images[b][ok], tx.ground_bands[b][ok], band.counts[ok]
         err = np.abs(got.astype(np.int64) - raw)
-        bands.append({
-            "name": band.name,
-            "lines_complete": int(d.valid[b].all(axis=1).sum()),
-            "lines_partial": int((d.valid[b].any(axis=1) & ~d.valid[b].all(axis=1)).sum()),
-            "lines_missing": int((~d.valid[b].any(axis=1)).sum()),
-            "pixels_valid_fraction": round(float(ok.mean()), 6),
-            "valid_pixels_as_sent": bool(np.array_equal(got, sent)),
-            "max_error_vs_raw_counts": int(err.max(initial=0)),
-            "rms_error_vs_raw_counts": round(float(np.sqrt(np.mean(err ** 2.0)))
-                                             if err.size else 0.0, 4),
-        })
+        bands.append(
+            {
+                "name": band.name,
+                "lines_complete": int(d.valid[b].all(axis=1).sum()),
+                "lines_partial": int((d.valid[b].any(axis=1) & ~d.valid[b].all(axis=1)).sum()),
+                "lines_missing": int((~d.valid[b].any(axis=1)).sum()),
+                "pixels_valid_fraction": round(float(ok.mean()), 6),
+                "valid_pixels_as_sent": bool(np.array_equal(got, sent)),
+                "max_error_vs_raw_counts": int(err.max(initial=0)),
+                "rms_error_vs_raw_counts": round(
+                    float(np.sqrt(np.mean(err**2.0))) if err.size else 0.0, 4
+                ),
+            }
+        )
     n_bits = rx.n_bits
     t_rx = result.timings_s["receive"]
     lost = lost_data_frames(tx, d)
-    masks_ok = bool(np.array_equal(np.stack(d.valid),
-                                   expected_valid(tx, lost, d.line_counter.size)))
+    masks_ok = bool(
+        np.array_equal(np.stack(d.valid), expected_valid(tx, lost, d.line_counter.size))
+    )
     line_err = np.abs(d.line_t_s - acq.line_times_s)
     return {
         "scenario": acq.scenario.name,
-        "hrv": d.hrv, "mode": d.mode,
-        "lines": int(d.line_counter.size), "detectors": int(d.images[0].shape[1]),
+        "hrv": d.hrv,
+        "mode": d.mode,
+        "lines": int(d.line_counter.size),
+        "detectors": int(d.images[0].shape[1]),
         "link": {
             "cadus_sent": int(tx.cadus.shape[0]),
             "duration_s": round(8 * tx.n_bytes / tx.bit_rate_bit_per_s, 3),
             "bit_rate_mbps": tx.bit_rate_bit_per_s / 1e6,
             "bits_recorded": n_bits,
-            "bit_errors": rx.n_bit_errors, "bursts": rx.n_bursts, "fades": rx.n_fades,
+            "bit_errors": rx.n_bit_errors,
+            "bursts": rx.n_bursts,
+            "fades": rx.n_fades,
         },
         "cadus": d.status_counts,
-        "channels": {f"vc{v:02d}": {**a.as_dict(), "truth_sent": int(tx.sent.get(v, -1))}
-                     for v, a in sorted(d.accounts.items())},
+        "channels": {
+            f"vc{v:02d}": {**a.as_dict(), "truth_sent": int(tx.sent.get(v, -1))}
+            for v, a in sorted(d.accounts.items())
+        },
         "sync": {"bits_searched": d.bits_searched, "losses": d.sync_losses},
         "truth_check": {
             "data_frames_lost": int(lost.size),
             "masks_match_lost_frames": masks_ok,
-            "accounts_balance": all(a.delivered + a.lost == a.sent
-                                    for a in d.accounts.values()),
-            "sent_as_counted": all(a.sent == tx.sent.get(v, -1)
-                                   for v, a in d.accounts.items()),
+            "accounts_balance": all(a.delivered + a.lost == a.sent for a in d.accounts.values()),
+            "sent_as_counted": all(a.sent == tx.sent.get(v, -1) for v, a in d.accounts.items()),
         },
         "packets": d.packets,
         "bands": bands,
@@ -111,14 +119,21 @@ def comparable(report: dict) -> dict:
     """The part of a downlink report that must not change between runs or machines: counts
     of frames and lines and the truth checks (frame losses depend only on where the channel
     put its errors, which the seed fixes, not on the image)."""
-    keys = ("sent", "delivered", "lost", "gaps", "duplicates", "out_of_order", "head_known",
-            "tail_known")
+    keys = (
+        "sent",
+        "delivered",
+        "lost",
+        "gaps",
+        "duplicates",
+        "out_of_order",
+        "head_known",
+        "tail_known",
+    )
     lines = ("lines_complete", "lines_partial", "lines_missing", "valid_pixels_as_sent")
     return {
         "cadus": report["cadus"],
         "channels": {vc: {k: c[k] for k in keys} for vc, c in report["channels"].items()},
         "bands": [{k: b[k] for k in ("name", *lines)} for b in report["bands"]],
         "truth_check": report["truth_check"],
-        "link": {k: report["link"][k] for k in ("cadus_sent", "bit_errors", "bursts",
-                                                 "fades")},
+        "link": {k: report["link"][k] for k in ("cadus_sent", "bit_errors", "bursts", "fades")},
     }

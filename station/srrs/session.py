@@ -44,8 +44,7 @@ def downlink(acq: Acquisition) -> DownlinkResult:
     """
     scn = acq.scenario
     key = (_DOWNLINK_STREAM,) if acq.index == 0 else (_DOWNLINK_STREAM, acq.index)
-    rng_tx, rng_ch = np.random.default_rng(
-        np.random.SeedSequence(scn.seed, spawn_key=key)).spawn(2)
+    rng_tx, rng_ch = np.random.default_rng(np.random.SeedSequence(scn.seed, spawn_key=key)).spawn(2)
     clock = time.perf_counter
     t0 = clock()
     tx = transmit(acq, scn.downlink, rng_tx)
@@ -56,19 +55,28 @@ def downlink(acq: Acquisition) -> DownlinkResult:
     t2 = clock()
     decoded = receive(rx.stream, rx.n_bits)
     t3 = clock()
-    return DownlinkResult(tx, rx, decoded,
-                          {"transmit": t1 - t0, "channel": t2 - t1, "receive": t3 - t2})
+    return DownlinkResult(
+        tx, rx, decoded, {"transmit": t1 - t0, "channel": t2 - t1, "receive": t3 - t2}
+    )
 
 
 def ancillary_of(acq: Acquisition) -> list[BandAncillary]:
     """What the station is handed per band besides telemetry (nominal tables)."""
-    return [BandAncillary(b.name, b.look_nominal, b.table_gain, b.table_offset_counts)
-            for b in acq.hrv.bands]
+    return [
+        BandAncillary(b.name, b.look_nominal, b.table_gain, b.table_offset_counts)
+        for b in acq.hrv.bands
+    ]
 
 
 def record(acq: Acquisition, result: DownlinkResult, path: str | Path) -> Path:
     """Write the L0 archive of a received pass, with the bulletins and nominal tables."""
     scn = acq.scenario
-    return write_l0(path, result.decoded, acq.bulletins, acq.epoch.t0_utc, ancillary_of(acq),
-                    scenario_name=scn.name,
-                    provenance=scn.provenance())
+    return write_l0(
+        path,
+        result.decoded,
+        acq.bulletins,
+        acq.epoch.t0_utc,
+        ancillary_of(acq),
+        scenario_name=scn.name,
+        provenance=scn.provenance(),
+    )

@@ -36,8 +36,9 @@ def crc16_kernel(data: NDArray[np.uint8], length: int, table: NDArray[np.uint16]
 
 
 @numba.njit(cache=True, nogil=True)
-def _crc_rows(rows: NDArray[np.uint8], length: int, table: NDArray[np.uint16],
-              out: NDArray[np.uint16]) -> None:
+def _crc_rows(
+    rows: NDArray[np.uint8], length: int, table: NDArray[np.uint16], out: NDArray[np.uint16]
+) -> None:
     for r in range(rows.shape[0]):
         out[r] = crc16_kernel(rows[r], length, table)
 

@@ -72,8 +72,13 @@ def payload_bytes(n_pixels: int | NDArray[np.int64]) -> int | NDArray[np.int64]:
 
 
 @numba.njit(cache=True, nogil=True)
-def _encode(segments: NDArray[np.uint8], code: NDArray[np.uint8], value: NDArray[np.uint8],
-            out: NDArray[np.uint8], recon: NDArray[np.uint8]) -> None:
+def _encode(
+    segments: NDArray[np.uint8],
+    code: NDArray[np.uint8],
+    value: NDArray[np.uint8],
+    out: NDArray[np.uint8],
+    recon: NDArray[np.uint8],
+) -> None:
     n = segments.shape[1]
     for s in range(segments.shape[0]):
         x = segments[s]
@@ -98,8 +103,9 @@ def _encode(segments: NDArray[np.uint8], code: NDArray[np.uint8], value: NDArray
 
 
 @numba.njit(cache=True, nogil=True)
-def decode_one(payload: NDArray[np.uint8], first: int, n: int, value: NDArray[np.uint8],
-               out: NDArray[np.uint8]) -> None:
+def decode_one(
+    payload: NDArray[np.uint8], first: int, n: int, value: NDArray[np.uint8], out: NDArray[np.uint8]
+) -> None:
     """Decode one segment of ``n`` pixels from ``payload[first:]`` into ``out[:n]``."""
     p = payload[first]
     out[0] = p
@@ -118,8 +124,9 @@ def decode_one(payload: NDArray[np.uint8], first: int, n: int, value: NDArray[np
 
 
 @numba.njit(cache=True, nogil=True)
-def _decode(payloads: NDArray[np.uint8], n: int, value: NDArray[np.uint8],
-            out: NDArray[np.uint8]) -> None:
+def _decode(
+    payloads: NDArray[np.uint8], n: int, value: NDArray[np.uint8], out: NDArray[np.uint8]
+) -> None:
     for s in range(payloads.shape[0]):
         decode_one(payloads[s], 0, n, value, out[s])
 
@@ -142,8 +149,10 @@ def decode_segments(payloads: NDArray[np.uint8], n_pixels: int) -> NDArray[np.ui
     """Decode payloads (m, payload_bytes(n)) into segments (m, n)."""
     payloads = np.ascontiguousarray(payloads, np.uint8)
     if payloads.shape[1] != payload_bytes(n_pixels):
-        raise ValueError(f"{n_pixels} pixels need {payload_bytes(n_pixels)} payload bytes, "
-                         f"got {payloads.shape[1]}")
+        raise ValueError(
+            f"{n_pixels} pixels need {payload_bytes(n_pixels)} payload bytes, "
+            f"got {payloads.shape[1]}"
+        )
     _code, value = reconstruction_table()
     out = np.empty((payloads.shape[0], n_pixels), np.uint8)
     _decode(payloads, n_pixels, value, out)

@@ -93,51 +93,61 @@ def ms_since_cnes_epoch(t0_utc: np.datetime64, t_s: np.ndarray) -> np.ndarray:
 
 
 #: Transfer frame primary header (AOS-like, CCSDS 732.0-B §4.1.2) and M_PDU header.
-FRAME_HEADER_DTYPE = np.dtype([
-    ("id", ">u2"),  # version '01' (2 bits), spacecraft id (8), virtual channel id (6)
-    ("count", "u1", (3,)),  # virtual channel frame count, 24 bits
-    ("signalling", "u1"),  # replay flag, count usage flag, spares, count cycle: all 0
-    ("mpdu", ">u2"),  # 5 spare bits, first header pointer (11 bits)
-])
+FRAME_HEADER_DTYPE = np.dtype(
+    [
+        ("id", ">u2"),  # version '01' (2 bits), spacecraft id (8), virtual channel id (6)
+        ("count", "u1", (3,)),  # virtual channel frame count, 24 bits
+        ("signalling", "u1"),  # replay flag, count usage flag, spares, count cycle: all 0
+        ("mpdu", ">u2"),  # 5 spare bits, first header pointer (11 bits)
+    ]
+)
 
 #: Space packet primary header (CCSDS 133.0-B §4.1.3).
-PACKET_HEADER_DTYPE = np.dtype([
-    ("id", ">u2"),  # version 000, type 0, secondary header flag 1, APID (11 bits)
-    ("sequence", ">u2"),  # sequence flags '11' (unsegmented), sequence count (14 bits)
-    ("length", ">u2"),  # octets after the primary header, minus one
-])
+PACKET_HEADER_DTYPE = np.dtype(
+    [
+        ("id", ">u2"),  # version 000, type 0, secondary header flag 1, APID (11 bits)
+        ("sequence", ">u2"),  # sequence flags '11' (unsegmented), sequence count (14 bits)
+        ("length", ">u2"),  # octets after the primary header, minus one
+    ]
+)
 
 #: Secondary header of an image line segment packet.
-IMAGE_HEADER_DTYPE = np.dtype([
-    ("line", ">u4"),  # line counter of the instrument
-    ("band", "u1"),  # 0 for P; 0, 1, 2 for XS1, XS2, XS3
-    ("encoding", "u1"),  # ENCODING_RAW8 or ENCODING_DPCM6
-    ("first_detector", ">u2"),  # first column of the segment (0-based)
-    ("count", ">u2"),  # detectors in the segment
-])
+IMAGE_HEADER_DTYPE = np.dtype(
+    [
+        ("line", ">u4"),  # line counter of the instrument
+        ("band", "u1"),  # 0 for P; 0, 1, 2 for XS1, XS2, XS3
+        ("encoding", "u1"),  # ENCODING_RAW8 or ENCODING_DPCM6
+        ("first_detector", ">u2"),  # first column of the segment (0-based)
+        ("count", ">u2"),  # detectors in the segment
+    ]
+)
 
 #: Auxiliary data packet (8 Hz): time code, gyros, mirror, mode, status, the planned strip.
-AUX_DTYPE = np.dtype([
-    ("time_ms", ">u8"),  # time code of the gyro sample, ms since 1950-01-01 (48 bits used)
-    ("line", ">u4"),  # the first line starting at or after that instant
-    ("line_time_ms", ">u8"),  # time code latched at that line's start
-    ("gyro_counts", ">i4", (3,)),  # roll, pitch, yaw rates in units of gyro_lsb
-    ("gyro_lsb_prad_per_s", ">u4"),  # one count, in 1e-12 rad/s
-    ("mirror_step", "u1"),
-    ("mode", "u1"),  # 0 P, 1 XS
-    ("hrv", "u1"),
-    ("status", "u1"),  # bit 0: imaging; bit 1: twin configuration
-    ("first_line", ">u4"),  # the planned strip: first line counter …
-    ("n_lines", ">u4"),  # … and its number of lines
-    ("n_detectors", ">u2"),  # detectors per band line
-    ("n_bands", "u1"),
-    ("spare", "u1"),
-])
+AUX_DTYPE = np.dtype(
+    [
+        ("time_ms", ">u8"),  # time code of the gyro sample, ms since 1950-01-01 (48 bits used)
+        ("line", ">u4"),  # the first line starting at or after that instant
+        ("line_time_ms", ">u8"),  # time code latched at that line's start
+        ("gyro_counts", ">i4", (3,)),  # roll, pitch, yaw rates in units of gyro_lsb
+        ("gyro_lsb_prad_per_s", ">u4"),  # one count, in 1e-12 rad/s
+        ("mirror_step", "u1"),
+        ("mode", "u1"),  # 0 P, 1 XS
+        ("hrv", "u1"),
+        ("status", "u1"),  # bit 0: imaging; bit 1: twin configuration
+        ("first_line", ">u4"),  # the planned strip: first line counter …
+        ("n_lines", ">u4"),  # … and its number of lines
+        ("n_detectors", ">u2"),  # detectors per band line
+        ("n_bands", "u1"),
+        ("spare", "u1"),
+    ]
+)
 
 #: One entry of the session status carried by fill frames: for each virtual channel, the
 #: count of its first frame in this session and how many frames it has sent so far.
-STATUS_ENTRY_DTYPE = np.dtype([
-    ("vc", "u1"),
-    ("first_count", "u1", (3,)),
-    ("sent", ">u4"),
-])
+STATUS_ENTRY_DTYPE = np.dtype(
+    [
+        ("vc", "u1"),
+        ("first_count", "u1", (3,)),
+        ("sent", ">u4"),
+    ]
+)

@@ -121,8 +121,7 @@ class RsTables:
             r = np.concatenate([r[1:], [0]]) ^ mul(lead, g[1:])
         pos_power = rem[N - 1 - np.arange(DATA)]  # (223, 32): info symbol k has degree 254−k
         chk = mul(conv[None, :, None], pos_power[:, None, :])  # conventional check symbols
-        self.check_rows = np.ascontiguousarray(
-            self.to_dual[chk].astype(np.uint8)).view(np.uint64)
+        self.check_rows = np.ascontiguousarray(self.to_dual[chk].astype(np.uint8)).view(np.uint64)
 
 
 @cache
@@ -137,8 +136,14 @@ def dual_from_conventional(values: NDArray[np.uint8]) -> NDArray[np.uint8]:
 
 
 @numba.njit(cache=True, nogil=True)
-def _xor_rows(rows: NDArray[np.uint64], symbols: NDArray[np.uint8], stride: int,
-              first: int, count: int, out: NDArray[np.uint64]) -> None:
+def _xor_rows(
+    rows: NDArray[np.uint64],
+    symbols: NDArray[np.uint8],
+    stride: int,
+    first: int,
+    count: int,
+    out: NDArray[np.uint64],
+) -> None:
     out[:] = 0
     for k in range(count):
         row = rows[k, symbols[first + k * stride]]
@@ -149,13 +154,14 @@ def _xor_rows(rows: NDArray[np.uint64], symbols: NDArray[np.uint8], stride: int,
 
 
 @numba.njit(cache=True, nogil=True)
-def _encode_blocks(info: NDArray[np.uint8], check_rows: NDArray[np.uint64],
-                   out: NDArray[np.uint8]) -> None:
+def _encode_blocks(
+    info: NDArray[np.uint8], check_rows: NDArray[np.uint64], out: NDArray[np.uint8]
+) -> None:
     """info (n, 223·I) → out (n, 255·I), interleaved: information first, then checks."""
     depth = info.shape[1] // DATA
     acc = np.zeros(4, np.uint64)
     for f in range(info.shape[0]):
-        out[f, :DATA * depth] = info[f]
+        out[f, : DATA * depth] = info[f]
         for c in range(depth):
             _xor_rows(check_rows, info[f], depth, c, DATA, acc)
             parity = acc.view(np.uint8)
@@ -171,9 +177,15 @@ def _gf_mul(a: int, b: int, exp_b: NDArray[np.int64], log_b: NDArray[np.int64]) 
 
 
 @numba.njit(cache=True, nogil=True)
-def _correct(syn: NDArray[np.uint8], block: NDArray[np.uint8], first: int, stride: int,
-             exp_b: NDArray[np.int64], log_b: NDArray[np.int64],
-             to_dual: NDArray[np.uint8]) -> int:
+def _correct(
+    syn: NDArray[np.uint8],
+    block: NDArray[np.uint8],
+    first: int,
+    stride: int,
+    exp_b: NDArray[np.int64],
+    log_b: NDArray[np.int64],
+    to_dual: NDArray[np.uint8],
+) -> int:
     """Correct one codeword in place from its (conventional) syndromes.
 
     Returns the number of symbols corrected, or −1 if the errors exceed what the code can
@@ -254,9 +266,14 @@ def _correct(syn: NDArray[np.uint8], block: NDArray[np.uint8], first: int, strid
 
 
 @numba.njit(cache=True, nogil=True)
-def decode_codeblock(block: NDArray[np.uint8], syndrome_rows: NDArray[np.uint64],
-                     exp_b: NDArray[np.int64], log_b: NDArray[np.int64],
-                     to_dual: NDArray[np.uint8], corrected: NDArray[np.int64]) -> bool:
+def decode_codeblock(
+    block: NDArray[np.uint8],
+    syndrome_rows: NDArray[np.uint64],
+    exp_b: NDArray[np.int64],
+    log_b: NDArray[np.int64],
+    to_dual: NDArray[np.uint8],
+    corrected: NDArray[np.int64],
+) -> bool:
     """Decode one interleaved code block (255·I bytes, dual basis) in place.
 
     ``corrected[c]`` receives the symbols corrected in codeword c, −1 where it failed.
