@@ -198,6 +198,13 @@ class AttitudeConfig:
     gyro_lsb_rad_per_s: float = option(
         0.2, "gyro_lsb_urad_per_s", "gyro quantisation step", _URAD, 0.0, 1e3
     )
+    reference_velocity: str = option(
+        "inertial",
+        "reference_velocity",
+        "velocity the attitude's orbital frame follows: inertial (SPOT 1–4) or Earth-fixed "
+        "(SPOT 5); the ephemeris bulletins carry the same",
+        choices=("inertial", "earth_fixed"),
+    )
 
 
 @dataclass(frozen=True)

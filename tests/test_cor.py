@@ -124,7 +124,12 @@ def test_1b_kernel(geometry, interpolation) -> None:
     expected = (
         20.0 + 0.3 * np.rint(line) + 0.2 * (col if interpolation == "cubic" else np.rint(col))
     )
-    assert np.abs(out[i, j] - expected).max() <= 0.5 + FLOAT32_COUNTS
+    # Keys' cubic reproduces the ramp where its four columns are inside; in the first and
+    # last column and a half it reads replicated edge columns, off by up to one column's
+    # step of the ramp (0.2 counts): with the Earth-rotation skew, every line has such pixels
+    inner = (col >= 1.0) & (col < 398.0) if interpolation == "cubic" else np.ones(col.size, bool)
+    assert np.abs(out[i, j] - expected)[inner].max() <= 0.5 + FLOAT32_COUNTS
+    assert np.abs(out[i, j] - expected).max() <= 0.5 + 0.2 + FLOAT32_COUNTS
     tile, tok = resample_1b(img, valid, g1, interpolation, slice(50, 150), slice(100, 300))
     assert np.array_equal(tile, out[50:150, 100:300]) and np.array_equal(tok, ok[50:150, 100:300])
     # left skew: h(I) black, invalid pixels start each line, up to where g meets column −½

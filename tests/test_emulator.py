@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from levels.geometry.ellipsoid import WGS84
-from levels.geometry.frames import ecef_from_orbital
+from levels.geometry.frames import ecef_from_orbital, inertial_velocity_ecef
 from station.scenario import scenario_from_dict
 from station.spacecraft.emulator import emulate, emulate_pass, truth_model
 from station.spacecraft.imaging import HEIGHT_TOL_M, psf_quadrature, trace_pixels
@@ -176,10 +176,17 @@ def test_bulletins_carry_the_stated_errors(nadir) -> None:
     assert np.allclose(eph.t_s / cfg.period_s, np.round(eph.t_s / cfg.period_s))
     assert eph.t_s[0] <= nadir.line_times_s[0] - cfg.margin_s
     r, v = nadir.orbit.state_ecef(eph.t_s)
-    axes = ecef_from_orbital(r, v)
+    # SPOT 1–4 bulletins carry the inertial velocity in ECEF axes (levels.geometry.frames)
+    assert nadir.orbit.reference_velocity == "inertial"
+    v_ref = inertial_velocity_ecef(r, v)
+    axes = ecef_from_orbital(r, v_ref)
     err_local = np.einsum("nji,nj->ni", axes, eph.r_ecef_m - r)  # (X across, Y along, Z up)
     expected = np.asarray(cfg.bias_m) + np.outer(eph.t_s - nadir.t_centre_s, cfg.drift_m_per_s)
     assert err_local[:, [1, 0, 2]] == pytest.approx(expected, abs=1e-6)
+    dv_local = np.einsum("nji,nj->ni", axes, eph.v_ecef_m_per_s - v_ref)
+    assert dv_local[:, [1, 0, 2]] == pytest.approx(
+        np.broadcast_to(cfg.drift_m_per_s, dv_local.shape), abs=1e-9
+    )
 
 
 def test_control_points(nadir) -> None:

@@ -24,6 +24,10 @@ MAX_INVERSE_PX = 0.05
 #: The issue's bound on checkpoint errors of an unbiased chain (errors switched off).
 UNBIASED_PX = 0.5
 H_REF_M = 450.0
+#: The 1B skew of a nadir scene at Cuiabá (derivation in the test that uses it), and the
+#: share of it the along-track ellipsoid geometry and the polynomial fit may move.
+EARTH_SKEW_PX = 465.1 * np.cos(np.radians(15.5)) * np.cos(np.radians(9.0)) * 6000 * 1.504e-3 / 10
+EARTH_SKEW_REL = 0.05
 
 
 def _scene(data: dict):
@@ -96,7 +100,12 @@ def test_level1b_axes_and_round_trip(nadir) -> None:
     back = g.raw_of(i, j)
     assert back[0] == pytest.approx(line, abs=1e-6)
     assert back[1] == pytest.approx(col, abs=1e-6)
-    assert 5900 < g.n_rows < 6300 and 5900 < g.n_cols < 6300  # 60 km at 10 m
+    # 60 km at 10 m, and wider by the skew h: the Earth turns under the inertial frame of
+    # SPOT 1–4 by its surface speed across the track, 465 m/s · cos 15.5° · cos 9° = 443 m/s,
+    # for the 9.02 s of the scene: 400 px, h from −200 to +200 px (INPE's ±200)
+    span_px = np.ptp(g.h(np.arange(g.n_rows, dtype=float)))
+    assert span_px == pytest.approx(EARTH_SKEW_PX, rel=EARTH_SKEW_REL)
+    assert 5900 < g.n_rows < 6300 and 5900 < g.n_cols - span_px < 6300
 
 
 @pytest.mark.parametrize("case", ["nadir", "tilted"])

@@ -49,12 +49,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "REFERENCE_VELOCITIES",
     "apply",
     "apply_inverse",
     "ecef_from_eci",
     "ecef_from_orbital",
     "ecef_to_eci",
     "eci_to_ecef",
+    "inertial_velocity_ecef",
     "normalize",
     "orbital_from_body",
     "rot_x",
@@ -184,6 +186,19 @@ def apply_inverse(rot: ArrayLike, vec: ArrayLike) -> NDArray[np.float64]:
     return np.einsum(
         "...ji,...j->...i", np.asarray(rot, dtype=np.float64), np.asarray(vec, dtype=np.float64)
     )
+
+
+#: The velocities a local orbital frame may be built on (module docstring): SPOT 1–4's
+#: inertial velocity in ECEF axes, SPOT 5's Earth-fixed one.
+REFERENCE_VELOCITIES = ("inertial", "earth_fixed")
+
+
+def inertial_velocity_ecef(r_ecef_m: ArrayLike, v_ecef_m_per_s: ArrayLike) -> NDArray[np.float64]:
+    """The inertial velocity in ECEF axes, ``v + ω × r``, from the Earth-fixed one: what
+    SPOT 1–4 ephemerides carry and their attitude's orbital frame follows."""
+    omega = np.array([0.0, 0.0, EARTH_ROTATION_RATE_RAD_PER_S])
+    r = np.asarray(r_ecef_m, dtype=np.float64)
+    return np.asarray(v_ecef_m_per_s, dtype=np.float64) + np.cross(omega, r)
 
 
 def eci_to_ecef(

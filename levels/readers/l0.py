@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from levels.errors import L0Error
 from levels.geometry.ephemeris import Ephemeris
+from levels.geometry.frames import REFERENCE_VELOCITIES
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch
 
@@ -80,6 +81,11 @@ class L0Archive:
     ephemeris: Ephemeris
     decode: dict = field(default_factory=dict)
     attrs: dict = field(default_factory=dict)
+
+    #: The velocity the ephemeris carries, which the attitude's orbital frame follows:
+    #: "inertial" (SPOT 1–4) or "earth_fixed" (SPOT 5); archives that do not say are
+    #: "earth_fixed" (the emulator's convention before it was recorded).
+    reference_velocity: str = "earth_fixed"
 
     @property
     def provenance(self) -> dict[str, Any]:
@@ -245,6 +251,12 @@ def read_l0(path: str | Path) -> L0Archive:
                     for k, g in dec["channels"].items()
                 }
         t_attrs = dict(f["lines/t_s"].attrs)
+        ref_v = str(f["ephemeris"].attrs.get("reference_velocity", "earth_fixed"))
+        _need(
+            ref_v in REFERENCE_VELOCITIES,
+            where,
+            f"ephemeris reference_velocity {ref_v!r} is not one of {REFERENCE_VELOCITIES}",
+        )
     try:
         epoch = Epoch(np.datetime64(str(attrs["epoch_utc"]), "ns"), name="00:00 UTC, pass day")
         ephemeris = Ephemeris(
@@ -269,4 +281,5 @@ def read_l0(path: str | Path) -> L0Archive:
         ephemeris=ephemeris,
         decode=decode,
         attrs={k: (v.item() if hasattr(v, "item") else v) for k, v in attrs.items()},
+        reference_velocity=ref_v,
     )

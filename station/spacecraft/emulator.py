@@ -119,7 +119,11 @@ def _orbit(
     tle: Tle | None,
 ) -> tuple[TruthOrbit, float]:
     oc, pc = scn.orbit, scn.pass_
-    view = swath_centre_view(mirror_rad if pc.aim == "view" else 0.0, scn.world.base_height_m)
+    view = swath_centre_view(
+        mirror_rad if pc.aim == "view" else 0.0,
+        scn.world.base_height_m,
+        scn.attitude.reference_velocity,
+    )
     if oc.kind in ("phased", "elements"):
         return mean_element_orbit(oc, pc, epoch, span, view)
     assert tle is not None  # kind == "tle": emulate() read it
@@ -153,7 +157,7 @@ def make_bulletins(
     k0 = np.floor(t_from_s / period_s)
     k1 = np.ceil(t_to_s / period_s)
     t = period_s * np.arange(k0, k1 + 1)
-    r, v = orbit.state_ecef(t)
+    r, v = orbit.frame_state_ecef(t)  # bulletins carry the platform's reference velocity
     axes = ecef_from_orbital(r, v)  # columns X (across), Y (along), Z (radial)
     along_across_radial = np.asarray(bias_m, float) + np.outer(t - t_ref_s, drift_m_per_s)
     local = along_across_radial[:, [1, 0, 2]]  # to (X, Y, Z) order
@@ -167,7 +171,7 @@ def truth_model(acq: Acquisition, band: int = 0, step_s: float = 1.0) -> Pushbro
     attitude, truth look angles): it must see every raw pixel where the emulator put it."""
     t0, t1 = acq.line_times_s[0] - 10 * step_s, acq.line_times_s[-1] + 10 * step_s
     t = np.arange(t0, t1 + step_s, step_s)
-    r, v = acq.orbit.state_ecef(t)
+    r, v = acq.orbit.frame_state_ecef(t)
     clock = LineClock(float(acq.line_times_s[0]), 0.0, acq.hrv.line_period_s)
     return PushbroomModel(
         acq.epoch,
@@ -259,6 +263,7 @@ def emulate_pass(
     day = (0.0, max(scn.pass_.ground_pass_days, 1.0) * 86400.0)
     span = (min(day[0], -margin), day[1] + margin)
     orbit, t_c = _orbit(scn, epoch, span, margin, mirror, tle)
+    orbit = orbit.with_reference_velocity(scn.attitude.reference_velocity)
     half_s = max((h.n_lines - 1) * h.line_period_s for h in hrvs) / 2  # first to last line
     strip = (t_c - half_s, t_c + half_s)
     ac = scn.attitude

@@ -2,6 +2,7 @@
 
 For each line, the truth orbit and attitude give the projection centre ``P`` and the
 rotation ``ecef_from_sensor = ecef_from_orbital(P, V) · orbital_from_body(roll, pitch, yaw)``
+(``V`` the platform's reference velocity: inertial for SPOT 1–4, Earth-fixed for SPOT 5)
 at the line's time (the same frame conventions as the model: :mod:`levels.geometry.frames`).
 Each detector's truth look direction turns into an ECEF ray ``P + s d``.
 
@@ -70,7 +71,7 @@ class LineGeometry:
 def line_geometry(orbit: TruthOrbit, attitude: Attitude, t_s: ArrayLike) -> LineGeometry:
     """The truth geometry of the lines acquired at ``t_s`` (seconds since the orbit's epoch)."""
     t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
-    r, v = orbit.state_ecef(t)
+    r, v = orbit.frame_state_ecef(t)  # the velocity the attitude's frame follows
     ang = attitude.angles_rad(t)
     rot = ecef_from_orbital(r, v) @ orbital_from_body(ang[:, 0], ang[:, 1], ang[:, 2])
     return LineGeometry(t, r, rot)

@@ -27,6 +27,7 @@ orbit is placed over a target by :mod:`station.spacecraft.placement`.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,8 +38,10 @@ from scipy.integrate import solve_ivp
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.frames import (
     EARTH_ROTATION_RATE_RAD_PER_S,
+    REFERENCE_VELOCITIES,
     ecef_to_eci,
     eci_to_ecef,
+    inertial_velocity_ecef,
 )
 from levels.geometry.times import Epoch
 from station.errors import OrbitError
@@ -247,8 +250,17 @@ class TruthOrbit:
     v_ref_eci_m_per_s: NDArray[np.float64]
     t_start_s: float
     t_end_s: float
+    #: The velocity the platform's local orbital frame follows (its attitude is controlled
+    #: about that frame, and its ephemeris bulletins carry that velocity): "inertial" for
+    #: SPOT 1–4, "earth_fixed" for SPOT 5 (``levels.geometry.frames``).
+    reference_velocity: str = "inertial"
 
     def __post_init__(self) -> None:
+        if self.reference_velocity not in REFERENCE_VELOCITIES:
+            raise OrbitError(
+                f"reference velocity {self.reference_velocity!r}: expected one "
+                f"of {REFERENCE_VELOCITIES}"
+            )
         if not self.t_start_s <= self.t_ref_s <= self.t_end_s:
             raise OrbitError(
                 f"reference time {self.t_ref_s} s outside the span "
@@ -286,6 +298,24 @@ class TruthOrbit:
         t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
         r, v = self.state_eci(t)
         return eci_to_ecef(r, v, self.epoch.era_rad(t))
+
+    def frame_state_ecef(self, t_s: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Position and the reference velocity (ECEF axes) that the platform's local orbital
+        frame is built on, shape (N, 3) each."""
+        r, v = self.state_ecef(t_s)
+        if self.reference_velocity == "inertial":
+            v = inertial_velocity_ecef(r, v)
+        return r, v
+
+    def with_reference_velocity(self, reference_velocity: str) -> TruthOrbit:
+        """The same integrated orbit, its frame built on another velocity."""
+        if reference_velocity not in REFERENCE_VELOCITIES:
+            raise OrbitError(
+                f"reference velocity {reference_velocity!r}: expected one of {REFERENCE_VELOCITIES}"
+            )
+        new = copy.copy(self)
+        object.__setattr__(new, "reference_velocity", reference_velocity)
+        return new
 
     @classmethod
     def from_ecef(

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from levels.geometry.ellipsoid import WGS84
-from levels.geometry.frames import apply, ecef_from_orbital
+from levels.geometry.frames import apply, ecef_from_orbital, inertial_velocity_ecef
 from levels.geometry.sensor import look_direction
 from levels.geometry.times import Epoch
 from station.errors import OrbitError
@@ -116,13 +116,18 @@ def place_orbit(
     return TruthOrbit(epoch, t_node, r0, v0, lo, hi), float(t_cross)
 
 
-def swath_centre_view(mirror_rad: float, height_m: float) -> ViewPoint:
+def swath_centre_view(
+    mirror_rad: float, height_m: float, reference_velocity: str = "inertial"
+) -> ViewPoint:
     """The point seen by the centre of the swath at null attitude, the mirror at
-    ``mirror_rad``, on the ellipsoid raised by ``height_m`` (for aiming the orbit)."""
+    ``mirror_rad``, on the ellipsoid raised by ``height_m`` (for aiming the orbit), the
+    orbital frame built on ``reference_velocity`` (``levels.geometry.frames``)."""
     u = look_direction(0.0, mirror_rad)
 
     def view(orbit: TruthOrbit, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
         r, v = orbit.state_ecef(t_s)
+        if reference_velocity == "inertial":
+            v = inertial_velocity_ecef(r, v)
         los = apply(ecef_from_orbital(r, v), u)
         point, _ok = WGS84.intersect(r, los, height_m)
         lat, lon, _h = WGS84.to_geodetic(point)

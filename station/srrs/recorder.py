@@ -57,11 +57,14 @@ def write_l0(
     ancillary: list[BandAncillary],
     scenario_name: str = "",
     provenance: dict | None = None,
+    reference_velocity: str = "inertial",
 ) -> Path:
     """Write the L0 archive of a pass atomically; returns the path written.
 
     ``bulletins`` carry times in seconds since ``bulletin_epoch_utc``; they are stored on
-    the archive's own epoch (00:00 UTC of the pass day, ``decoded.epoch_utc``).
+    the archive's own epoch (00:00 UTC of the pass day, ``decoded.epoch_utc``). Their
+    velocity is the platform's ``reference_velocity`` (inertial for SPOT 1–4, Earth-fixed
+    for SPOT 5: ``levels.geometry.frames``), recorded with them.
     """
     path = Path(path)
     names = [a.name for a in ancillary]
@@ -77,6 +80,7 @@ def write_l0(
     )
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
+        f["ephemeris"].attrs["reference_velocity"] = reference_velocity  # see docs/l0.md
     return path
 
 
