@@ -218,6 +218,13 @@ class ProcessingOptions:
         "2A direct-grid rows: at the attitude samples or INPE's regular 61",
         choices=("attitude", "regular"),
     )
+    grid_columns: str = option(
+        "butting",
+        "grid_columns",
+        "2A direct-grid columns: INPE's 61 plus both sides of each CCD butting, or INPE's "
+        "regular 61 only (with grid_rows = 'regular': INPE's exact 61 × 61)",
+        choices=("butting", "regular"),
+    )
     crs: str = option("utm", "crs", "2A map: 'utm' (zone of the centre), 'som', or EPSG/WKT")
     deconvolution: bool = option(True, "deconvolution", "deconvolve 1B and 2A")
     psf_fwhm_px: float = option(

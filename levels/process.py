@@ -226,7 +226,14 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         g2a = _per_band(
             scene,
             lambda b, like: level2a_geometry(
-                scene, res, crs, opt.inverse_2a, grid_rows=opt.grid_rows, band=b, like=like
+                scene,
+                res,
+                crs,
+                opt.inverse_2a,
+                grid_rows=opt.grid_rows,
+                band=b,
+                like=like,
+                grid_columns=opt.grid_columns,
             ),
         )
     timings["geometry"] = clock() - t

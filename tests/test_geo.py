@@ -243,3 +243,46 @@ def test_xs_bands_registered_each_through_its_own_geometry() -> None:
     # the band registration the shared geometry would miss, and its own geometry does not
     assert max(s for _o, s in shared_first) > 0.1
     assert max(o for o, _s in shared_first) < 0.05
+
+
+#: The largest along-track step between butted CCDs of the default scenario (offsets 0, 4,
+#: −3, 2 µrad: 7 µrad) at 822 km, in 10 m pixels: what a grid blind to the buttings smears.
+BUTTING_STEP_PX = 7e-6 * 822e3 / 10.0
+#: INPE's figure (paper 004_…): each corrected line relates to 6000 · tan 9.0° = 950 raw
+#: lines in P, 9.0° being the azimuth of the inertial track at Cuiabá.
+INPE_TRACK_AZIMUTH_DEG = 9.0
+#: The azimuth measured here is the raw lines' on the UTM grid minus the grid's meridian
+#: convergence; INPE quotes it to a tenth of a degree.
+AZIMUTH_TOL_DEG = 0.1
+
+
+def test_inpe_exact_61_by_61_grid_is_measured(nadir) -> None:
+    """INPE's exact configuration (61 × 61 regular breakpoints, one line field) beside the
+    default (rows at the attitude samples, columns at the buttings): it misses the butting
+    jumps by up to about half a step, the default stays within a twentieth of a pixel."""
+    _acq, scene, res = nadir
+    crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
+    inpe = level2a_geometry(scene, res, crs, grid_rows="regular", grid_columns="regular")
+    assert inpe.grid_i.shape == (61, 61) and inpe.segment_first_column.tolist() == [0.0]
+    default = level2a_geometry(scene, res, crs)
+    e_inpe = inpe.approximation_error(scene.model, H_REF_M)["max_px"]
+    e_default = default.approximation_error(scene.model, H_REF_M)["max_px"]
+    assert e_default <= MAX_INVERSE_PX < e_inpe <= BUTTING_STEP_PX
+
+
+def test_a_2a_row_reads_inpes_950_raw_lines(nadir) -> None:
+    """COR's load: a north-up 2A row crosses the raw lines at the inertial track's azimuth,
+    6000 · tan 9.0° = 950 raw lines in P at Cuiabá (INPE), plus the UTM grid's convergence."""
+    import pyproj
+
+    _acq, scene, res = nadir
+    crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
+    g = level2a_geometry(scene, res, crs)
+    j = np.arange(0.0, g.n_cols)
+    line, col = g.raw_of(np.full(j.size, g.n_rows / 2), j)
+    inside = (col >= 0) & (col <= 5999) & (line >= 0) & (line <= 5999)
+    azimuth = np.degrees(np.arctan2(np.ptp(line[inside]), np.ptp(col[inside])))
+    lon, lat = np.degrees(scene.centre_lon_rad), np.degrees(scene.centre_lat_rad)
+    convergence = abs(pyproj.Proj(crs).get_factors(lon, lat).meridian_convergence)
+    assert azimuth - convergence == pytest.approx(INPE_TRACK_AZIMUTH_DEG, abs=AZIMUTH_TOL_DEG)
+    assert 900 < np.ptp(line[inside]) < 1000  # INPE's 950, through the grid's convergence

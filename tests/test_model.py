@@ -56,7 +56,8 @@ def test_ground_image_ground(mirror_step: int) -> None:
 
 
 def test_relief_displaces_a_tilted_view_by_h_tan_theta() -> None:
-    """INPE's relief formula Δg = h·tanθ (paper 004): 1000 m of relief seen 27° off nadir
+    """The relief formula Δg = h·tanθ (Guindon, Goodenough and Teillet 1982, as the TM study
+    at the end of paper 004 quotes it): 1000 m of relief seen 27° off nadir
     moves the located point by about 1000·tan(27° + Earth curvature) across track."""
     model = hrv_model(93)
     a = model.image_to_ground(2999.5, 2999.5, 0.0)

@@ -30,7 +30,7 @@ from station.telemetry import dpcm
 from station.telemetry import format as tf
 
 #: Line times come from 1 ms time codes fitted over the strip: the fit is good to a small
-#: fraction of a millisecond (Westin's sub-millisecond recovery). 0.1 ms is 0.66 m of
+#: fraction of a millisecond (this project's recovery, station.srrs.clock). 0.1 ms is 0.66 m of
 #: along-track ground motion at 6.6 km/s, a fifteenth of a P pixel.
 LINE_TIME_TOL_S = 1e-4
 ELEVATION_RAD = np.radians(40.0)
@@ -388,7 +388,7 @@ LONG_STRIP_CLOCK_TOL_S = 10e-6
 
 def test_line_clock_on_a_long_strip_beats_least_squares() -> None:
     """The clock of a whole pass from its aux records (one per 125 ms gyro sample, each
-    with its 1 ms truncated codes): the feasible-set middle (Westin's sub-millisecond
+    with its 1 ms truncated codes): the feasible-set middle (station.srrs.clock's
     recovery) meets a bound that the least-squares fit misses."""
     from station.srrs.clock import line_clock
     from station.telemetry import format as tf

@@ -150,12 +150,12 @@ def emulator() -> Iterator[Row]:
     yield (
         "raw pixels re-projected (2000 random pixels each)",
         ", ".join(f"{k} {v:.1e}" for k, v in worst.items()) + " px",
-        "≤ 3e-7 px",
+        "≤ 2.3e-7 px",
     )
     yield (
         "P swath at nadir / at 27° (mid-strip line)",
         f"{swath['nadir']:.1f} km / {swath['27°']:.1f} km",
-        "59.4 km / 78.5–79.9 km",
+        "59.4 km / 78.6 km",
     )
 
     m = 1500
@@ -274,32 +274,59 @@ def levels_figures() -> Iterator[Row]:
     for case, data in tables.items():
         _acq, s, res = scene(data)
         crs = map_crs("utm", s.centre_lat_rad, s.centre_lon_rad)
-        for rows in ("attitude", "regular"):
-            g = level2a_geometry(s, res, crs, grid_rows=rows)
+        for rows, cols in (("attitude", "butting"), ("regular", "butting"), ("regular", "regular")):
+            g = level2a_geometry(s, res, crs, grid_rows=rows, grid_columns=cols)
             errs = {
                 m: g.approximation_error(s.model, 450.0, m)["max_px"]
                 for m in ("nearest4", "poly3", "poly4", "poly5")
             }
-            inv[case, rows] = errs["nearest4"]
+            inv[case, rows, cols] = errs["nearest4"]
             if rows == "attitude":
                 polys[case] = [errs[m] for m in ("poly3", "poly4", "poly5")]
-        e = level1b_geometry(s, res).approximation_error(s.model)
-        b1[case] = (e["max_px"], e["rms_px"])
+                if case == "nadir":
+                    skew = _row_skew(g)
+        g1 = level1b_geometry(s, res)
+        e = g1.approximation_error(s.model)
+        b1[case] = (e["max_px"], e["rms_px"], np.ptp(g1.h(np.arange(g1.n_rows, dtype=float))))
     yield (
         "2A inverse, four nearest points, max vs model (attitude rows; regular 61)",
-        f"nadir {inv['nadir', 'attitude']:.3f}, 27° {inv['27°', 'attitude']:.3f} px "
-        f"({inv['nadir', 'regular']:.3f}, {inv['27°', 'regular']:.3f})",
-        "nadir 0.008, 27° 0.026 px (0.058, 0.045)",
+        f"nadir {inv['nadir', 'attitude', 'butting']:.3f}, 27° "
+        f"{inv['27°', 'attitude', 'butting']:.3f} px ({inv['nadir', 'regular', 'butting']:.3f}, "
+        f"{inv['27°', 'regular', 'butting']:.3f})",
+        "nadir 0.025, 27° 0.032 px (0.058, 0.051)",
+    )
+    yield (
+        "2A inverse, INPE's exact 61 × 61 regular grid (no butting columns), max",
+        f"nadir {inv['nadir', 'regular', 'regular']:.3f}, 27° "
+        f"{inv['27°', 'regular', 'regular']:.3f} px",
+        "nadir 0.33, 27° 0.34 px",
+    )
+    yield (
+        "1B skew polynomial h, span over the scene (nadir, 27°)",
+        f"{b1['nadir'][2]:.0f} px, {b1['27°'][2]:.0f} px",
+        "399 px, 394 px (INPE: about ±200 px)",
+    )
+    _xs_acq, xs_scene, xs_res = scene(merge_tables(tables["nadir"], {"instrument": {"mode": "XS"}}))
+    xs = _row_skew(
+        level2a_geometry(
+            xs_scene, xs_res, map_crs("utm", xs_scene.centre_lat_rad, xs_scene.centre_lon_rad)
+        )
+    )
+    yield (
+        "raw lines one 2A row reads, P / XS, nadir (INPE: 950 / 475, track at 9.0°)",
+        f"{skew[0]:.0f} / {xs[0]:.0f}: track {skew[1]:.2f}° from the UTM grid's north, "
+        f"{skew[1] - skew[2]:.2f}° from true north (grid convergence {skew[2]:.2f}°)",
+        "980 / 490, 9.28° on the grid, 9.04° true",
     )
     yield (
         "2A polynomial inverses, order 3, 4, 5, max",
         "; ".join(f"{c} " + ", ".join(f"{v:.2f}" for v in p) for c, p in polys.items()) + " px",
-        "nadir 0.43, 0.28, 0.21; 27° 0.49, 0.46, 0.23 px",
+        "nadir 0.43, 0.28, 0.21; 27° 0.50, 0.38, 0.27 px",
     )
     yield (
         "1B polynomials f, g, h, max (RMS) vs model",
-        ", ".join(f"{c} {m:.2f} ({r:.2f})" for c, (m, r) in b1.items()) + " px",
-        "nadir 0.88 (0.35), 27° 2.19 (0.69) px",
+        ", ".join(f"{c} {m:.2f} ({r:.2f})" for c, (m, r, _h) in b1.items()) + " px",
+        "nadir 0.91 (0.33), 27° 2.01 (0.63) px",
     )
 
     def errors(over: dict) -> tuple[dict, dict, float]:
@@ -319,13 +346,13 @@ def levels_figures() -> Iterator[Row]:
     yield (
         "checkpoints, errors off: 2A max; 1B mean, max",
         "; ".join(f"{c} 2A {a:.2f}, 1B {m:.2f} / {x:.1f}" for c, (a, m, x) in off.items()) + " px",
-        "2A 0.09 nadir, 0.07 at 27°; 1B mean 0.01, max 0.70 / 2.1 px",
+        "2A 0.09 nadir, 0.08 at 27°; 1B mean 0.01, max 0.5 / 2.2 px",
     )
     e1, e2, res = errors(tables["nadir"])
     yield (
         "checkpoints, default errors, nadir (2A, 1B RMS)",
         f"{e2['rms_m']:.0f} m, {e1['rms_m']:.0f} m ({e2['rms_px']:.1f} px)",
-        "about 216 m (21.5 px)",
+        "about 215 m (21.5 px)",
     )
 
     acq = emulate(
@@ -387,8 +414,32 @@ def levels_figures() -> Iterator[Row]:
     yield (
         "stripes raw → 1A (scenarios/small_test.toml, 300 lines)",
         f"{q['stripe_level/P/raw_counts']:.2f} → {q['stripe_level/P/level_1a_counts']:.2f} counts",
-        "4.57 → 1.24 counts",
+        "4.69 → 1.27 counts",
     )
+
+
+def _row_skew(g: object) -> tuple[float, float, float]:
+    """Raw lines the middle row of a 2A grid reads, the raw lines' azimuth on the map grid
+    (deg, from ``lines / columns``) and the grid's meridian convergence there (deg)."""
+    import pyproj
+
+    j = np.arange(0.0, g.n_cols)  # type: ignore[attr-defined]
+    line, col = g.raw_of(np.full(j.size, g.n_rows / 2), j)  # type: ignore[attr-defined]
+    inside = (
+        (col >= 0)
+        & (col <= g.n_raw_columns - 1)
+        & (line >= 0)
+        & (  # type: ignore
+            line <= g.n_raw_lines - 1
+        )
+    )  # type: ignore[attr-defined]
+    lines = float(np.ptp(line[inside]))
+    azimuth = float(np.degrees(np.arctan2(lines, np.ptp(col[inside]))))
+    e, n = g.map_of(g.n_rows / 2, g.n_cols / 2)  # type: ignore[attr-defined]
+    crs = pyproj.CRS.from_wkt(g.crs_wkt)  # type: ignore[attr-defined]
+    lon, lat = pyproj.Transformer.from_crs(crs, "EPSG:4326", always_xy=True).transform(e, n)
+    gamma = float(pyproj.Proj(crs).get_factors(lon, lat).meridian_convergence)
+    return lines, azimuth, abs(gamma)
 
 
 # --- capacity ----------------------------------------------------------------------------
@@ -427,7 +478,7 @@ def capacity() -> Iterator[Row]:
     yield (
         "Little's law L = λW per stage (a year, 3 COR workers), worst",
         f"{100 * worst[0]:.2f} % ({worst[1]})",
-        "within 0.11 % (COR)",
+        "within 0.03 % (COR)",
     )
     summary = run_study(
         cuiaba, None, ("resources.cor_workers", ["1", "2", "3", "4"]), 3, plots=False

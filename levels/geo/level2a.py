@@ -233,7 +233,7 @@ class Level2AGeometry:
             np.radians(lat), np.radians(lon), reference_height_m, first_line=la[inside]
         )
         gap = np.zeros(exact.column.size, dtype=bool)
-        for first in self.segment_first_column[1:]:
+        for first in butting_columns(model.look_angles)[1::2]:  # whatever the grid knows
             gap |= (exact.column > first - 1) & (exact.column < first)
         ok = exact.converged & ~gap
         return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
@@ -375,6 +375,7 @@ def level2a_geometry(
     grid_rows: str = "attitude",
     band: str | None = None,
     like: Level2AGeometry | None = None,
+    grid_columns: str = "butting",
 ) -> Level2AGeometry:
     """GEO for level 2A (module docstring).
 
@@ -396,12 +397,19 @@ def level2a_geometry(
         The geometry of another band of the scene: its map grid (CRS, extent, inverse-grid
         nodes) is shared, so that the XS bands of a product are registered on one grid,
         each through its own direct and inverse grids.
-    Columns are INPE's 61, plus both sides of each CCD butting (:func:`butting_columns`).
+    grid_columns
+        ``"butting"``: INPE's 61 columns plus both sides of each CCD butting
+        (:func:`butting_columns`), and one inverse line field per butting segment.
+        ``"regular"``: INPE's 61 columns only, one field for the whole line: with
+        ``grid_rows = "regular"`` this is INPE's exact 61 × 61 configuration, whose bilinear
+        cells smear the along-track jump at each butting.
     """
     if method not in INVERSE_METHODS:
         raise GeometryError(f"inverse method {method!r}: expected one of {INVERSE_METHODS}")
     if grid_rows not in ("attitude", "regular"):
         raise GeometryError(f"grid_rows {grid_rows!r}: expected 'attitude' or 'regular'")
+    if grid_columns not in ("butting", "regular"):
+        raise GeometryError(f"grid_columns {grid_columns!r}: expected 'butting' or 'regular'")
     model = scene.models[band] if band is not None else scene.model
     nl, nc = scene.cut.n_lines, model.n_columns
     gl = (
@@ -409,7 +417,7 @@ def level2a_geometry(
         if grid_rows == "attitude"
         else np.linspace(0.0, nl - 1.0, n_breakpoints)
     )
-    butting = butting_columns(model.look_angles)
+    butting = butting_columns(model.look_angles) if grid_columns == "butting" else np.zeros(0)
     gc = np.union1d(np.linspace(0.0, nc - 1.0, n_breakpoints), butting)
     ll, cc = np.meshgrid(gl, gc, indexing="ij")
     g = model.image_to_ground(ll.ravel(), cc.ravel(), scene.reference_height_m)

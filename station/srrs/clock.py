@@ -1,5 +1,10 @@
 """The line clock: line times from the (line counter, 1 ms time code) pairs of the aux
-records, to a fraction of a millisecond (Westin's sub-millisecond recovery)."""
+records, to a fraction of a millisecond.
+
+The recovery is this project's: Westin (paper ``000_…``) meets the same 1 ms truncation by
+matching attitude records in the overlap of successive scenes, which a single scene or a
+scene after a gap cannot use; here every aux record's pair of codes constrains the clock.
+"""
 
 from __future__ import annotations
 
@@ -52,7 +57,7 @@ def line_clock(
     true start t = a + P·x (x the line counter from the strip's first line) satisfies
     T ≤ t < T + 1 ms for every record. Those constraints bound (a, P) to a small polygon;
     its extent in a and in P is found by four linear programmes, and the clock is the
-    middle of it (Westin's sub-millisecond recovery). A least-squares line through the
+    middle of it (this project's recovery, module docstring). A least-squares line through the
     codes + 0.5 ms would be biased by the deterministic pattern of the truncation (the
     codes sample t mod 1 ms on a coarse lattice): up to 0.1 ms on a full scene. If the
     constraints cannot all hold (a record damaged on board), the least-squares line is
