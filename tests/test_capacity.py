@@ -227,3 +227,86 @@ def test_calibration_measures_this_code(tmp_path: Path, capsys) -> None:
         assert table["geo_s_per_scene"][mode] > 0 and table["archive_s"][mode]["2A"] > 0
     assert table["ingest_s_per_signal_s"] > 0
     assert "wrote" in capsys.readouterr().out
+
+
+#: Counts drawn with probability p out of n: a binomial's 4σ, n p (1 − p) under the root.
+def _binomial_4sigma(n: float, p: float) -> float:
+    return 4.0 * math.sqrt(max(n * p * (1.0 - p), 1.0))
+
+
+def test_landsat_takes_the_antenna_and_spot_loses_passes(cuiaba) -> None:
+    """Paper 004: the antenna is shared with Landsat. Every Landsat pass drawn to be tracked
+    is either tracked or finds the antenna taken; SPOT loses passes to the tracked ones, and
+    more with a larger share."""
+    from station.capacity.passes import pass_pattern
+    from station.scenario import OrbitConfig
+
+    base = _short(cuiaba, outage__days="0", failures__antenna_mtbf_h="0")
+    service = load_service(base)
+    none = simulate(with_value(base, "landsat.antenna_share", "0"), service, 0).station
+    every = simulate(with_value(base, "landsat.antenna_share", "1"), service, 0).station
+    ls = base.landsat
+    landsat = pass_pattern(
+        base.ground_station,
+        OrbitConfig(
+            repeat_revs=ls.repeat_revs,
+            repeat_days=ls.repeat_days,
+            descending_node_local_time_h=ls.descending_node_local_time_h,
+        ),
+    )
+    assert landsat.cycle_s == 16 * 86400.0
+    warmup, end = (
+        base.simulation.warmup_days * 86400.0,
+        (base.simulation.warmup_days + base.simulation.days) * 86400.0,
+    )
+    aos = np.concatenate([landsat.aos_s + k * landsat.cycle_s for k in range(8)])
+    expected = np.count_nonzero((aos >= warmup) & (aos < end))
+    assert every["landsat_passes_tracked"] + every["landsat_passes_missed"] == expected
+    assert none["landsat_passes_tracked"] == 0 and none["passes_lost"] == 0  # no failures
+    assert every["passes_lost"] > 0
+    assert every["scenes"] < none["scenes"]
+
+
+def test_tm_jobs_and_film_products_load_their_stages(cuiaba) -> None:
+    """TM processing shares the COR units; a share of 1A and 1B orders goes to film."""
+    base = _short(cuiaba, outage__days="0", resources__cor_workers="4")
+    service = load_service(base)
+    no_film = with_value(base, "orders.film_fraction", "0")
+    plain = simulate(with_value(no_film, "landsat.tm_jobs_per_day", "0"), service, 0)
+    with_tm = simulate(no_film, service, 0)  # TM draws from a stream of its own
+    rep = simulate(base, service, 0)
+    days, ls, od = base.simulation.days, base.landsat, base.orders
+    # Poisson arrivals: the count within 4σ of its mean
+    n_tm = with_tm.station["tm_jobs"]
+    assert abs(n_tm - ls.tm_jobs_per_day * days) < 4 * math.sqrt(ls.tm_jobs_per_day * days)
+    # the TM hours appear in COR's busy time (4 units): n draws of cv 0.2 sum to their mean
+    # within 4 · 0.2 / √n (5 %); the SPOT jobs' order of service, and so which draw each
+    # takes, moves a little too
+    extra = with_tm.stages["cor"]["utilisation"] - plain.stages["cor"]["utilisation"]
+    tm_share = n_tm * ls.tm_job_s / (4 * days * 86400.0)
+    assert extra == pytest.approx(tm_share, rel=0.25)
+    assert "film" not in plain.stages and plain.station["film_products"] == 0
+    n_1a_1b = rep.levels["1A"]["products"] + rep.levels["1B"]["products"]
+    film = rep.station["film_products"]
+    assert abs(film - od.film_fraction * n_1a_1b) < _binomial_4sigma(n_1a_1b, od.film_fraction)
+    busy = film * base.service.film_s / (days * 86400.0)
+    assert rep.stages["film"]["utilisation"] == pytest.approx(busy, rel=0.1)
+
+
+def test_cor_window_of_raw_lines() -> None:
+    """INPE: a north-up line reads 950 raw lines (P); this code measures 980 at Cuiabá. A
+    COR buffer smaller than that window reads the raw scene again, once per buffer-full."""
+    from station.capacity.config import ServiceConfig
+    from station.capacity.model import Service, cor_window_s
+
+    service = Service(0.0, {}, {}, {}, "", {"P": 980.1, "XS": 490.0})
+    small = ServiceConfig(cor_memory_mb=4.0, raw_read_mb_per_s=1.0)
+    # P: 980 lines × 6000 B = 5.9 MB, two buffer-fulls: one more read of the 36 MB scene
+    assert cor_window_s(service, small, "P") == pytest.approx(36.0)
+    # XS: 490 lines × 3 bands × 3000 B = 4.4 MB: one more read of the 27 MB scene
+    assert cor_window_s(service, small, "XS") == pytest.approx(27.0)
+    assert cor_window_s(service, ServiceConfig(cor_memory_mb=6.0), "P") == 0.0
+    assert cor_window_s(service, ServiceConfig(), "P") == 0.0  # unlimited
+    # a table that predates the measure falls back on INPE's own figures (950 / 475)
+    old = Service(0.0, {}, {}, {})
+    assert cor_window_s(old, ServiceConfig(cor_memory_mb=5.0), "P") == pytest.approx(36.0)

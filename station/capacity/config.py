@@ -35,7 +35,7 @@ from station.scenario import GroundStationConfig, read_toml
 __all__ = ["STAGES", "CapacityScenario", "capacity_from_dict", "load_capacity", "with_value"]
 
 #: The stages of the model, in the order a pass goes through them.
-STAGES = ("antenna", "recorder", "transcription", "ingest", "geo", "cor", "archive")
+STAGES = ("antenna", "recorder", "transcription", "ingest", "geo", "cor", "archive", "film")
 
 
 @dataclass(frozen=True)
@@ -123,6 +123,9 @@ class ResourcesConfig:
         2, "cor_workers", "COR workers (one scene and level at a time)", lo=1, hi=1000
     )
     archive_writers: int = option(1, "archive_writers", "product archive writers", lo=1, hi=100)
+    film_recorders: int = option(
+        1, "film_recorders", "film recorders for the analog 1A/1B products", lo=1, hi=100
+    )
 
 
 @dataclass(frozen=True)
@@ -176,6 +179,8 @@ class FailuresConfig:
     cor_mttr_s: float = _mttr("cor", 4.0)
     archive_mtbf_s: float = _mtbf("archive", 4000.0)
     archive_mttr_s: float = _mttr("archive", 8.0)
+    film_mtbf_s: float = _mtbf("film", 2000.0)
+    film_mttr_s: float = _mttr("film", 8.0)
 
 
 @dataclass(frozen=True)
@@ -207,6 +212,14 @@ class OrdersConfig:
         0.1,
         1e4,
     )
+    film_fraction: float = option(
+        0.0,
+        "film_fraction",
+        "share of 1A and 1B orders delivered on film (analog), through a film recorder",
+        1.0,
+        0.0,
+        1.0,
+    )
 
     def __post_init__(self) -> None:
         if abs(sum(self.mix) - 1.0) > 1e-9:
@@ -231,6 +244,51 @@ class ServiceConfig:
     cv: float = option(
         0.2, "cv", "coefficient of variation of service times (gamma; 0: fixed)", 1.0, 0.0, 3.0
     )
+    film_s: float = option(
+        15.0, "film_min", "film recorder time per scene (analog 1A/1B)", 60.0, 0.0, 1e4
+    )
+    cor_memory_mb: float = option(
+        0.0,
+        "cor_memory_mb",
+        "raw-line buffer of a COR unit (0: unlimited): a 2A row's window of raw lines "
+        "larger than it is read again, once per extra buffer-full",
+        1.0,
+        0.0,
+        1e6,
+    )
+    raw_read_mb_per_s: float = option(
+        1.0, "raw_read_mb_per_s", "raw-image read rate of a COR unit", 1.0, 1e-3, 1e5
+    )
+
+
+@dataclass(frozen=True)
+class LandsatConfig:
+    """Landsat at the same station (paper ``004_…``: the SRRS antenna is shared with the
+    Landsat receiving station, and SIPC's hardware with TM processing).
+
+    Landsat's passes take the antenna when tracked (a share of them); a SPOT pass that
+    finds it taken is lost, as one that finds it down. TM processing jobs take COR units.
+    The orbit is Landsat 4/5's (233 revolutions in 16 days, 705 km, descending node at
+    9:45), the mission's published facts, not a seed's.
+    """
+
+    antenna_share: float = option(
+        0.0, "antenna_share", "share of Landsat passes over the station tracked", 1.0, 0.0, 1.0
+    )
+    repeat_revs: int = option(233, "repeat_revs", "Landsat revolutions per cycle", lo=1, hi=10000)
+    repeat_days: int = option(16, "repeat_days", "Landsat repeat cycle", lo=1, hi=1000)
+    descending_node_local_time_h: float = option(
+        9.75, "descending_node_local_time_h", "Landsat's descending node", 1.0, 0.0, 24.0
+    )
+    tm_jobs_per_day: float = option(
+        0.0,
+        "tm_jobs_per_day",
+        "TM processing jobs on the shared COR units (Poisson)",
+        1.0,
+        0.0,
+        1000.0,
+    )
+    tm_job_s: float = option(2.0, "tm_job_h", "mean duration of a TM job", 3600.0, 0.0, 1000.0)
 
 
 @dataclass(frozen=True)
@@ -252,6 +310,7 @@ _SECTIONS = {
     "orders": OrdersConfig,
     "service": ServiceConfig,
     "outage": OutageConfig,
+    "landsat": LandsatConfig,
 }
 
 
@@ -271,6 +330,7 @@ class CapacityScenario:
     orders: OrdersConfig = field(default_factory=OrdersConfig)
     service: ServiceConfig = field(default_factory=ServiceConfig)
     outage: OutageConfig = field(default_factory=OutageConfig)
+    landsat: LandsatConfig = field(default_factory=LandsatConfig)
     base_dir: str = "."
     source: str = ""
     source_sha256: str = ""

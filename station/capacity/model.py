@@ -32,9 +32,11 @@ import numpy as np
 import simpy
 
 from levels.options import LEVELS
-from station.capacity.config import CapacityScenario
+from levels.spot import MODES
+from station.capacity.config import CapacityScenario, ServiceConfig
 from station.capacity.passes import PassPattern, pass_pattern
 from station.capacity.stage import Process, Shift, Stage
+from station.scenario import OrbitConfig
 
 __all__ = [
     "LEVELS",
@@ -60,6 +62,9 @@ class Service:
     cor_s: dict[str, dict[str, float]]  # per mode, per level (everything from L0 up)
     archive_s: dict[str, dict[str, float]]  # writing one product, per mode and level
     machine: str = ""
+    #: Raw lines one north-up 2A row reads, per mode, measured on this code's geometry at
+    #: full size (INPE's 950 / 475 figure); empty in files that predate it.
+    raw_lines_per_2a_row: dict[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Service:
@@ -69,6 +74,7 @@ class Service:
             {m: dict(v) for m, v in d["cor_s"].items()},
             {m: dict(v) for m, v in d["archive_s"].items()},
             str(d.get("machine", "")),
+            {m: float(v) for m, v in d.get("raw_lines_per_2a_row", {}).items()},
         )
 
 
@@ -119,7 +125,10 @@ class StationSimulation:
             "geo": res.geo_workers,
             "cor": res.cor_workers,
             "archive": res.archive_writers,
+            "film": res.film_recorders,
         }
+        if scn.orders.film_fraction == 0:
+            del units["film"]  # no analog products: no film recorder
         self.stages = {
             name: Stage(env, name, n, self.warmup, shift if name in sh.staffed else None, sample)
             for name, n in units.items()
@@ -146,8 +155,26 @@ class StationSimulation:
             "scenes": 0,
             "orders": 0,
             "products": 0,
+            "film_products": 0,
+            "landsat_passes_tracked": 0,
+            "landsat_passes_missed": 0,
+            "tm_jobs": 0,
         }
         self.mix = np.cumsum(scn.orders.mix)
+        # streams of their own, after the first four: scenarios without Landsat or film
+        # draw exactly as before
+        self.rng_landsat, self.rng_tm = rng.spawn(2)
+        self.extra_2a_s = {m: cor_window_s(service, scn.service, m) for m in ("P", "XS")}
+        ls = scn.landsat
+        if ls.antenna_share > 0:
+            orbit = OrbitConfig(
+                repeat_revs=ls.repeat_revs,
+                repeat_days=ls.repeat_days,
+                descending_node_local_time_h=ls.descending_node_local_time_h,
+            )
+            env.process(self.landsat_passes(pass_pattern(scn.ground_station, orbit)))
+        if ls.tm_jobs_per_day > 0 and ls.tm_job_s > 0:
+            env.process(self.tm_jobs())
 
     def _draw(self, mean_s: float, scale: float) -> float:
         """A service time: the calibrated mean times the scenario's factor, gamma law."""
@@ -160,18 +187,27 @@ class StationSimulation:
         delay = rng.exponential(od.delay_mean_s) if od.delay_mean_s > 0 else 0.0
         level = LEVELS[int(np.searchsorted(self.mix, rng.random() * self.mix[-1], side="right"))]
         urgent = rng.random() < od.urgent_fraction
+        # analog (film) 1A and 1B products, as INPE made them (paper 004_…)
+        film = od.film_fraction > 0 and level != "2A" and rng.random() < od.film_fraction
         yield env.timeout(delay)
         t_order = env.now
         if not geo_done.triggered:
             yield geo_done
+        cor_s = self.service.cor_s[mode][level] * sv.scale_cor
+        if level == "2A":  # the north-up rotation's window of raw lines (INPE's 950 / 475)
+            cor_s += self.extra_2a_s[mode]
         yield from stages["cor"].serve(
-            self._draw(self.service.cor_s[mode][level], sv.scale_cor), priority=0 if urgent else 1
+            _gamma(self.rng_service, cor_s, sv.cv), priority=0 if urgent else 1
         )
-        yield from stages["archive"].serve(
-            self._draw(self.service.archive_s[mode][level], sv.scale_archive)
-        )
+        if film:
+            yield from stages["film"].serve(_gamma(self.rng_service, sv.film_s, sv.cv))
+        else:
+            yield from stages["archive"].serve(
+                self._draw(self.service.archive_s[mode][level], sv.scale_archive)
+            )
         if t_acq >= self.warmup:
             self.counts["products"] += 1
+            self.counts["film_products"] += film
             self.latency[level].append(env.now - t_acq)
             k = LEVELS.index(level)  # its service level counts from the order
             self.in_sla[level].append(env.now - t_order <= od.service_level_s[k])
@@ -241,6 +277,39 @@ class StationSimulation:
                     self.one_pass(sat, t, d, bool(day))
             k0 += 1
 
+    def landsat_passes(self, pattern: PassPattern) -> Process:
+        """Landsat's passes at their AOS: a tracked one takes the antenna (if free) for its
+        visibility, and a SPOT pass meanwhile is lost."""
+        env, ls = self.env, self.scn.landsat
+        k = 0
+        while True:
+            for t, d in zip(pattern.aos_s + k * pattern.cycle_s, pattern.duration_s, strict=True):
+                if t >= self.t_end:
+                    return
+                if t > env.now:
+                    yield env.timeout(t - env.now)
+                if self.rng_landsat.random() < ls.antenna_share:
+                    got = self.stages["antenna"].take(d, count_loss=False)
+                    if t >= self.warmup:
+                        self.counts[
+                            "landsat_passes_tracked" if got else "landsat_passes_missed"
+                        ] += 1
+            k += 1
+
+    def tm_jobs(self) -> Process:
+        """Landsat TM processing on the shared COR units: Poisson arrivals."""
+        env, ls = self.env, self.scn.landsat
+        mean_gap_s = _DAY / ls.tm_jobs_per_day
+        while True:
+            yield env.timeout(self.rng_tm.exponential(mean_gap_s))
+            env.process(self.tm_job())
+
+    def tm_job(self) -> Process:
+        ls, sv = self.scn.landsat, self.scn.service
+        counted = self.env.now >= self.warmup
+        yield from self.stages["cor"].serve(_gamma(self.rng_tm, ls.tm_job_s, sv.cv), priority=1)
+        self.counts["tm_jobs"] += counted
+
     def run(self) -> Replication:
         """Run to the end of the simulated time; the replication's figures."""
         for sat in self.scn.satellites:
@@ -283,6 +352,28 @@ class StationSimulation:
             )
         series = {name: (s.series_t, s.series_wait) for name, s in stages.items()}
         return Replication(figures, levels, station, series)
+
+
+#: INPE's raw lines per north-up corrected line (paper 004_…), for service-time files that
+#: predate the measured figure.
+INPE_RAW_LINES_PER_2A_ROW = {"P": 950.0, "XS": 475.0}
+
+
+def cor_window_s(service: Service, cfg: ServiceConfig, mode: str) -> float:
+    """The extra time of a 2A job on a COR unit whose raw-line buffer is smaller than the
+    window of raw lines one north-up row reads: the raw scene is read once per buffer-full
+    beyond the first (``ceil(window / buffer) − 1`` times) at ``raw_read_mb_per_s``.
+
+    The window is the code's measured figure (``raw_lines_per_2a_row``, P 980 / XS 490 at
+    Cuiabá; INPE's 950 / 475), times a raw line's bytes (one byte per detector and band).
+    """
+    if cfg.cor_memory_mb <= 0:
+        return 0.0
+    m = MODES[mode]
+    line_mb = m.detectors * len(m.bands) / 1e6
+    rows = service.raw_lines_per_2a_row.get(mode, INPE_RAW_LINES_PER_2A_ROW[mode])
+    passes = math.ceil(rows * line_mb / cfg.cor_memory_mb)
+    return (passes - 1) * m.detectors * line_mb / cfg.raw_read_mb_per_s
 
 
 def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> Replication:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from levels.geometry.times import Epoch
-from station.scenario import GroundStationConfig
+from station.scenario import GroundStationConfig, OrbitConfig
 
 __all__ = ["PassPattern", "pass_pattern"]
 
@@ -28,21 +28,22 @@ class PassPattern:
 
 
 @functools.lru_cache(maxsize=8)
-def pass_pattern(gs: GroundStationConfig) -> PassPattern:
-    """The passes over ``gs`` above its mask in one repeat cycle of the phased orbit.
+def pass_pattern(gs: GroundStationConfig, oc: OrbitConfig | None = None) -> PassPattern:
+    """The passes over ``gs`` above its mask in one repeat cycle of the phased orbit ``oc``
+    (SPOT's by default; Landsat's for the shared antenna).
 
     The orbit repeats its ground track every cycle (SPOT: 369 revolutions in 26 days), so
     a year is this pattern laid end to end; a satellite trailing by whole days on the same
     orbit has the same pattern, delayed.
     """
-    from station.scenario import OrbitConfig, PassConfig, WorldConfig
+    from station.scenario import PassConfig, WorldConfig
     from station.spacecraft.orbit import TruthOrbit
     from station.spacecraft.passes import find_passes
     from station.spacecraft.placement import mean_element_orbit, swath_centre_view
 
     # SPOT's phased orbit, placed as a default pass would place it (nadir view on the
     # default target); only its reference state matters: the cycle is propagated from it
-    oc, pc = OrbitConfig(), PassConfig()
+    oc, pc = oc or OrbitConfig(), PassConfig()
     epoch = Epoch(np.datetime64(pc.date_utc, "ns"), name="00:00 UTC of the pass day")
     o, _t = mean_element_orbit(
         oc, pc, epoch, (0.0, _DAY), swath_centre_view(0.0, WorldConfig().base_height_m)

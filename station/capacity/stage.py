@@ -118,11 +118,12 @@ class Stage:
             self.waits.append(t1 - t0)
             self.sojourns.append(env.now - t0)
 
-    def take(self, duration_s: float) -> bool:
+    def take(self, duration_s: float, count_loss: bool = True) -> bool:
         """Take a free unit for ``duration_s`` now, or count a loss: no queue (an antenna
-        or a recorder cannot wait for the satellite)."""
+        or a recorder cannot wait for the satellite). ``count_loss=False``: the caller
+        counts its own (another mission's passes)."""
         if self.res.count >= self.units:
-            if self.env.now >= self.warmup_s:
+            if count_loss and self.env.now >= self.warmup_s:
                 self.lost += 1
             return False
         self.env.process(self.serve(duration_s))  # granted at once: a unit is free
