@@ -286,3 +286,18 @@ def test_a_2a_row_reads_inpes_950_raw_lines(nadir) -> None:
     convergence = abs(pyproj.Proj(crs).get_factors(lon, lat).meridian_convergence)
     assert azimuth - convergence == pytest.approx(INPE_TRACK_AZIMUTH_DEG, abs=AZIMUTH_TOL_DEG)
     assert 900 < np.ptp(line[inside]) < 1000  # INPE's 950, through the grid's convergence
+
+
+def test_spot5_earth_fixed_frame_is_a_scenario_choice() -> None:
+    """SPOT 5's convention (the attitude frame on the Earth-fixed velocity): the raw lines
+    follow the ground track, the 1B skew vanishes, and the chain is as unbiased as with
+    SPOT 1–4's inertial frame: the processing takes the velocity the bulletins carry."""
+    over = merge_tables(ERRORS_OFF, {"attitude": {"reference_velocity": "earth_fixed"}})
+    acq, scene, res = _scene(merge_tables({"instrument": {"n_detectors": 300}}, over))
+    assert acq.orbit.reference_velocity == "earth_fixed"
+    g1 = level1b_geometry(scene, res)
+    # h of the reduced scene (300 columns of 200 m): the inertial frame's 400 px are 20
+    assert np.ptp(g1.h(np.arange(g1.n_rows, dtype=float))) < 0.1 * EARTH_SKEW_PX / 20
+    e1, e2, res = _errors(over)
+    assert e2["max_px"] < UNBIASED_PX
+    assert np.hypot(e1["mean_1_m"], e1["mean_2_m"]) / res < UNBIASED_PX

@@ -231,3 +231,30 @@ def test_a_product_without_its_geometry_is_refused(run_dir: Path, tmp_path: Path
         del f["geometry/level_2a"]
     with pytest.raises(ProductError, match="without its geometry/level_2a"):
         read_product(bad)
+
+
+def test_the_ephemeris_velocity_convention_travels(run_dir: Path) -> None:
+    """The emulated SPOT 1–4 bulletins carry the inertial velocity; the L0 archive says so
+    and every product made from it repeats it (docs/l0.md)."""
+    from levels.readers.l0 import read_l0
+
+    archive = read_l0(run_dir / "small_test.l0.h5")
+    assert archive.reference_velocity == "inertial"
+    eph = archive.ephemeris
+    # the bulletins' velocity against the motion of their own positions (Earth-fixed:
+    # central differences over ±1 bulletin, curvature error ~0.03°). An inertial velocity
+    # is turned from it by ω × r, about 4° · cos φ at SPOT's height (the real SPOT 2 scene
+    # of refdata, at 40.7° N: 2.97°); an Earth-fixed one by nothing.
+    r, t, v = eph.r_ecef_m[1:-1], eph.t_s, eph.v_ecef_m_per_s[1:-1]
+    dr_dt = (eph.r_ecef_m[2:] - eph.r_ecef_m[:-2]) / (t[2:] - t[:-2])[:, None]
+
+    def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        cos = np.sum(a * b, axis=1) / np.linalg.norm(a, axis=1) / np.linalg.norm(b, axis=1)
+        return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+    omega_x_r = np.cross([0.0, 0.0, 7.2921150e-5], r)
+    expected = angle_deg(v, v - omega_x_r)
+    assert expected.min() > 3.0  # the test can tell the two conventions apart
+    assert angle_deg(dr_dt, v) == pytest.approx(expected, abs=0.1)
+    p = read_product(run_dir / "small_test_s000_2A.h5", images=False)
+    assert p.geometry["ephemeris"]["reference_velocity"] == "inertial"
