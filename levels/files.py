@@ -20,7 +20,27 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["atomic_path", "json_default", "plain", "write_json", "write_text"]
+__all__ = [
+    "HDF5_FILE_OPTIONS",
+    "atomic_path",
+    "checksummed",
+    "json_default",
+    "plain",
+    "write_json",
+    "write_text",
+]
+
+#: How every HDF5 file of the project is created: with the object-header format of HDF5
+#: 1.8 and later, whose metadata carry checksums that the library verifies on read (a
+#: flipped byte in a header or an attribute is an error, not a wrong value), readable by
+#: HDF5 1.8 to 1.12 and so by netCDF-C, GDAL and h5netcdf.
+HDF5_FILE_OPTIONS = {"libver": ("v108", "v112")}
+
+
+def checksummed(data: Any) -> dict[str, Any]:
+    """``create_dataset`` options that store a Fletcher-32 checksum with every chunk of
+    ``data`` (verified by HDF5 on each read; a scalar cannot be chunked and has none)."""
+    return {"fletcher32": True} if np.ndim(data) > 0 and np.size(data) > 0 else {}
 
 
 @contextlib.contextmanager
@@ -35,6 +55,10 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     try:
         yield tmp
         os.replace(tmp, target)
+    except OSError as exc:  # a full disk, a lost permission: say which file
+        if exc.filename is not None:
+            raise
+        raise OSError(exc.errno, f"{exc.strerror} (writing {target})") from None
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
@@ -74,3 +98,51 @@ def write_text(path: str | Path, text: str) -> Path:
 def write_json(path: str | Path, data: Any) -> Path:
     """Write ``data`` as indented JSON atomically (module docstring); returns its path."""
     return write_text(path, json.dumps(data, indent=2, default=json_default) + "\n")
+
+
+def hdf5_damage(exc: BaseException) -> str:
+    """What an HDF5 read error says of the file, in words: a checksum that does not match
+    (:func:`checksummed`, :data:`HDF5_FILE_OPTIONS`) or another damage."""
+    text = " ".join(str(exc).split())
+    if "filter returned failure" in text or "checksum" in text.lower():
+        return f"a stored checksum does not match: the file is damaged ({text})"
+    return f"the file is damaged or truncated ({text})"
+
+
+def writable_dir(path: str | Path) -> Path:
+    """``path`` as a directory this process can write files in, created if need be: checked
+    before any work starts, so that an unwritable output fails in a second, not after
+    minutes. Raises ``OSError`` naming the directory."""
+    d = Path(path)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        with atomic_path(d / ".write-check") as tmp:
+            tmp.write_bytes(b"")
+        (d / ".write-check").unlink()
+    except OSError as exc:
+        raise OSError(f"cannot write in {d}: {exc.strerror or exc}") from None
+    return d
+
+
+def remove_partials(directory: str | Path) -> list[Path]:
+    """Remove the temporary files that writers killed mid-write left in ``directory``
+    (``.<name>.<pid>.partial`` of :func:`atomic_path`, when process ``pid`` is gone)."""
+    removed = []
+    for p in Path(directory).glob(".*.partial"):
+        pid = p.name.rsplit(".", 2)[-2]
+        if pid.isdigit() and _alive(int(pid)):
+            continue
+        with contextlib.suppress(FileNotFoundError):
+            p.unlink()
+            removed.append(p)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

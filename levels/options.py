@@ -248,6 +248,16 @@ class ProcessingOptions:
                 f"overlap_lines = {self.overlap_lines} must be less than "
                 f"scene_lines = {self.scene_lines}"
             )
+        if self.crs not in ("utm", "som"):
+            import pyproj
+
+            try:
+                pyproj.CRS.from_user_input(self.crs)
+            except pyproj.exceptions.CRSError as exc:
+                raise OptionsError(
+                    f"crs = {self.crs!r}: not a CRS PROJ knows ({exc}); use 'utm', 'som', an "
+                    "EPSG code ('EPSG:32721') or a WKT"
+                ) from None
         bad = [lv for lv in self.levels if lv not in LEVELS]
         if bad:
             raise OptionsError(

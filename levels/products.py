@@ -24,7 +24,11 @@ product.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import json
+import os
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,7 +39,7 @@ import pyproj
 from numpy.typing import NDArray
 
 from levels.errors import ProductError
-from levels.files import atomic_path
+from levels.files import HDF5_FILE_OPTIONS, atomic_path, checksummed, hdf5_damage
 
 __all__ = [
     "PRODUCT_FORMAT",
@@ -64,6 +68,33 @@ _UNITS = (
     ("_s", "s"),
     ("_counts", "1"),
 )
+
+
+_MEMORY_FILES = itertools.count()
+
+
+@contextlib.contextmanager
+def new_hdf5(target: str | Path) -> Iterator[h5py.File]:
+    """A new HDF5 file, built in memory and written to ``target`` whole when the block ends
+    (through :func:`levels.files.atomic_path`). HDF5 never writes to the disk itself: a full
+    disk is one clean ``OSError`` from the final write, and the temporary file is removed;
+    HDF5's own failing writes would end in a flood of errors and a crash of the library.
+    The products and the L0 archive are held in memory by their readers anyway."""
+    f = h5py.File(
+        f"memory-{os.getpid()}-{next(_MEMORY_FILES)}.h5",
+        "w",
+        driver="core",
+        backing_store=False,
+        **HDF5_FILE_OPTIONS,
+    )
+    try:
+        yield f
+        f.flush()
+        image = f.id.get_file_image()
+    finally:
+        f.close()
+    with atomic_path(target) as tmp:
+        tmp.write_bytes(image)
 
 
 def product_name(name: str, scene_index: int, level: str) -> str:
@@ -168,7 +199,7 @@ def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
         if isinstance(value, dict):
             _write_tree(group.create_group(name), value)
         elif isinstance(value, np.ndarray):
-            ds = group.create_dataset(name, data=value)
+            ds = group.create_dataset(name, data=value, **checksummed(value))
             ds.attrs["units"] = units_of(name)
             ds.attrs["long_name"] = name.replace("_", " ")
         else:
@@ -185,7 +216,7 @@ def _read_tree(group: h5py.Group) -> dict[str, Any]:
 
 
 def _dimension(f: h5py.File, name: str, values: NDArray, attrs: dict[str, str]) -> h5py.Dataset:
-    ds = f.create_dataset(name, data=values)
+    ds = f.create_dataset(name, data=values, **checksummed(values))
     ds.make_scale(name)
     for k, v in attrs.items():
         ds.attrs[k] = v
@@ -209,7 +240,7 @@ def _grid_mapping(f: h5py.File, grid: MapGrid) -> None:
 def write_product(path: str | Path, product: Product) -> Path:
     """Write a product atomically (module docstring); returns its path."""
     target = Path(path)
-    with atomic_path(target) as tmp, h5py.File(tmp, "w") as f:
+    with new_hdf5(target) as f:
         f.attrs["format"] = PRODUCT_FORMAT
         f.attrs["format_version"] = PRODUCT_VERSION
         f.attrs["Conventions"] = "CF-1.8"
@@ -270,7 +301,12 @@ def write_product(path: str | Path, product: Product) -> Path:
                 ),
             ):
                 ds = f.create_dataset(
-                    var, data=data, chunks=chunks, compression="gzip", compression_opts=1
+                    var,
+                    data=data,
+                    chunks=chunks,
+                    compression="gzip",
+                    compression_opts=1,
+                    fletcher32=True,
                 )
                 for axis, dim in enumerate(dims):
                     ds.dims[axis].attach_scale(dim)
@@ -380,5 +416,7 @@ def read_product(path: str | Path, images: bool = True) -> Product:
             return Product(attrs=attrs, bands=bands, map_grid=grid, **trees)
         except ProductError as exc:
             raise ProductError(f"{where}: {exc}") from None
-        except (KeyError, OSError, RuntimeError, ValueError, TypeError) as exc:
+        except (OSError, RuntimeError) as exc:
+            raise ProductError(f"{where}: {hdf5_damage(exc)}") from None
+        except (KeyError, ValueError, TypeError) as exc:
             raise ProductError(f"{where}: damaged or incomplete product ({exc})") from None

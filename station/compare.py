@@ -11,6 +11,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from levels.compare import (
     CompareError,
     Comparison,
@@ -19,6 +21,7 @@ from levels.compare import (
     compare_paths,
     load_tolerances,
 )
+from levels.readers.l0 import read_l0
 
 __all__ = ["compare_inputs", "compare_runs"]
 
@@ -44,6 +47,71 @@ def compare_runs(
     ra, rb = pa / "report.json", pb / "report.json"
     if ra.is_file() and rb.is_file():
         out.findings[""] += _compare_reports(_read_report(ra), _read_report(rb))
+    else:  # a run that did not finish (or not a run): never compared as if it were whole
+        out.findings[""].append(
+            Finding(
+                "files",
+                "report.json",
+                ok=False,
+                a="present" if ra.is_file() else "missing (the run did not finish)",
+                b="present" if rb.is_file() else "missing (the run did not finish)",
+            )
+        )
+    out.findings[""] += _compare_l0s(pa, pb)
+    return out
+
+
+def _compare_l0s(a: Path, b: Path) -> list[Finding]:
+    """The L0 archives of two runs: present in both, and their data equal (counts, masks,
+    line times, ephemeris, gyro rates: a rerun of a scenario records the same bytes of
+    data). A damaged archive is bad input (its checksums, ``levels.readers.l0``)."""
+    la = {p.name: p for p in sorted(a.glob("*.l0.h5"))}
+    lb = {p.name: p for p in sorted(b.glob("*.l0.h5"))}
+    out = [
+        Finding(
+            "files",
+            f"L0 {n}",
+            ok=False,
+            a="present" if n in la else "missing",
+            b="present" if n in lb else "missing",
+        )
+        for n in sorted(set(la) ^ set(lb))
+    ]
+    if not la and not lb:
+        out.append(Finding("files", "L0 archives", ok=False, a="none", b="none"))
+    for name in sorted(set(la) & set(lb)):
+        x, y = read_l0(la[name]), read_l0(lb[name])
+        pairs = {
+            "lines/t_s": (x.line_t_s, y.line_t_s),
+            "lines/line_counter": (x.line_counter, y.line_counter),
+            "ephemeris/r_ecef_m": (x.ephemeris.r_ecef_m, y.ephemeris.r_ecef_m),
+            "ephemeris/v_ecef_m_per_s": (x.ephemeris.v_ecef_m_per_s, y.ephemeris.v_ecef_m_per_s),
+            "aux/gyro_rates_rad_per_s": (x.gyro_rates_rad_per_s, y.gyro_rates_rad_per_s),
+        }
+        if set(x.bands) != set(y.bands):
+            out.append(
+                Finding("l0", f"{name}: bands", ok=False, a=sorted(x.bands), b=sorted(y.bands))
+            )
+        for band in sorted(set(x.bands) & set(y.bands)):
+            pairs[f"bands/{band}/counts"] = (x.bands[band].counts, y.bands[band].counts)
+            pairs[f"bands/{band}/valid"] = (x.bands[band].valid, y.bands[band].valid)
+        differ = [
+            k
+            for k, (u, v) in pairs.items()
+            if np.shape(u) != np.shape(v) or not np.array_equal(u, v)
+        ]
+        for k in differ:
+            out.append(
+                Finding(
+                    "l0",
+                    f"{name}: {k}",
+                    ok=False,
+                    a=f"shape {np.shape(pairs[k][0])}",
+                    b=f"shape {np.shape(pairs[k][1])}, values differ",
+                )
+            )
+        if not differ:
+            out.append(Finding("l0", f"{name}", value="identical data"))
     return out
 
 

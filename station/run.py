@@ -29,15 +29,17 @@ import time
 from pathlib import Path
 from typing import Any
 
-from levels.files import json_default, write_json
+from levels.files import json_default, remove_partials, writable_dir, write_json
 from levels.products import read_product
 from station import __version__
+from station.errors import StationError
 from station.scenario import Scenario
 
 __all__ = [
     "REPORT_FORMAT",
     "approximation_max_px",
     "comparable_report",
+    "prepare_run_dir",
     "run_scenario",
     "summary_table",
 ]
@@ -60,8 +62,7 @@ def run_scenario(
     from levels.quicklook import write_quicklook
     from station.spacecraft.emulator import emulate_pass
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_run_dir(out_dir, scn.name)
     clock = time.perf_counter
     timings: dict[str, Any] = {}
     t_start = clock()
@@ -130,6 +131,40 @@ def run_scenario(
     write_json(out / "report.json", report)
     stages.close()
     return report
+
+
+def prepare_run_dir(out_dir: str | Path, name: str) -> Path:
+    """The run directory, ready before any work: writable (checked now, not after minutes),
+    not another scenario's run (its ``report.json`` names it: refused), and without what an
+    earlier run of this scenario left (its report first, so that the directory never says a
+    run finished that did not; then its L0 archives, products and quicklooks), nor the
+    temporary files of a killed writer. Other files are left alone."""
+    out = writable_dir(out_dir)
+    report = out / "report.json"
+    if report.is_file():
+        try:
+            previous = json.loads(report.read_text(encoding="utf-8"))["scenario"]["name"]
+        except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+            previous = None
+        if previous != name:
+            raise StationError(
+                f"{out} holds a run of scenario {previous!r}, not {name!r}: give another --out"
+                " (or remove that run)"
+            )
+        report.unlink()
+    stale = [
+        *out.glob(f"{name}.l0.h5"),
+        *out.glob(f"{name}_hrv[12].l0.h5"),
+        *out.glob(f"{name}_s[0-9][0-9][0-9]_*.h5"),
+        *out.glob(f"{name}_hrv[12]_s[0-9][0-9][0-9]_*.h5"),
+        *(out / "quicklooks").glob(f"{name}_*.png"),
+    ]
+    for p in stale:
+        p.unlink()
+    remove_partials(out)
+    if (out / "quicklooks").is_dir():
+        remove_partials(out / "quicklooks")
+    return out
 
 
 def _receive_and_process(

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,6 +46,7 @@ __all__ = [
     "Scenario",
     "ScenarioError",
     "WorldConfig",
+    "check_name",
     "describe_keys",
     "load_scenario",
     "merge_tables",
@@ -265,6 +267,10 @@ class InstrumentConfig:
     )
 
     def __post_init__(self) -> None:
+        if self.n_lines == 1:
+            raise ScenarioError(
+                "[instrument] n_lines = 1: a strip needs at least 2 lines (0: one 60 km scene)"
+            )
         full = MODES[self.mode].detectors
         n = self.n_detectors or full
         if n > full:
@@ -466,6 +472,7 @@ class Scenario:
     source_sha256: str = ""
 
     def __post_init__(self) -> None:
+        check_name(self.name)
         numbers = [i.hrv for i in self.instruments]
         if len(set(numbers)) != len(numbers):
             raise ScenarioError(
@@ -491,6 +498,20 @@ class Scenario:
         """A path of the scenario, resolved from the scenario file's directory."""
         p = Path(relative)
         return p if p.is_absolute() else Path(self.base_dir) / p
+
+
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
+
+
+def check_name(name: str, what: str = "name") -> str:
+    """A scenario's name, which names its files and run directory: letters, digits, ``_``,
+    ``.``, ``-``, starting with a letter or digit, at most 100 characters; never a path."""
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise ScenarioError(
+            f"{what} = {name!r}: expected letters, digits, '_', '.' or '-', starting with a "
+            "letter or a digit (at most 100): it names the run's files and directory"
+        )
+    return name
 
 
 #: Every error source of the emulator switched off, and a flat world at the default

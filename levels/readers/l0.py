@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from levels.errors import L0Error
+from levels.files import hdf5_damage
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.frames import REFERENCE_VELOCITIES
 from levels.geometry.sensor import LookAngleTable
@@ -129,9 +130,7 @@ def _get(f: h5py.File, name: str, ndim: int, where: Path) -> np.ndarray:
     try:
         data = f[name][()]
     except (OSError, RuntimeError) as exc:  # a chunk cut off or damaged
-        raise L0Error(
-            f"{where}: dataset '{name}' cannot be read ({exc}); the file is damaged or truncated"
-        ) from None
+        raise L0Error(f"{where}: dataset '{name}' cannot be read: {hdf5_damage(exc)}") from None
     if np.ndim(data) != ndim:
         raise L0Error(f"{where}: dataset '{name}' has {np.ndim(data)} dimensions, expected {ndim}")
     return data

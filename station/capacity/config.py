@@ -30,7 +30,7 @@ from typing import Any
 
 from levels.options import build_section, option
 from station.errors import ScenarioError
-from station.scenario import GroundStationConfig, read_toml
+from station.scenario import GroundStationConfig, check_name, read_toml
 
 __all__ = ["STAGES", "CapacityScenario", "capacity_from_dict", "load_capacity", "with_value"]
 
@@ -346,7 +346,7 @@ def capacity_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Capa
     allowed = sorted(["name", "seed", "satellite", *_SECTIONS])
     for key, value in data.items():
         if key == "name" and isinstance(value, str):
-            kwargs["name"] = value
+            kwargs["name"] = check_name(value)
         elif (
             key == "seed"
             and isinstance(value, int)

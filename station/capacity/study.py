@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from levels.files import atomic_path, plain, write_text
+from levels.files import atomic_path, plain, writable_dir, write_text
 from station.capacity.config import CapacityScenario, with_value
 from station.capacity.model import LEVELS, Replication, Service, simulate
 from station.capacity.stats import mean_ci
@@ -90,6 +90,8 @@ def run_study(
     service: Service | None = None,
 ) -> dict[str, Any]:
     """Replicate the scenario (for each sweep value); write the outputs to ``out_dir``."""
+    if out_dir is not None:
+        writable_dir(out_dir)  # now, not after the simulation
     service = service or load_service(scn)
     n = replications or scn.simulation.replications
     param, values = sweep if sweep else ("", [""])

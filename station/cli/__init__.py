@@ -1,14 +1,24 @@
 """The ``station`` command line, one module per command family (rasterio's ``rio/`` is the
 model): each registers its subcommands, parses, calls one function and prints.
 
-Bad input gives one line on stderr and exit code 2, never a traceback; ``station compare``
-keeps exit 1 for "outside the tolerances".
+Exit codes, the same for every command (``docs/compare.md``):
+
+- 0: done (``compare``: within the tolerances);
+- 1: ``compare`` only: differences found, each named;
+- 2: bad input or environment (a missing or damaged file, a bad scenario, a full disk, an
+  unwritable directory): one line on stderr, never a traceback;
+- 3: an internal error (a bug): one line naming it, and the traceback with
+  ``STATION_DEBUG=1``; never disguised as 1;
+- 130: interrupted (Ctrl-C): one line, nothing half-written left (every file is written
+  whole or not at all, ``levels.files``).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import traceback
 from collections.abc import Sequence
 
 from levels.errors import LevelsError
@@ -16,7 +26,16 @@ from station import __version__
 from station.cli import capacity, locate, process, products, run, spacecraft
 from station.errors import StationError
 
-__all__ = ["main"]
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_DIFFERENT",
+    "EXIT_INTERNAL",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "main",
+]
+
+EXIT_OK, EXIT_DIFFERENT, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 #: Command families, in the order ``station --help`` lists them.
 _FAMILIES = (run, process, products, spacecraft, locate, capacity)
@@ -44,5 +63,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return args.func(args)
     except (LevelsError, StationError, OSError) as exc:
-        print(f"station: error: {exc}", file=sys.stderr)
-        return 2
+        print(f"station: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("station: interrupted; files being written were discarded", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as exc:  # a bug: said as such, with its traceback on request
+        if os.environ.get("STATION_DEBUG"):
+            traceback.print_exc()
+        print(
+            f"station: internal error: {type(exc).__name__}: {_one_line(exc)} (a bug; "
+            "STATION_DEBUG=1 shows where)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__

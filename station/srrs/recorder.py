@@ -17,9 +17,10 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from levels.files import atomic_path
+from levels.files import checksummed
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.sensor import LookAngleTable
+from levels.products import new_hdf5
 from levels.readers.l0 import L0_FORMAT, L0_VERSION
 from station import __version__
 from station.srrs.receiver import STATUS_NAMES, DecodedPass
@@ -43,7 +44,7 @@ class BandAncillary:
 def _dataset(
     group: h5py.Group, name: str, data: np.ndarray, units: str, long_name: str, **kwargs
 ) -> h5py.Dataset:
-    ds = group.create_dataset(name, data=data, **kwargs)
+    ds = group.create_dataset(name, data=data, **{**checksummed(data), **kwargs})
     ds.attrs["units"] = units
     ds.attrs["long_name"] = long_name
     return ds
@@ -78,7 +79,7 @@ def write_l0(
         )
         / 1e9
     )
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with new_hdf5(path) as f:
         _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
         f["ephemeris"].attrs["reference_velocity"] = reference_velocity  # see docs/l0.md
     return path
