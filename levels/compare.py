@@ -232,6 +232,7 @@ def compare_products(
     """Every check of two products (module docstring)."""
     tol = tol or load_tolerances(None)
     out = _metadata(a, b)
+    out += _schema(a, b)
     out += _pixels(a, b, tol["pixels"])
     out += _geometry(a, b, tol["geometry"])
     out += _quality(a, b, tol["quality"])
@@ -272,6 +273,35 @@ def _metadata(a: Product, b: Product) -> list[Finding]:
         ca, cb = pyproj.CRS.from_wkt(ga.crs_wkt), pyproj.CRS.from_wkt(gb.crs_wkt)
         if not ca.equals(cb):
             out.append(Finding("metadata", "map CRS", ok=False, a=ca.name, b=cb.name))
+    return out
+
+
+def _paths(tree: dict[str, Any], prefix: str = "") -> set[str]:
+    out = set()
+    for k, v in tree.items():
+        out.add(prefix + k)
+        if isinstance(v, dict):
+            out |= _paths(v, f"{prefix}{k}/")
+    return out
+
+
+def _schema(a: Product, b: Product) -> list[Finding]:
+    """What one product holds and the other lacks, in any tree: a missing part is a
+    difference, never an absence of checks (provenance excepted: a new version may say
+    more of itself)."""
+    out = []
+    for tree in ("geometry", "quality"):
+        pa, pb = _paths(getattr(a, tree)), _paths(getattr(b, tree))
+        for path in sorted(pa ^ pb):
+            out.append(
+                Finding(
+                    "schema",
+                    f"{tree}/{path}",
+                    ok=False,
+                    a="present" if path in pa else "missing",
+                    b="present" if path in pb else "missing",
+                )
+            )
     return out
 
 
@@ -445,7 +475,9 @@ def _provenance(a: Product, b: Product) -> list[Finding]:
         if k == "processing":
             try:
                 ca, cb = json.loads(va or "{}"), json.loads(vb or "{}")
-            except json.JSONDecodeError:
+            except (json.JSONDecodeError, TypeError):
+                ca, cb = va, vb
+            if not isinstance(ca, dict) or not isinstance(cb, dict):
                 ca, cb = {"processing": va}, {"processing": vb}
             for key in sorted(set(ca) | set(cb)):
                 if ca.get(key) != cb.get(key):

@@ -25,6 +25,7 @@ product.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import itertools
 import json
 import os
@@ -42,19 +43,49 @@ from levels.errors import ProductError
 from levels.files import HDF5_FILE_OPTIONS, atomic_path, checksummed, hdf5_damage
 
 __all__ = [
+    "ATTRS_DIGEST",
     "PRODUCT_FORMAT",
     "PRODUCT_VERSION",
     "BandImage",
     "MapGrid",
     "Product",
+    "attrs_digest",
+    "check_attrs_digest",
+    "new_hdf5",
     "product_name",
     "read_product",
     "write_product",
 ]
 
+#: Root attribute holding the SHA-256 of every other attribute of the file (32 bytes, in
+#: the checksummed object header): HDF5 checksums the datasets' chunks (Fletcher-32) and
+#: the object headers, but not the strings of the global heap, where the JSON attributes
+#: live.
+ATTRS_DIGEST = "attributes_sha256"
+#: HDF5 and netCDF plumbing, whose values are object references or layout.
+_PLUMBING = (
+    "DIMENSION_LIST",
+    "REFERENCE_LIST",
+    "CLASS",
+    "NAME",
+    "_Netcdf4Dimid",
+    "_Netcdf4Coordinates",
+    "_NCProperties",
+)
+
 PRODUCT_FORMAT = "SPOT-LEVEL"
 PRODUCT_VERSION = 2  # 2: netCDF-4 / CF layout (module docstring); 1 is still read
 _READABLE_VERSIONS = (1, 2)
+#: What ``geometry/scene`` holds (``docs/products.md``).
+SCENE_KEYS = (
+    "first_line",
+    "n_lines",
+    "t_centre_s",
+    "centre_lat_deg",
+    "centre_lon_deg",
+    "corners_lat_deg",
+    "corners_lon_deg",
+)
 #: The geometry trees a product of each level must carry (``docs/products.md``).
 REQUIRED_GEOMETRY = {"1A": ("scene",), "1B": ("scene", "level_1b"), "2A": ("scene", "level_2a")}
 _CHUNK = 512
@@ -73,6 +104,48 @@ _UNITS = (
 _MEMORY_FILES = itertools.count()
 
 
+def _attr_bytes(value: Any) -> bytes:
+    if isinstance(value, bytes):
+        return b"b" + value
+    if isinstance(value, str):
+        return b"s" + value.encode("utf-8")
+    a = np.asarray(value)
+    if a.dtype.kind == "O":
+        return b"o" + "\x1f".join(str(x) for x in a.ravel()).encode("utf-8")
+    return f"{a.dtype.str}{a.shape}".encode() + a.tobytes()
+
+
+def attrs_digest(f: h5py.File) -> bytes:
+    """SHA-256 of every attribute of the file but the digest itself and the plumbing, in
+    the order of the objects' and the attributes' names."""
+    h = hashlib.sha256()
+
+    def add(name: str, obj: Any) -> None:
+        for key in sorted(obj.attrs):
+            if key in _PLUMBING or (name == "" and key == ATTRS_DIGEST):
+                continue
+            h.update(f"{name}/{key}=".encode())
+            h.update(_attr_bytes(obj.attrs[key]))
+
+    add("", f)
+    f.visititems(add)
+    return h.digest()
+
+
+def check_attrs_digest(f: h5py.File, required: bool) -> None:
+    """Raise ``ValueError`` if the attributes do not match their stored digest (or it is
+    missing where ``required``)."""
+    stored = f.attrs.get(ATTRS_DIGEST)
+    if stored is None:
+        if required:
+            raise ValueError(f"the attribute digest '{ATTRS_DIGEST}' is missing")
+        return
+    if np.asarray(stored, dtype=np.uint8).tobytes() != attrs_digest(f):
+        raise ValueError(
+            "the attributes do not match their stored digest: the file is damaged or was edited"
+        )
+
+
 @contextlib.contextmanager
 def new_hdf5(target: str | Path) -> Iterator[h5py.File]:
     """A new HDF5 file, built in memory and written to ``target`` whole when the block ends
@@ -89,6 +162,7 @@ def new_hdf5(target: str | Path) -> Iterator[h5py.File]:
     )
     try:
         yield f
+        f.attrs[ATTRS_DIGEST] = np.frombuffer(attrs_digest(f), dtype=np.uint8)
         f.flush()
         image = f.id.get_file_image()
     finally:
@@ -341,6 +415,34 @@ def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> Non
                     geometry[key].setdefault(k, v)
 
 
+def _check_scene(scene: dict[str, Any]) -> None:
+    """The scene's figures are finite numbers, its lines whole and its corners four."""
+    for k in SCENE_KEYS:
+        try:
+            v = np.asarray(scene[k], dtype=np.float64)
+        except (TypeError, ValueError):
+            v = np.array(np.nan)
+        whole = k in ("first_line", "n_lines")
+        shape = (4,) if k.startswith("corners") else ()
+        if v.shape != shape or not np.all(np.isfinite(v)) or (whole and v != np.rint(v)):
+            raise ProductError(
+                f"geometry/scene/{k} = {scene[k]!r} is not "
+                f"{'a whole number' if whole else 'finite numbers'}; damaged"
+            )
+
+
+def _check_geometry_trees(geometry: dict[str, Any], bands: list[str]) -> None:
+    """Every band's 1B or 2A geometry rebuilds from its tree (each object checks its own:
+    ``from_tree`` raises :class:`ProductError` naming what is missing or malformed)."""
+    from levels.geo.level1b import Level1BGeometry
+    from levels.geo.level2a import Level2AGeometry
+
+    for key, cls in (("level_1b", Level1BGeometry), ("level_2a", Level2AGeometry)):
+        if key in geometry:
+            for band in bands:
+                cls.from_tree(geometry[key], band)
+
+
 def _read_bands(f: h5py.File, names: list[str], version: int, images: bool) -> dict[str, BandImage]:
     bands = {}
     for name in names:
@@ -371,6 +473,23 @@ def _read_map_grid(f: h5py.File, version: int, geometry: dict[str, Any]) -> MapG
 def read_product(path: str | Path, images: bool = True) -> Product:
     """Read and check a product; ``images=False`` reads only its metadata (masks too)."""
     where = Path(path)
+    try:
+        return _read_product(where, images)
+    except ProductError:
+        raise
+    except (
+        OSError,
+        RuntimeError,
+        KeyError,
+        ValueError,
+        TypeError,
+        IndexError,
+        AttributeError,
+    ) as exc:
+        raise ProductError(f"{where}: {hdf5_damage(exc)}") from None
+
+
+def _read_product(where: Path, images: bool) -> Product:
     if not where.is_file():
         raise ProductError(f"{where}: no such product file")
     try:
@@ -408,11 +527,25 @@ def read_product(path: str | Path, images: bool = True) -> Product:
                     f"level {level} product without its geometry/{lacking[0]} "
                     "group; damaged or incomplete"
                 )
+            scene = trees["geometry"].get("scene", {})
+            missing_keys = [k for k in SCENE_KEYS if k not in scene] if scene else []
+            if missing_keys:
+                raise ProductError(
+                    f"geometry/scene lacks {missing_keys[0]!r}; damaged or incomplete"
+                )
+            if scene:
+                _check_scene(scene)
             if version == 1:
                 _upgrade_v1_geometry(trees["geometry"], attrs)
+            attrs.pop(ATTRS_DIGEST, None)  # checked above; not part of what it holds
             names = json.loads(attrs.pop("band_names"))
+            _check_geometry_trees(trees["geometry"], names)
             bands = _read_bands(f, names, version, images)
             grid = _read_map_grid(f, version, trees["geometry"])
+            try:  # last: a missing part is named above, an edited value here
+                check_attrs_digest(f, required=version >= 2)
+            except ValueError as exc:
+                raise ProductError(f"{where}: {exc}") from None
             return Product(attrs=attrs, bands=bands, map_grid=grid, **trees)
         except ProductError as exc:
             raise ProductError(f"{where}: {exc}") from None

@@ -189,7 +189,8 @@ def _as_version_1(src: Path, dst: Path) -> None:
 
     with h5py.File(src, "r") as f, h5py.File(dst, "w") as g:
         for k, v in f.attrs.items():
-            g.attrs[k] = v
+            if k != "attributes_sha256":  # version 1 had no digest
+                g.attrs[k] = v
         g.attrs["format_version"] = 1
         for name in json.loads(f.attrs["band_names"]):
             g.create_dataset(f"bands/{name}/image", data=f[name][()])

@@ -24,6 +24,7 @@ from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.frames import REFERENCE_VELOCITIES
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch
+from levels.products import ATTRS_DIGEST, check_attrs_digest
 
 __all__ = ["L0_FORMAT", "L0_VERSION", "L0Archive", "L0Band", "pixel_mask", "read_l0"]
 
@@ -144,6 +145,23 @@ def _need(cond: bool, where: Path, what: str) -> None:
 def read_l0(path: str | Path) -> L0Archive:
     """Read and check an L0 pass archive (module docstring)."""
     where = Path(path)
+    try:
+        return _read_l0(where)
+    except L0Error:
+        raise
+    except (
+        OSError,
+        RuntimeError,
+        KeyError,
+        ValueError,
+        TypeError,
+        IndexError,
+        AttributeError,
+    ) as exc:
+        raise L0Error(f"{where}: {hdf5_damage(exc)}") from None
+
+
+def _read_l0(where: Path) -> L0Archive:
     if not where.is_file():
         raise L0Error(f"{where}: no such L0 file")
     try:
@@ -152,6 +170,7 @@ def read_l0(path: str | Path) -> L0Archive:
         raise L0Error(f"{where}: not a readable HDF5 file ({exc}); is it truncated?") from None
     with f:
         attrs = dict(f.attrs)
+        attrs.pop(ATTRS_DIGEST, None)
         if attrs.get("format") != L0_FORMAT:
             raise L0Error(
                 f"{where}: format attribute is {attrs.get('format')!r}, "
@@ -256,6 +275,10 @@ def read_l0(path: str | Path) -> L0Archive:
             where,
             f"ephemeris reference_velocity {ref_v!r} is not one of {REFERENCE_VELOCITIES}",
         )
+        try:  # last: a missing part is named above; archives before the digest have none
+            check_attrs_digest(f, required=False)
+        except ValueError as exc:
+            raise L0Error(f"{where}: {exc}") from None
     try:
         epoch = Epoch(np.datetime64(str(attrs["epoch_utc"]), "ns"), name="00:00 UTC, pass day")
         ephemeris = Ephemeris(
