@@ -17,9 +17,8 @@ from levels.cor.radiometry import (
 from levels.cor.resample import resample_1b, resample_2a, with_nan
 from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import level2a_geometry, map_crs
-from levels.geo.scenes import pass_geometry
-from levels.process import nominal_pixel_size_m
 from station.scenario import scenario_from_dict
+from station.sipc.process import emulated_scene
 from station.spacecraft.emulator import emulate
 
 #: float32 image values against float64 references: 1e-3 counts is far below the 8-bit step.
@@ -31,18 +30,7 @@ def geometry():
     acq = emulate(
         scenario_from_dict({"instrument": {"n_detectors": 400, "n_lines": 400}}), render=False
     )
-    b = acq.hrv.bands[0]
-    pg = pass_geometry(
-        acq.epoch,
-        acq.line_times_s,
-        acq.hrv.line_period_s,
-        acq.bulletins,
-        acq.gyros.t_s,
-        acq.gyros.rates_rad_per_s,
-        {b.name: b.look_nominal},
-    )
-    scene = pg.scenes(400, 0, 450.0)[0]
-    res = nominal_pixel_size_m(b.look_nominal)
+    _pg, scene, res = emulated_scene(acq, 400)
     g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad))
     return level1b_geometry(scene, res), g2
 

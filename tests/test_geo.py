@@ -16,6 +16,7 @@ from levels.geo.polynomial import Poly1D, Poly2D
 from levels.geo.scenes import cut_scenes, pass_geometry
 from levels.process import nominal_pixel_size_m
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
+from station.sipc.process import emulated_scene
 from station.sipc.truth import Truth, checkpoints_1b, checkpoints_2a
 from station.spacecraft.emulator import emulate
 
@@ -32,18 +33,8 @@ EARTH_SKEW_REL = 0.05
 
 def _scene(data: dict):
     acq = emulate(scenario_from_dict(data), render=False)
-    b = acq.hrv.bands[0]
-    pg = pass_geometry(
-        acq.epoch,
-        acq.line_times_s,
-        acq.hrv.line_period_s,
-        acq.bulletins,
-        acq.gyros.t_s,
-        acq.gyros.rates_rad_per_s,
-        {b.name: b.look_nominal},
-    )
-    scene = pg.scenes(acq.hrv.n_lines, 0, H_REF_M)[0]
-    return acq, scene, nominal_pixel_size_m(b.look_nominal)
+    _pg, scene, res = emulated_scene(acq, reference_height_m=H_REF_M)
+    return acq, scene, res
 
 
 @pytest.fixture(scope="module")
@@ -278,14 +269,12 @@ def test_a_2a_row_reads_inpes_950_raw_lines(nadir) -> None:
     _acq, scene, res = nadir
     crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
     g = level2a_geometry(scene, res, crs)
-    j = np.arange(0.0, g.n_cols)
-    line, col = g.raw_of(np.full(j.size, g.n_rows / 2), j)
-    inside = (col >= 0) & (col <= 5999) & (line >= 0) & (line <= 5999)
-    azimuth = np.degrees(np.arctan2(np.ptp(line[inside]), np.ptp(col[inside])))
+    lines, cols = g.raw_line_span()
+    azimuth = np.degrees(np.arctan2(lines, cols))
     lon, lat = np.degrees(scene.centre_lon_rad), np.degrees(scene.centre_lat_rad)
     convergence = abs(pyproj.Proj(crs).get_factors(lon, lat).meridian_convergence)
     assert azimuth - convergence == pytest.approx(INPE_TRACK_AZIMUTH_DEG, abs=AZIMUTH_TOL_DEG)
-    assert 900 < np.ptp(line[inside]) < 1000  # INPE's 950, through the grid's convergence
+    assert 900 < lines < 1000  # INPE's 950, through the grid's convergence
 
 
 def test_spot5_earth_fixed_frame_is_a_scenario_choice() -> None:

@@ -25,7 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
+from levels.geo.level2a import Level2AGeometry
 from station.scenario import ERRORS_OFF, merge_tables
+from station.sipc.process import emulated_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 REFDATA = Path(os.environ.get("SPOT_REFDATA", ROOT.parent / "shared" / "refdata"))
@@ -243,26 +245,14 @@ def levels_figures() -> Iterator[Row]:
     from levels.geo.level1b import level1b_geometry
     from levels.geo.level2a import level2a_geometry
     from levels.geo.maps import map_crs
-    from levels.geo.scenes import pass_geometry
-    from levels.process import nominal_pixel_size_m
     from station.scenario import scenario_from_dict
     from station.sipc.truth import Truth, checkpoints_1b, checkpoints_2a
     from station.spacecraft.emulator import emulate
 
     def scene(data: dict):
         acq = emulate(scenario_from_dict(data), render=False)
-        looks = {b.name: b.look_nominal for b in acq.hrv.bands}
-        pg = pass_geometry(
-            acq.epoch,
-            acq.line_times_s,
-            acq.hrv.line_period_s,
-            acq.bulletins,
-            acq.gyros.t_s,
-            acq.gyros.rates_rad_per_s,
-            looks,
-        )
-        s = pg.scenes(acq.hrv.n_lines, 0, 450.0)[0]
-        return acq, s, nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
+        _pg, s, res = emulated_scene(acq)
+        return acq, s, res
 
     from station.scenario import read_toml
 
@@ -361,18 +351,8 @@ def levels_figures() -> Iterator[Row]:
         ),
         render=False,
     )
-    looks = {b.name: b.look_nominal for b in acq.hrv.bands}
-    pg = pass_geometry(
-        acq.epoch,
-        acq.line_times_s,
-        acq.hrv.line_period_s,
-        acq.bulletins,
-        acq.gyros.t_s,
-        acq.gyros.rates_rad_per_s,
-        looks,
-    )
-    s = pg.scenes(acq.hrv.n_lines, 0, 450.0)[0]
-    res = nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
+    looks = [b.name for b in acq.hrv.bands]
+    _pg, s, res = emulated_scene(acq)
     crs = map_crs("utm", s.centre_lat_rad, s.centre_lon_rad)
     first, *others = looks
     g2 = {first: level2a_geometry(s, res, crs, band=first)}
@@ -418,25 +398,15 @@ def levels_figures() -> Iterator[Row]:
     )
 
 
-def _row_skew(g: object) -> tuple[float, float, float]:
+def _row_skew(g: Level2AGeometry) -> tuple[float, float, float]:
     """Raw lines the middle row of a 2A grid reads, the raw lines' azimuth on the map grid
-    (deg, from ``lines / columns``) and the grid's meridian convergence there (deg)."""
+    (deg) and the grid's meridian convergence there (deg)."""
     import pyproj
 
-    j = np.arange(0.0, g.n_cols)  # type: ignore[attr-defined]
-    line, col = g.raw_of(np.full(j.size, g.n_rows / 2), j)  # type: ignore[attr-defined]
-    inside = (
-        (col >= 0)
-        & (col <= g.n_raw_columns - 1)
-        & (line >= 0)
-        & (  # type: ignore
-            line <= g.n_raw_lines - 1
-        )
-    )  # type: ignore[attr-defined]
-    lines = float(np.ptp(line[inside]))
-    azimuth = float(np.degrees(np.arctan2(lines, np.ptp(col[inside]))))
-    e, n = g.map_of(g.n_rows / 2, g.n_cols / 2)  # type: ignore[attr-defined]
-    crs = pyproj.CRS.from_wkt(g.crs_wkt)  # type: ignore[attr-defined]
+    lines, cols = g.raw_line_span()
+    azimuth = float(np.degrees(np.arctan2(lines, cols)))
+    e, n = g.map_of(g.n_rows / 2, g.n_cols / 2)
+    crs = pyproj.CRS.from_wkt(g.crs_wkt)
     lon, lat = pyproj.Transformer.from_crs(crs, "EPSG:4326", always_xy=True).transform(e, n)
     gamma = float(pyproj.Proj(crs).get_factors(lon, lat).meridian_convergence)
     return lines, azimuth, abs(gamma)

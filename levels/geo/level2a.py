@@ -238,6 +238,24 @@ class Level2AGeometry:
         ok = exact.converged & ~gap
         return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
 
+    def raw_line_span(self, row: float | None = None) -> tuple[float, float]:
+        """Raw lines and raw columns one output row reads (the middle row by default),
+        over the pixels that fall inside the raw image: the window of raw lines COR's
+        north-up resampling must hold (INPE: 950 in P, 475 in XS at Cuiabá, paper
+        ``004_…``); their ratio is the tangent of the raw lines' azimuth on the map grid."""
+        j = np.arange(0.0, self.n_cols)
+        i = np.full(j.size, self.n_rows / 2 if row is None else float(row))
+        line, col = self.raw_of(i, j)
+        inside = (
+            (col >= 0)
+            & (col <= self.n_raw_columns - 1)
+            & (line >= 0)
+            & (line <= self.n_raw_lines - 1)
+        )
+        if not inside.any():
+            return 0.0, 0.0
+        return float(np.ptp(line[inside])), float(np.ptp(col[inside]))
+
     @staticmethod
     def product_tree(bands: dict[str, Level2AGeometry]) -> dict[str, Any]:
         """The ``geometry/level_2a`` tree of a product whose bands have these geometries

@@ -120,32 +120,14 @@ def raw_lines_per_2a_row(mode: str) -> float:
     only, from this code's GEO on the emulated SPOT 1–4 (inertial attitude frame)."""
     from levels.geo.level2a import level2a_geometry
     from levels.geo.maps import map_crs
-    from levels.geo.scenes import pass_geometry
-    from levels.process import nominal_pixel_size_m
     from station.scenario import scenario_from_dict
+    from station.sipc.process import emulated_scene
     from station.spacecraft.emulator import emulate
 
-    acq = emulate(
-        scenario_from_dict({"instrument": {"mode": mode}, "pass": {"ground_pass_days": 0.0}}),
-        render=False,
-    )
-    looks = {b.name: b.look_nominal for b in acq.hrv.bands}
-    pg = pass_geometry(
-        acq.epoch,
-        acq.line_times_s,
-        acq.hrv.line_period_s,
-        acq.bulletins,
-        acq.gyros.t_s,
-        acq.gyros.rates_rad_per_s,
-        looks,
-    )
-    scene = pg.scenes(acq.hrv.n_lines, 0, 450.0)[0]
-    res = nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
-    g = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad))
-    j = np.arange(0.0, g.n_cols)
-    line, col = g.raw_of(np.full(j.size, g.n_rows / 2), j)
-    inside = (col >= 0) & (col <= g.n_raw_columns - 1) & (line >= 0) & (line <= g.n_raw_lines - 1)
-    return round(float(np.ptp(line[inside])), 1)
+    scn = scenario_from_dict({"instrument": {"mode": mode}, "pass": {"ground_pass_days": 0.0}})
+    _pg, scene, res = emulated_scene(emulate(scn, render=False))
+    crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
+    return round(level2a_geometry(scene, res, crs).raw_line_span()[0], 1)
 
 
 def write_service_times(path: str | Path, table: dict[str, Any]) -> Path:

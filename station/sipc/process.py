@@ -13,14 +13,37 @@ from __future__ import annotations
 from pathlib import Path
 
 from levels.errors import L0Error
+from levels.geo.scenes import PassGeometry, SceneGeometry, pass_geometry
 from levels.options import ProcessingOptions
-from levels.process import PassProducts, process_l0
+from levels.process import PassProducts, nominal_pixel_size_m, process_l0
 from levels.readers.l0 import L0Archive, read_l0
 from station.errors import ScenarioError
 from station.scenario import Scenario
 from station.sipc.truth import Truth
+from station.spacecraft.emulator import Acquisition
 
-__all__ = ["process_scenario", "reprocess_l0", "truth_for"]
+__all__ = ["emulated_scene", "process_scenario", "reprocess_l0", "truth_for"]
+
+
+def emulated_scene(
+    acq: Acquisition, scene_lines: int = 0, reference_height_m: float = 450.0
+) -> tuple[PassGeometry, SceneGeometry, float]:
+    """GEO of an emulated acquisition without the downlink: its pass geometry from the
+    emulator's hand-over (line times, bulletins, gyros, nominal look angles of every band),
+    its first scene (``scene_lines``: the whole strip by default) and the nominal pixel.
+    The geometry studies (tests, figures, calibration, benchmarks) start here."""
+    looks = {b.name: b.look_nominal for b in acq.hrv.bands}
+    pg = pass_geometry(
+        acq.epoch,
+        acq.line_times_s,
+        acq.hrv.line_period_s,
+        acq.bulletins,
+        acq.gyros.t_s,
+        acq.gyros.rates_rad_per_s,
+        looks,
+    )
+    scene = pg.scenes(scene_lines or acq.hrv.n_lines, 0, reference_height_m)[0]
+    return pg, scene, nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
 
 
 def truth_for(scn: Scenario, archive: L0Archive) -> Truth:
