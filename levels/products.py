@@ -62,16 +62,9 @@ __all__ = [
 #: the object headers, but not the strings of the global heap, where the JSON attributes
 #: live.
 ATTRS_DIGEST = "attributes_sha256"
-#: HDF5 and netCDF plumbing, whose values are object references or layout.
-_PLUMBING = (
-    "DIMENSION_LIST",
-    "REFERENCE_LIST",
-    "CLASS",
-    "NAME",
-    "_Netcdf4Dimid",
-    "_Netcdf4Coordinates",
-    "_NCProperties",
-)
+#: Dimension-scale plumbing whose values are object references (file addresses): only
+#: their presence enters the digest.
+_PLUMBING = ("DIMENSION_LIST", "REFERENCE_LIST")
 
 PRODUCT_FORMAT = "SPOT-LEVEL"
 PRODUCT_VERSION = 2  # 2: netCDF-4 / CF layout (module docstring); 1 is still read
@@ -116,16 +109,17 @@ def _attr_bytes(value: Any) -> bytes:
 
 
 def attrs_digest(f: h5py.File) -> bytes:
-    """SHA-256 of every attribute of the file but the digest itself and the plumbing, in
-    the order of the objects' and the attributes' names."""
+    """SHA-256 of every attribute of the file but the digest itself (of the plumbing, its
+    presence), in the order of the objects' and the attributes' names."""
     h = hashlib.sha256()
 
     def add(name: str, obj: Any) -> None:
         for key in sorted(obj.attrs):
-            if key in _PLUMBING or (name == "" and key == ATTRS_DIGEST):
+            if name == "" and key == ATTRS_DIGEST:
                 continue
             h.update(f"{name}/{key}=".encode())
-            h.update(_attr_bytes(obj.attrs[key]))
+            if key not in _PLUMBING:  # references and layout: their presence only
+                h.update(_attr_bytes(obj.attrs[key]))
 
     add("", f)
     f.visititems(add)
