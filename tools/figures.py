@@ -188,6 +188,11 @@ def receiver(full: bool) -> Iterator[Row]:
         "CCSDS 131.0-B",
     )
     yield (
+        "fuzz of the products' and L0 readers",
+        "python tools/fuzz_products.py 10000 (a long campaign)",
+        "10 000 damaged files, no defect, no crash",
+    )
+    yield (
         "fuzz",
         "python tools/fuzz_receiver.py (a long campaign)",
         "130 000 streams, no unhandled exception",
