@@ -4,7 +4,15 @@ One root, :class:`LevelsError`; each subclass also inherits the builtin a caller
 expect (the rasterio habit), so ``except ValueError`` still works.
 """
 
-__all__ = ["DimapError", "GeometryError", "L0Error", "LevelsError", "OptionsError", "ProductError"]
+__all__ = [
+    "DimapError",
+    "GcpError",
+    "GeometryError",
+    "L0Error",
+    "LevelsError",
+    "OptionsError",
+    "ProductError",
+]
 
 
 class LevelsError(Exception):
@@ -29,3 +37,7 @@ class ProductError(LevelsError, ValueError):
 
 class OptionsError(LevelsError, ValueError):
     """Processing options (a ``[processing]`` table) that cannot be used as given."""
+
+
+class GcpError(LevelsError, ValueError):
+    """A control-point file that is missing, malformed, or inconsistent with its image."""

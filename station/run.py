@@ -8,6 +8,7 @@ directory then holds the L0 archive, the products, a quicklook PNG per product a
 ``report.json``::
 
     <out>/<name>.l0.h5
+    <out>/<name>.gcp.csv
     <out>/<name>_s<scene>_<level>.h5
     <out>/quicklooks/<name>_s<scene>_<level>.png
     <out>/report.json
@@ -155,6 +156,8 @@ def prepare_run_dir(out_dir: str | Path, name: str) -> Path:
     stale = [
         *out.glob(f"{name}.l0.h5"),
         *out.glob(f"{name}_hrv[12].l0.h5"),
+        *out.glob(f"{name}.gcp.csv"),
+        *out.glob(f"{name}_hrv[12].gcp.csv"),
         *out.glob(f"{name}_s[0-9][0-9][0-9]_*.h5"),
         *out.glob(f"{name}_hrv[12]_s[0-9][0-9][0-9]_*.h5"),
         *(out / "quicklooks").glob(f"{name}_*.png"),
@@ -177,7 +180,9 @@ def _receive_and_process(
     from tqdm import tqdm
 
     from levels.process import process_l0
+    from levels.readers.gcp import write_gcps
     from levels.readers.l0 import read_l0
+    from station.sipc.process import control_points
     from station.sipc.truth import Truth
     from station.srrs.report import downlink_report
     from station.srrs.session import downlink, record
@@ -200,12 +205,18 @@ def _receive_and_process(
         scenes.total = total
         scenes.update()
 
+    truth = Truth.of(acq, archive)
+    gcps = write_gcps(
+        out / f"{tag}.gcp.csv",
+        control_points(acq, truth.row_offset),
+        f"control points of {scn.name}, HRV{acq.hrv.number}, as measured (docs/gcp.md)",
+    )
     products = process_l0(
         archive,
         scn.processing,
         out,
         name=tag,
-        checkpoints=Truth.of(acq, archive),
+        checkpoints=truth,
         provenance=scn.provenance(),
         on_scene=on_scene,
     )
@@ -232,6 +243,7 @@ def _receive_and_process(
             "size_mb": round(l0.stat().st_size / 1e6, 3),
             "rows": archive.n_lines,
         },
+        "gcps": {"file": gcps.name, "points": int(acq.gcps.line.size)},
         "processing": {
             "levels": list(scn.processing.levels),
             "scenes": len(products.scenes),

@@ -259,3 +259,55 @@ def test_the_ephemeris_velocity_convention_travels(run_dir: Path) -> None:
     assert angle_deg(dr_dt, v) == pytest.approx(expected, abs=0.1)
     p = read_product(run_dir / "small_test_s000_2A.h5", images=False)
     assert p.geometry["ephemeris"]["reference_velocity"] == "inertial"
+
+
+def test_control_points_reach_the_station_as_measured(run_dir: Path) -> None:
+    """The run writes the control points as a user has them (docs/gcp.md): the emulator's
+    measurements, never the truth, on the L0 archive's rows."""
+    from levels.readers.gcp import read_gcps
+    from levels.readers.l0 import read_l0
+    from station.scenario import load_scenario
+    from station.sipc.process import truth_for
+    from station.spacecraft.emulator import emulate
+
+    archive = read_l0(run_dir / "small_test.l0.h5")
+    n_cols = archive.bands["P"].counts.shape[1]
+    g = read_gcps(run_dir / "small_test.gcp.csv", archive.n_lines, n_cols)
+    scn = load_scenario(SMALL)
+    acq = emulate(scn, render=False)
+    offset = truth_for(scn, archive).row_offset
+    assert len(g) == scn.gcps.count and set(g.hrv) == {1}
+    # the file's image positions are the measured ones: the truth plus the pointing error
+    d_line = g.line - (acq.gcps.true_line - offset)
+    d_col = g.column - acq.gcps.true_column
+    assert np.array_equal(g.line, np.round(acq.gcps.line - offset, 3))
+    assert 0 < np.abs(np.concatenate([d_line, d_col])).max() < 5 * scn.gcps.pointing_error_px
+    assert np.all(g.sigma_px == scn.gcps.pointing_error_px)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda t: t.replace(",hrv\n", "\n").replace(",1\n", "\n"), "column 'hrv' is missing"),
+        (lambda t: t.replace("hrv1_p0001,", "hrv1_p0000,", 1), "given twice"),
+        (lambda t: t.replace(",8,5,0.3,1\n", ",8,5,nan,1\n", 1), "is not finite"),
+        (lambda t: t.replace(",8,5,0.3,1\n", ",8,5,0,1\n", 1), "must be positive"),
+        (lambda t: t.replace(",8,5,0.3,1\n", ",8,5,0.3,3\n", 1), "expected 1 or 2"),
+    ],
+)
+def test_a_bad_control_point_file_is_named(edit, message, run_dir: Path, tmp_path) -> None:
+    from levels.errors import GcpError
+    from levels.readers.gcp import read_gcps
+
+    bad = tmp_path / "bad.gcp.csv"
+    bad.write_text(edit((run_dir / "small_test.gcp.csv").read_text()))
+    with pytest.raises(GcpError, match=message):
+        read_gcps(bad)
+
+
+def test_a_control_point_outside_the_image_is_refused(run_dir: Path) -> None:
+    from levels.errors import GcpError
+    from levels.readers.gcp import read_gcps
+
+    with pytest.raises(GcpError, match="outside the image"):
+        read_gcps(run_dir / "small_test.gcp.csv", n_lines=10, n_columns=10)

@@ -12,17 +12,40 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from levels.errors import L0Error
 from levels.geo.scenes import PassGeometry, SceneGeometry, pass_geometry
 from levels.options import ProcessingOptions
 from levels.process import PassProducts, nominal_pixel_size_m, process_l0
+from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive, read_l0
 from station.errors import ScenarioError
 from station.scenario import Scenario
 from station.sipc.truth import Truth
 from station.spacecraft.emulator import Acquisition
 
-__all__ = ["emulated_scene", "process_scenario", "reprocess_l0", "truth_for"]
+__all__ = ["control_points", "emulated_scene", "process_scenario", "reprocess_l0", "truth_for"]
+
+
+def control_points(acq: Acquisition, row_offset: int = 0) -> ControlPointSet:
+    """The control points of an acquisition as a user would have them (``docs/gcp.md``):
+    the map positions and image measurements the emulator drew with their errors (never
+    the truth), their 1σ from the scenario's ``[gcps]``, lines in the L0 archive's rows
+    (the emulator's line minus ``row_offset``, ``Truth.row_offset``)."""
+    g, cfg, n = acq.gcps, acq.scenario.gcps, acq.gcps.line.size
+    return ControlPointSet(
+        tuple(f"hrv{acq.hrv.number}_p{k:04d}" for k in range(n)),
+        g.lon_rad.copy(),
+        g.lat_rad.copy(),
+        g.h_m.copy(),
+        g.line - row_offset,
+        g.column.copy(),
+        np.full(n, max(cfg.horizontal_error_m, 0.01)),
+        np.full(n, max(cfg.vertical_error_m, 0.01)),
+        np.full(n, max(cfg.pointing_error_px, 0.01)),
+        np.full(n, acq.hrv.number, np.int64),
+    )
 
 
 def emulated_scene(
