@@ -15,7 +15,7 @@ from pyproj import Geod
 
 from levels.readers.dimap import AttitudeChoice, read_dimap
 
-__all__ = ["FrameCheck", "check_frame"]
+__all__ = ["FrameCheck", "GcpCheck", "check_frame", "check_gcps"]
 
 _GEOD = Geod(ellps="WGS84")
 
@@ -83,3 +83,73 @@ def check_frame(path: str | Path, attitude: AttitudeChoice = "auto") -> FrameChe
     back = model.ground_to_image(ground.lat_rad, ground.lon_rad, 0.0)
     roundtrip = np.hypot(back.line - (row - 1.0), back.column - (col - 1.0))
     return FrameCheck(scene.name, attitude, row, col, lat, lon, plat, plon, dist, roundtrip)
+
+
+@dataclass(frozen=True)
+class GcpCheck:
+    """Control points of a real scene against its DIMAP model (before any refinement):
+    where the model puts each point in the image, and on the ground at the point's height."""
+
+    scene: str
+    attitude: str
+    id: tuple[str, ...]
+    line: np.ndarray  # measured, 0-based
+    column: np.ndarray
+    predicted_line: np.ndarray  # the model's ground → image of the point
+    predicted_column: np.ndarray
+    ground_miss_m: np.ndarray  # the model's image → ground of the measurement vs the point
+
+    @property
+    def image_miss_px(self) -> np.ndarray:
+        return np.hypot(self.line - self.predicted_line, self.column - self.predicted_column)
+
+    def as_dict(self) -> dict:
+        d_px = self.image_miss_px
+        return {
+            "scene": self.scene,
+            "attitude": self.attitude,
+            "points": [
+                {
+                    "id": i,
+                    "line": float(a),
+                    "column": float(b),
+                    "predicted_line": float(c),
+                    "predicted_column": float(d),
+                    "miss_px": float(e),
+                    "ground_miss_m": float(f),
+                }
+                for i, a, b, c, d, e, f in zip(
+                    self.id,
+                    self.line,
+                    self.column,
+                    self.predicted_line,
+                    self.predicted_column,
+                    d_px,
+                    self.ground_miss_m,
+                    strict=True,
+                )
+            ],
+            "rms_px": float(np.sqrt(np.mean(d_px**2))),
+            "rms_ground_m": float(np.sqrt(np.mean(self.ground_miss_m**2))),
+            "max_ground_m": float(np.max(self.ground_miss_m)),
+        }
+
+
+def check_gcps(
+    path: str | Path, gcp_path: str | Path, attitude: AttitudeChoice = "auto"
+) -> GcpCheck:
+    """How far a real scene's DIMAP model misses the user's control points
+    (``docs/gcp.md``; lines and columns 0-based in the scene's raw image): the residuals a
+    refinement (level 2) starts from."""
+    from levels.readers.gcp import read_gcps
+
+    scene = read_dimap(path)
+    model = scene.model(attitude=attitude)
+    g = read_gcps(gcp_path, model.n_lines, model.n_columns)
+    back = model.ground_to_image(g.lat_rad, g.lon_rad, g.h_m, first_line=g.line)
+    ground = model.image_to_ground(g.line, g.column, g.h_m)
+    plat, plon = np.degrees(ground.lat_rad), np.degrees(ground.lon_rad)
+    _, _, dist = _GEOD.inv(np.degrees(g.lon_rad), np.degrees(g.lat_rad), plon, plat)
+    return GcpCheck(
+        scene.name, attitude, g.id, g.line, g.column, back.line, back.column, np.asarray(dist)
+    )

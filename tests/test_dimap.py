@@ -163,3 +163,39 @@ def test_bad_files_give_clear_errors(tmp_path: Path, dimap_dir: Path, edit, matc
 def test_a_missing_file_is_a_file_not_found(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError):
         read_dimap(tmp_path / "nope.DIM")
+
+
+#: The frame-corner and control-point checks run the same model at the same points: they
+#: agree to the model's own closure (1e-6 px, well under a millimetre on the ground).
+SAME_POINTS_M = 1e-3
+
+
+@pytest.mark.parametrize(
+    "name", ["spot5_hrg1_A_20050313_altai_METADATA.DIM", "spot2_hrv1_P_19980220_izmit_METADATA.DIM"]
+)
+def test_control_points_of_a_real_scene(name: str, refdata: Path, tmp_path: Path) -> None:
+    """A user's control points on a real scene (docs/gcp.md), here the producer's own frame
+    corners: the DIMAP model misses them as the frame check says; a point measured 10
+    columns off is seen 10 pixels off."""
+    from levels.readers.dimap import read_dimap
+    from station.locate import check_frame, check_gcps
+
+    path = refdata / "dimap" / name
+    scene = read_dimap(path)
+    rows = ["id,lon_deg,lat_deg,h_m,line,column,sigma_ground_m,sigma_h_m,sigma_px,hrv"]
+    for k, (r, c, la, lo) in enumerate(
+        zip(scene.frame_row, scene.frame_col, scene.frame_lat_deg, scene.frame_lon_deg, strict=True)
+    ):
+        rows.append(f"c{k},{float(lo)!r},{float(la)!r},0,{r - 1.0},{c - 1.0},5,5,0.5,1")
+    gcps = tmp_path / "frame.gcp.csv"
+    gcps.write_text("\n".join(rows) + "\n")
+    got = check_gcps(path, gcps)
+    frame = check_frame(path)
+    assert got.ground_miss_m == pytest.approx(frame.error_m[:4], abs=SAME_POINTS_M)
+    off = tmp_path / "off.gcp.csv"
+    lines = gcps.read_text().splitlines()
+    first = lines[1].split(",")
+    first[5] = repr(float(first[5]) + 10.0)
+    off.write_text("\n".join([lines[0], ",".join(first), *lines[2:]]) + "\n")
+    moved = check_gcps(path, off)
+    assert moved.image_miss_px[0] == pytest.approx(10.0, abs=0.1)
