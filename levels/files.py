@@ -21,26 +21,14 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "HDF5_FILE_OPTIONS",
     "atomic_path",
-    "checksummed",
     "json_default",
     "plain",
+    "remove_partials",
+    "writable_dir",
     "write_json",
     "write_text",
 ]
-
-#: How every HDF5 file of the project is created: with the object-header format of HDF5
-#: 1.8 and later, whose metadata carry checksums that the library verifies on read (a
-#: flipped byte in a header or an attribute is an error, not a wrong value), readable by
-#: HDF5 1.8 to 1.12 and so by netCDF-C, GDAL and h5netcdf.
-HDF5_FILE_OPTIONS = {"libver": ("v108", "v112")}
-
-
-def checksummed(data: Any) -> dict[str, Any]:
-    """``create_dataset`` options that store a Fletcher-32 checksum with every chunk of
-    ``data`` (verified by HDF5 on each read; a scalar cannot be chunked and has none)."""
-    return {"fletcher32": True} if np.ndim(data) > 0 and np.size(data) > 0 else {}
 
 
 @contextlib.contextmanager
@@ -98,15 +86,6 @@ def write_text(path: str | Path, text: str) -> Path:
 def write_json(path: str | Path, data: Any) -> Path:
     """Write ``data`` as indented JSON atomically (module docstring); returns its path."""
     return write_text(path, json.dumps(data, indent=2, default=json_default) + "\n")
-
-
-def hdf5_damage(exc: BaseException) -> str:
-    """What an HDF5 read error says of the file, in words: a checksum that does not match
-    (:func:`checksummed`, :data:`HDF5_FILE_OPTIONS`) or another damage."""
-    text = " ".join(str(exc).split())
-    if "filter returned failure" in text or "checksum" in text.lower():
-        return f"a stored checksum does not match: the file is damaged ({text})"
-    return f"the file is damaged or truncated ({text})"
 
 
 def writable_dir(path: str | Path) -> Path:

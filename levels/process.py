@@ -272,7 +272,6 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     timings["quality"] = clock() - t
     t = clock()
     common = ctx.pg.product_tree(scene)
-    common["ephemeris"]["reference_velocity"] = ctx.archive.reference_velocity
     paths = {}
     for level in opt.levels:
         geometry = dict(common)

@@ -18,18 +18,13 @@ in image geometry (1A, 1B) have index dimensions ``row`` and ``column``. Version
 
 Every dataset carries CF-style ``units`` and ``long_name`` attributes; the unit is read off
 the name's suffix (``_m`` → ``m``, ``_rad`` → ``rad``, …), the project's naming rule.
-Files are written through :func:`levels.files.atomic_path`: no reader ever sees half a
+Files are written through :func:`levels.hdf5.new_hdf5`: no reader ever sees half a
 product.
 """
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
-import itertools
 import json
-import os
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,31 +35,24 @@ import pyproj
 from numpy.typing import NDArray
 
 from levels.errors import ProductError
-from levels.files import HDF5_FILE_OPTIONS, atomic_path, checksummed, hdf5_damage
+from levels.hdf5 import (
+    ATTRS_DIGEST,
+    check_attrs_digest,
+    checksummed,
+    damage_as,
+    new_hdf5,
+)
 
 __all__ = [
-    "ATTRS_DIGEST",
     "PRODUCT_FORMAT",
     "PRODUCT_VERSION",
     "BandImage",
     "MapGrid",
     "Product",
-    "attrs_digest",
-    "check_attrs_digest",
-    "new_hdf5",
     "product_name",
     "read_product",
     "write_product",
 ]
-
-#: Root attribute holding the SHA-256 of every other attribute of the file (32 bytes, in
-#: the checksummed object header): HDF5 checksums the datasets' chunks (Fletcher-32) and
-#: the object headers, but not the strings of the global heap, where the JSON attributes
-#: live.
-ATTRS_DIGEST = "attributes_sha256"
-#: Dimension-scale plumbing whose values are object references (file addresses): only
-#: their presence enters the digest.
-_PLUMBING = ("DIMENSION_LIST", "REFERENCE_LIST")
 
 PRODUCT_FORMAT = "SPOT-LEVEL"
 PRODUCT_VERSION = 2  # 2: netCDF-4 / CF layout (module docstring); 1 is still read
@@ -92,77 +80,6 @@ _UNITS = (
     ("_s", "s"),
     ("_counts", "1"),
 )
-
-
-_MEMORY_FILES = itertools.count()
-
-
-def _attr_bytes(value: Any) -> bytes:
-    if isinstance(value, bytes):
-        return b"b" + value
-    if isinstance(value, str):
-        return b"s" + value.encode("utf-8")
-    a = np.asarray(value)
-    if a.dtype.kind == "O":
-        return b"o" + "\x1f".join(str(x) for x in a.ravel()).encode("utf-8")
-    return f"{a.dtype.str}{a.shape}".encode() + a.tobytes()
-
-
-def attrs_digest(f: h5py.File) -> bytes:
-    """SHA-256 of every attribute of the file but the digest itself (of the plumbing, its
-    presence), in the order of the objects' and the attributes' names."""
-    h = hashlib.sha256()
-
-    def add(name: str, obj: Any) -> None:
-        for key in sorted(obj.attrs):
-            if name == "" and key == ATTRS_DIGEST:
-                continue
-            h.update(f"{name}/{key}=".encode())
-            if key not in _PLUMBING:  # references and layout: their presence only
-                h.update(_attr_bytes(obj.attrs[key]))
-
-    add("", f)
-    f.visititems(add)
-    return h.digest()
-
-
-def check_attrs_digest(f: h5py.File, required: bool) -> None:
-    """Raise ``ValueError`` if the attributes do not match their stored digest (or it is
-    missing where ``required``)."""
-    stored = f.attrs.get(ATTRS_DIGEST)
-    if stored is None:
-        if required:
-            raise ValueError(f"the attribute digest '{ATTRS_DIGEST}' is missing")
-        return
-    if np.asarray(stored, dtype=np.uint8).tobytes() != attrs_digest(f):
-        raise ValueError(
-            "the attributes do not match their stored digest: the file is damaged or was edited"
-        )
-
-
-@contextlib.contextmanager
-def new_hdf5(target: str | Path) -> Iterator[h5py.File]:
-    """A new HDF5 file, built in memory and written to ``target`` whole when the block ends
-    (through :func:`levels.files.atomic_path`). HDF5 never writes to the disk itself: a full
-    disk is one clean ``OSError`` from the final write, and the temporary file is removed;
-    HDF5's own failing writes would end in a flood of errors and a crash of the library.
-    The products and the L0 archive are held in memory by their readers anyway."""
-    f = h5py.File(
-        f"memory-{os.getpid()}-{next(_MEMORY_FILES)}.h5",
-        "w",
-        driver="core",
-        backing_store=False,
-        **HDF5_FILE_OPTIONS,
-    )
-    try:
-        yield f
-        f.attrs[ATTRS_DIGEST] = np.frombuffer(attrs_digest(f), dtype=np.uint8)
-        f.flush()
-        image = f.id.get_file_image()
-    finally:
-        f.close()
-    with atomic_path(target) as tmp:
-        tmp.write_bytes(image)
 
 
 def product_name(name: str, scene_index: int, level: str) -> str:
@@ -467,20 +384,8 @@ def _read_map_grid(f: h5py.File, version: int, geometry: dict[str, Any]) -> MapG
 def read_product(path: str | Path, images: bool = True) -> Product:
     """Read and check a product; ``images=False`` reads only its metadata (masks too)."""
     where = Path(path)
-    try:
+    with damage_as(ProductError, where):
         return _read_product(where, images)
-    except ProductError:
-        raise
-    except (
-        OSError,
-        RuntimeError,
-        KeyError,
-        ValueError,
-        TypeError,
-        IndexError,
-        AttributeError,
-    ) as exc:
-        raise ProductError(f"{where}: {hdf5_damage(exc)}") from None
 
 
 def _read_product(where: Path, images: bool) -> Product:
@@ -539,11 +444,9 @@ def _read_product(where: Path, images: bool) -> Product:
             try:  # last: a missing part is named above, an edited value here
                 check_attrs_digest(f, required=version >= 2)
             except ValueError as exc:
-                raise ProductError(f"{where}: {exc}") from None
+                raise ProductError(str(exc)) from None  # the path is added below
             return Product(attrs=attrs, bands=bands, map_grid=grid, **trees)
         except ProductError as exc:
             raise ProductError(f"{where}: {exc}") from None
-        except (OSError, RuntimeError) as exc:
-            raise ProductError(f"{where}: {hdf5_damage(exc)}") from None
-        except (KeyError, ValueError, TypeError) as exc:
+        except (KeyError, ValueError, TypeError) as exc:  # h5py's own: damage_as, above
             raise ProductError(f"{where}: damaged or incomplete product ({exc})") from None

@@ -7,7 +7,7 @@ computed on a real scene from surveyed checkpoints.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,7 +71,6 @@ def scalar_figures(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
-@runtime_checkable
 class CheckpointSource(Protocol):
     """Where checkpoints of a scene truly are, for the ``checkpoints`` quality figures.
 

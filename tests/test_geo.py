@@ -13,8 +13,7 @@ from levels.errors import GeometryError
 from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import INVERSE_METHODS, butting_columns, level2a_geometry, map_crs
 from levels.geo.polynomial import Poly1D, Poly2D
-from levels.geo.scenes import cut_scenes, pass_geometry
-from levels.process import nominal_pixel_size_m
+from levels.geo.scenes import cut_scenes
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
 from station.sipc.process import emulated_scene
 from station.sipc.truth import Truth, checkpoints_1b, checkpoints_2a
@@ -192,18 +191,8 @@ def test_xs_bands_registered_each_through_its_own_geometry() -> None:
         ),
         render=False,
     )
-    looks = {b.name: b.look_nominal for b in acq.hrv.bands}
-    pg = pass_geometry(
-        acq.epoch,
-        acq.line_times_s,
-        acq.hrv.line_period_s,
-        acq.bulletins,
-        acq.gyros.t_s,
-        acq.gyros.rates_rad_per_s,
-        looks,
-    )
-    scene = pg.scenes(acq.hrv.n_lines, 0, H_REF_M)[0]
-    res = nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
+    looks = [b.name for b in acq.hrv.bands]
+    _pg, scene, res = emulated_scene(acq, reference_height_m=H_REF_M)
     crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
     first, *others = looks
     g2 = {first: level2a_geometry(scene, res, crs, band=first)}

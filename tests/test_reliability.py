@@ -40,7 +40,7 @@ def _no_partials(d: Path) -> None:
 
 def test_a_full_disk_is_one_line_and_nothing_half_written(tmp_path, monkeypatch, capsys) -> None:
     """The disk fills while a product is written: HDF5 never writes to the disk itself
-    (levels.products.new_hdf5), so the final write fails cleanly, its temporary file goes,
+    (levels.hdf5.new_hdf5), so the final write fails cleanly, its temporary file goes,
     and the run directory does not claim a finished run."""
     real = Path.write_bytes
 

@@ -11,10 +11,6 @@ from levels.spot import ORBIT_INCLINATION_DEG, ORBIT_PERIOD_MIN
 
 __all__ = ["ascending_node_lon_rad", "map_crs"]
 
-#: SPOT 1–4 orbit for the Space Oblique Mercator: inclination and revolution period.
-_SPOT_INCLINATION_DEG = ORBIT_INCLINATION_DEG
-_SPOT_PERIOD_DAYS = ORBIT_PERIOD_MIN / 1440.0
-
 
 def map_crs(
     kind: str,
@@ -35,7 +31,7 @@ def map_crs(
         if ascending_node_lon_rad is None:
             raise GeometryError("SOM needs the longitude of the ascending node")
         return pyproj.CRS.from_proj4(
-            f"+proj=som +inc_angle={_SPOT_INCLINATION_DEG} +ps_rev={_SPOT_PERIOD_DAYS:.9f} "
+            f"+proj=som +inc_angle={ORBIT_INCLINATION_DEG} +ps_rev={ORBIT_PERIOD_MIN / 1440.0:.9f} "
             f"+asc_lon={np.degrees(ascending_node_lon_rad):.9f} +ellps=WGS84 +units=m +no_defs"
         )
     try:

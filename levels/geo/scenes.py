@@ -219,6 +219,11 @@ class PassGeometry:
                 "r_ecef_m": self.ephemeris.r_ecef_m,
                 "v_ecef_m_per_s": self.ephemeris.v_ecef_m_per_s,
                 "lagrange_points": self.ephemeris.n_points,
+                **(
+                    {"reference_velocity": self.ephemeris.reference_velocity}
+                    if self.ephemeris.reference_velocity
+                    else {}
+                ),
             },
             "attitude": {
                 "t_s": t[keep],

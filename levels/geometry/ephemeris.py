@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
+from levels.geometry.frames import REFERENCE_VELOCITIES
 
 __all__ = ["Ephemeris", "EphemerisSpacingWarning", "lagrange_interpolate"]
 
@@ -84,14 +85,24 @@ class Ephemeris:
         Velocities, shape ``(n, 3)``, used as given (see ``levels.geometry.frames``).
     n_points
         Lagrange window (8: "seventh order", INPE).
+    reference_velocity
+        Which velocity the samples carry, when the source says: ``"inertial"`` (SPOT 1–4,
+        in ECEF axes) or ``"earth_fixed"`` (SPOT 5); the local orbital frame is built on it
+        as given (``levels.geometry.frames``).
     """
 
     t_s: NDArray[np.float64]
     r_ecef_m: NDArray[np.float64]
     v_ecef_m_per_s: NDArray[np.float64]
     n_points: int = 8
+    reference_velocity: str | None = None
 
     def __post_init__(self) -> None:
+        if self.reference_velocity not in (None, *REFERENCE_VELOCITIES):
+            raise GeometryError(
+                f"reference velocity {self.reference_velocity!r}: expected one of "
+                f"{REFERENCE_VELOCITIES}"
+            )
         t = np.asarray(self.t_s, dtype=np.float64)
         r = np.asarray(self.r_ecef_m, dtype=np.float64)
         v = np.asarray(self.v_ecef_m_per_s, dtype=np.float64)

@@ -19,12 +19,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from levels.errors import L0Error
-from levels.files import hdf5_damage
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.frames import REFERENCE_VELOCITIES
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch
-from levels.products import ATTRS_DIGEST, check_attrs_digest
+from levels.hdf5 import ATTRS_DIGEST, check_attrs_digest, damage_as, hdf5_damage
 
 __all__ = ["L0_FORMAT", "L0_VERSION", "L0Archive", "L0Band", "pixel_mask", "read_l0"]
 
@@ -84,10 +83,12 @@ class L0Archive:
     decode: dict = field(default_factory=dict)
     attrs: dict = field(default_factory=dict)
 
-    #: The velocity the ephemeris carries, which the attitude's orbital frame follows:
-    #: "inertial" (SPOT 1–4) or "earth_fixed" (SPOT 5); archives that do not say are
-    #: "earth_fixed" (the emulator's convention before it was recorded).
-    reference_velocity: str = "earth_fixed"
+    @property
+    def reference_velocity(self) -> str:
+        """The velocity the ephemeris carries, which the attitude's orbital frame follows:
+        "inertial" (SPOT 1–4) or "earth_fixed" (SPOT 5); the reader says "earth_fixed" for
+        archives that do not say (the emulator's convention before it was recorded)."""
+        return self.ephemeris.reference_velocity or "earth_fixed"
 
     @property
     def provenance(self) -> dict[str, Any]:
@@ -145,20 +146,8 @@ def _need(cond: bool, where: Path, what: str) -> None:
 def read_l0(path: str | Path) -> L0Archive:
     """Read and check an L0 pass archive (module docstring)."""
     where = Path(path)
-    try:
+    with damage_as(L0Error, where):
         return _read_l0(where)
-    except L0Error:
-        raise
-    except (
-        OSError,
-        RuntimeError,
-        KeyError,
-        ValueError,
-        TypeError,
-        IndexError,
-        AttributeError,
-    ) as exc:
-        raise L0Error(f"{where}: {hdf5_damage(exc)}") from None
 
 
 def _read_l0(where: Path) -> L0Archive:
@@ -282,7 +271,10 @@ def _read_l0(where: Path) -> L0Archive:
     try:
         epoch = Epoch(np.datetime64(str(attrs["epoch_utc"]), "ns"), name="00:00 UTC, pass day")
         ephemeris = Ephemeris(
-            d["ephemeris/t_s"], d["ephemeris/r_ecef_m"], d["ephemeris/v_ecef_m_per_s"]
+            d["ephemeris/t_s"],
+            d["ephemeris/r_ecef_m"],
+            d["ephemeris/v_ecef_m_per_s"],
+            reference_velocity=ref_v,
         )
     except ValueError as exc:
         raise L0Error(f"{where}: {exc}") from None
@@ -303,5 +295,4 @@ def _read_l0(where: Path) -> L0Archive:
         ephemeris=ephemeris,
         decode=decode,
         attrs={k: (v.item() if hasattr(v, "item") else v) for k, v in attrs.items()},
-        reference_velocity=ref_v,
     )

@@ -70,7 +70,7 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
 def _process(args: argparse.Namespace) -> int:
     from levels.options import ProcessingOptions
     from station.scenario import load_scenario
-    from station.sipc.process import process_scenario, reprocess_l0
+    from station.sipc.process import l0_stem, process_scenario, reprocess_l0
 
     source = Path(args.source)
     scenario = load_scenario(args.scenario) if args.scenario else None
@@ -88,7 +88,7 @@ def _process(args: argparse.Namespace) -> int:
     else:
         base = scenario.processing if scenario is not None else ProcessingOptions()
         l0 = source
-        name = args.name or source.name.removesuffix(".h5").removesuffix(".l0")
+        name = args.name or l0_stem(source)
         out = Path(args.out) if args.out else Path(f"{name}_products")
         products = reprocess_l0(
             source, out, options=_options(args, base), scenario=scenario, name=name

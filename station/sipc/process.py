@@ -23,9 +23,16 @@ from levels.readers.l0 import L0Archive, read_l0
 from station.errors import ScenarioError
 from station.scenario import Scenario
 from station.sipc.truth import Truth
-from station.spacecraft.emulator import Acquisition
+from station.spacecraft.emulator import Acquisition, emulate
 
-__all__ = ["control_points", "emulated_scene", "process_scenario", "reprocess_l0", "truth_for"]
+__all__ = [
+    "control_points",
+    "emulated_scene",
+    "l0_stem",
+    "process_scenario",
+    "reprocess_l0",
+    "truth_for",
+]
 
 
 def control_points(acq: Acquisition, row_offset: int = 0) -> ControlPointSet:
@@ -75,8 +82,6 @@ def truth_for(scn: Scenario, archive: L0Archive) -> Truth:
     The scenario must be the archive's (same name and, when both are known, the same
     SHA-256 of its file) and must image the archive's HRV.
     """
-    from station.spacecraft.emulator import emulate
-
     prov = archive.provenance
     if prov.get("scenario", scn.name) != scn.name or (
         prov.get("scenario_sha256")
@@ -114,19 +119,24 @@ def reprocess_l0(
     """
     path = Path(l0_path)
     archive = read_l0(path)
-    stem = path.name.removesuffix(".h5").removesuffix(".l0")
-    if not stem:
-        raise L0Error(f"{path}: cannot name products after this file; give --name")
     opts = options or (scenario.processing if scenario is not None else ProcessingOptions())
     truth = truth_for(scenario, archive) if scenario is not None else None
-    return process_l0(archive, opts, out_dir, name=name or stem, checkpoints=truth)
+    return process_l0(archive, opts, out_dir, name=name or l0_stem(path), checkpoints=truth)
+
+
+def l0_stem(path: str | Path) -> str:
+    """The name an L0 archive gives its products: ``<name>.l0.h5`` → ``<name>``."""
+    p = Path(path)
+    stem = p.name.removesuffix(".h5").removesuffix(".l0")
+    if not stem:
+        raise L0Error(f"{p}: cannot name products after this file; give --name")
+    return stem
 
 
 def process_scenario(
     scn: Scenario, out_dir: str | Path, l0_path: str | Path | None = None
 ) -> tuple[PassProducts, Path]:
     """Emulate, downlink, record and process a scenario; products measured against truth."""
-    from station.spacecraft.emulator import emulate
     from station.srrs.session import downlink, record
 
     out = Path(out_dir)

@@ -163,7 +163,7 @@ def make_bulletins(
     local = along_across_radial[:, [1, 0, 2]]  # to (X, Y, Z) order
     dr = apply(axes, local)
     dv = apply(axes, np.asarray(drift_m_per_s, float)[[1, 0, 2]])
-    return Ephemeris(t, r + dr, v + dv)
+    return Ephemeris(t, r + dr, v + dv, reference_velocity=orbit.reference_velocity)
 
 
 def truth_model(acq: Acquisition, band: int = 0, step_s: float = 1.0) -> PushbroomModel:
@@ -176,7 +176,7 @@ def truth_model(acq: Acquisition, band: int = 0, step_s: float = 1.0) -> Pushbro
     return PushbroomModel(
         acq.epoch,
         clock,
-        Ephemeris(t, r, v),
+        Ephemeris(t, r, v, reference_velocity=acq.orbit.reference_velocity),
         acq.attitude,
         acq.hrv.bands[band].look_true,
         acq.line_times_s.size,

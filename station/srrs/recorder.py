@@ -17,10 +17,9 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from levels.files import checksummed
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.sensor import LookAngleTable
-from levels.products import new_hdf5
+from levels.hdf5 import checksummed, new_hdf5
 from levels.readers.l0 import L0_FORMAT, L0_VERSION
 from station import __version__
 from station.srrs.receiver import STATUS_NAMES, DecodedPass
@@ -58,14 +57,13 @@ def write_l0(
     ancillary: list[BandAncillary],
     scenario_name: str = "",
     provenance: dict | None = None,
-    reference_velocity: str = "inertial",
 ) -> Path:
     """Write the L0 archive of a pass atomically; returns the path written.
 
     ``bulletins`` carry times in seconds since ``bulletin_epoch_utc``; they are stored on
-    the archive's own epoch (00:00 UTC of the pass day, ``decoded.epoch_utc``). Their
-    velocity is the platform's ``reference_velocity`` (inertial for SPOT 1–4, Earth-fixed
-    for SPOT 5: ``levels.geometry.frames``), recorded with them.
+    the archive's own epoch (00:00 UTC of the pass day, ``decoded.epoch_utc``), with the
+    velocity they carry (``Ephemeris.reference_velocity``: inertial for SPOT 1–4,
+    Earth-fixed for SPOT 5; ``docs/l0.md``).
     """
     path = Path(path)
     names = [a.name for a in ancillary]
@@ -81,7 +79,6 @@ def write_l0(
     )
     with new_hdf5(path) as f:
         _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
-        f["ephemeris"].attrs["reference_velocity"] = reference_velocity  # see docs/l0.md
     return path
 
 
@@ -198,6 +195,8 @@ def _write(
     )
 
     eph = f.create_group("ephemeris")
+    if bulletins.reference_velocity:
+        eph.attrs["reference_velocity"] = bulletins.reference_velocity
     eph.attrs["source"] = "ephemeris bulletins handed to the station"
     _dataset(eph, "t_s", bulletins.t_s + shift_s, "s", "bulletin time, s since epoch_utc")
     _dataset(eph, "r_ecef_m", bulletins.r_ecef_m, "m", "position, ECEF")

@@ -78,6 +78,5 @@ def record(acq: Acquisition, result: DownlinkResult, path: str | Path) -> Path:
         acq.epoch.t0_utc,
         ancillary_of(acq),
         scenario_name=scn.name,
-        reference_velocity=acq.orbit.reference_velocity,
         provenance=scn.provenance(),
     )
