@@ -32,7 +32,9 @@ __all__ = [
 ]
 
 #: Levels the processing centre makes, in processing order.
-LEVELS = ("1A", "1B", "2A")
+LEVELS = ("1A", "1B", "2A", "2")
+
+_URAD = 1e-6
 
 
 def option(
@@ -182,7 +184,9 @@ class ProcessingOptions:
     instrument's nominal one, which the deconvolution of 1B and 2A inverts.
     """
 
-    levels: tuple[str, ...] = option(list(LEVELS), "levels", "levels to produce", choices=LEVELS)
+    levels: tuple[str, ...] = option(
+        ["1A", "1B", "2A"], "levels", "levels to produce (2: with control points)", choices=LEVELS
+    )
     scene_lines: int = option(
         0, "scene_lines", "lines per scene (0: as many as detectors)", lo=0, hi=10**6
     )
@@ -237,6 +241,74 @@ class ProcessingOptions:
         1.0,
         1e-4,
         10.0,
+    )
+    adjustment: str = option(
+        "pass",
+        "adjustment",
+        "level 2: one adjustment over the whole pass (Westin) or each scene alone",
+        choices=("pass", "scene"),
+    )
+    prior_ephemeris_m: tuple[float, float, float] = option(
+        [300.0, 150.0, 50.0],
+        "prior_ephemeris_m",
+        "level 2 a priori 1σ of the ephemeris bias along, across track, radial",
+        1.0,
+        0.1,
+        1e5,
+    )
+    prior_ephemeris_drift_m_per_s: tuple[float, float, float] = option(
+        [0.1, 0.05, 0.02],
+        "prior_ephemeris_drift_m_per_s",
+        "level 2 a priori 1σ of the growth of that bias",
+        1.0,
+        1e-4,
+        100.0,
+    )
+    prior_attitude_rad: tuple[float, float, float] = option(
+        [500.0, 500.0, 500.0],
+        "prior_attitude_urad",
+        "level 2 a priori 1σ of the attitude offsets in roll, pitch, yaw",
+        _URAD,
+        0.1,
+        5e4,
+    )
+    prior_attitude_rate_rad_per_s: float = option(
+        0.1,
+        "prior_attitude_rate_urad_per_s",
+        "level 2 a priori 1σ of a scene's attitude rate error (gyro noise over a scene)",
+        _URAD,
+        1e-3,
+        1e3,
+    )
+    gyro_noise_rad_per_s: float = option(
+        0.5,
+        "gyro_noise_urad_per_s",
+        "level 2: the gyros' 1σ noise per record, the attitude's random walk between scenes",
+        _URAD,
+        1e-3,
+        1e3,
+    )
+    variogram_scale: float = option(
+        1.0,
+        "variogram_scale",
+        "level 2: factor on Westin's variograms weighting attitude jumps over gaps",
+        1.0,
+        1e-3,
+        100.0,
+    )
+    robust_loss: str = option(
+        "soft_l1",
+        "robust_loss",
+        "level 2: loss of the first fit, before blunders are rejected",
+        choices=("linear", "soft_l1", "huber", "cauchy"),
+    )
+    blunder_threshold: float = option(
+        4.0,
+        "blunder_threshold",
+        "level 2: normalised residual beyond which a control point is a blunder",
+        1.0,
+        2.0,
+        100.0,
     )
     checkpoints_per_side: int = option(
         11, "checkpoints_per_side", "checkpoint lattice of the quality figures", lo=2, hi=101

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from levels import __version__
+from levels.adjust import Adjustment, adjust
 from levels.cor.radiometry import (
     calibrate,
     deconvolution_taps,
@@ -42,7 +43,7 @@ from levels.cor.radiometry import (
     to_counts,
 )
 from levels.cor.resample import resample_1b, resample_2a, with_nan
-from levels.errors import GeometryError
+from levels.errors import GcpError, GeometryError
 from levels.geo.level1b import Level1BGeometry, level1b_geometry
 from levels.geo.level2a import INVERSE_METHODS, Level2AGeometry, level2a_geometry
 from levels.geo.maps import ascending_node_lon_rad, map_crs
@@ -51,6 +52,7 @@ from levels.geometry.sensor import LookAngleTable
 from levels.options import ProcessingOptions
 from levels.products import BandImage, MapGrid, Product, product_name, write_product
 from levels.quality import CheckpointSource, scalar_figures
+from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
 from levels.spot import ORBIT_ALTITUDE_M
 
@@ -88,6 +90,7 @@ class PassProducts:
     tail_lines: int
     timings_s: dict[str, float] = field(default_factory=dict)
     skipped: list[SkippedScene] = field(default_factory=list)
+    adjustment: Adjustment | None = None
 
 
 def nominal_pixel_size_m(look: LookAngleTable) -> float:
@@ -124,6 +127,7 @@ class _PassContext:
     name: str
     checkpoints: CheckpointSource | None
     provenance: dict[str, Any]
+    adjustment: Adjustment | None
 
 
 def process_l0(
@@ -135,6 +139,7 @@ def process_l0(
     checkpoints: CheckpointSource | None = None,
     provenance: dict[str, Any] | None = None,
     on_scene: Callable[[SceneProducts, int], None] | None = None,
+    gcps: ControlPointSet | None = None,
 ) -> PassProducts:
     """GEO and COR over a pass (module docstring); products go to ``out_dir``.
 
@@ -152,7 +157,15 @@ def process_l0(
         Added to each product's ``provenance`` group, over the archive's own.
     on_scene
         Called as ``on_scene(done, n_scenes)`` after each scene (progress reporting).
+    gcps
+        Control points of the pass (``docs/gcp.md``; those of the archive's HRV are used):
+        level 2 needs them (:mod:`levels.adjust`).
     """
+    if "2" in options.levels and gcps is None:
+        raise GcpError(
+            "level 2 needs control points: give the pass's control-point file "
+            "(docs/gcp.md), or leave '2' out of the levels"
+        )
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter
@@ -188,7 +201,6 @@ def process_l0(
                 SkippedScene(c.index, c.first_line, c.n_lines, f"GEO could not place it: {exc}")
             )
     res = options.pixel_size_m or nominal_pixel_size_m(pg.look_angles[band_names[0]])
-    t_geo = clock() - t0
     taps = (
         deconvolution_taps(options.psf_fwhm_px, options.noise_to_signal)
         if options.deconvolution
@@ -201,14 +213,24 @@ def process_l0(
         **archive.provenance,
         **(provenance or {}),
     }
-    ctx = _PassContext(archive, pg, options, res, taps, pixel_valid, out, name, checkpoints, prov)
+    adjustment = None
+    if "2" in options.levels and scenes:
+        assert gcps is not None
+        adjustment = adjust(pg, scenes, gcps.of_hrv(archive.hrv), options, band_names[0])
+    t_geo = clock() - t0
+    ctx = _PassContext(
+        archive, pg, options, res, taps, pixel_valid, out, name, checkpoints, prov, adjustment
+    )
     results = []
     for scene in scenes:
         results.append(_process_scene(ctx, scene))
         if on_scene is not None:
             on_scene(results[-1], len(scenes))
     tail = pg.tail_lines(scene_lines, options.overlap_lines)
-    return PassProducts(results, tail, {"geo": t_geo, "total": clock() - t0}, skipped)
+    timings = {"geo": t_geo, "total": clock() - t0}
+    if adjustment is not None:
+        timings["adjust"] = adjustment.timings_s["adjust"]
+    return PassProducts(results, tail, timings, skipped, adjustment)
 
 
 def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
@@ -217,16 +239,18 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     timings: dict[str, float] = {}
     t = clock()
     rows = slice(scene.cut.first_line, scene.cut.first_line + scene.cut.n_lines)
-    g1b = g2a = None
+    g1b = g2a = g2 = None
+    refined = None
     if "1B" in opt.levels:
         g1b = _per_band(scene, lambda b, like: level1b_geometry(scene, res, band=b, like=like))
-    if "2A" in opt.levels:
-        node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
-        crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
-        g2a = _per_band(
-            scene,
+    node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
+    crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
+
+    def map_geometry(sg: SceneGeometry) -> dict[str, Level2AGeometry]:
+        return _per_band(
+            sg,
             lambda b, like: level2a_geometry(
-                scene,
+                sg,
                 res,
                 crs,
                 opt.inverse_2a,
@@ -236,6 +260,14 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
                 grid_columns=opt.grid_columns,
             ),
         )
+
+    # level 2's "before" checkpoints are the 2A geometry's: made for them when 2A is not
+    if "2A" in opt.levels or ("2" in opt.levels and ctx.checkpoints is not None):
+        g2a = map_geometry(scene)
+    if "2" in opt.levels:
+        assert ctx.adjustment is not None
+        refined = ctx.adjustment.refine(ctx.pg, scene)
+        g2 = map_geometry(refined)
     timings["geometry"] = clock() - t
     images: dict[str, dict[str, BandImage]] = {lv: {} for lv in opt.levels}
     stripes: dict[str, dict[str, float]] = {}
@@ -250,7 +282,7 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         if "1A" in opt.levels:
             images["1A"][bname] = BandImage(to_counts(cal), valid)
         timings["1A"] = timings.get("1A", 0.0) + clock() - t
-        if g1b is None and g2a is None:
+        if g1b is None and g2a is None and g2 is None:
             continue
         t = clock()
         dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
@@ -261,14 +293,22 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
                 *resample_1b(dec, dvalid, g1b[bname], opt.interpolation_1b)
             )
             timings["1B"] = timings.get("1B", 0.0) + clock() - t
-        if g2a is not None:
-            t = clock()
-            images["2A"][bname] = BandImage(
-                *resample_2a(with_nan(dec, dvalid), None, g2a[bname], opt.resampling_2a)
-            )
-            timings["2A"] = timings.get("2A", 0.0) + clock() - t
+        nan_dec = with_nan(dec, dvalid) if (g2a is not None or g2 is not None) else None
+        for level, grids in (("2A", g2a), ("2", g2)):
+            if grids is not None and level in opt.levels:
+                t = clock()
+                images[level][bname] = BandImage(
+                    *resample_2a(nan_dec, None, grids[bname], opt.resampling_2a)
+                )
+                timings[level] = timings.get(level, 0.0) + clock() - t
     t = clock()
     quality = _quality(scene, opt, g1b, g2a, stripes, ctx.taps, ctx.checkpoints)
+    if refined is not None:
+        assert g2 is not None and ctx.adjustment is not None
+        quality["2"] = _quality_2(
+            scene, refined, g2, g2a, ctx.adjustment, ctx.taps, opt, ctx.checkpoints
+        )
+    quality = {lv: quality[lv] for lv in opt.levels}
     timings["quality"] = clock() - t
     t = clock()
     common = ctx.pg.product_tree(scene)
@@ -279,6 +319,11 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
             geometry["level_1b"] = Level1BGeometry.product_tree(g1b)  # type: ignore[arg-type]
         if level == "2A":
             geometry["level_2a"] = Level2AGeometry.product_tree(g2a)  # type: ignore[arg-type]
+        if level == "2":
+            assert refined is not None and ctx.adjustment is not None
+            geometry = ctx.pg.product_tree(refined)
+            geometry["level_2a"] = Level2AGeometry.product_tree(g2)  # type: ignore[arg-type]
+            geometry["adjustment"] = ctx.adjustment.product_tree(scene.cut.index)
         first = next(iter(images[level].values())).image
         attrs = {
             "level": level,
@@ -292,8 +337,8 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
             "pixel_size_m": res if level != "1A" else 0.0,
         }
         grid = None
-        if level == "2A":
-            g = next(iter(g2a.values()))  # type: ignore[union-attr]
+        if level in ("2A", "2"):
+            g = next(iter((g2a if level == "2A" else g2).values()))  # type: ignore[union-attr]
             grid = MapGrid(g.crs_wkt, g.geotransform)
         product = Product(
             attrs, images[level], geometry, quality[level], {**ctx.provenance, "level": level}, grid
@@ -312,6 +357,17 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     )
 
 
+def _radiometry(opt: ProcessingOptions, taps: NDArray[np.float64]) -> dict[str, Any]:
+    """The deconvolution of levels 1B, 2A and 2, and the MTF at Nyquist before and after."""
+    nyquist = np.array([0.5])
+    before = float(mtf(nyquist, opt.psf_fwhm_px)[0])
+    return {
+        "deconvolution_taps": taps,
+        "mtf_at_nyquist_before": before,
+        "mtf_at_nyquist_after": before * abs(float(fir_response(taps, nyquist)[0])),
+    }
+
+
 def _quality(
     scene: SceneGeometry,
     opt: ProcessingOptions,
@@ -322,13 +378,7 @@ def _quality(
     checkpoints: CheckpointSource | None,
 ) -> dict[str, dict[str, Any]]:
     q: dict[str, dict[str, Any]] = {"1A": {"stripe_level": stripes}}
-    nyquist = np.array([0.5])
-    before = float(mtf(nyquist, opt.psf_fwhm_px)[0])
-    radiometry = {
-        "deconvolution_taps": taps,
-        "mtf_at_nyquist_before": before,
-        "mtf_at_nyquist_after": before * abs(float(fir_response(taps, nyquist)[0])),
-    }
+    radiometry = _radiometry(opt, taps)
     per_side = opt.checkpoints_per_side
     bands = list(scene.models)
     if g1b is not None:
@@ -342,7 +392,7 @@ def _quality(
             q["1B"]["checkpoints"] = {
                 b: checkpoints.level_1b(scene, g1b[b], k, per_side) for k, b in enumerate(bands)
             }
-    if g2a is not None:
+    if g2a is not None and "2A" in opt.levels:
         g = g2a[bands[0]]
         approx = {
             m: g.approximation_error(scene.model, scene.reference_height_m, m)
@@ -353,4 +403,55 @@ def _quality(
             q["2A"]["checkpoints"] = {
                 b: checkpoints.level_2a(scene, g2a[b], k, per_side) for k, b in enumerate(bands)
             }
-    return {lv: q[lv] for lv in opt.levels}
+    return q
+
+
+def _quality_2(
+    scene: SceneGeometry,
+    refined: SceneGeometry,
+    g2: dict[str, Level2AGeometry],
+    g2a: dict[str, Level2AGeometry] | None,
+    adjustment: Adjustment,
+    taps: NDArray[np.float64],
+    opt: ProcessingOptions,
+    checkpoints: CheckpointSource | None,
+) -> dict[str, Any]:
+    """Level 2's quality: its inverse against the refined model, the control points of the
+    scene after the adjustment, the predicted accuracy and, with a checkpoint source, the
+    checkpoint errors after (the refined model) and before (the 2A model)."""
+    bands = list(scene.models)
+    g = g2[bands[0]]
+    k = adjustment.of_scene(scene.cut.index)
+    mine = adjustment.point_scene == scene.cut.index
+    status = np.array(adjustment.point_status)
+    used = mine & (status == "used")
+    after = np.hypot(*adjustment.residual_after_px[used].T)
+    sigma = adjustment.predicted_sigma_m[k]
+    q: dict[str, Any] = {
+        "inverse_vs_model": {
+            g.method: g.approximation_error(refined.model, refined.reference_height_m, g.method)
+        },
+        "inverse_method": g.method,
+        "radiometry": _radiometry(opt, taps),
+        "predicted_sigma_m": {
+            "east": float(sigma[0]),
+            "north": float(sigma[1]),
+            "horizontal": float(sigma[2]),
+            "prior_horizontal": float(adjustment.prior_sigma_m[k, 2]),
+        },
+        "control_points": {
+            "used": int(used.sum()),
+            "rejected": int(np.sum(mine & (status == "rejected"))),
+            "residual_rms_px": float(np.sqrt(np.mean(after**2))) if after.size else None,
+        },
+    }
+    per_side = opt.checkpoints_per_side
+    if checkpoints is not None:
+        q["checkpoints"] = {
+            b: checkpoints.level_2a(refined, g2[b], i, per_side) for i, b in enumerate(bands)
+        }
+        if g2a is not None:
+            q["checkpoints_2a"] = {
+                b: checkpoints.level_2a(scene, g2a[b], i, per_side) for i, b in enumerate(bands)
+            }
+    return q

@@ -68,7 +68,12 @@ SCENE_KEYS = (
     "corners_lon_deg",
 )
 #: The geometry trees a product of each level must carry (``docs/products.md``).
-REQUIRED_GEOMETRY = {"1A": ("scene",), "1B": ("scene", "level_1b"), "2A": ("scene", "level_2a")}
+REQUIRED_GEOMETRY = {
+    "1A": ("scene",),
+    "1B": ("scene", "level_1b"),
+    "2A": ("scene", "level_2a"),
+    "2": ("scene", "level_2a", "adjustment"),
+}
 _CHUNK = 512
 _UNITS = (
     ("_m_per_s", "m s-1"),

@@ -180,7 +180,7 @@ def _receive_and_process(
     from tqdm import tqdm
 
     from levels.process import process_l0
-    from levels.readers.gcp import write_gcps
+    from levels.readers.gcp import read_gcps, write_gcps
     from levels.readers.l0 import read_l0
     from station.sipc.process import control_points
     from station.sipc.truth import Truth
@@ -219,6 +219,7 @@ def _receive_and_process(
         checkpoints=truth,
         provenance=scn.provenance(),
         on_scene=on_scene,
+        gcps=read_gcps(gcps, archive.n_lines, archive.n_columns),
     )
     scenes.close()
     timings["geo"] = timings.get("geo", 0.0) + products.timings_s["geo"]
@@ -244,6 +245,9 @@ def _receive_and_process(
             "rows": archive.n_lines,
         },
         "gcps": {"file": gcps.name, "points": int(acq.gcps.line.size)},
+        **(
+            {"adjustment": products.adjustment.summary()} if products.adjustment is not None else {}
+        ),
         "processing": {
             "levels": list(scn.processing.levels),
             "scenes": len(products.scenes),

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from levels.errors import GeometryError
-from levels.geometry.attitude import SampledAttitude, integrate_rates
+from levels.geometry.attitude import GAP_FACTOR, SampledAttitude, integrate_rates
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.model import LineClock, PushbroomModel
 from levels.geometry.sensor import LookAngleTable
@@ -151,15 +151,30 @@ class PassGeometry:
         t0, period = self._clock_fit  # type: ignore[attr-defined]
         return LineClock(t0 + period * first_line, 0.0, period)
 
-    def scene(self, cut: SceneCut, reference_height_m: float = 0.0) -> SceneGeometry:
+    def scene(
+        self,
+        cut: SceneCut,
+        reference_height_m: float = 0.0,
+        *,
+        ephemeris: Ephemeris | None = None,
+        attitude: SampledAttitude | None = None,
+    ) -> SceneGeometry:
         """GEO for one scene: models with the attitude zeroed at the scene centre, centre
-        and corners on the reference surface."""
+        and corners on the reference surface.
+
+        Level 2 gives its refined ``ephemeris`` and ``attitude`` (absolute: used as given,
+        not zeroed; :meth:`levels.adjust.Adjustment.refine`).
+        """
         clock = self.clock(cut.first_line)
         t_c = float(clock.time_s(cut.centre_line))
-        att = self.attitude.zeroed_at(t_c)  # INPE §2.1: null attitude at scene centre
-        at_centre = self.attitude.angles_rad(np.array([t_c]))[0]
+        if attitude is None:
+            att = self.attitude.zeroed_at(t_c)  # INPE §2.1: null attitude at scene centre
+            at_centre = self.attitude.angles_rad(np.array([t_c]))[0]
+        else:
+            att, at_centre = attitude, attitude.angles_rad(np.array([t_c]))[0]
+        eph = self.ephemeris if ephemeris is None else ephemeris
         models = {
-            name: PushbroomModel(self.epoch, clock, self.ephemeris, att, look, cut.n_lines)
+            name: PushbroomModel(self.epoch, clock, eph, att, look, cut.n_lines)
             for name, look in self.look_angles.items()
         }
         model = next(iter(models.values()))
@@ -192,7 +207,7 @@ class PassGeometry:
         """The part of a product's ``geometry`` tree every level shares: the epoch, the
         scene, its clock, the ephemeris and attitude used (the attitude records within 2 s
         of the scene), the look angles of each band (``docs/products.md``)."""
-        att = scene.model.attitude
+        att, eph = scene.model.attitude, scene.model.ephemeris
         t = att.t_s  # type: ignore[attr-defined]
         margin_s = 2.0
         keep = (t >= scene.model.clock.time_s(0) - margin_s) & (
@@ -215,14 +230,12 @@ class PassGeometry:
                 "line_period_s": scene.model.clock.period_s,
             },
             "ephemeris": {
-                "t_s": self.ephemeris.t_s,
-                "r_ecef_m": self.ephemeris.r_ecef_m,
-                "v_ecef_m_per_s": self.ephemeris.v_ecef_m_per_s,
-                "lagrange_points": self.ephemeris.n_points,
+                "t_s": eph.t_s,
+                "r_ecef_m": eph.r_ecef_m,
+                "v_ecef_m_per_s": eph.v_ecef_m_per_s,
+                "lagrange_points": eph.n_points,
                 **(
-                    {"reference_velocity": self.ephemeris.reference_velocity}
-                    if self.ephemeris.reference_velocity
-                    else {}
+                    {"reference_velocity": eph.reference_velocity} if eph.reference_velocity else {}
                 ),
             },
             "attitude": {
@@ -266,11 +279,15 @@ def pass_geometry(
     gyro_rates_rad_per_s: NDArray[np.float64],
     look_angles: dict[str, LookAngleTable],
 ) -> PassGeometry:
-    """GEO's pass set-up: integrate the gyro rates from a null attitude at the first record."""
+    """GEO's pass set-up: integrate the gyro rates from a null attitude at the first record,
+    holding the attitude across records lost in the downlink
+    (:func:`~levels.geometry.attitude.integrate_rates`)."""
     order = np.argsort(gyro_t_s, kind="stable")
     t, keep = np.unique(np.asarray(gyro_t_s)[order], return_index=True)
     rates = np.asarray(gyro_rates_rad_per_s)[order][keep]
-    attitude = integrate_rates(t, rates)  # INPE §2.1: null attitude at the first record
+    # INPE §2.1: null attitude at the first record; held across lost records (Westin)
+    gap = GAP_FACTOR * float(np.median(np.diff(t))) if t.size > 2 else None
+    attitude = integrate_rates(t, rates, max_gap_s=gap)
     return PassGeometry(
         epoch,
         np.asarray(line_t_s, float),

@@ -24,7 +24,37 @@ from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
 
-__all__ = ["Attitude", "ConstantAttitude", "SampledAttitude", "integrate_rates"]
+__all__ = [
+    "MICRODEGREE_RAD",
+    "WESTIN_HARMONIC",
+    "WESTIN_POWER",
+    "Attitude",
+    "ConstantAttitude",
+    "SampledAttitude",
+    "attitude_gaps",
+    "integrate_rates",
+    "westin_variogram_rad2",
+]
+
+#: Westin's variogram unit: the paper says "[10⁻⁶]²" and checks itself with
+#: [2γ_ω(31)]^½ = 0.93° × 10⁻³, so the unit is the micro-degree (``station.spacecraft.attitude``).
+MICRODEGREE_RAD = np.pi / 180.0 * 1e-6
+
+#: Westin eqs. (24)–(26): power-law terms (c, α) and harmonic terms (c, ω rad/s) per axis,
+#: in micro-degrees squared.
+WESTIN_POWER = ((1774.0, 1.8),), ((17500.0, 0.5),), ((3200.0, 1.0),)
+WESTIN_HARMONIC = (), ((80000.0, 0.93),), ()
+
+
+def westin_variogram_rad2(axis: int, dt_s: ArrayLike) -> NDArray[np.float64]:
+    """Westin's 2γ(Δt) for axis 0 (roll, eq. 24), 1 (pitch, eq. 25), 2 (yaw, eq. 26), rad²."""
+    dt = np.abs(np.asarray(dt_s, dtype=np.float64))
+    out = np.zeros_like(dt)
+    for c, alpha in WESTIN_POWER[axis]:
+        out += c * dt**alpha
+    for c, omega in WESTIN_HARMONIC[axis]:
+        out += c * (1 - np.cos(omega * dt))
+    return out * MICRODEGREE_RAD**2
 
 
 class Attitude(Protocol):
@@ -122,6 +152,7 @@ def integrate_rates(
     *,
     start_t_s: float | None = None,
     start_angles_rad: ArrayLike = (0.0, 0.0, 0.0),
+    max_gap_s: float | None = None,
 ) -> SampledAttitude:
     """Attitude from angular rates, integrated by the trapezoid rule.
 
@@ -140,6 +171,14 @@ def integrate_rates(
         sample, the first rate is held constant back to it.
     start_angles_rad
         Roll, pitch, yaw at ``start_t_s``.
+    max_gap_s
+        Intervals between rate samples longer than this are gaps (records lost): the
+        attitude is held across them, not integrated. Rates at a gap's two ends say little
+        about the drift in between (SPOT's pitch drift is rough, Westin eq. 25: one 125 ms
+        rate times 31 s would be off by tens of microradians), while the expected increment
+        of a drift with a variogram is zero and its variance the variogram (Westin §"Weights
+        for attitude difference observations"), which is what level 2 weights the jump by
+        (:func:`attitude_gaps`).
 
     Returns
     -------
@@ -157,6 +196,8 @@ def integrate_rates(
         w = np.concatenate([w[:1], w])
     # Trapezoid rule: A(t_k) = A(t_0) + Σ (w_i + w_{i+1}) / 2 · (t_{i+1} − t_i)
     increments = 0.5 * (w[1:] + w[:-1]) * np.diff(t)[:, None]
+    if max_gap_s is not None:
+        increments[np.diff(t) > max_gap_s] = 0.0
     angles = np.zeros_like(w)
     angles[1:] = np.cumsum(increments, axis=0)
     sampled = SampledAttitude(t, angles)
@@ -167,3 +208,19 @@ def integrate_rates(
         np.asarray(start_angles_rad, dtype=np.float64) - sampled.angles_rad(np.array([t_start]))[0]
     )
     return SampledAttitude(t, angles + offset, sampled.hold_s)
+
+
+#: An interval between attitude records longer than this many times their median spacing
+#: is a gap: records were lost (one missing record already makes 2×).
+GAP_FACTOR = 1.5
+
+
+def attitude_gaps(t_s: ArrayLike) -> NDArray[np.float64]:
+    """The gaps of a record of attitude instants: ``(k, 2)`` start and end times of every
+    interval longer than ``GAP_FACTOR`` × the median spacing."""
+    t = np.asarray(t_s, dtype=np.float64)
+    if t.size < 3:
+        return np.zeros((0, 2))
+    dt = np.diff(t)
+    big = np.flatnonzero(dt > GAP_FACTOR * np.median(dt))
+    return np.stack([t[big], t[big + 1]], axis=-1)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +63,7 @@ class ControlPointSet:
         k = self.hrv == hrv
         return ControlPointSet(
             tuple(i for i, keep in zip(self.id, k, strict=True) if keep),
-            *(getattr(self, f)[k] for f in GCP_COLUMNS[1:]),
+            *(getattr(self, f.name)[k] for f in fields(self)[1:]),
         )
 
 

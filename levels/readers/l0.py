@@ -103,6 +103,11 @@ class L0Archive:
     def n_lines(self) -> int:
         return int(self.line_counter.size)
 
+    @property
+    def n_columns(self) -> int:
+        """Detectors of the first band (the columns control points are measured in)."""
+        return int(next(iter(self.bands.values())).counts.shape[1])
+
 
 _REQUIRED = {
     "bands/segment_first_detector": 1,

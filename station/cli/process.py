@@ -39,6 +39,11 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--levels", help="comma-separated levels to make (e.g. 1A,2A); overrides the options'"
     )
+    p.add_argument(
+        "--gcps",
+        help="control points of the pass for level 2 (docs/gcp.md; default: the "
+        "<name>.gcp.csv beside the L0 archive)",
+    )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     add_out(p, "directory of the products (default: <name>_products)")
     add_json(p)
@@ -79,6 +84,10 @@ def _process(args: argparse.Namespace) -> int:
             raise StationError(
                 "give --scenario only with an L0 archive; a .toml SOURCE is the scenario"
             )
+        if args.gcps:
+            raise StationError(
+                "give --gcps only with an L0 archive; a scenario draws its own control points"
+            )
         scn = load_scenario(source)
         scn = dataclasses.replace(
             scn, processing=_options(args, scn.processing), name=args.name or scn.name
@@ -91,7 +100,12 @@ def _process(args: argparse.Namespace) -> int:
         name = args.name or l0_stem(source)
         out = Path(args.out) if args.out else Path(f"{name}_products")
         products = reprocess_l0(
-            source, out, options=_options(args, base), scenario=scenario, name=name
+            source,
+            out,
+            options=_options(args, base),
+            scenario=scenario,
+            name=name,
+            gcps=args.gcps,
         )
     rows = [
         {

@@ -18,7 +18,7 @@ from levels.errors import L0Error
 from levels.geo.scenes import PassGeometry, SceneGeometry, pass_geometry
 from levels.options import ProcessingOptions
 from levels.process import PassProducts, nominal_pixel_size_m, process_l0
-from levels.readers.gcp import ControlPointSet
+from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
 from levels.readers.l0 import L0Archive, read_l0
 from station.errors import ScenarioError
 from station.scenario import Scenario
@@ -110,18 +110,27 @@ def reprocess_l0(
     options: ProcessingOptions | None = None,
     scenario: Scenario | None = None,
     name: str | None = None,
+    gcps: str | Path | None = None,
 ) -> PassProducts:
     """Process a recorded L0 archive again into ``out_dir``.
 
     ``options`` default to the scenario's ``[processing]``, else to the defaults; with the
     ``scenario``, the checkpoints are measured against its truth. Products are named after
     the archive (``<name>.l0.h5`` → ``<name>_s000_2A.h5``) unless ``name`` is given.
+    Level 2 reads the control points from ``gcps``, by default the ``<name>.gcp.csv`` a run
+    wrote beside the archive.
     """
     path = Path(l0_path)
     archive = read_l0(path)
     opts = options or (scenario.processing if scenario is not None else ProcessingOptions())
     truth = truth_for(scenario, archive) if scenario is not None else None
-    return process_l0(archive, opts, out_dir, name=name or l0_stem(path), checkpoints=truth)
+    points = None
+    if "2" in opts.levels:
+        where = Path(gcps) if gcps else path.with_name(f"{l0_stem(path)}.gcp.csv")
+        points = read_gcps(where, archive.n_lines, archive.n_columns)
+    return process_l0(
+        archive, opts, out_dir, name=name or l0_stem(path), checkpoints=truth, gcps=points
+    )
 
 
 def l0_stem(path: str | Path) -> str:
@@ -145,12 +154,19 @@ def process_scenario(
     result = downlink(acq)
     l0 = record(acq, result, l0_path or out / f"{scn.name}.l0.h5")
     archive = read_l0(l0)
+    truth = Truth.of(acq, archive)
+    gcps = write_gcps(
+        Path(l0).with_name(f"{l0_stem(l0)}.gcp.csv"),
+        control_points(acq, truth.row_offset),
+        f"control points of {scn.name}, HRV{acq.hrv.number}, as measured (docs/gcp.md)",
+    )
     products = process_l0(
         archive,
         scn.processing,
         out,
         name=scn.name,
-        checkpoints=Truth.of(acq, archive),
+        checkpoints=truth,
         provenance=scn.provenance(),
+        gcps=read_gcps(gcps, archive.n_lines, archive.n_columns),
     )
     return products, l0

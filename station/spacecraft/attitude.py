@@ -38,6 +38,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from levels.geometry.attitude import (
+    MICRODEGREE_RAD,
+    WESTIN_HARMONIC,
+    WESTIN_POWER,
+    westin_variogram_rad2,
+)
+
 __all__ = [
     "MICRODEGREE_RAD",
     "GyroRecord",
@@ -47,25 +54,6 @@ __all__ = [
     "sample_gyros",
     "westin_variogram_rad2",
 ]
-
-#: Westin's variogram unit (see the module docstring).
-MICRODEGREE_RAD = np.pi / 180.0 * 1e-6
-
-#: Westin eqs. (24)–(26): power-law terms (c, α) and harmonic terms (c, ω rad/s) per axis,
-#: in micro-degrees squared.
-WESTIN_POWER = ((1774.0, 1.8),), ((17500.0, 0.5),), ((3200.0, 1.0),)
-WESTIN_HARMONIC = (), ((80000.0, 0.93),), ()
-
-
-def westin_variogram_rad2(axis: int, dt_s: ArrayLike) -> NDArray[np.float64]:
-    """Westin's 2γ(Δt) for axis 0 (roll, eq. 24), 1 (pitch, eq. 25), 2 (yaw, eq. 26), rad²."""
-    dt = np.abs(np.asarray(dt_s, dtype=np.float64))
-    out = np.zeros_like(dt)
-    for c, alpha in WESTIN_POWER[axis]:
-        out += c * dt**alpha
-    for c, omega in WESTIN_HARMONIC[axis]:
-        out += c * (1 - np.cos(omega * dt))
-    return out * MICRODEGREE_RAD**2
 
 
 def fractional_brownian(

@@ -1,0 +1,653 @@
+"""Level 2: control points refine the sensor model, from one scene to a whole pass.
+
+Westin's pass adjustment (paper ``000_…``), on this project's rigorous model
+(:class:`~levels.geometry.model.PushbroomModel`) instead of his plane circular orbit:
+
+Parameters (eqs. 1–3)
+    For the **pass**: a bias of the ephemeris along track, across track and radial, and its
+    growth per second (six; Westin's ΔΩ, Δi, Δr0 are the same freedoms of a plane orbit).
+    For **each scene** ``j``: offsets of roll, pitch, yaw (Westin's Δω0, Δρ0, Δκ0) and their
+    rates over the scene. The corrections are applied to the pass's attitude integrated from
+    the gyros (:func:`~levels.geometry.attitude.integrate_rates`: Westin's "start values
+    calculated from the preceding scene"), so that with attitude records all the way every
+    scene needs the same correction. Westin's per-scene time Δt0 is not needed: every row of
+    a pass comes from one fitted line clock (:class:`~levels.geo.scenes.PassGeometry`), so
+    the scenes' relative timing is known; the clock's absolute error is an along-track bias.
+
+Observations
+    Each control point gives the collinearity condition (eqs. 7–9) as two angles: the
+    direction to the point seen from the projection centre of its measured line, in the
+    sensor frame, minus the look-angle table's at its measured column, expressed in pixels
+    (the table's pitch). Its weight is ``(A Q Aᵀ)⁻¹`` (eq. 20): ``A`` the partials of the
+    condition with respect to the point's line, column, east, north and height (numerical),
+    ``Q`` their a priori variances from the control-point file. The pass parameters are
+    observed as zero with the error budget's σ (eq. 4, 10), the first scene's attitude as
+    zero (eq. 5, 11), and each following scene's attitude *difference* with the previous
+    one (eqs. 6, 12) with the variance of its increment: the gyros' random walk,
+    ``σ_g² T Δt``, where records are continuous, and Westin's variogram (eqs. 24–26,
+    ``levels.geometry.attitude.westin_variogram_rad2``) over the records lost in a gap.
+    Rates are observed as zero with the gyro noise averaged over a scene.
+
+Solution
+    Weighted nonlinear least squares (``scipy.optimize.least_squares``) in parameters
+    scaled by their a priori σ, the first fit with a robust loss; then Baarda's data
+    snooping: normalised residuals ``v / σ_v`` (``σ_v² = 1 − h``, ``h`` the leverage),
+    points beyond the threshold rejected and reported, and a plain least-squares fit on the
+    rest. Its covariance (a priori: the error budget is trusted, the unit-weight σ0 is
+    reported beside it) propagates to a **predicted accuracy** of every scene, with or
+    without control points: the ground displacement (east, north on the reference surface)
+    that the parameters' covariance makes at a lattice of the scene's pixels.
+
+Modes: ``pass`` (all scenes together, Westin) and ``scene`` (each alone: its six pass
+parameters its own). One control point, or none, is handled by the same equations: what the
+points cannot determine is held by the priors, and the predicted σ says so.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from levels.errors import GeometryError
+from levels.geo.scenes import PassGeometry, SceneGeometry
+from levels.geometry.attitude import SampledAttitude, attitude_gaps, westin_variogram_rad2
+from levels.geometry.ellipsoid import WGS84
+from levels.geometry.ephemeris import Ephemeris
+from levels.geometry.frames import apply, apply_inverse, ecef_from_orbital, orbital_from_body
+from levels.options import ProcessingOptions
+from levels.readers.gcp import ControlPointSet
+
+__all__ = ["PASS_PARAMETERS", "SCENE_PARAMETERS", "Adjustment", "adjust"]
+
+#: The pass's parameters, in order (SI units).
+PASS_PARAMETERS = (
+    "ephemeris_along_m",
+    "ephemeris_across_m",
+    "ephemeris_radial_m",
+    "drift_along_m_per_s",
+    "drift_across_m_per_s",
+    "drift_radial_m_per_s",
+)
+#: Each scene's parameters, in order (SI units).
+SCENE_PARAMETERS = (
+    "roll_rad",
+    "pitch_rad",
+    "yaw_rad",
+    "roll_rate_rad_per_s",
+    "pitch_rate_rad_per_s",
+    "yaw_rate_rad_per_s",
+)
+_NP, _NS = len(PASS_PARAMETERS), len(SCENE_PARAMETERS)
+#: Lattice of pixels per scene side where the predicted accuracy is evaluated.
+PREDICTION_LATTICE = 5
+#: Finite-difference steps: parameters (in a priori σ), image (px), ground (m).
+_STEP_X, _STEP_PX, _STEP_M = 1e-3, 0.05, 1.0
+#: Soft-L1 scale of the robust first fit, in normalised residuals (inliers stay quadratic).
+ROBUST_SCALE = 3.0
+#: At most this many snooping rounds (each rejects every point beyond the threshold).
+MAX_SNOOPING_ROUNDS = 10
+
+
+def _orbital(along_across_radial: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(along, across, radial) → components on the orbital frame's (X across, Y along, Z)."""
+    a = along_across_radial
+    return np.stack([a[..., 1], a[..., 0], a[..., 2]], axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class _Points:
+    """Image points and their ground, with everything that does not depend on the
+    parameters evaluated once: the ephemeris and the pass attitude at each point's time."""
+
+    t_s: NDArray[np.float64]
+    scene: NDArray[np.int64]  # position in the adjustment's scene list
+    g_ecef_m: NDArray[np.float64]
+    r: NDArray[np.float64]
+    v: NDArray[np.float64]
+    axes: NDArray[np.float64]
+    attitude: NDArray[np.float64]
+    table: NDArray[np.float64]  # (N, 2) the look table's psi_x, psi_y at the column
+    pitch_rad: float
+
+
+def _points(
+    pg: PassGeometry,
+    band: str,
+    line: NDArray[np.float64],
+    column: NDArray[np.float64],
+    g_ecef_m: NDArray[np.float64],
+    scene: NDArray[np.int64],
+) -> _Points:
+    t = pg.clock(0).time_s(line)
+    r, v = pg.ephemeris.interpolate(t)
+    look = pg.look_angles[band]
+    px, py = look.angles_rad(column)
+    pitch = float(np.median(np.abs(np.diff(look.psi_y_rad))))
+    return _Points(
+        t,
+        scene,
+        g_ecef_m,
+        r,
+        v,
+        ecef_from_orbital(r, v),
+        pg.attitude.angles_rad(t),
+        np.stack([px, py], axis=-1),
+        pitch,
+    )
+
+
+def _condition(
+    p: _Points, bias_m: NDArray[np.float64], drift: NDArray[np.float64], d_att: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The collinearity condition (module docstring) in pixels, ``(N, 2)``, for orbital-frame
+    position corrections ``bias_m`` with velocity corrections ``drift`` and attitude
+    corrections ``d_att`` per point. The orbital frame is rebuilt on the corrected state, as
+    the refined model (:meth:`Adjustment.refine`) does."""
+    r = p.r + apply(p.axes, bias_m)
+    v = p.v + apply(p.axes, drift)
+    axes = ecef_from_orbital(r, v)
+    a = p.attitude + d_att
+    body = orbital_from_body(a[:, 0], a[:, 1], a[:, 2])
+    w = apply_inverse(body, apply_inverse(axes, p.g_ecef_m - r))
+    depth = -w[:, 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        psi = np.stack([np.arctan(w[:, 1] / depth), np.arctan(-w[:, 0] / depth)], axis=-1)
+    return (psi - p.table) / p.pitch_rad
+
+
+def _local_axes(g_ecef_m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """East, north, up unit vectors at ECEF points, ``(N, 3, 3)`` (rows)."""
+    lat, lon, _h = WGS84.to_geodetic(g_ecef_m)
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    east = np.stack([-so, co, np.zeros_like(so)], axis=-1)
+    north = np.stack([-sl * co, -sl * so, cl], axis=-1)
+    up = np.stack([cl * co, cl * so, sl], axis=-1)
+    return np.stack([east, north, up], axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """One least-squares problem: the points, the scenes' times and the priors."""
+
+    points: _Points
+    whitening: NDArray[np.float64]  # (N, 2, 2): L⁻¹ with L Lᵀ = A Q Aᵀ
+    t_ref_s: float
+    t_centre_s: NDArray[np.float64]  # (S,)
+    sigma_pass: NDArray[np.float64]  # (6,) a priori σ, SI
+    sigma_scene: NDArray[np.float64]  # (6,)
+    increment_sigma: NDArray[np.float64]  # (S, 3): σ of attitude jumps from the previous
+
+    @property
+    def n_scenes(self) -> int:
+        return int(self.t_centre_s.size)
+
+    @property
+    def n_params(self) -> int:
+        return _NP + _NS * self.n_scenes
+
+    def split(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Pass (6,) and scene (S, 6) parameters in SI from the scaled vector."""
+        return x[:_NP] * self.sigma_pass, x[_NP:].reshape(-1, _NS) * self.sigma_scene
+
+    def corrections(
+        self, x: NDArray[np.float64], p: _Points
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        pas, sce = self.split(x)
+        dt = p.t_s - self.t_ref_s
+        bias = _orbital(pas[:3] + pas[3:] * dt[:, None])
+        drift = np.broadcast_to(_orbital(pas[3:]), bias.shape)
+        s = sce[p.scene]
+        att = s[:, :3] + s[:, 3:] * (p.t_s - self.t_centre_s[p.scene])[:, None]
+        return bias, drift, att
+
+    def condition(self, x: NDArray[np.float64], p: _Points | None = None) -> NDArray:
+        p = self.points if p is None else p
+        return _condition(p, *self.corrections(x, p))
+
+    def parameter_jacobian(self, x: NDArray[np.float64], p: _Points) -> NDArray[np.float64]:
+        """∂condition/∂x, ``(N, 2, 12)``: the 6 pass and the point's own scene's 6 columns
+        (central differences; a scene parameter moves only its own scene's points, so each
+        kind is stepped in every scene at once)."""
+        out = np.empty((p.t_s.size, 2, _NP + _NS))
+        for k in range(_NP + _NS):
+            step = np.zeros_like(x)
+            if k < _NP:
+                step[k] = _STEP_X
+            else:
+                step[_NP + (k - _NP) :: _NS] = _STEP_X
+            out[:, :, k] = (self.condition(x + step, p) - self.condition(x - step, p)) / (
+                2 * _STEP_X
+            )
+        return out
+
+    def prior_rows(self) -> NDArray[np.float64]:
+        """The linear pseudo-observations on the scaled parameters (eqs. 4–6, 10–12)."""
+        s, n = self.n_scenes, self.n_params
+        rows = np.zeros((_NP + _NS * s, n))
+        rows[:_NP, :_NP] = np.eye(_NP)
+        for j in range(s):
+            base = _NP + _NS * j
+            r0 = _NP + _NS * j
+            for k in range(3):
+                if j == 0:
+                    rows[r0 + k, base + k] = 1.0
+                else:
+                    w = self.sigma_scene[k] / self.increment_sigma[j, k]
+                    rows[r0 + k, base + k] = w
+                    rows[r0 + k, base - _NS + k] = -w
+                rows[r0 + 3 + k, base + 3 + k] = 1.0
+        return rows
+
+    def residuals(self, x: NDArray[np.float64], use: NDArray[np.bool_]) -> NDArray[np.float64]:
+        f = self.condition(x)[use]
+        wf = np.einsum("nij,nj->ni", self.whitening[use], f).ravel()
+        return np.concatenate([wf, self.prior_rows() @ x])
+
+    def jacobian(self, x: NDArray[np.float64], use: NDArray[np.bool_]) -> NDArray[np.float64]:
+        p = self.points
+        local = self.parameter_jacobian(x, p)[use]  # (n, 2, 12)
+        local = np.einsum("nij,njk->nik", self.whitening[use], local)
+        n = local.shape[0]
+        jac = np.zeros((2 * n, self.n_params))
+        jac[:, :_NP] = local[:, :, :_NP].reshape(2 * n, _NP)
+        cols = _NP + _NS * p.scene[use][:, None] + np.arange(_NS)  # (n, 6)
+        rows = np.arange(2 * n).reshape(n, 2)
+        jac[rows[:, :, None], np.repeat(cols[:, None, :], 2, axis=1)] = local[:, :, _NP:]
+        return np.vstack([jac, self.prior_rows()])
+
+
+@dataclass(frozen=True, eq=False)
+class Adjustment:
+    """A solved adjustment: the corrections of every scene, their covariance and predicted
+    accuracy, and what became of every control point.
+
+    Per-scene arrays are in the order of ``scene_index`` (the scenes' cut indices). In
+    ``pass`` mode every scene shares the pass parameters; in ``scene`` mode each has its own.
+    Covariances are ``(S, 12, 12)`` over the 6 pass and the scene's 6 parameters, SI units.
+    """
+
+    mode: str
+    t_ref_s: float
+    scene_index: NDArray[np.int64]
+    t_centre_s: NDArray[np.float64]
+    pass_parameters: NDArray[np.float64]  # (S, 6)
+    scene_parameters: NDArray[np.float64]  # (S, 6)
+    covariance: NDArray[np.float64]  # (S, 12, 12)
+    predicted_sigma_m: NDArray[np.float64]  # (S, 3): east, north, horizontal (RMS)
+    prior_sigma_m: NDArray[np.float64]  # (S, 3): the same from the priors alone
+    increment_sigma_rad: NDArray[np.float64]  # (S, 3): σ of each scene's jump, inf first
+    gap_s: NDArray[np.float64]  # (S,): attitude records lost since the previous scene
+    point_id: tuple[str, ...]
+    point_scene: NDArray[np.int64]  # cut index, -1 outside every scene
+    point_status: tuple[str, ...]  # used, rejected, outside
+    residual_before_px: NDArray[np.float64]  # (N, 2): along (line), across (column)
+    residual_after_px: NDArray[np.float64]
+    normalised_residual: NDArray[np.float64]  # (N,) at the last test, NaN if not tested
+    sigma0: float
+    timings_s: dict[str, float]
+
+    def of_scene(self, index: int) -> int:
+        hit = np.flatnonzero(self.scene_index == index)
+        if hit.size == 0:
+            raise GeometryError(f"scene {index} was not in the adjustment")
+        return int(hit[0])
+
+    def refine(self, pg: PassGeometry, scene: SceneGeometry) -> SceneGeometry:
+        """The scene again, on the refined ephemeris and attitude (module docstring)."""
+        k = self.of_scene(scene.cut.index)
+        pas, sce = self.pass_parameters[k], self.scene_parameters[k]
+        e = pg.ephemeris
+        dt = e.t_s - self.t_ref_s
+        axes = ecef_from_orbital(e.r_ecef_m, e.v_ecef_m_per_s)
+        r = e.r_ecef_m + apply(axes, _orbital(pas[:3] + pas[3:] * dt[:, None]))
+        v = e.v_ecef_m_per_s + apply(axes, np.broadcast_to(_orbital(pas[3:]), r.shape))
+        eph = Ephemeris(e.t_s, r, v, e.n_points, e.reference_velocity)
+        a = pg.attitude
+        da = sce[:3] + sce[3:] * (a.t_s - self.t_centre_s[k])[:, None]
+        att = SampledAttitude(a.t_s, a.angles_rad_samples + da, a.hold_s)
+        return pg.scene(scene.cut, scene.reference_height_m, ephemeris=eph, attitude=att)
+
+    def summary(self) -> dict[str, Any]:
+        """Headline figures of the whole adjustment (the run report's)."""
+        status = np.array(self.point_status)
+        after = np.hypot(*self.residual_after_px[status == "used"].T)
+        return {
+            "mode": self.mode,
+            "points_used": int(np.sum(status == "used")),
+            "points_rejected": int(np.sum(status == "rejected")),
+            "points_outside": int(np.sum(status == "outside")),
+            "rejected": [i for i, s in zip(self.point_id, status, strict=True) if s == "rejected"],
+            "residual_rms_px": float(np.sqrt(np.mean(after**2))) if after.size else None,
+            "sigma0": self.sigma0,
+        }
+
+    def product_tree(self, index: int) -> dict[str, Any]:
+        """``geometry/adjustment`` of the scene's level 2 product (``docs/products.md``)."""
+        k = self.of_scene(index)
+        return {
+            "mode": self.mode,
+            "note": "pass ephemeris bias and drift (along, across, radial) and the scene's "
+            "attitude offsets and rates, added to the gyro-integrated attitude (Westin); "
+            "covariance over the 6 pass and 6 scene parameters, a priori",
+            "t_ref_s": self.t_ref_s,
+            "t_centre_s": float(self.t_centre_s[k]),
+            "pass_parameter_names": list(PASS_PARAMETERS),
+            "pass_parameters": self.pass_parameters[k],
+            "scene_parameter_names": list(SCENE_PARAMETERS),
+            "scene_parameters": self.scene_parameters[k],
+            "covariance": self.covariance[k],
+            "predicted_sigma_m": {
+                "east": float(self.predicted_sigma_m[k, 0]),
+                "north": float(self.predicted_sigma_m[k, 1]),
+                "horizontal": float(self.predicted_sigma_m[k, 2]),
+                "prior_horizontal": float(self.prior_sigma_m[k, 2]),
+            },
+            "attitude_jump_sigma_rad": self.increment_sigma_rad[k],
+            "attitude_gap_s": float(self.gap_s[k]),
+            "sigma0": self.sigma0,
+            "points": {
+                "id": list(self.point_id),
+                "scene": self.point_scene,
+                "status": list(self.point_status),
+                "residual_before_px": self.residual_before_px,
+                "residual_after_px": self.residual_after_px,
+                "normalised_residual": self.normalised_residual,
+            },
+        }
+
+
+def _increment_sigma(
+    gaps: NDArray[np.float64],
+    t_centre_s: NDArray[np.float64],
+    record_period_s: float,
+    options: ProcessingOptions,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """σ of each scene's attitude jump from the previous scene (``(S, 3)``, inf for the
+    first) and the attitude records lost between them (s): the gyros' random walk over the
+    recorded time, Westin's variogram over the lost time."""
+    s = t_centre_s.size
+    sig = np.full((s, 3), np.inf)
+    lost = np.zeros(s)
+    for j in range(1, s):
+        a, b = t_centre_s[j - 1], t_centre_s[j]
+        overlap = np.clip(np.minimum(gaps[:, 1], b) - np.maximum(gaps[:, 0], a), 0.0, None)
+        lost[j] = float(overlap.sum())
+        walk = options.gyro_noise_rad_per_s**2 * record_period_s * max(b - a - lost[j], 0.0)
+        for k in range(3):
+            var = walk + options.variogram_scale * float(westin_variogram_rad2(k, lost[j]))
+            sig[j, k] = np.sqrt(max(var, 1e-24))
+    return sig, lost
+
+
+def _whitening(
+    pg: PassGeometry,
+    band: str,
+    gcps: ControlPointSet,
+    use: NDArray[np.bool_],
+    p: _Points,
+) -> NDArray[np.float64]:
+    """``L⁻¹`` of every point's condition covariance ``A Q Aᵀ`` (eq. 20), ``(N, 2, 2)``."""
+    n = p.t_s.size
+    zero = np.zeros((n, 3))
+    f0 = _condition(p, zero, zero, zero)
+    line, col = gcps.line[use], gcps.column[use]
+    cols = [
+        (
+            _condition(
+                _points(pg, band, line + dl, col + dc, p.g_ecef_m, p.scene), zero, zero, zero
+            )
+            - f0
+        )
+        / _STEP_PX
+        for dl, dc in ((_STEP_PX, 0.0), (0.0, _STEP_PX))
+    ]
+    enu = _local_axes(p.g_ecef_m)
+    for k in range(3):
+        q = _points(pg, band, line, col, p.g_ecef_m + _STEP_M * enu[:, k], p.scene)
+        cols.append((_condition(q, zero, zero, zero) - f0) / _STEP_M)
+    a = np.stack(cols, axis=-1)  # (N, 2, 5): line, column, east, north, up
+    sg, sh, sp = gcps.sigma_ground_m[use], gcps.sigma_h_m[use], gcps.sigma_px[use]
+    q_diag = np.stack([sp**2, sp**2, sg**2, sg**2, sh**2], axis=-1)
+    cov = np.einsum("nik,nk,njk->nij", a, q_diag, a)
+    return np.linalg.inv(np.linalg.cholesky(cov))
+
+
+def _problem(
+    pg: PassGeometry,
+    band: str,
+    scenes: list[SceneGeometry],
+    gcps: ControlPointSet,
+    use: NDArray[np.bool_],
+    position: NDArray[np.int64],
+    options: ProcessingOptions,
+) -> tuple[_Problem, NDArray[np.float64]]:
+    """The least-squares problem of ``scenes`` with the points ``use`` (their positions in
+    ``scenes``), and the attitude records lost before each scene (s)."""
+    g = WGS84.to_ecef(gcps.lat_rad[use], gcps.lon_rad[use], gcps.h_m[use])
+    p = _points(pg, band, gcps.line[use], gcps.column[use], g, position[use])
+    t_c = np.array([s.t_centre_s for s in scenes])
+    period = float(np.median(np.diff(pg.attitude.t_s)))
+    inc, lost = _increment_sigma(attitude_gaps(pg.attitude.t_s), t_c, period, options)
+    prob = _Problem(
+        p,
+        _whitening(pg, band, gcps, use, p),
+        float(0.5 * (pg.line_t_s[0] + pg.line_t_s[-1])),
+        t_c,
+        np.r_[options.prior_ephemeris_m, options.prior_ephemeris_drift_m_per_s],
+        np.r_[options.prior_attitude_rad, [options.prior_attitude_rate_rad_per_s] * 3],
+        inc,
+    )
+    return prob, lost
+
+
+def _solve(
+    prob: _Problem, use: NDArray[np.bool_], x0: NDArray[np.float64], loss: str
+) -> NDArray[np.float64]:
+    """Weighted nonlinear least squares on the scaled parameters (``scipy``)."""
+    res = least_squares(
+        prob.residuals,
+        x0,
+        jac=prob.jacobian,
+        args=(use,),
+        loss=loss,
+        f_scale=ROBUST_SCALE,
+        method="trf",
+        xtol=1e-10,
+        ftol=1e-12,
+        gtol=1e-12,
+        max_nfev=50,
+    )
+    return res.x
+
+
+def _normalised(
+    prob: _Problem, x: NDArray[np.float64], use: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Baarda's normalised residual of each used point (the larger of its two), the scaled
+    covariance ``(JᵀJ)⁻¹`` at ``x`` and the unit-weight σ0."""
+    jac = prob.jacobian(x, use)
+    cov = np.linalg.inv(jac.T @ jac)
+    n = int(use.sum())
+    jo = jac[: 2 * n]
+    leverage = np.einsum("ij,jk,ik->i", jo, cov, jo)
+    r = prob.residuals(x, use)
+    w = np.abs(r[: 2 * n]) / np.sqrt(np.clip(1.0 - leverage, 1e-12, None))
+    sigma0 = float(np.sqrt(np.sum(r**2) / max(2 * n, 1)))
+    return w.reshape(n, 2).max(axis=1), cov, sigma0
+
+
+def _predicted(
+    prob: _Problem,
+    pg: PassGeometry,
+    band: str,
+    scenes: list[SceneGeometry],
+    x: NDArray[np.float64],
+    cov: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Predicted ground σ (east, north, horizontal RMS) of each scene, ``(S, 3)``: the
+    ground displacement ``J_g⁻¹ J_x`` at a lattice of the scene's pixels on its reference
+    surface, through the scaled covariance ``cov`` of all parameters."""
+    out = np.zeros((len(scenes), 3))
+    m = PREDICTION_LATTICE
+    for j, scene in enumerate(scenes):
+        line, col = (
+            a.ravel()
+            for a in np.meshgrid(
+                np.linspace(0, scene.cut.n_lines - 1, m),
+                np.linspace(0, scene.model.n_columns - 1, m),
+                indexing="ij",
+            )
+        )
+        gp = scene.model.image_to_ground(line, col, scene.reference_height_m)
+        g = WGS84.to_ecef(gp.lat_rad, gp.lon_rad, gp.h_m)
+        idx = np.full(line.size, j)
+        pass_line = line + scene.cut.first_line
+        p = _points(pg, band, pass_line, col, g, idx)
+        jx = prob.parameter_jacobian(x, p)  # (n, 2, 12)
+        f0 = prob.condition(x, p)
+        enu = _local_axes(g)
+        jg = np.stack(
+            [
+                (
+                    prob.condition(
+                        x, _points(pg, band, pass_line, col, g + _STEP_M * enu[:, k], idx)
+                    )
+                    - f0
+                )
+                / _STEP_M
+                for k in range(2)
+            ],
+            axis=-1,
+        )  # (n, 2, 2): the condition per metre east, north
+        sel = np.r_[np.arange(_NP), _NP + _NS * j + np.arange(_NS)]
+        move = np.linalg.solve(jg, jx)  # ground metres per scaled parameter, (n, 2, 12)
+        cg = np.einsum("nik,kl,njl->nij", move, cov[np.ix_(sel, sel)], move)
+        var_e, var_n = cg[:, 0, 0], cg[:, 1, 1]
+        out[j] = np.sqrt([var_e.mean(), var_n.mean(), (var_e + var_n).mean()])
+    return out
+
+
+def _scene_of_points(
+    scenes: list[SceneGeometry], line: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+    """Position in ``scenes`` of each point's scene (the nearest centre among the scenes
+    holding its line), and whether any does."""
+    first = np.array([s.cut.first_line for s in scenes], dtype=np.float64)
+    n = np.array([s.cut.n_lines for s in scenes], dtype=np.float64)
+    inside = (line[:, None] >= first - 0.5) & (line[:, None] <= first + n - 0.5)
+    dist = np.where(inside, np.abs(line[:, None] - (first + 0.5 * (n - 1))), np.inf)
+    return np.argmin(dist, axis=1), inside.any(axis=1)
+
+
+def adjust(
+    pg: PassGeometry,
+    scenes: list[SceneGeometry],
+    gcps: ControlPointSet,
+    options: ProcessingOptions,
+    band: str | None = None,
+) -> Adjustment:
+    """Refine the pass's model with its control points (module docstring).
+
+    Parameters
+    ----------
+    pg
+        GEO's pass set-up (the gyro-integrated attitude, ephemeris, clock, look angles).
+    scenes
+        The scenes made of the pass, in time order; every one gets its corrections and its
+        predicted accuracy, with or without control points.
+    gcps
+        The pass's control points of this HRV (``line`` in the pass's rows); points in no
+        scene are reported ``outside`` and not used.
+    options
+        ``adjustment`` (mode), the priors, the robust loss and the blunder threshold.
+    band
+        The band whose look angles the points were measured in (default: the first).
+    """
+    t0 = time.perf_counter()
+    if not scenes:
+        raise GeometryError("no scene to adjust")
+    band = band or next(iter(pg.look_angles))
+    position, has = _scene_of_points(scenes, gcps.line)
+    groups = (
+        [list(range(len(scenes)))]
+        if options.adjustment == "pass"
+        else [[j] for j in range(len(scenes))]
+    )
+    s_all, n = len(scenes), len(gcps)
+    pass_par, scene_par = np.zeros((s_all, _NP)), np.zeros((s_all, _NS))
+    cov12 = np.zeros((s_all, _NP + _NS, _NP + _NS))
+    predicted, prior = np.zeros((s_all, 3)), np.zeros((s_all, 3))
+    inc_all, lost_all = np.full((s_all, 3), np.inf), np.zeros(s_all)
+    before = np.full((n, 2), np.nan)
+    after = np.full((n, 2), np.nan)
+    wres = np.full(n, np.nan)
+    status = np.where(has, "used", "outside").astype(object)
+    chi2, dof = 0.0, 0
+    for group in groups:
+        sub = [scenes[j] for j in group]
+        use = has & np.isin(position, group)
+        local = np.searchsorted(group, position)  # position within the group
+        prob, lost = _problem(pg, band, sub, gcps, use, local, options)
+        ids = np.flatnonzero(use)
+        x = np.zeros(prob.n_params)
+        before[ids] = prob.condition(x)
+        active = np.ones(ids.size, dtype=bool)
+        if ids.size:
+            x = _solve(prob, active, x, options.robust_loss)
+            for _ in range(MAX_SNOOPING_ROUNDS):
+                w, _cov, _s0 = _normalised(prob, x, active)
+                tested = np.flatnonzero(active)
+                bad = tested[w > options.blunder_threshold]
+                wres[ids[tested]] = w
+                if bad.size == 0 or bad.size >= active.sum():
+                    break
+                active[bad] = False
+                x = _solve(prob, active, x, "linear")
+            x = _solve(prob, active, x, "linear")
+            w, cov, _s0 = _normalised(prob, x, active)
+            wres[ids[active]] = w
+            r = prob.residuals(x, active)
+            chi2, dof = chi2 + float(np.sum(r**2)), dof + 2 * int(active.sum())
+        else:
+            rows = prob.prior_rows()
+            cov = np.linalg.inv(rows.T @ rows)
+        status[ids[~active]] = "rejected"
+        after[ids] = prob.condition(x)
+        rows = prob.prior_rows()
+        prior_cov = np.linalg.inv(rows.T @ rows)
+        pas, sce = prob.split(x)
+        scale = np.r_[prob.sigma_pass, prob.sigma_scene]
+        for jl, j in enumerate(group):
+            pass_par[j], scene_par[j] = pas, sce[jl]
+            sel = np.r_[np.arange(_NP), _NP + _NS * jl + np.arange(_NS)]
+            cov12[j] = cov[np.ix_(sel, sel)] * np.outer(scale, scale)
+        predicted[group] = _predicted(prob, pg, band, sub, x, cov)
+        prior[group] = _predicted(prob, pg, band, sub, x, prior_cov)
+        if options.adjustment == "pass":
+            inc_all[group], lost_all[group] = prob.increment_sigma, lost
+    return Adjustment(
+        options.adjustment,
+        float(0.5 * (pg.line_t_s[0] + pg.line_t_s[-1])),
+        np.array([s.cut.index for s in scenes], dtype=np.int64),
+        np.array([s.t_centre_s for s in scenes]),
+        pass_par,
+        scene_par,
+        cov12,
+        predicted,
+        prior,
+        inc_all,
+        lost_all,
+        tuple(gcps.id),
+        np.where(has, np.array([s.cut.index for s in scenes])[position], -1),
+        tuple(str(v) for v in status),
+        before,
+        after,
+        wres,
+        float(np.sqrt(chi2 / dof)) if dof else float("nan"),
+        {"adjust": time.perf_counter() - t0},
+    )
