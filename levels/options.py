@@ -70,7 +70,9 @@ def describe_value(meta: dict[str, Any], typ: Any) -> str:
     kind = {int: "an integer", float: "a number", str: "a string", bool: "true or false"}.get(
         typ, ""
     )
-    if typing.get_origin(typ) is tuple:
+    if typing.get_args(typ) == (float, Ellipsis):
+        kind = "a list of numbers"
+    elif typing.get_origin(typ) is tuple:
         kind = f"a list of {len(typing.get_args(typ))} numbers"
     lo, hi = meta["lo"], meta["hi"]
     if lo is not None and hi is not None:
@@ -120,6 +122,10 @@ def _convert(section: str, f: Any, typ: Any, value: Any, error: type[Exception])
         ):
             raise bad()
         return tuple(value)
+    if typing.get_args(typ) == (float, Ellipsis):
+        if not isinstance(value, list) or not value:
+            raise bad()
+        return tuple(number(v) for v in value)
     if typing.get_origin(typ) is tuple:
         n = len(typing.get_args(typ))
         if not isinstance(value, list) or len(value) != n:

@@ -245,9 +245,7 @@ def _receive_and_process(
             "rows": archive.n_lines,
         },
         "gcps": {"file": gcps.name, "points": int(acq.gcps.line.size)},
-        **(
-            {"adjustment": products.adjustment.summary()} if products.adjustment is not None else {}
-        ),
+        **({"adjustment": _adjustment(products.adjustment, acq)} if products.adjustment else {}),
         "processing": {
             "levels": list(scn.processing.levels),
             "scenes": len(products.scenes),
@@ -264,6 +262,23 @@ def _receive_and_process(
         },
     }
     return section, products
+
+
+def _adjustment(adjustment: Any, acq: Any) -> dict[str, Any]:
+    """Level 2's adjustment in the report: its summary, and the blunders the emulator
+    planted (``[gcps] blunder_fraction``) beside those it rejected."""
+    import numpy as np
+
+    rejected = np.array(adjustment.point_status) == "rejected"
+    planted = acq.gcps.blunder
+    return {
+        **adjustment.summary(),
+        "blunders": {
+            "planted": int(planted.sum()),
+            "rejected": int(np.sum(planted & rejected)),
+            "false_rejections": int(np.sum(~planted & rejected)),
+        },
+    }
 
 
 def _rounded(x: Any) -> Any:

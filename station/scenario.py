@@ -348,6 +348,33 @@ class GcpConfig:
     pointing_error_px: float = option(
         0.3, "pointing_error_px", "1σ error of the image measurement per axis", 1.0, 0.0, 10.0
     )
+    line_ranges: tuple[float, ...] = option(
+        [0.05, 0.95],
+        "line_ranges",
+        "where along the strip the points lie: pairs [from, to, from, to, …] of fractions "
+        "of its lines (the count shared by their lengths)",
+        1.0,
+        0.0,
+        1.0,
+    )
+    blunder_fraction: float = option(
+        0.0,
+        "blunder_fraction",
+        "share of the points whose map position is a blunder",
+        1.0,
+        0.0,
+        0.5,
+    )
+    blunder_m: float = option(
+        100.0, "blunder_m", "how far a blunder's map position is off", 1.0, 0.0, 1e5
+    )
+
+    def __post_init__(self) -> None:
+        r = self.line_ranges
+        if len(r) % 2 or any(a >= b for a, b in zip(r[::2], r[1::2], strict=True)):
+            raise ScenarioError(
+                f"[gcps] line_ranges = {list(r)}: expected pairs [from, to, …] with from < to"
+            )
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,6 @@ from typing import Any
 import numpy as np
 import simpy
 
-from levels.options import LEVELS
 from levels.spot import MODES
 from station.capacity.config import CapacityScenario, ServiceConfig
 from station.capacity.passes import PassPattern, pass_pattern
@@ -49,6 +48,10 @@ __all__ = [
     "pass_pattern",
     "simulate",
 ]
+
+#: The levels ordered from the station (level 2 needs control points and its service time
+#: is not calibrated yet: not in the capacity model).
+LEVELS = ("1A", "1B", "2A")
 
 _DAY = 86400.0
 

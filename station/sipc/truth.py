@@ -78,6 +78,24 @@ class Truth:
         )
         return line.ravel(), col.ravel()
 
+    def model_error_en(
+        self, scene: SceneGeometry, per_side: int = 11
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """East and north error (m) of the scene's model against the truth's line of sight
+        on the scene's reference surface, at the checkpoint lattice: the error of the
+        geometry alone, before any grid or resampling (level 2 studies)."""
+        line, col = self.lattice(scene, per_side)
+        h = scene.reference_height_m
+        p = scene.model.image_to_ground(line, col, h)
+        q = self.model(0).image_to_ground(self.truth_lines(scene, line), col, h)
+        ell = self.model(0).ellipsoid
+        d = ell.to_ecef(p.lat_rad, p.lon_rad, p.h_m) - ell.to_ecef(q.lat_rad, q.lon_rad, q.h_m)
+        sl, cl = np.sin(q.lat_rad), np.cos(q.lat_rad)
+        so, co = np.sin(q.lon_rad), np.cos(q.lon_rad)
+        east = -so * d[:, 0] + co * d[:, 1]
+        north = -sl * co * d[:, 0] - sl * so * d[:, 1] + cl * d[:, 2]
+        return east, north
+
     def truth_lines(self, scene: SceneGeometry, line: NDArray[np.float64]) -> NDArray:
         return line + scene.cut.first_line + self.row_offset
 

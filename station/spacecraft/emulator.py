@@ -55,7 +55,8 @@ class ControlPoints:
 
     Arrays of shape (N,): ``line``, ``column`` (measured, 0-based), ``lat_rad``,
     ``lon_rad``, ``h_m`` (map); ``true_line``, ``true_column``, ``true_lat_rad``,
-    ``true_lon_rad``, ``true_h_m``.
+    ``true_lon_rad``, ``true_h_m``; ``blunder`` marks the points whose map position is a
+    blunder (``[gcps] blunder_fraction``).
     """
 
     line: NDArray[np.float64]
@@ -68,6 +69,7 @@ class ControlPoints:
     true_lat_rad: NDArray[np.float64]
     true_lon_rad: NDArray[np.float64]
     true_h_m: NDArray[np.float64]
+    blunder: NDArray[np.bool_]
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,24 +195,39 @@ def _control_points(
     rng: np.random.Generator,
 ) -> ControlPoints:
     n = cfg.count
-    line = rng.uniform(0.05, 0.95, n) * (times.size - 1)
+    starts, ends = np.array(cfg.line_ranges[::2]), np.array(cfg.line_ranges[1::2])
+    lengths = ends - starts
+    u = rng.uniform(0.0, lengths.sum(), n)  # along the ranges laid end to end
+    k = np.minimum(np.searchsorted(np.cumsum(lengths), u, side="right"), lengths.size - 1)
+    line = (starts[k] + u - np.r_[0.0, np.cumsum(lengths)][k]) * (times.size - 1)
     col = rng.uniform(0.05, 0.95, n) * (hrv.n_columns - 1)
     t = times[0] + line * hrv.line_period_s
     pts, _ok = trace_pixels(orbit, attitude, hrv.bands[0], world, t, col)
     lat, lon, h = pts.T
     east, north = cfg.horizontal_error_m * rng.standard_normal((2, n))
+    blunder = np.zeros(n, dtype=bool)
+    line_m = line + cfg.pointing_error_px * rng.standard_normal(n)
+    col_m = col + cfg.pointing_error_px * rng.standard_normal(n)
+    h_m = h + cfg.vertical_error_m * rng.standard_normal(n)
+    n_blunders = round(cfg.blunder_fraction * n)
+    if n_blunders:
+        blunder[rng.choice(n, n_blunders, replace=False)] = True
+        azimuth = rng.uniform(0.0, 2 * np.pi, n_blunders)
+        east[blunder] += cfg.blunder_m * np.sin(azimuth)
+        north[blunder] += cfg.blunder_m * np.cos(azimuth)
     radius = WGS84.a_m
     return ControlPoints(
-        line=line + cfg.pointing_error_px * rng.standard_normal(n),
-        column=col + cfg.pointing_error_px * rng.standard_normal(n),
+        line=line_m,
+        column=col_m,
         lat_rad=lat + north / radius,
         lon_rad=lon + east / (radius * np.cos(lat)),
-        h_m=h + cfg.vertical_error_m * rng.standard_normal(n),
+        h_m=h_m,
         true_line=line,
         true_column=col,
         true_lat_rad=lat,
         true_lon_rad=lon,
         true_h_m=h,
+        blunder=blunder,
     )
 
 
