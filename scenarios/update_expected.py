@@ -27,7 +27,16 @@ from station.srrs.session import downlink
 
 HERE = Path(__file__).resolve().parent
 #: Reduced scenes: rendered, sent through the downlink and run end to end in the tests.
-RENDERED = {"quickstart", "small_test", "noisy_channel", "tilt27_rugged", "cuiaba_pass"}
+RENDERED = {
+    "quickstart",
+    "small_test",
+    "noisy_channel",
+    "tilt27_rugged",
+    "cuiaba_pass",
+    "westin_gap",
+    "pass_ends",
+    "single_gcp",
+}
 
 
 def expected_run(report: dict) -> dict:

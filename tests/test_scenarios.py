@@ -18,7 +18,16 @@ from station.srrs.session import downlink
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = sorted((ROOT / "scenarios").glob("*.toml"))
 # the reduced scenes; the others are full-size: geometry only here
-RENDERED = {"quickstart", "small_test", "noisy_channel", "tilt27_rugged", "cuiaba_pass"}
+RENDERED = {
+    "quickstart",
+    "small_test",
+    "noisy_channel",
+    "tilt27_rugged",
+    "cuiaba_pass",
+    "westin_gap",
+    "pass_ends",
+    "single_gcp",
+}
 COORD_TOL_DEG = 1e-6  # 0.1 m: integrator round-off across machines is far below
 LENGTH_TOL_KM = 1e-4
 MEAN_COUNTS_TOL = 0.05  # a few pixels rounding the other way on another CPU
