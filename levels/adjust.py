@@ -45,12 +45,14 @@ points cannot determine is held by the priors, and the predicted σ says so.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import sparse
 from scipy.optimize import least_squares
 
 from levels.errors import GeometryError
@@ -225,8 +227,17 @@ class _Problem:
             )
         return out
 
+    @functools.cached_property
+    def _prior_rows(self) -> NDArray[np.float64]:
+        rows = self._build_prior_rows()
+        rows.setflags(write=False)
+        return rows
+
     def prior_rows(self) -> NDArray[np.float64]:
         """The linear pseudo-observations on the scaled parameters (eqs. 4–6, 10–12)."""
+        return self._prior_rows
+
+    def _build_prior_rows(self) -> NDArray[np.float64]:
         s, n = self.n_scenes, self.n_params
         rows = np.zeros((_NP + _NS * s, n))
         rows[:_NP, :_NP] = np.eye(_NP)
@@ -248,17 +259,33 @@ class _Problem:
         wf = np.einsum("nij,nj->ni", self.whitening[use], f).ravel()
         return np.concatenate([wf, self.prior_rows() @ x])
 
-    def jacobian(self, x: NDArray[np.float64], use: NDArray[np.bool_]) -> NDArray[np.float64]:
+    def jacobian(self, x: NDArray[np.float64], use: NDArray[np.bool_]) -> sparse.csr_matrix:
+        """The Jacobian of :meth:`residuals`, sparse: a point's two rows touch the 6 pass
+        and its scene's 6 parameters, a prior row one or two."""
         p = self.points
         local = self.parameter_jacobian(x, p)[use]  # (n, 2, 12)
         local = np.einsum("nij,njk->nik", self.whitening[use], local)
         n = local.shape[0]
-        jac = np.zeros((2 * n, self.n_params))
-        jac[:, :_NP] = local[:, :, :_NP].reshape(2 * n, _NP)
-        cols = _NP + _NS * p.scene[use][:, None] + np.arange(_NS)  # (n, 6)
-        rows = np.arange(2 * n).reshape(n, 2)
-        jac[rows[:, :, None], np.repeat(cols[:, None, :], 2, axis=1)] = local[:, :, _NP:]
-        return np.vstack([jac, self.prior_rows()])
+        cols = np.concatenate(
+            [
+                np.broadcast_to(np.arange(_NP), (n, _NP)),
+                _NP + _NS * p.scene[use][:, None] + np.arange(_NS),
+            ],
+            axis=1,
+        )  # (n, 12)
+        obs = sparse.csr_matrix(
+            (
+                local.reshape(-1),
+                np.repeat(cols[:, None, :], 2, axis=1).reshape(-1),
+                np.arange(0, 2 * n * 12 + 1, 12),
+            ),
+            shape=(2 * n, self.n_params),
+        )
+        return sparse.vstack([obs, self._prior_sparse], format="csr")
+
+    @functools.cached_property
+    def _prior_sparse(self) -> sparse.csr_matrix:
+        return sparse.csr_matrix(self._prior_rows)
 
 
 @dataclass(frozen=True, eq=False)
@@ -452,14 +479,14 @@ def _solve(
     res = least_squares(
         prob.residuals,
         x0,
-        jac=prob.jacobian,
+        jac=lambda x, u: prob.jacobian(x, u).toarray(),
         args=(use,),
         loss=loss,
         f_scale=ROBUST_SCALE,
         method="trf",
-        xtol=1e-10,
-        ftol=1e-12,
-        gtol=1e-12,
+        xtol=1e-8,
+        ftol=1e-10,
+        gtol=1e-10,
         max_nfev=50,
     )
     return res.x
@@ -470,7 +497,7 @@ def _normalised(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """Baarda's normalised residual of each used point (the larger of its two), the scaled
     covariance ``(JᵀJ)⁻¹`` at ``x`` and the unit-weight σ0."""
-    jac = prob.jacobian(x, use)
+    jac = prob.jacobian(x, use).toarray()
     cov = np.linalg.inv(jac.T @ jac)
     n = int(use.sum())
     jo = jac[: 2 * n]
@@ -487,13 +514,13 @@ def _predicted(
     band: str,
     scenes: list[SceneGeometry],
     x: NDArray[np.float64],
-    cov: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """Predicted ground σ (east, north, horizontal RMS) of each scene, ``(S, 3)``: the
-    ground displacement ``J_g⁻¹ J_x`` at a lattice of the scene's pixels on its reference
-    surface, through the scaled covariance ``cov`` of all parameters."""
-    out = np.zeros((len(scenes), 3))
+    covariances: list[NDArray[np.float64]],
+) -> list[NDArray[np.float64]]:
+    """Predicted ground σ (east, north, horizontal RMS) of each scene, ``(S, 3)`` for each
+    scaled covariance given: the ground displacement ``J_g⁻¹ J_x`` at a lattice of every
+    scene's pixels on its reference surface, through the covariance (all scenes at once)."""
     m = PREDICTION_LATTICE
+    lines, cols, ground, idx = [], [], [], []
     for j, scene in enumerate(scenes):
         line, col = (
             a.ravel()
@@ -504,31 +531,38 @@ def _predicted(
             )
         )
         gp = scene.model.image_to_ground(line, col, scene.reference_height_m)
-        g = WGS84.to_ecef(gp.lat_rad, gp.lon_rad, gp.h_m)
-        idx = np.full(line.size, j)
-        pass_line = line + scene.cut.first_line
-        p = _points(pg, band, pass_line, col, g, idx)
-        jx = prob.parameter_jacobian(x, p)  # (n, 2, 12)
-        f0 = prob.condition(x, p)
-        enu = _local_axes(g)
-        jg = np.stack(
-            [
-                (
-                    prob.condition(
-                        x, _points(pg, band, pass_line, col, g + _STEP_M * enu[:, k], idx)
-                    )
-                    - f0
-                )
-                / _STEP_M
-                for k in range(2)
-            ],
-            axis=-1,
-        )  # (n, 2, 2): the condition per metre east, north
-        sel = np.r_[np.arange(_NP), _NP + _NS * j + np.arange(_NS)]
-        move = np.linalg.solve(jg, jx)  # ground metres per scaled parameter, (n, 2, 12)
-        cg = np.einsum("nik,kl,njl->nij", move, cov[np.ix_(sel, sel)], move)
-        var_e, var_n = cg[:, 0, 0], cg[:, 1, 1]
-        out[j] = np.sqrt([var_e.mean(), var_n.mean(), (var_e + var_n).mean()])
+        lines.append(line + scene.cut.first_line)
+        cols.append(col)
+        ground.append(WGS84.to_ecef(gp.lat_rad, gp.lon_rad, gp.h_m))
+        idx.append(np.full(line.size, j))
+    line, col, g, at = (np.concatenate(v) for v in (lines, cols, ground, idx))
+    p = _points(pg, band, line, col, g, at)
+    jx = prob.parameter_jacobian(x, p)  # (n, 2, 12)
+    f0 = prob.condition(x, p)
+    enu = _local_axes(g)
+    jg = np.stack(
+        [
+            (prob.condition(x, _points(pg, band, line, col, g + _STEP_M * enu[:, k], at)) - f0)
+            / _STEP_M
+            for k in range(2)
+        ],
+        axis=-1,
+    )  # (n, 2, 2): the condition per metre east, north
+    move = np.linalg.solve(jg, jx)  # ground metres per scaled parameter, (n, 2, 12)
+    sel = np.concatenate(
+        [np.broadcast_to(np.arange(_NP), (at.size, _NP)), _NP + _NS * at[:, None] + np.arange(_NS)],
+        axis=1,
+    )  # (n, 12): each point's parameters
+    out = []
+    for cov in covariances:
+        c = cov[sel[:, :, None], sel[:, None, :]]  # (n, 12, 12)
+        cg = np.einsum("nik,nkl,njl->nij", move, c, move)
+        var = np.stack([cg[:, 0, 0], cg[:, 1, 1]], axis=-1)
+        per = np.zeros((len(scenes), 3))
+        for k in range(2):
+            per[:, k] = np.bincount(at, var[:, k], len(scenes)) / m**2
+        per[:, 2] = per[:, 0] + per[:, 1]
+        out.append(np.sqrt(per))
     return out
 
 
@@ -626,8 +660,7 @@ def adjust(
             pass_par[j], scene_par[j] = pas, sce[jl]
             sel = np.r_[np.arange(_NP), _NP + _NS * jl + np.arange(_NS)]
             cov12[j] = cov[np.ix_(sel, sel)] * np.outer(scale, scale)
-        predicted[group] = _predicted(prob, pg, band, sub, x, cov)
-        prior[group] = _predicted(prob, pg, band, sub, x, prior_cov)
+        predicted[group], prior[group] = _predicted(prob, pg, band, sub, x, [cov, prior_cov])
         if options.adjustment == "pass":
             inc_all[group], lost_all[group] = prob.increment_sigma, lost
     return Adjustment(
