@@ -23,13 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from levels.adjust import adjust
-from levels.geo.scenes import cut_scenes
 from levels.options import ProcessingOptions
 from levels.process import process_l0
 from levels.readers.gcp import read_gcps, write_gcps
 from levels.readers.l0 import read_l0
 from station.scenario import scenario_from_dict
-from station.sipc.process import control_points, emulated_scene
+from station.sipc.process import control_points, emulated_pass
 from station.spacecraft.emulator import emulate
 
 TARGET_ADJUST_S = 1.0
@@ -47,8 +46,7 @@ def bench_adjust(n_scenes: int) -> None:
         }
     )
     acq = emulate(scn, render=False)
-    pg, _scene, _px = emulated_scene(acq, SCENE)
-    scenes = [pg.scene(c, 450.0) for c in cut_scenes(pg.n_lines, SCENE)]
+    pg, scenes = emulated_pass(acq, SCENE)
     gcps = control_points(acq)
     best = np.inf
     for _ in range(3):

@@ -60,7 +60,13 @@ from levels.geo.scenes import PassGeometry, SceneGeometry
 from levels.geometry.attitude import SampledAttitude, attitude_gaps, westin_variogram_rad2
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.ephemeris import Ephemeris
-from levels.geometry.frames import apply, apply_inverse, ecef_from_orbital, orbital_from_body
+from levels.geometry.frames import (
+    apply,
+    apply_inverse,
+    ecef_from_orbital,
+    enu_from_ecef,
+    orbital_from_body,
+)
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
 
@@ -165,11 +171,7 @@ def _condition(
 def _local_axes(g_ecef_m: NDArray[np.float64]) -> NDArray[np.float64]:
     """East, north, up unit vectors at ECEF points, ``(N, 3, 3)`` (rows)."""
     lat, lon, _h = WGS84.to_geodetic(g_ecef_m)
-    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
-    east = np.stack([-so, co, np.zeros_like(so)], axis=-1)
-    north = np.stack([-sl * co, -sl * so, cl], axis=-1)
-    up = np.stack([cl * co, cl * so, sl], axis=-1)
-    return np.stack([east, north, up], axis=1)
+    return enu_from_ecef(lat, lon)
 
 
 @dataclass(frozen=True, eq=False)
@@ -228,36 +230,24 @@ class _Problem:
         return out
 
     @functools.cached_property
-    def _prior_rows(self) -> NDArray[np.float64]:
-        rows = self._build_prior_rows()
-        rows.setflags(write=False)
-        return rows
-
     def prior_rows(self) -> NDArray[np.float64]:
-        """The linear pseudo-observations on the scaled parameters (eqs. 4–6, 10–12)."""
-        return self._prior_rows
-
-    def _build_prior_rows(self) -> NDArray[np.float64]:
-        s, n = self.n_scenes, self.n_params
-        rows = np.zeros((_NP + _NS * s, n))
-        rows[:_NP, :_NP] = np.eye(_NP)
-        for j in range(s):
-            base = _NP + _NS * j
-            r0 = _NP + _NS * j
-            for k in range(3):
-                if j == 0:
-                    rows[r0 + k, base + k] = 1.0
-                else:
-                    w = self.sigma_scene[k] / self.increment_sigma[j, k]
-                    rows[r0 + k, base + k] = w
-                    rows[r0 + k, base - _NS + k] = -w
-                rows[r0 + 3 + k, base + 3 + k] = 1.0
+        """The linear pseudo-observations on the scaled parameters (eqs. 4–6, 10–12): the
+        pass parameters and every rate observed as zero, the first scene's attitude as
+        zero, each following scene's attitude minus the previous one's as zero with the
+        weight of its jump."""
+        n = self.n_params
+        rows = np.eye(n)
+        att = _NP + _NS * np.arange(1, self.n_scenes)[:, None] + np.arange(3)  # (S-1, 3)
+        w = self.sigma_scene[:3] / self.increment_sigma[1:]
+        rows[att, att] = w
+        rows[att, att - _NS] = -w
+        rows.setflags(write=False)
         return rows
 
     def residuals(self, x: NDArray[np.float64], use: NDArray[np.bool_]) -> NDArray[np.float64]:
         f = self.condition(x)[use]
         wf = np.einsum("nij,nj->ni", self.whitening[use], f).ravel()
-        return np.concatenate([wf, self.prior_rows() @ x])
+        return np.concatenate([wf, self.prior_rows @ x])
 
     def jacobian(self, x: NDArray[np.float64], use: NDArray[np.bool_]) -> sparse.csr_matrix:
         """The Jacobian of :meth:`residuals`, sparse: a point's two rows touch the 6 pass
@@ -285,7 +275,7 @@ class _Problem:
 
     @functools.cached_property
     def _prior_sparse(self) -> sparse.csr_matrix:
-        return sparse.csr_matrix(self._prior_rows)
+        return sparse.csr_matrix(self.prior_rows)
 
 
 @dataclass(frozen=True, eq=False)
@@ -397,17 +387,15 @@ def _increment_sigma(
     """σ of each scene's attitude jump from the previous scene (``(S, 3)``, inf for the
     first) and the attitude records lost between them (s): the gyros' random walk over the
     recorded time, Westin's variogram over the lost time."""
-    s = t_centre_s.size
-    sig = np.full((s, 3), np.inf)
-    lost = np.zeros(s)
-    for j in range(1, s):
-        a, b = t_centre_s[j - 1], t_centre_s[j]
-        overlap = np.clip(np.minimum(gaps[:, 1], b) - np.maximum(gaps[:, 0], a), 0.0, None)
-        lost[j] = float(overlap.sum())
-        walk = options.gyro_noise_rad_per_s**2 * record_period_s * max(b - a - lost[j], 0.0)
-        for k in range(3):
-            var = walk + options.variogram_scale * float(westin_variogram_rad2(k, lost[j]))
-            sig[j, k] = np.sqrt(max(var, 1e-24))
+    a, b = t_centre_s[:-1, None], t_centre_s[1:, None]  # each interval against each gap
+    overlap = np.clip(np.minimum(gaps[:, 1], b) - np.maximum(gaps[:, 0], a), 0.0, None)
+    lost = np.r_[0.0, overlap.sum(axis=1)]
+    recorded = np.clip(np.diff(t_centre_s) - lost[1:], 0.0, None)
+    walk = options.gyro_noise_rad_per_s**2 * record_period_s * recorded
+    var = walk[:, None] + options.variogram_scale * np.stack(
+        [westin_variogram_rad2(k, lost[1:]) for k in range(3)], axis=-1
+    )
+    sig = np.vstack([np.full((1, 3), np.inf), np.sqrt(np.maximum(var, 1e-24))])
     return sig, lost
 
 
@@ -451,6 +439,7 @@ def _problem(
     gcps: ControlPointSet,
     use: NDArray[np.bool_],
     position: NDArray[np.int64],
+    t_ref_s: float,
     options: ProcessingOptions,
 ) -> tuple[_Problem, NDArray[np.float64]]:
     """The least-squares problem of ``scenes`` with the points ``use`` (their positions in
@@ -463,7 +452,7 @@ def _problem(
     prob = _Problem(
         p,
         _whitening(pg, band, gcps, use, p),
-        float(0.5 * (pg.line_t_s[0] + pg.line_t_s[-1])),
+        t_ref_s,
         t_c,
         np.r_[options.prior_ephemeris_m, options.prior_ephemeris_drift_m_per_s],
         np.r_[options.prior_attitude_rad, [options.prior_attitude_rate_rad_per_s] * 3],
@@ -496,7 +485,7 @@ def _normalised(
     prob: _Problem, x: NDArray[np.float64], use: NDArray[np.bool_]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """Baarda's normalised residual of each used point (the larger of its two), the scaled
-    covariance ``(JᵀJ)⁻¹`` at ``x`` and the unit-weight σ0."""
+    covariance ``(JᵀJ)⁻¹`` at ``x`` and the sum of squared normalised residuals (χ²)."""
     jac = prob.jacobian(x, use).toarray()
     cov = np.linalg.inv(jac.T @ jac)
     n = int(use.sum())
@@ -504,8 +493,7 @@ def _normalised(
     leverage = np.einsum("ij,jk,ik->i", jo, cov, jo)
     r = prob.residuals(x, use)
     w = np.abs(r[: 2 * n]) / np.sqrt(np.clip(1.0 - leverage, 1e-12, None))
-    sigma0 = float(np.sqrt(np.sum(r**2) / max(2 * n, 1)))
-    return w.reshape(n, 2).max(axis=1), cov, sigma0
+    return w.reshape(n, 2).max(axis=1), cov, float(np.sum(r**2))
 
 
 def _predicted(
@@ -606,6 +594,8 @@ def adjust(
     if not scenes:
         raise GeometryError("no scene to adjust")
     band = band or next(iter(pg.look_angles))
+    t_ref = float(0.5 * (pg.line_t_s[0] + pg.line_t_s[-1]))
+    scene_index = np.array([s.cut.index for s in scenes], dtype=np.int64)
     position, has = _scene_of_points(scenes, gcps.line)
     groups = (
         [list(range(len(scenes)))]
@@ -626,34 +616,36 @@ def adjust(
         sub = [scenes[j] for j in group]
         use = has & np.isin(position, group)
         local = np.searchsorted(group, position)  # position within the group
-        prob, lost = _problem(pg, band, sub, gcps, use, local, options)
+        prob, lost = _problem(pg, band, sub, gcps, use, local, t_ref, options)
         ids = np.flatnonzero(use)
         x = np.zeros(prob.n_params)
         before[ids] = prob.condition(x)
         active = np.ones(ids.size, dtype=bool)
+        rows = prob.prior_rows
+        prior_cov = np.linalg.inv(rows.T @ rows)
+        cov = prior_cov
         if ids.size:
+            # the robust fit is tested first; every later test is of a plain fit
             x = _solve(prob, active, x, options.robust_loss)
+            robust = True
             for _ in range(MAX_SNOOPING_ROUNDS):
-                w, _cov, _s0 = _normalised(prob, x, active)
-                tested = np.flatnonzero(active)
-                bad = tested[w > options.blunder_threshold]
-                wres[ids[tested]] = w
+                w, cov, chi2_group = _normalised(prob, x, active)
+                wres[ids[active]] = w
+                bad = np.flatnonzero(active)[w > options.blunder_threshold]
                 if bad.size == 0 or bad.size >= active.sum():
                     break
                 active[bad] = False
+                x, robust = _solve(prob, active, x, "linear"), False
+            else:  # out of rounds: the last fit is not tested yet
+                w, cov, chi2_group = _normalised(prob, x, active)
+                wres[ids[active]] = w
+            if robust:
                 x = _solve(prob, active, x, "linear")
-            x = _solve(prob, active, x, "linear")
-            w, cov, _s0 = _normalised(prob, x, active)
-            wres[ids[active]] = w
-            r = prob.residuals(x, active)
-            chi2, dof = chi2 + float(np.sum(r**2)), dof + 2 * int(active.sum())
-        else:
-            rows = prob.prior_rows()
-            cov = np.linalg.inv(rows.T @ rows)
+                w, cov, chi2_group = _normalised(prob, x, active)
+                wres[ids[active]] = w
+            chi2, dof = chi2 + chi2_group, dof + 2 * int(active.sum())
         status[ids[~active]] = "rejected"
         after[ids] = prob.condition(x)
-        rows = prob.prior_rows()
-        prior_cov = np.linalg.inv(rows.T @ rows)
         pas, sce = prob.split(x)
         scale = np.r_[prob.sigma_pass, prob.sigma_scene]
         for jl, j in enumerate(group):
@@ -661,12 +653,11 @@ def adjust(
             sel = np.r_[np.arange(_NP), _NP + _NS * jl + np.arange(_NS)]
             cov12[j] = cov[np.ix_(sel, sel)] * np.outer(scale, scale)
         predicted[group], prior[group] = _predicted(prob, pg, band, sub, x, [cov, prior_cov])
-        if options.adjustment == "pass":
-            inc_all[group], lost_all[group] = prob.increment_sigma, lost
+        inc_all[group], lost_all[group] = prob.increment_sigma, lost
     return Adjustment(
         options.adjustment,
-        float(0.5 * (pg.line_t_s[0] + pg.line_t_s[-1])),
-        np.array([s.cut.index for s in scenes], dtype=np.int64),
+        t_ref,
+        scene_index,
         np.array([s.t_centre_s for s in scenes]),
         pass_par,
         scene_par,
@@ -676,7 +667,7 @@ def adjust(
         inc_all,
         lost_all,
         tuple(gcps.id),
-        np.where(has, np.array([s.cut.index for s in scenes])[position], -1),
+        np.where(has, scene_index[position], -1),
         tuple(str(v) for v in status),
         before,
         after,

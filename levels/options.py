@@ -122,13 +122,10 @@ def _convert(section: str, f: Any, typ: Any, value: Any, error: type[Exception])
         ):
             raise bad()
         return tuple(value)
-    if typing.get_args(typ) == (float, Ellipsis):
-        if not isinstance(value, list) or not value:
-            raise bad()
-        return tuple(number(v) for v in value)
-    if typing.get_origin(typ) is tuple:
-        n = len(typing.get_args(typ))
-        if not isinstance(value, list) or len(value) != n:
+    if typing.get_origin(typ) is tuple:  # of numbers: fixed length, or any (float, ...)
+        args = typing.get_args(typ)
+        fixed = args[-1] is not Ellipsis
+        if not isinstance(value, list) or not value or (fixed and len(value) != len(args)):
             raise bad()
         return tuple(number(v) for v in value)
     raise TypeError(f"unsupported field type {typ!r}")  # a declaration bug, not user input

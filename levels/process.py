@@ -213,11 +213,11 @@ def process_l0(
         **archive.provenance,
         **(provenance or {}),
     }
+    t_geo = clock() - t0  # the adjustment is timed apart
     adjustment = None
     if "2" in options.levels and scenes:
         assert gcps is not None
         adjustment = adjust(pg, scenes, gcps.of_hrv(archive.hrv), options, band_names[0])
-    t_geo = clock() - t0
     ctx = _PassContext(
         archive, pg, options, res, taps, pixel_valid, out, name, checkpoints, prov, adjustment
     )
@@ -239,14 +239,15 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     timings: dict[str, float] = {}
     t = clock()
     rows = slice(scene.cut.first_line, scene.cut.first_line + scene.cut.n_lines)
-    g1b = g2a = g2 = None
+    g1b = None
+    maps: dict[str, dict[str, Level2AGeometry]] = {}  # map levels' grids: 2A, 2
     refined = None
     if "1B" in opt.levels:
         g1b = _per_band(scene, lambda b, like: level1b_geometry(scene, res, band=b, like=like))
-    node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
-    crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
 
     def map_geometry(sg: SceneGeometry) -> dict[str, Level2AGeometry]:
+        node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
+        crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
         return _per_band(
             sg,
             lambda b, like: level2a_geometry(
@@ -263,11 +264,12 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
 
     # level 2's "before" checkpoints are the 2A geometry's: made for them when 2A is not
     if "2A" in opt.levels or ("2" in opt.levels and ctx.checkpoints is not None):
-        g2a = map_geometry(scene)
+        maps["2A"] = map_geometry(scene)
     if "2" in opt.levels:
         assert ctx.adjustment is not None
         refined = ctx.adjustment.refine(ctx.pg, scene)
-        g2 = map_geometry(refined)
+        maps["2"] = map_geometry(refined)
+    g2a = maps.get("2A")
     timings["geometry"] = clock() - t
     images: dict[str, dict[str, BandImage]] = {lv: {} for lv in opt.levels}
     stripes: dict[str, dict[str, float]] = {}
@@ -282,7 +284,7 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         if "1A" in opt.levels:
             images["1A"][bname] = BandImage(to_counts(cal), valid)
         timings["1A"] = timings.get("1A", 0.0) + clock() - t
-        if g1b is None and g2a is None and g2 is None:
+        if g1b is None and not maps:
             continue
         t = clock()
         dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
@@ -293,9 +295,9 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
                 *resample_1b(dec, dvalid, g1b[bname], opt.interpolation_1b)
             )
             timings["1B"] = timings.get("1B", 0.0) + clock() - t
-        nan_dec = with_nan(dec, dvalid) if (g2a is not None or g2 is not None) else None
-        for level, grids in (("2A", g2a), ("2", g2)):
-            if grids is not None and level in opt.levels:
+        nan_dec = with_nan(dec, dvalid) if maps else None
+        for level, grids in maps.items():
+            if level in opt.levels:  # 2A's grids may be there for level 2's checkpoints only
                 t = clock()
                 images[level][bname] = BandImage(
                     *resample_2a(nan_dec, None, grids[bname], opt.resampling_2a)
@@ -304,9 +306,16 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     t = clock()
     quality = _quality(scene, opt, g1b, g2a, stripes, ctx.taps, ctx.checkpoints)
     if refined is not None:
-        assert g2 is not None and ctx.adjustment is not None
+        assert ctx.adjustment is not None
         quality["2"] = _quality_2(
-            scene, refined, g2, g2a, ctx.adjustment, ctx.taps, opt, ctx.checkpoints
+            scene,
+            refined,
+            maps["2"],
+            quality["radiometry"],
+            quality.get("2A", {}).get("checkpoints"),
+            ctx.adjustment,
+            opt,
+            ctx.checkpoints,
         )
     quality = {lv: quality[lv] for lv in opt.levels}
     timings["quality"] = clock() - t
@@ -322,7 +331,7 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         if level == "2":
             assert refined is not None and ctx.adjustment is not None
             geometry = ctx.pg.product_tree(refined)
-            geometry["level_2a"] = Level2AGeometry.product_tree(g2)  # type: ignore[arg-type]
+            geometry["level_2a"] = Level2AGeometry.product_tree(maps["2"])
             geometry["adjustment"] = ctx.adjustment.product_tree(scene.cut.index)
         first = next(iter(images[level].values())).image
         attrs = {
@@ -337,8 +346,8 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
             "pixel_size_m": res if level != "1A" else 0.0,
         }
         grid = None
-        if level in ("2A", "2"):
-            g = next(iter((g2a if level == "2A" else g2).values()))  # type: ignore[union-attr]
+        if level in maps:
+            g = next(iter(maps[level].values()))
             grid = MapGrid(g.crs_wkt, g.geotransform)
         product = Product(
             attrs, images[level], geometry, quality[level], {**ctx.provenance, "level": level}, grid
@@ -377,8 +386,9 @@ def _quality(
     taps: NDArray[np.float64],
     checkpoints: CheckpointSource | None,
 ) -> dict[str, dict[str, Any]]:
-    q: dict[str, dict[str, Any]] = {"1A": {"stripe_level": stripes}}
     radiometry = _radiometry(opt, taps)
+    # the levels' trees, and the radiometry they share (for level 2's)
+    q: dict[str, dict[str, Any]] = {"1A": {"stripe_level": stripes}, "radiometry": radiometry}
     per_side = opt.checkpoints_per_side
     bands = list(scene.models)
     if g1b is not None:
@@ -392,11 +402,11 @@ def _quality(
             q["1B"]["checkpoints"] = {
                 b: checkpoints.level_1b(scene, g1b[b], k, per_side) for k, b in enumerate(bands)
             }
-    if g2a is not None and "2A" in opt.levels:
+    if g2a is not None:  # made for level 2's "before" checkpoints alone when 2A is not asked
         g = g2a[bands[0]]
         approx = {
             m: g.approximation_error(scene.model, scene.reference_height_m, m)
-            for m in INVERSE_METHODS
+            for m in (INVERSE_METHODS if "2A" in opt.levels else ())
         }
         q["2A"] = {"radiometry": radiometry, "inverse_vs_model": approx, "inverse_method": g.method}
         if checkpoints is not None:
@@ -410,15 +420,15 @@ def _quality_2(
     scene: SceneGeometry,
     refined: SceneGeometry,
     g2: dict[str, Level2AGeometry],
-    g2a: dict[str, Level2AGeometry] | None,
+    radiometry: dict[str, Any],
+    before: dict[str, Any] | None,
     adjustment: Adjustment,
-    taps: NDArray[np.float64],
     opt: ProcessingOptions,
     checkpoints: CheckpointSource | None,
 ) -> dict[str, Any]:
     """Level 2's quality: its inverse against the refined model, the control points of the
     scene after the adjustment, the predicted accuracy and, with a checkpoint source, the
-    checkpoint errors after (the refined model) and before (the 2A model)."""
+    checkpoint errors after (the refined model) and ``before`` (the 2A model's)."""
     bands = list(scene.models)
     g = g2[bands[0]]
     k = adjustment.of_scene(scene.cut.index)
@@ -432,7 +442,7 @@ def _quality_2(
             g.method: g.approximation_error(refined.model, refined.reference_height_m, g.method)
         },
         "inverse_method": g.method,
-        "radiometry": _radiometry(opt, taps),
+        "radiometry": radiometry,
         "predicted_sigma_m": {
             "east": float(sigma[0]),
             "north": float(sigma[1]),
@@ -450,8 +460,6 @@ def _quality_2(
         q["checkpoints"] = {
             b: checkpoints.level_2a(refined, g2[b], i, per_side) for i, b in enumerate(bands)
         }
-        if g2a is not None:
-            q["checkpoints_2a"] = {
-                b: checkpoints.level_2a(scene, g2a[b], i, per_side) for i, b in enumerate(bands)
-            }
+        if before is not None:
+            q["checkpoints_2a"] = before
     return q

@@ -180,10 +180,8 @@ def _receive_and_process(
     from tqdm import tqdm
 
     from levels.process import process_l0
-    from levels.readers.gcp import read_gcps, write_gcps
     from levels.readers.l0 import read_l0
-    from station.sipc.process import control_points
-    from station.sipc.truth import Truth
+    from station.sipc.process import measured_control_points
     from station.srrs.report import downlink_report
     from station.srrs.session import downlink, record
 
@@ -205,12 +203,8 @@ def _receive_and_process(
         scenes.total = total
         scenes.update()
 
-    truth = Truth.of(acq, archive)
-    gcps = write_gcps(
-        out / f"{tag}.gcp.csv",
-        control_points(acq, truth.row_offset),
-        f"control points of {scn.name}, HRV{acq.hrv.number}, as measured (docs/gcp.md)",
-    )
+    gcps_path = out / f"{tag}.gcp.csv"
+    truth, gcps = measured_control_points(acq, archive, gcps_path)
     products = process_l0(
         archive,
         scn.processing,
@@ -219,7 +213,7 @@ def _receive_and_process(
         checkpoints=truth,
         provenance=scn.provenance(),
         on_scene=on_scene,
-        gcps=read_gcps(gcps, archive.n_lines, archive.n_columns),
+        gcps=gcps,
     )
     scenes.close()
     timings["geo"] = timings.get("geo", 0.0) + products.timings_s["geo"]
@@ -244,7 +238,7 @@ def _receive_and_process(
             "size_mb": round(l0.stat().st_size / 1e6, 3),
             "rows": archive.n_lines,
         },
-        "gcps": {"file": gcps.name, "points": int(acq.gcps.line.size)},
+        "gcps": {"file": gcps_path.name, "points": int(acq.gcps.line.size)},
         **({"adjustment": _adjustment(products.adjustment, acq)} if products.adjustment else {}),
         "processing": {
             "levels": list(scn.processing.levels),

@@ -26,16 +26,16 @@ from typing import Any
 import numpy as np
 
 from levels.adjust import adjust
-from levels.geo.scenes import cut_scenes, pass_geometry
 from levels.geometry.attitude import westin_variogram_rad2
 from levels.options import ProcessingOptions
-from levels.spot import ORBIT_ALTITUDE_M
+from levels.spot import MODES, ORBIT_ALTITUDE_M
 from station.scenario import scenario_from_dict
-from station.sipc.process import control_points
+from station.sipc.process import control_points, emulated_pass
 from station.sipc.truth import Truth
 from station.spacecraft.emulator import emulate
 
 SCENE = 6000  # lines and detectors of a full P scene
+LINE_S = MODES["P"].line_period_s
 PIXEL_M = 10.0
 
 
@@ -59,30 +59,13 @@ def run_case(
         }
     )
     acq = emulate(scn, render=False)
-    t, rates = acq.gyros.t_s, acq.gyros.rates_rad_per_s
-    keep = np.ones(t.size, dtype=bool)
-    if lost:
-        t0 = acq.line_times_s[min(lost) * SCENE]
-        t1 = acq.line_times_s[(max(lost) + 1) * SCENE - 1]
-        keep = (t < t0) | (t > t1)
-    looks = {b.name: b.look_nominal for b in acq.hrv.bands}
-    pg = pass_geometry(
-        acq.epoch,
-        acq.line_times_s,
-        acq.hrv.line_period_s,
-        acq.bulletins,
-        t[keep],
-        rates[keep],
-        looks,
-    )
-    cuts = [c for c in cut_scenes(pg.n_lines, SCENE) if c.index not in lost]
-    scenes = [pg.scene(c, 450.0) for c in cuts]
+    pg, scenes = emulated_pass(acq, SCENE, lost=lost)
     opts = options or ProcessingOptions()
     adj = adjust(pg, scenes, control_points(acq), opts)
     truth = Truth(acq, 0)
     errors = [truth.model_error_en(adj.refine(pg, s)) for s in scenes]
     return {
-        "scenes": [c.index for c in cuts],
+        "scenes": [s.cut.index for s in scenes],
         "error_en": errors,
         "predicted": adj.predicted_sigma_m,
         "adjustment": adj,
@@ -130,7 +113,7 @@ def westin(passes: int) -> None:
             n.append(r["error_en"][k][1].mean())
             p.append(r["predicted"][k, 2])
         figure(f"scene 5 bias, {label}", e, n, p)
-    gap_s = 4 * SCENE * 1.504e-3
+    gap_s = 4 * SCENE * LINE_S
     for axis, name, direction in ((0, "roll", "across"), (1, "pitch", "along")):
         sig = float(np.sqrt(westin_variogram_rad2(axis, gap_s)))
         print(
@@ -142,18 +125,17 @@ def westin(passes: int) -> None:
 
 def gap_sweep(passes: int, plot: str | None) -> None:
     print("error of the scene beyond a gap, against the gap's length (2 points before it):")
-    gcps_first = 0.15
     lengths, measured, predicted = [], [], []
     for k in range(0, 7):
         n_scenes = k + 2
-        gcps = {"count": 2, "line_ranges": [0.01 / n_scenes * 6, gcps_first / n_scenes * 6]}
+        gcps = {"count": 2, "line_ranges": [0.06 / n_scenes, 0.9 / n_scenes]}  # first scene
         e, n, p = [], [], []
         for seed in range(passes):
             r = run_case(seed, n_scenes, gcps, lost=tuple(range(1, k + 1)))
             e.append(r["error_en"][-1][0])
             n.append(r["error_en"][-1][1])
             p.append(r["predicted"][-1, 2])
-        gap = k * SCENE * 1.504e-3
+        gap = k * SCENE * LINE_S
         lengths.append(gap)
         measured.append(float(np.hypot(rms(e), rms(n))))
         predicted.append(float(np.sqrt(np.mean(np.square(p)))))

@@ -34,6 +34,9 @@ Frames
         pitch about the across-track axis X, yaw about the radial axis Z. SPOT gives the
         angles in a frame whose X and Y axes are inverted, so roll and pitch enter with the
         opposite sign to the right-handed rotations (:func:`orbital_from_body`).
+    Local east, north, up (ENU)
+        At a geodetic latitude and longitude: east, north and the ellipsoid normal
+        (:func:`enu_from_ecef`); ground errors are stated in it.
     Sensor
         The HRV/HRG viewing frame, aligned with the body frame; a detector looks along
         ``normalise(-tan psi_y, tan psi_x, -1)`` (``levels.geometry.sensor``), with ``psi_y``
@@ -56,6 +59,7 @@ __all__ = [
     "ecef_from_orbital",
     "ecef_to_eci",
     "eci_to_ecef",
+    "enu_from_ecef",
     "inertial_velocity_ecef",
     "normalize",
     "orbital_from_body",
@@ -186,6 +190,18 @@ def apply_inverse(rot: ArrayLike, vec: ArrayLike) -> NDArray[np.float64]:
     return np.einsum(
         "...ji,...j->...i", np.asarray(rot, dtype=np.float64), np.asarray(vec, dtype=np.float64)
     )
+
+
+def enu_from_ecef(lat_rad: ArrayLike, lon_rad: ArrayLike) -> NDArray[np.float64]:
+    """Rotations ECEF → local east, north, up at geodetic ``lat_rad``, ``lon_rad``,
+    ``(N, 3, 3)``: their rows are the east, north and up unit vectors in ECEF."""
+    lat = np.asarray(lat_rad, dtype=np.float64)
+    lon = np.asarray(lon_rad, dtype=np.float64)
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    east = np.stack([-so, co, np.zeros_like(so)], axis=-1)
+    north = np.stack([-sl * co, -sl * so, cl], axis=-1)
+    up = np.stack([cl * co, cl * so, sl], axis=-1)
+    return np.stack([east, north, up], axis=-2)
 
 
 #: The velocities a local orbital frame may be built on (module docstring): SPOT 1–4's

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from levels.errors import L0Error
-from levels.geo.scenes import PassGeometry, SceneGeometry, pass_geometry
+from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
 from levels.options import ProcessingOptions
 from levels.process import PassProducts, nominal_pixel_size_m, process_l0
 from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
@@ -27,8 +27,10 @@ from station.spacecraft.emulator import Acquisition, emulate
 
 __all__ = [
     "control_points",
+    "emulated_pass",
     "emulated_scene",
     "l0_stem",
+    "measured_control_points",
     "process_scenario",
     "reprocess_l0",
     "truth_for",
@@ -55,25 +57,58 @@ def control_points(acq: Acquisition, row_offset: int = 0) -> ControlPointSet:
     )
 
 
-def emulated_scene(
-    acq: Acquisition, scene_lines: int = 0, reference_height_m: float = 450.0
-) -> tuple[PassGeometry, SceneGeometry, float]:
+def emulated_pass(
+    acq: Acquisition,
+    scene_lines: int = 0,
+    reference_height_m: float = 450.0,
+    lost: tuple[int, ...] = (),
+) -> tuple[PassGeometry, list[SceneGeometry]]:
     """GEO of an emulated acquisition without the downlink: its pass geometry from the
-    emulator's hand-over (line times, bulletins, gyros, nominal look angles of every band),
-    its first scene (``scene_lines``: the whole strip by default) and the nominal pixel.
-    The geometry studies (tests, figures, calibration, benchmarks) start here."""
-    looks = {b.name: b.look_nominal for b in acq.hrv.bands}
+    emulator's hand-over (line times, bulletins, gyros, nominal look angles of every band)
+    and its scenes of ``scene_lines`` (the whole strip by default). The scenes ``lost``
+    are taken away with the attitude records over them, as an outage of the station does.
+    The geometry studies (tests, tools, benchmarks) start here."""
+    n = scene_lines or acq.hrv.n_lines
+    t = acq.gyros.t_s
+    keep = np.ones(t.size, dtype=bool)
+    if lost:
+        t0, t1 = acq.line_times_s[[min(lost) * n, (max(lost) + 1) * n - 1]]
+        keep = (t < t0) | (t > t1)
     pg = pass_geometry(
         acq.epoch,
         acq.line_times_s,
         acq.hrv.line_period_s,
         acq.bulletins,
-        acq.gyros.t_s,
-        acq.gyros.rates_rad_per_s,
-        looks,
+        t[keep],
+        acq.gyros.rates_rad_per_s[keep],
+        {b.name: b.look_nominal for b in acq.hrv.bands},
     )
-    scene = pg.scenes(scene_lines or acq.hrv.n_lines, 0, reference_height_m)[0]
-    return pg, scene, nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
+    cuts = [c for c in cut_scenes(pg.n_lines, n) if c.index not in lost]
+    return pg, [pg.scene(c, reference_height_m) for c in cuts]
+
+
+def emulated_scene(
+    acq: Acquisition, scene_lines: int = 0, reference_height_m: float = 450.0
+) -> tuple[PassGeometry, SceneGeometry, float]:
+    """:func:`emulated_pass` and its first scene (the whole strip by default), with the
+    nominal pixel."""
+    pg, scenes = emulated_pass(acq, scene_lines, reference_height_m)
+    return pg, scenes[0], nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
+
+
+def measured_control_points(
+    acq: Acquisition, archive: L0Archive, path: str | Path
+) -> tuple[Truth, ControlPointSet]:
+    """The truth behind a recorded archive, and the acquisition's control points written
+    to ``path`` as a user has them (``docs/gcp.md``, lines on the archive's rows) and read
+    back the way the processing centre reads them."""
+    truth = Truth.of(acq, archive)
+    written = write_gcps(
+        path,
+        control_points(acq, truth.row_offset),
+        f"control points of {acq.scenario.name}, HRV{acq.hrv.number}, as measured (docs/gcp.md)",
+    )
+    return truth, read_gcps(written, archive.n_lines, archive.n_columns)
 
 
 def truth_for(scn: Scenario, archive: L0Archive) -> Truth:
@@ -154,11 +189,8 @@ def process_scenario(
     result = downlink(acq)
     l0 = record(acq, result, l0_path or out / f"{scn.name}.l0.h5")
     archive = read_l0(l0)
-    truth = Truth.of(acq, archive)
-    gcps = write_gcps(
-        Path(l0).with_name(f"{l0_stem(l0)}.gcp.csv"),
-        control_points(acq, truth.row_offset),
-        f"control points of {scn.name}, HRV{acq.hrv.number}, as measured (docs/gcp.md)",
+    truth, gcps = measured_control_points(
+        acq, archive, Path(l0).with_name(f"{l0_stem(l0)}.gcp.csv")
     )
     products = process_l0(
         archive,
@@ -167,6 +199,6 @@ def process_scenario(
         name=scn.name,
         checkpoints=truth,
         provenance=scn.provenance(),
-        gcps=read_gcps(gcps, archive.n_lines, archive.n_columns),
+        gcps=gcps,
     )
     return products, l0

@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
 from levels.geo.scenes import SceneGeometry
+from levels.geometry.frames import apply, enu_from_ecef
 from levels.geometry.model import PushbroomModel
 from levels.quality import error_stats
 from levels.readers.l0 import L0Archive
@@ -90,11 +91,8 @@ class Truth:
         q = self.model(0).image_to_ground(self.truth_lines(scene, line), col, h)
         ell = self.model(0).ellipsoid
         d = ell.to_ecef(p.lat_rad, p.lon_rad, p.h_m) - ell.to_ecef(q.lat_rad, q.lon_rad, q.h_m)
-        sl, cl = np.sin(q.lat_rad), np.cos(q.lat_rad)
-        so, co = np.sin(q.lon_rad), np.cos(q.lon_rad)
-        east = -so * d[:, 0] + co * d[:, 1]
-        north = -sl * co * d[:, 0] - sl * so * d[:, 1] + cl * d[:, 2]
-        return east, north
+        enu = apply(enu_from_ecef(q.lat_rad, q.lon_rad), d)
+        return enu[:, 0], enu[:, 1]
 
     def truth_lines(self, scene: SceneGeometry, line: NDArray[np.float64]) -> NDArray:
         return line + scene.cut.first_line + self.row_offset

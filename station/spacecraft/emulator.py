@@ -197,9 +197,10 @@ def _control_points(
     n = cfg.count
     starts, ends = np.array(cfg.line_ranges[::2]), np.array(cfg.line_ranges[1::2])
     lengths = ends - starts
-    u = rng.uniform(0.0, lengths.sum(), n)  # along the ranges laid end to end
-    k = np.minimum(np.searchsorted(np.cumsum(lengths), u, side="right"), lengths.size - 1)
-    line = (starts[k] + u - np.r_[0.0, np.cumsum(lengths)][k]) * (times.size - 1)
+    ends_laid = np.cumsum(lengths)  # the ranges laid end to end
+    u = rng.uniform(0.0, ends_laid[-1], n)
+    k = np.minimum(np.searchsorted(ends_laid, u, side="right"), lengths.size - 1)
+    line = (starts[k] + u - (ends_laid[k] - lengths[k])) * (times.size - 1)
     col = rng.uniform(0.05, 0.95, n) * (hrv.n_columns - 1)
     t = times[0] + line * hrv.line_period_s
     pts, _ok = trace_pixels(orbit, attitude, hrv.bands[0], world, t, col)
