@@ -29,8 +29,9 @@ Observations
     Rates are observed as zero with the gyro noise averaged over a scene.
 
 Solution
-    Weighted nonlinear least squares (``scipy.optimize.least_squares``) in parameters
-    scaled by their a priori σ, the first fit with a robust loss; then Baarda's data
+    Weighted nonlinear least squares in parameters scaled by their a priori σ:
+    Gauss–Newton on the sparse normal equations (``scipy``), the first fit with a robust
+    loss by iteratively reweighted least squares; then Baarda's data
     snooping: normalised residuals ``v / σ_v`` (``σ_v² = 1 − h``, ``h`` the leverage),
     points beyond the threshold rejected and reported, and a plain least-squares fit on the
     rest. Its covariance (a priori: the error budget is trusted, the unit-weight σ0 is
@@ -53,7 +54,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
-from scipy.optimize import least_squares
+from scipy.linalg import cho_factor, cho_solve
 
 from levels.errors import GeometryError
 from levels.geo.scenes import PassGeometry, SceneGeometry
@@ -461,24 +462,69 @@ def _problem(
     return prob, lost
 
 
+#: Robust losses: the weight ``ρ'(z)`` of a residual with ``z = (r / ROBUST_SCALE)²``, as
+#: ``scipy.optimize.least_squares`` defines them.
+_LOSS_WEIGHT = {
+    "linear": lambda z: np.ones_like(z),
+    "soft_l1": lambda z: 1.0 / np.sqrt(1.0 + z),
+    "huber": lambda z: np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0))),
+    "cauchy": lambda z: 1.0 / (1.0 + z),
+}
+_LOSS_RHO = {
+    "linear": lambda z: z,
+    "soft_l1": lambda z: 2.0 * (np.sqrt(1.0 + z) - 1.0),
+    "huber": lambda z: np.where(z <= 1.0, z, 2.0 * np.sqrt(np.maximum(z, 1.0)) - 1.0),
+    "cauchy": lambda z: np.log1p(z),
+}
+#: Gauss–Newton stops when no scaled parameter moves more than ``STEP_TOL`` (a priori σ),
+#: when a step lowers the cost by less than ``COST_TOL`` of it (rounding: the minimum is
+#: reached), or after ``MAX_ITERATIONS``; a step that raises the cost is halved at most
+#: ``MAX_HALVINGS`` times.
+STEP_TOL, COST_TOL, MAX_ITERATIONS, MAX_HALVINGS = 1e-7, 1e-10, 30, 8
+
+
+def _cost(prob: _Problem, x: NDArray[np.float64], use: NDArray[np.bool_], loss: str) -> float:
+    """The robust cost: ``Σ ρ(z)`` over the observations (in ``ROBUST_SCALE²`` units), plus
+    the squared prior rows (never down-weighted: a prior is not a blunder)."""
+    r = prob.residuals(x, use)
+    n = 2 * int(use.sum())
+    z = (r[:n] / ROBUST_SCALE) ** 2
+    return float(ROBUST_SCALE**2 * np.sum(_LOSS_RHO[loss](z)) + np.sum(r[n:] ** 2))
+
+
 def _solve(
     prob: _Problem, use: NDArray[np.bool_], x0: NDArray[np.float64], loss: str
 ) -> NDArray[np.float64]:
-    """Weighted nonlinear least squares on the scaled parameters (``scipy``)."""
-    res = least_squares(
-        prob.residuals,
-        x0,
-        jac=lambda x, u: prob.jacobian(x, u).toarray(),
-        args=(use,),
-        loss=loss,
-        f_scale=ROBUST_SCALE,
-        method="trf",
-        xtol=1e-8,
-        ftol=1e-10,
-        gtol=1e-10,
-        max_nfev=50,
-    )
-    return res.x
+    """Weighted nonlinear least squares on the scaled parameters: Gauss–Newton on the
+    normal equations (sparse ``JᵀWJ``, a Cholesky factor from ``scipy.linalg``), the robust
+    loss by iteratively reweighted least squares (Holland & Welsch's IRLS: each
+    observation weighted by ``ρ'(z)`` at the current residuals; its fixed point is the
+    robust minimum ``scipy.optimize.least_squares`` seeks), steps halved while the cost
+    rises. ``least_squares`` itself (``trf``, dense) spent 70 % of its time in the SVD of a
+    1000 × 450 Jacobian; the normal equations of this weakly nonlinear problem converge in
+    3–5 steps."""
+    x = x0.copy()
+    n = 2 * int(use.sum())
+    cost = _cost(prob, x, use, loss)
+    for _ in range(MAX_ITERATIONS):
+        r = prob.residuals(x, use)
+        jac = prob.jacobian(x, use)
+        w = np.ones(r.size)
+        w[:n] = _LOSS_WEIGHT[loss]((r[:n] / ROBUST_SCALE) ** 2)
+        wj = sparse.diags(w) @ jac
+        normal = (jac.T @ wj).toarray()
+        dx = -cho_solve(cho_factor(normal), wj.T @ r)
+        for _ in range(MAX_HALVINGS):
+            trial = _cost(prob, x + dx, use, loss)
+            if trial <= cost * (1 + 1e-12) + 1e-12:
+                break
+            dx = 0.5 * dx
+        else:
+            break  # no descent along the Gauss–Newton direction: at the minimum
+        x, decrease, cost = x + dx, cost - trial, trial
+        if np.max(np.abs(dx)) < STEP_TOL or decrease <= COST_TOL * cost:
+            break
+    return x
 
 
 def _normalised(
@@ -486,11 +532,11 @@ def _normalised(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """Baarda's normalised residual of each used point (the larger of its two), the scaled
     covariance ``(JᵀJ)⁻¹`` at ``x`` and the sum of squared normalised residuals (χ²)."""
-    jac = prob.jacobian(x, use).toarray()
-    cov = np.linalg.inv(jac.T @ jac)
+    jac = prob.jacobian(x, use)
+    cov = np.linalg.inv((jac.T @ jac).toarray())
     n = int(use.sum())
-    jo = jac[: 2 * n]
-    leverage = np.einsum("ij,jk,ik->i", jo, cov, jo)
+    jo = jac[: 2 * n].toarray()
+    leverage = np.sum((jo @ cov) * jo, axis=1)
     r = prob.residuals(x, use)
     w = np.abs(r[: 2 * n]) / np.sqrt(np.clip(1.0 - leverage, 1e-12, None))
     return w.reshape(n, 2).max(axis=1), cov, float(np.sum(r**2))
