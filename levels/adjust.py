@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -71,7 +71,7 @@ from levels.geometry.frames import (
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
 
-__all__ = ["PASS_PARAMETERS", "SCENE_PARAMETERS", "Adjustment", "adjust"]
+__all__ = ["PASS_PARAMETERS", "SCENE_PARAMETERS", "Adjustment", "Strip", "adjust", "adjust_strips"]
 
 #: The pass's parameters, in order (SI units).
 PASS_PARAMETERS = (
@@ -121,7 +121,13 @@ class _Points:
     axes: NDArray[np.float64]
     attitude: NDArray[np.float64]
     table: NDArray[np.float64]  # (N, 2) the look table's psi_x, psi_y at the column
-    pitch_rad: float
+    pitch_rad: NDArray[np.float64]  # (N,) the look table's pitch (one per HRV and band)
+
+    @staticmethod
+    def concatenate(parts: list[_Points]) -> _Points:
+        return _Points(
+            *(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(_Points))
+        )
 
 
 def _points(
@@ -146,7 +152,7 @@ def _points(
         ecef_from_orbital(r, v),
         pg.attitude.angles_rad(t),
         np.stack([px, py], axis=-1),
-        pitch,
+        np.full(t.size, pitch),
     )
 
 
@@ -166,7 +172,7 @@ def _condition(
     depth = -w[:, 2]
     with np.errstate(invalid="ignore", divide="ignore"):
         psi = np.stack([np.arctan(w[:, 1] / depth), np.arctan(-w[:, 0] / depth)], axis=-1)
-    return (psi - p.table) / p.pitch_rad
+    return (psi - p.table) / p.pitch_rad[:, None]
 
 
 def _local_axes(g_ecef_m: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -434,27 +440,30 @@ def _whitening(
 
 
 def _problem(
-    pg: PassGeometry,
-    band: str,
-    scenes: list[SceneGeometry],
-    gcps: ControlPointSet,
-    use: NDArray[np.bool_],
-    position: NDArray[np.int64],
+    strips: list[Strip],
+    uses: list[NDArray[np.bool_]],
+    nodes: list[NDArray[np.int64]],
+    t_node_s: NDArray[np.float64],
     t_ref_s: float,
     options: ProcessingOptions,
 ) -> tuple[_Problem, NDArray[np.float64]]:
-    """The least-squares problem of ``scenes`` with the points ``use`` (their positions in
-    ``scenes``), and the attitude records lost before each scene (s)."""
-    g = WGS84.to_ecef(gcps.lat_rad[use], gcps.lon_rad[use], gcps.h_m[use])
-    p = _points(pg, band, gcps.line[use], gcps.column[use], g, position[use])
-    t_c = np.array([s.t_centre_s for s in scenes])
-    period = float(np.median(np.diff(pg.attitude.t_s)))
-    inc, lost = _increment_sigma(attitude_gaps(pg.attitude.t_s), t_c, period, options)
+    """The least-squares problem of the attitude nodes at ``t_node_s`` with each strip's
+    points ``uses[k]`` (``nodes[k]``: each point's node, positions in ``t_node_s``), and the
+    attitude records lost before each node (s)."""
+    parts, white = [], []
+    for s, use, node in zip(strips, uses, nodes, strict=True):
+        g = WGS84.to_ecef(s.gcps.lat_rad[use], s.gcps.lon_rad[use], s.gcps.h_m[use])
+        p = _points(s.pg, s.band, s.gcps.line[use], s.gcps.column[use], g, node[use])
+        parts.append(p)
+        white.append(_whitening(s.pg, s.band, s.gcps, use, p))
+    att = strips[0].pg.attitude  # every strip's: checked by adjust_strips
+    period = float(np.median(np.diff(att.t_s)))
+    inc, lost = _increment_sigma(attitude_gaps(att.t_s), t_node_s, period, options)
     prob = _Problem(
-        p,
-        _whitening(pg, band, gcps, use, p),
+        _Points.concatenate(parts),
+        np.concatenate(white),
         t_ref_s,
-        t_c,
+        t_node_s,
         np.r_[options.prior_ephemeris_m, options.prior_ephemeris_drift_m_per_s],
         np.r_[options.prior_attitude_rad, [options.prior_attitude_rate_rad_per_s] * 3],
         inc,
@@ -544,18 +553,18 @@ def _normalised(
 
 def _predicted(
     prob: _Problem,
-    pg: PassGeometry,
-    band: str,
-    scenes: list[SceneGeometry],
+    strip: Strip,
+    scene_node: NDArray[np.int64],
     x: NDArray[np.float64],
     covariances: list[NDArray[np.float64]],
 ) -> list[NDArray[np.float64]]:
-    """Predicted ground σ (east, north, horizontal RMS) of each scene, ``(S, 3)`` for each
-    scaled covariance given: the ground displacement ``J_g⁻¹ J_x`` at a lattice of every
-    scene's pixels on its reference surface, through the covariance (all scenes at once)."""
-    m = PREDICTION_LATTICE
-    lines, cols, ground, idx = [], [], [], []
-    for j, scene in enumerate(scenes):
+    """Predicted ground σ (east, north, horizontal RMS) of each of the strip's scenes
+    (``scene_node``: their nodes in ``prob``), ``(S, 3)`` for each scaled covariance given:
+    the ground displacement ``J_g⁻¹ J_x`` at a lattice of every scene's pixels on its
+    reference surface, through the covariance (all scenes at once)."""
+    m, pg, band = PREDICTION_LATTICE, strip.pg, strip.band
+    lines, cols, ground = [], [], []
+    for scene in strip.scenes:
         line, col = (
             a.ravel()
             for a in np.meshgrid(
@@ -568,8 +577,9 @@ def _predicted(
         lines.append(line + scene.cut.first_line)
         cols.append(col)
         ground.append(WGS84.to_ecef(gp.lat_rad, gp.lon_rad, gp.h_m))
-        idx.append(np.full(line.size, j))
-    line, col, g, at = (np.concatenate(v) for v in (lines, cols, ground, idx))
+    line, col, g = (np.concatenate(v) for v in (lines, cols, ground))
+    which = np.repeat(np.arange(len(strip.scenes)), m * m)  # each lattice point's scene
+    at = scene_node[which]
     p = _points(pg, band, line, col, g, at)
     jx = prob.parameter_jacobian(x, p)  # (n, 2, 12)
     f0 = prob.condition(x, p)
@@ -592,9 +602,9 @@ def _predicted(
         c = cov[sel[:, :, None], sel[:, None, :]]  # (n, 12, 12)
         cg = np.einsum("nik,nkl,njl->nij", move, c, move)
         var = np.stack([cg[:, 0, 0], cg[:, 1, 1]], axis=-1)
-        per = np.zeros((len(scenes), 3))
+        per = np.zeros((len(strip.scenes), 3))
         for k in range(2):
-            per[:, k] = np.bincount(at, var[:, k], len(scenes)) / m**2
+            per[:, k] = np.bincount(which, var[:, k], len(strip.scenes)) / m**2
         per[:, 2] = per[:, 0] + per[:, 1]
         out.append(np.sqrt(per))
     return out
@@ -610,6 +620,22 @@ def _scene_of_points(
     inside = (line[:, None] >= first - 0.5) & (line[:, None] <= first + n - 0.5)
     dist = np.where(inside, np.abs(line[:, None] - (first + 0.5 * (n - 1))), np.inf)
     return np.argmin(dist, axis=1), inside.any(axis=1)
+
+
+@dataclass(frozen=True)
+class Strip:
+    """One HRV's share of a pass: GEO's set-up, the scenes made of it (in time order), its
+    control points (``line`` in the pass's rows) and the band they were measured in
+    (default: the first)."""
+
+    pg: PassGeometry
+    scenes: list[SceneGeometry]
+    gcps: ControlPointSet
+    band: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.band:
+            object.__setattr__(self, "band", next(iter(self.pg.look_angles)))
 
 
 def adjust(
@@ -636,47 +662,95 @@ def adjust(
     band
         The band whose look angles the points were measured in (default: the first).
     """
+    return adjust_strips([Strip(pg, scenes, gcps, band or "")], options)[0]
+
+
+#: Scenes of different HRVs whose centres are closer than this share one attitude node.
+NODE_TOLERANCE_S = 1e-3
+
+
+def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adjustment, ...]:
+    """Refine several HRVs of one pass together: a twin pass (ADRIN, ``001_…``: "the two
+    HRVs share the platform"). One ephemeris correction, and one attitude correction per
+    *node*, the scenes' centre instants over every strip (scenes of both HRVs at the same
+    instant share a node), so that control points in one HRV refine the other. The strips
+    must share one platform attitude (GEO from the same gyro records); each HRV's look
+    angles are its own, their relative error not modelled (an HRV's calibration, 1 µrad,
+    is well below what the points measure). ``options.adjustment`` ``scene`` adjusts each
+    node alone, any other mode all nodes together.
+
+    Returns one :class:`Adjustment` per strip, in order.
+    """
     t0 = time.perf_counter()
-    if not scenes:
+    if not strips or not any(s.scenes for s in strips):
         raise GeometryError("no scene to adjust")
-    band = band or next(iter(pg.look_angles))
-    t_ref = float(0.5 * (pg.line_t_s[0] + pg.line_t_s[-1]))
-    scene_index = np.array([s.cut.index for s in scenes], dtype=np.int64)
-    position, has = _scene_of_points(scenes, gcps.line)
+    att = strips[0].pg.attitude
+    for s in strips[1:]:
+        if not (
+            np.array_equal(s.pg.attitude.t_s, att.t_s)
+            and np.array_equal(s.pg.attitude.angles_rad_samples, att.angles_rad_samples)
+        ):
+            raise GeometryError(
+                "the HRVs of a joint adjustment must share one platform attitude: "
+                "make their GEO from the same gyro records"
+            )
+    pg0 = strips[0].pg
+    t_ref = float(0.5 * (pg0.line_t_s[0] + pg0.line_t_s[-1]))
+    t_scene = [np.array([sc.t_centre_s for sc in s.scenes]) for s in strips]
+    # the nodes: every scene's centre, those of several HRVs at one instant merged
+    t_all = np.concatenate(t_scene)
+    order = np.argsort(t_all, kind="stable")
+    first = np.r_[True, np.diff(t_all[order]) > NODE_TOLERANCE_S]
+    t_node = t_all[order][first]
+    node_of = np.empty(t_all.size, dtype=np.int64)
+    node_of[order] = np.cumsum(first) - 1
+    scene_node = np.split(node_of, np.cumsum([t.size for t in t_scene])[:-1])
+    located = [_scene_of_points(s.scenes, s.gcps.line) if s.scenes else None for s in strips]
+    point_node, has = [], []
+    for s, sn, loc in zip(strips, scene_node, located, strict=True):
+        if loc is None:
+            point_node.append(np.zeros(len(s.gcps), dtype=np.int64))
+            has.append(np.zeros(len(s.gcps), dtype=bool))
+        else:
+            point_node.append(sn[loc[0]])
+            has.append(loc[1])
+    n_nodes = t_node.size
     groups = (
-        [list(range(len(scenes)))]
-        if options.adjustment == "pass"
-        else [[j] for j in range(len(scenes))]
+        [[j] for j in range(n_nodes)] if options.adjustment == "scene" else [list(range(n_nodes))]
     )
-    s_all, n = len(scenes), len(gcps)
-    pass_par, scene_par = np.zeros((s_all, _NP)), np.zeros((s_all, _NS))
-    cov12 = np.zeros((s_all, _NP + _NS, _NP + _NS))
-    predicted, prior = np.zeros((s_all, 3)), np.zeros((s_all, 3))
-    inc_all, lost_all = np.full((s_all, 3), np.inf), np.zeros(s_all)
-    before = np.full((n, 2), np.nan)
-    after = np.full((n, 2), np.nan)
-    wres = np.full(n, np.nan)
-    status = np.where(has, "used", "outside").astype(object)
+    node_pass, node_scene = np.zeros((n_nodes, _NP)), np.zeros((n_nodes, _NS))
+    node_cov = np.zeros((n_nodes, _NP + _NS, _NP + _NS))
+    node_inc, node_lost = np.full((n_nodes, 3), np.inf), np.zeros(n_nodes)
+    predicted = [np.zeros((len(s.scenes), 3)) for s in strips]
+    prior = [np.zeros((len(s.scenes), 3)) for s in strips]
+    before = [np.full((len(s.gcps), 2), np.nan) for s in strips]
+    after = [np.full((len(s.gcps), 2), np.nan) for s in strips]
+    wres = [np.full(len(s.gcps), np.nan) for s in strips]
+    status = [np.where(h, "used", "outside").astype(object) for h in has]
     chi2, dof = 0.0, 0
     for group in groups:
-        sub = [scenes[j] for j in group]
-        use = has & np.isin(position, group)
-        local = np.searchsorted(group, position)  # position within the group
-        prob, lost = _problem(pg, band, sub, gcps, use, local, t_ref, options)
-        ids = np.flatnonzero(use)
+        uses = [h & np.isin(pn, group) for h, pn in zip(has, point_node, strict=True)]
+        local = [np.searchsorted(group, pn) for pn in point_node]  # node within the group
+        prob, lost = _problem(strips, uses, local, t_node[group], t_ref, options)
+        ids = [np.flatnonzero(u) for u in uses]
+        # the problem's points, strip after strip: where each strip's begin
+        cut = np.cumsum([0] + [i.size for i in ids])
         x = np.zeros(prob.n_params)
-        before[ids] = prob.condition(x)
-        active = np.ones(ids.size, dtype=bool)
+        f = prob.condition(x)
+        for k in range(len(strips)):
+            before[k][ids[k]] = f[cut[k] : cut[k + 1]]
+        active = np.ones(cut[-1], dtype=bool)
+        wr = np.full(cut[-1], np.nan)
         rows = prob.prior_rows
         prior_cov = np.linalg.inv(rows.T @ rows)
         cov = prior_cov
-        if ids.size:
+        if cut[-1]:
             # the robust fit is tested first; every later test is of a plain fit
             x = _solve(prob, active, x, options.robust_loss)
             robust = True
             for _ in range(MAX_SNOOPING_ROUNDS):
                 w, cov, chi2_group = _normalised(prob, x, active)
-                wres[ids[active]] = w
+                wr[active] = w
                 bad = np.flatnonzero(active)[w > options.blunder_threshold]
                 if bad.size == 0 or bad.size >= active.sum():
                     break
@@ -684,40 +758,64 @@ def adjust(
                 x, robust = _solve(prob, active, x, "linear"), False
             else:  # out of rounds: the last fit is not tested yet
                 w, cov, chi2_group = _normalised(prob, x, active)
-                wres[ids[active]] = w
+                wr[active] = w
             if robust:
                 x = _solve(prob, active, x, "linear")
                 w, cov, chi2_group = _normalised(prob, x, active)
-                wres[ids[active]] = w
+                wr[active] = w
             chi2, dof = chi2 + chi2_group, dof + 2 * int(active.sum())
-        status[ids[~active]] = "rejected"
-        after[ids] = prob.condition(x)
+        f = prob.condition(x)
+        for k in range(len(strips)):
+            span = slice(cut[k], cut[k + 1])
+            after[k][ids[k]] = f[span]
+            wres[k][ids[k]] = wr[span]
+            status[k][ids[k][~active[span]]] = "rejected"
         pas, sce = prob.split(x)
         scale = np.r_[prob.sigma_pass, prob.sigma_scene]
         for jl, j in enumerate(group):
-            pass_par[j], scene_par[j] = pas, sce[jl]
+            node_pass[j], node_scene[j] = pas, sce[jl]
             sel = np.r_[np.arange(_NP), _NP + _NS * jl + np.arange(_NS)]
-            cov12[j] = cov[np.ix_(sel, sel)] * np.outer(scale, scale)
-        predicted[group], prior[group] = _predicted(prob, pg, band, sub, x, [cov, prior_cov])
-        inc_all[group], lost_all[group] = prob.increment_sigma, lost
-    return Adjustment(
-        options.adjustment,
-        t_ref,
-        scene_index,
-        np.array([s.t_centre_s for s in scenes]),
-        pass_par,
-        scene_par,
-        cov12,
-        predicted,
-        prior,
-        inc_all,
-        lost_all,
-        tuple(gcps.id),
-        np.where(has, scene_index[position], -1),
-        tuple(str(v) for v in status),
-        before,
-        after,
-        wres,
-        float(np.sqrt(chi2 / dof)) if dof else float("nan"),
-        {"adjust": time.perf_counter() - t0},
-    )
+            node_cov[j] = cov[np.ix_(sel, sel)] * np.outer(scale, scale)
+        for k, s in enumerate(strips):
+            mine = np.isin(scene_node[k], group)
+            if mine.any():
+                sub = Strip(
+                    s.pg, [sc for sc, m in zip(s.scenes, mine, strict=True) if m], s.gcps, s.band
+                )
+                predicted[k][mine], prior[k][mine] = _predicted(
+                    prob, sub, np.searchsorted(group, scene_node[k][mine]), x, [cov, prior_cov]
+                )
+        node_inc[group], node_lost[group] = prob.increment_sigma, lost
+    sigma0 = float(np.sqrt(chi2 / dof)) if dof else float("nan")
+    mode = "twin" if len(strips) > 1 and options.adjustment != "scene" else options.adjustment
+    mode = "pass" if mode == "twin" and len(strips) == 1 else mode
+    elapsed = {"adjust": time.perf_counter() - t0}
+    out = []
+    for k, s in enumerate(strips):
+        index = np.array([sc.cut.index for sc in s.scenes], dtype=np.int64)
+        sn = scene_node[k]
+        located_scene = located[k][0] if located[k] is not None else point_node[k]
+        out.append(
+            Adjustment(
+                mode,
+                t_ref,
+                index,
+                t_node[sn],
+                node_pass[sn],
+                node_scene[sn],
+                node_cov[sn],
+                predicted[k],
+                prior[k],
+                node_inc[sn],
+                node_lost[sn],
+                tuple(s.gcps.id),
+                np.where(has[k], index[located_scene] if index.size else -1, -1),
+                tuple(str(v) for v in status[k]),
+                before[k],
+                after[k],
+                wres[k],
+                sigma0,
+                elapsed,
+            )
+        )
+    return tuple(out)
