@@ -248,8 +248,9 @@ class ProcessingOptions:
     adjustment: str = option(
         "pass",
         "adjustment",
-        "level 2: one adjustment over the whole pass (Westin) or each scene alone",
-        choices=("pass", "scene"),
+        "level 2: one adjustment over the whole pass (Westin), each scene alone, or both "
+        "HRVs of a twin pass together (one platform: points in one HRV refine the other)",
+        choices=("pass", "scene", "twin"),
     )
     prior_ephemeris_m: tuple[float, float, float] = option(
         [300.0, 150.0, 50.0],

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from levels import __version__
-from levels.adjust import Adjustment, adjust
+from levels.adjust import Adjustment, Strip, adjust, adjust_strips
 from levels.cor.radiometry import (
     calibrate,
     deconvolution_taps,
@@ -56,7 +56,17 @@ from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
 from levels.spot import ORBIT_ALTITUDE_M
 
-__all__ = ["PassProducts", "SceneProducts", "SkippedScene", "nominal_pixel_size_m", "process_l0"]
+__all__ = [
+    "PassProducts",
+    "PassSetup",
+    "SceneProducts",
+    "SkippedScene",
+    "geo_pass",
+    "nominal_pixel_size_m",
+    "platform_records",
+    "process_l0",
+    "process_pass",
+]
 
 
 @dataclass(frozen=True)
@@ -130,6 +140,86 @@ class _PassContext:
     adjustment: Adjustment | None
 
 
+@dataclass(frozen=True, eq=False)
+class PassSetup:
+    """GEO of one HRV's pass: the pass set-up, the scenes it can place and those it skips."""
+
+    archive: L0Archive
+    pg: PassGeometry
+    scenes: list[SceneGeometry]
+    skipped: list[SkippedScene]
+    scene_lines: int
+    time_s: float
+
+
+def platform_records(
+    archives: Sequence[L0Archive],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The platform's gyro records of a pass imaged by several HRVs: every record any HRV's
+    channel brought (each carries the same platform data; a record lost on one channel may
+    have come through the other). Times and rates, unsorted (GEO sorts and deduplicates)."""
+    first = archives[0]
+    for a in archives[1:]:
+        if a.epoch != first.epoch:
+            raise GeometryError(
+                f"{a.path} and {first.path} count time from different epochs: not the same pass"
+            )
+    return (
+        np.concatenate([a.aux_t_s for a in archives]),
+        np.concatenate([a.gyro_rates_rad_per_s for a in archives]),
+    )
+
+
+def geo_pass(
+    archive: L0Archive,
+    options: ProcessingOptions,
+    records: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+) -> PassSetup:
+    """GEO's set-up of a pass and its scenes (``records``: the platform's gyro records,
+    by default the archive's own; :func:`platform_records` for a twin pass)."""
+    t0 = time.perf_counter()
+    band_names = list(archive.bands)
+    gyro_t, gyro = records or (archive.aux_t_s, archive.gyro_rates_rad_per_s)
+    pg = pass_geometry(
+        archive.epoch,
+        archive.line_t_s,
+        archive.line_period_s,
+        archive.ephemeris,
+        gyro_t,
+        gyro,
+        {b: archive.bands[b].look for b in band_names},
+    )
+    n_det = archive.bands[band_names[0]].counts.shape[1]
+    scene_lines = options.scene_lines or n_det
+    cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines)
+    valid = [archive.bands[b].pixel_valid() for b in band_names]
+    rows_seen = np.logical_or.reduce([v.any(axis=1) for v in valid])
+    scenes, skipped = [], []
+    for c in cuts:
+        if not rows_seen[c.first_line : c.first_line + c.n_lines].any():
+            skipped.append(
+                SkippedScene(
+                    c.index, c.first_line, c.n_lines, "no valid line: lost in the downlink"
+                )
+            )
+            continue
+        try:
+            scenes.append(pg.scene(c, options.reference_height_m))
+        except GeometryError as exc:
+            skipped.append(
+                SkippedScene(c.index, c.first_line, c.n_lines, f"GEO could not place it: {exc}")
+            )
+    return PassSetup(archive, pg, scenes, skipped, scene_lines, time.perf_counter() - t0)
+
+
+def _need_gcps(options: ProcessingOptions, gcps: Any) -> None:
+    if "2" in options.levels and gcps is None:
+        raise GcpError(
+            "level 2 needs control points: give the pass's control-point file "
+            "(docs/gcp.md), or leave '2' out of the levels"
+        )
+
+
 def process_l0(
     archive: L0Archive,
     options: ProcessingOptions,
@@ -140,6 +230,8 @@ def process_l0(
     provenance: dict[str, Any] | None = None,
     on_scene: Callable[[SceneProducts, int], None] | None = None,
     gcps: ControlPointSet | None = None,
+    setup: PassSetup | None = None,
+    adjustment: Adjustment | None = None,
 ) -> PassProducts:
     """GEO and COR over a pass (module docstring); products go to ``out_dir``.
 
@@ -160,46 +252,20 @@ def process_l0(
     gcps
         Control points of the pass (``docs/gcp.md``; those of the archive's HRV are used):
         level 2 needs them (:mod:`levels.adjust`).
+    setup, adjustment
+        GEO's set-up and level 2's adjustment when already made (:func:`process_pass`
+        makes them for both HRVs of a twin pass together).
     """
-    if "2" in options.levels and gcps is None:
-        raise GcpError(
-            "level 2 needs control points: give the pass's control-point file "
-            "(docs/gcp.md), or leave '2' out of the levels"
-        )
+    if adjustment is None:
+        _need_gcps(options, gcps)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter
     t0 = clock()
+    setup = setup or geo_pass(archive, options)
+    pg, scenes = setup.pg, setup.scenes
     band_names = list(archive.bands)
-    pg = pass_geometry(
-        archive.epoch,
-        archive.line_t_s,
-        archive.line_period_s,
-        archive.ephemeris,
-        archive.aux_t_s,
-        archive.gyro_rates_rad_per_s,
-        {b: archive.bands[b].look for b in band_names},
-    )
-    n_det = archive.bands[band_names[0]].counts.shape[1]
-    scene_lines = options.scene_lines or n_det
-    cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines)
     pixel_valid = {b: archive.bands[b].pixel_valid() for b in band_names}
-    rows_seen = np.logical_or.reduce([v.any(axis=1) for v in pixel_valid.values()])
-    scenes, skipped = [], []
-    for c in cuts:
-        if not rows_seen[c.first_line : c.first_line + c.n_lines].any():
-            skipped.append(
-                SkippedScene(
-                    c.index, c.first_line, c.n_lines, "no valid line: lost in the downlink"
-                )
-            )
-            continue
-        try:
-            scenes.append(pg.scene(c, options.reference_height_m))
-        except GeometryError as exc:
-            skipped.append(
-                SkippedScene(c.index, c.first_line, c.n_lines, f"GEO could not place it: {exc}")
-            )
     res = options.pixel_size_m or nominal_pixel_size_m(pg.look_angles[band_names[0]])
     taps = (
         deconvolution_taps(options.psf_fwhm_px, options.noise_to_signal)
@@ -213,11 +279,16 @@ def process_l0(
         **archive.provenance,
         **(provenance or {}),
     }
-    t_geo = clock() - t0  # the adjustment is timed apart
-    adjustment = None
-    if "2" in options.levels and scenes:
+    t_geo = setup.time_s + clock() - t0  # the adjustment is timed apart
+    if "2" in options.levels and scenes and adjustment is None:
         assert gcps is not None
-        adjustment = adjust(pg, scenes, gcps.of_hrv(archive.hrv), options, band_names[0])
+        mine = gcps.of_hrv(archive.hrv)
+        if not len(mine):
+            raise GcpError(
+                f"level 2 of HRV{archive.hrv}: no control point of this HRV in the file "
+                "(in a twin pass, adjustment = 'twin' lets the other HRV's points serve)"
+            )
+        adjustment = adjust(pg, scenes, mine, options, band_names[0])
     ctx = _PassContext(
         archive, pg, options, res, taps, pixel_valid, out, name, checkpoints, prov, adjustment
     )
@@ -226,11 +297,74 @@ def process_l0(
         results.append(_process_scene(ctx, scene))
         if on_scene is not None:
             on_scene(results[-1], len(scenes))
-    tail = pg.tail_lines(scene_lines, options.overlap_lines)
-    timings = {"geo": t_geo, "total": clock() - t0}
+    tail = pg.tail_lines(setup.scene_lines, options.overlap_lines)
+    timings = {"geo": t_geo, "total": setup.time_s + clock() - t0}
     if adjustment is not None:
         timings["adjust"] = adjustment.timings_s["adjust"]
-    return PassProducts(results, tail, timings, skipped, adjustment)
+    return PassProducts(results, tail, timings, list(setup.skipped), adjustment)
+
+
+def process_pass(
+    archives: Sequence[L0Archive],
+    options: ProcessingOptions,
+    out_dir: str | Path,
+    *,
+    names: Sequence[str],
+    checkpoints: Sequence[CheckpointSource | None] | None = None,
+    provenance: dict[str, Any] | None = None,
+    on_scene: Callable[[SceneProducts, int], None] | None = None,
+    gcps: Sequence[ControlPointSet | None] | None = None,
+) -> list[PassProducts]:
+    """Every HRV of one pass (one L0 archive each, ``names`` theirs): :func:`process_l0`
+    for each, except that with ``adjustment = "twin"`` and level 2 both HRVs' GEO use the
+    platform's gyro records of either channel (:func:`platform_records`) and are refined
+    by one adjustment (:func:`levels.adjust.adjust_strips`), so that control points in one
+    HRV serve the other. ``gcps[k]`` are the points of ``archives[k]``'s HRV."""
+    n = len(archives)
+    if len(names) != n:
+        raise ValueError(f"{n} archives but {len(names)} names")
+    marks = list(checkpoints) if checkpoints is not None else [None] * n
+    points = list(gcps) if gcps is not None else [None] * n
+    hrvs = [a.hrv for a in archives]
+    if len(set(hrvs)) != n:
+        raise GeometryError(f"one archive per HRV of a pass: got HRVs {hrvs}")
+    setups: list[PassSetup | None] = [None] * n
+    adjustments: list[Adjustment | None] = [None] * n
+    if options.adjustment == "twin" and "2" in options.levels and n > 1:
+        for p in points:
+            _need_gcps(options, p)
+        records = platform_records(archives)
+        setups = [geo_pass(a, options, records) for a in archives]
+        placed = [k for k, s in enumerate(setups) if s.scenes]
+        if not any(len(points[k].of_hrv(archives[k].hrv)) for k in placed):
+            raise GcpError("level 2 of a twin pass: no control point in either HRV's file")
+        if placed:
+            strips = [
+                Strip(
+                    setups[k].pg,
+                    setups[k].scenes,
+                    points[k].of_hrv(archives[k].hrv),
+                    next(iter(archives[k].bands)),
+                )
+                for k in placed
+            ]
+            for k, adj in zip(placed, adjust_strips(strips, options), strict=True):
+                adjustments[k] = adj
+    return [
+        process_l0(
+            a,
+            options,
+            out_dir,
+            name=names[k],
+            checkpoints=marks[k],
+            provenance=provenance,
+            on_scene=on_scene,
+            gcps=points[k],
+            setup=setups[k],
+            adjustment=adjustments[k],
+        )
+        for k, a in enumerate(archives)
+    ]
 
 
 def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:

@@ -36,6 +36,7 @@ RENDERED = {
     "westin_gap",
     "pass_ends",
     "single_gcp",
+    "twin_gcp",
 }
 
 

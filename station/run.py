@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -79,11 +80,12 @@ def run_scenario(
     acqs = emulate_pass(scn)
     timings["emulate"] = clock() - t
     stages.update()
+    tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
+    received = [_receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)]
+    passes = _process(acqs, received, tags, timings, stages, progress)
     hrvs, made = [], []
-    for acq in acqs:
-        tag = scn.name if n_hrv == 1 else f"{scn.name}_hrv{acq.hrv.number}"
-        section, products = _receive_and_process(acq, out, tag, timings, stages, progress)
-        hrvs.append(section)
+    for acq, rec, products in zip(acqs, received, passes, strict=True):
+        hrvs.append(_section(acq, rec, products))
         made += [(acq.hrv.number, s) for s in products.scenes]
     rows = []
     t = clock()
@@ -170,22 +172,28 @@ def prepare_run_dir(out_dir: str | Path, name: str) -> Path:
     return out
 
 
-def _receive_and_process(
-    acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any, progress: bool
-) -> tuple[dict[str, Any], Any]:
-    """One HRV's chain after the emulator: its channel, its L0 archive, GEO and COR.
+@dataclass(frozen=True, eq=False)
+class _Received:
+    """One HRV's chain from the emulator to the processing centre's door: its L0 archive,
+    the decoder's report, the truth behind it and its control points as measured."""
 
-    Adds its wall times to ``timings``; returns its report section and its products.
-    """
-    from tqdm import tqdm
+    l0: Path
+    archive: Any
+    decode: dict[str, Any]
+    truth: Any
+    gcps: Any
+    gcps_path: Path
 
-    from levels.process import process_l0
+
+def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any) -> _Received:
+    """One HRV's channel, its L0 archive and its control-point file; adds the wall times
+    to ``timings``."""
     from levels.readers.l0 import read_l0
     from station.sipc.process import measured_control_points
     from station.srrs.report import downlink_report
     from station.srrs.session import downlink, record
 
-    scn, clock = acq.scenario, time.perf_counter
+    clock = time.perf_counter
     stages.set_description(f"downlink HRV{acq.hrv.number}")
     result = downlink(acq)
     for k, v in result.timings_s.items():
@@ -195,33 +203,60 @@ def _receive_and_process(
     timings["record"] = timings.get("record", 0.0) + clock() - t
     decode = downlink_report(acq, result)
     stages.update()
-    stages.set_description(f"GEO and COR HRV{acq.hrv.number}")
     archive = read_l0(l0)
+    gcps_path = out / f"{tag}.gcp.csv"
+    truth, gcps = measured_control_points(acq, archive, gcps_path)
+    return _Received(l0, archive, decode, truth, gcps, gcps_path)
+
+
+def _process(
+    acqs: Any,
+    received: list[_Received],
+    tags: list[str],
+    timings: dict[str, Any],
+    stages: Any,
+    progress: bool,
+) -> list[Any]:
+    """GEO and COR of every HRV of the pass (``levels.process.process_pass``: a twin pass's
+    HRVs adjusted together when the scenario asks); adds the wall times to ``timings``."""
+    from tqdm import tqdm
+
+    from levels.process import process_pass
+
+    scn = acqs[0].scenario
+    stages.set_description("GEO and COR")
     scenes = tqdm(desc="scenes", unit="scene", disable=not progress, leave=False)
 
     def on_scene(_done: Any, total: int) -> None:
-        scenes.total = total
+        if scenes.n >= (scenes.total or 0):
+            scenes.total = (scenes.total or 0) + total
         scenes.update()
 
-    gcps_path = out / f"{tag}.gcp.csv"
-    truth, gcps = measured_control_points(acq, archive, gcps_path)
-    products = process_l0(
-        archive,
+    passes = process_pass(
+        [r.archive for r in received],
         scn.processing,
-        out,
-        name=tag,
-        checkpoints=truth,
+        received[0].l0.parent,
+        names=tags,
+        checkpoints=[r.truth for r in received],
         provenance=scn.provenance(),
         on_scene=on_scene,
-        gcps=gcps,
+        gcps=[r.gcps for r in received],
     )
     scenes.close()
-    timings["geo"] = timings.get("geo", 0.0) + products.timings_s["geo"]
     cor = timings.setdefault("cor", {})
-    for s in products.scenes:
-        for k, v in s.timings_s.items():
-            cor[k] = cor.get(k, 0.0) + v
-    stages.update(2)
+    for products in passes:
+        timings["geo"] = timings.get("geo", 0.0) + products.timings_s["geo"]
+        for s in products.scenes:
+            for k, v in s.timings_s.items():
+                cor[k] = cor.get(k, 0.0) + v
+    stages.update(2 * len(passes))
+    return passes
+
+
+def _section(acq: Any, rec: _Received, products: Any) -> dict[str, Any]:
+    """One HRV's section of the run report."""
+    scn, decode, archive, l0 = acq.scenario, rec.decode, rec.archive, rec.l0
+    gcps_path = rec.gcps_path
     section = {
         "hrv": decode["hrv"],
         "mode": decode["mode"],
@@ -255,7 +290,7 @@ def _receive_and_process(
             ],
         },
     }
-    return section, products
+    return section
 
 
 def _adjustment(adjustment: Any, acq: Any) -> dict[str, Any]:

@@ -368,8 +368,19 @@ class GcpConfig:
     blunder_m: float = option(
         100.0, "blunder_m", "how far a blunder's map position is off", 1.0, 0.0, 1e5
     )
+    hrvs: tuple[float, ...] = option(
+        [1, 2],
+        "hrvs",
+        "the HRVs whose control points were measured (a twin pass may have them in one "
+        "only: the other's file then holds none)",
+        1.0,
+        1.0,
+        2.0,
+    )
 
     def __post_init__(self) -> None:
+        if any(h not in (1.0, 2.0) for h in self.hrvs):
+            raise ScenarioError(f"[gcps] hrvs = {list(self.hrvs)}: HRV numbers, 1 or 2")
         r = self.line_ranges
         if len(r) % 2 or any(a >= b for a, b in zip(r[::2], r[1::2], strict=True)):
             raise ScenarioError(

@@ -25,14 +25,14 @@ from typing import Any
 
 import numpy as np
 
-from levels.adjust import adjust
+from levels.adjust import Strip, adjust, adjust_strips
 from levels.geometry.attitude import westin_variogram_rad2
 from levels.options import ProcessingOptions
 from levels.spot import MODES, ORBIT_ALTITUDE_M
 from station.scenario import scenario_from_dict
 from station.sipc.process import control_points, emulated_pass
 from station.sipc.truth import Truth
-from station.spacecraft.emulator import emulate
+from station.spacecraft.emulator import emulate, emulate_pass
 
 SCENE = 6000  # lines and detectors of a full P scene
 LINE_S = MODES["P"].line_period_s
@@ -181,6 +181,46 @@ def ends(passes: int) -> None:
     )
 
 
+def twin(passes: int, n_scenes: int = 3) -> None:
+    print(f"twin pass, both HRVs in P ({n_scenes} scenes each), 12 points per scene in HRV1 only:")
+    per_hrv: dict[int, list] = {1: [], 2: []}
+    pred: dict[int, list] = {1: [], 2: []}
+    alone = []
+    for seed in range(passes):
+        scn = scenario_from_dict(
+            {
+                "name": "level2_twin",
+                "seed": seed,
+                "instrument": [
+                    {"hrv": h, "twin": True, "n_lines": SCENE * n_scenes} for h in (1, 2)
+                ],
+                "gcps": {"count": 12 * n_scenes, "hrvs": [1]},
+            }
+        )
+        acqs = emulate_pass(scn, render=False)
+        geo = [emulated_pass(a, SCENE) for a in acqs]
+        strips = [
+            Strip(pg, scenes, control_points(a)) for a, (pg, scenes) in zip(acqs, geo, strict=True)
+        ]
+        opts = ProcessingOptions()
+        for a, (pg, scenes), adj in zip(acqs, geo, adjust_strips(strips, opts), strict=True):
+            truth = Truth(a, 0)
+            h = a.hrv.number
+            per_hrv[h] += [np.hypot(*truth.model_error_en(adj.refine(pg, s))) for s in scenes]
+            pred[h] += list(adj.predicted_sigma_m[:, 2])
+        pg2, scenes2 = geo[1]
+        solo = adjust(pg2, scenes2, control_points(acqs[1]), opts)
+        alone += [np.hypot(*Truth(acqs[1], 0).model_error_en(solo.refine(pg2, s))) for s in scenes2]
+    for h in (1, 2):
+        m = rms(per_hrv[h])
+        p = float(np.sqrt(np.mean(np.square(pred[h]))))
+        print(
+            f"  HRV{h}, adjusted together: {m:5.1f} m ({m / PIXEL_M:4.2f} px), "
+            f"predicted {p:5.1f} m, measured/predicted {m / p:4.2f}"
+        )
+    print(f"  HRV2 alone (no point of its own: the a priori budget): {rms(alone):6.1f} m")
+
+
 def blunders(passes: int) -> None:
     print("10 % of 20 points with 100 m blunders, one scene:")
     clean, dirty, planted, caught, false = [], [], 0, 0, 0
@@ -205,7 +245,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--passes", type=int, default=20, help="emulated passes per figure")
     ap.add_argument("--plot", help="write the gap-length plot here (PNG)")
     ap.add_argument(
-        "--only", choices=("scene", "westin", "gap", "ends", "blunders"), help="one figure"
+        "--only", choices=("scene", "westin", "gap", "ends", "blunders", "twin"), help="one figure"
     )
     args = ap.parse_args(argv)
     commit = subprocess.run(
@@ -218,6 +258,7 @@ def main(argv: list[str] | None = None) -> None:
         "gap": lambda: gap_sweep(max(args.passes // 2, 3), args.plot),
         "ends": lambda: ends(max(args.passes // 2, 3)),
         "blunders": lambda: blunders(args.passes),
+        "twin": lambda: twin(max(args.passes // 2, 3)),
     }
     for name, fn in todo.items():
         if args.only in (None, name):

@@ -130,8 +130,6 @@ def read_gcps(
                 f"line, column = {line}, {col}: outside the image of "
                 f"{n_lines} lines × {n_columns} columns",
             )
-    if not cols["id"]:
-        raise GcpError(f"{where}: a header but no control point")
     a = {c: np.asarray(cols[c], dtype=np.float64) for c in GCP_COLUMNS[1:]}
     return ControlPointSet(
         tuple(cols["id"]),

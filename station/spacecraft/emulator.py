@@ -194,7 +194,7 @@ def _control_points(
     world: World,
     rng: np.random.Generator,
 ) -> ControlPoints:
-    n = cfg.count
+    n = cfg.count if hrv.number in cfg.hrvs else 0
     starts, ends = np.array(cfg.line_ranges[::2]), np.array(cfg.line_ranges[1::2])
     lengths = ends - starts
     ends_laid = np.cumsum(lengths)  # the ranges laid end to end
