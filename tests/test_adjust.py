@@ -209,3 +209,50 @@ def test_a_joint_adjustment_needs_one_platform_attitude() -> None:
             [Strip(*geo[0], points[0]), Strip(other, scenes2[1:], points[1])],
             ProcessingOptions(),
         )
+
+
+def test_station_process_adjusts_a_twin_pass_from_both_archives(tmp_path, capsys) -> None:
+    """``station process HRV1.l0.h5 HRV2.l0.h5`` (adjustment = "twin") makes the run's level 2
+    products again, and HRV2's, without points of its own, comes out refined."""
+    from station.cli import main
+    from station.run import run_scenario
+
+    text = (
+        'name = "tw"\nseed = 5\n'
+        + "".join(
+            f"[[instrument]]\nhrv = {h}\ntwin = true\nn_detectors = 300\nn_lines = 600\n"
+            for h in (1, 2)
+        )
+        + "[gcps]\ncount = 12\nhrvs = [1]\n"
+        + "[downlink]\nbit_rate_mbps = 0.6\npreamble_s = 0.1\npostamble_s = 0.1\n"
+        + '[processing]\nlevels = ["2A", "2"]\nadjustment = "twin"\nscene_lines = 300\n'
+    )
+    scn_path = tmp_path / "tw.toml"
+    scn_path.write_text(text)
+    from station.scenario import load_scenario
+
+    report = run_scenario(load_scenario(scn_path), tmp_path / "run", quicklooks=False)
+    assert [h["adjustment"]["mode"] for h in report["hrvs"]] == ["twin", "twin"]
+    archives = [str(tmp_path / "run" / f"tw_hrv{h}.l0.h5") for h in (1, 2)]
+    args = ["process", *archives, "--scenario", str(scn_path), "--json"]
+    assert main([*args, "--out", str(tmp_path / "again")]) == 0
+    again = json.loads(capsys.readouterr().out)["archives"]
+    key = "checkpoints/P/line_of_sight/rms_m"
+    for rows, hrv in zip(again, (1, 2), strict=True):
+        ran = {
+            (p["scene"], p["level"]): p["quality"][key]
+            for p in report["products"]
+            if p["hrv"] == hrv
+        }
+        redone = {(r["scene"], r["level"]): r[key] for r in rows["products"]}
+        assert redone == pytest.approx(ran, rel=1e-9)
+    hrv2 = {(r["scene"], r["level"]): r[key] for r in again[1]["products"]}
+    for scene in (0, 1):
+        # 200 m pixels: HRV1's points take HRV2 from the system model's 200 m to tens of m
+        assert hrv2[scene, "2"] < 0.3 * hrv2[scene, "2A"]
+    # processed alone, the HRV without points is refused, with the way out in the message
+    assert (
+        main([*args[:1], archives[1], "--scenario", str(scn_path), "--out", str(tmp_path / "x")])
+        == 2
+    )
+    assert "adjustment = 'twin'" in capsys.readouterr().err

@@ -23,9 +23,15 @@ def register(sub: Any) -> None:
         "SOURCE is an L0 archive (.h5), reprocessed as recorded: with "
         "--scenario (the scenario that made it) the checkpoints are measured "
         "against its truth and the products are those of its run, bit for bit. "
-        "SOURCE may also be a scenario (.toml), emulated and received first.",
+        "SOURCE may also be a scenario (.toml), emulated and received first. Several "
+        "archives, one per HRV of one pass, are processed together: with "
+        '[processing] adjustment = "twin", level 2 adjusts both HRVs at once.',
     )
-    p.add_argument("source", help="an L0 archive (.h5) or a scenario (.toml)")
+    p.add_argument(
+        "source",
+        nargs="+",
+        help="an L0 archive (.h5), both HRVs' archives of one pass, or a scenario (.toml)",
+    )
     p.add_argument(
         "--scenario",
         help="the scenario that made the L0 archive: its "
@@ -41,8 +47,9 @@ def register(sub: Any) -> None:
     )
     p.add_argument(
         "--gcps",
+        action="append",
         help="control points of the pass for level 2 (docs/gcp.md; default: the "
-        "<name>.gcp.csv beside the L0 archive)",
+        "<name>.gcp.csv beside the L0 archive); once per archive, in their order",
     )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     add_out(p, "directory of the products (default: <name>_products)")
@@ -75,11 +82,13 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
 def _process(args: argparse.Namespace) -> int:
     from levels.options import ProcessingOptions
     from station.scenario import load_scenario
-    from station.sipc.process import l0_stem, process_scenario, reprocess_l0
+    from station.sipc.process import l0_stem, process_scenario, reprocess_pass
 
-    source = Path(args.source)
+    sources = [Path(s) for s in args.source]
     scenario = load_scenario(args.scenario) if args.scenario else None
-    if source.suffix == ".toml":
+    if any(s.suffix == ".toml" for s in sources):
+        if len(sources) > 1:
+            raise StationError("give one scenario (.toml), or L0 archives (.h5), not both")
         if scenario is not None:
             raise StationError(
                 "give --scenario only with an L0 archive; a .toml SOURCE is the scenario"
@@ -88,25 +97,41 @@ def _process(args: argparse.Namespace) -> int:
             raise StationError(
                 "give --gcps only with an L0 archive; a scenario draws its own control points"
             )
-        scn = load_scenario(source)
+        scn = load_scenario(sources[0])
         scn = dataclasses.replace(
             scn, processing=_options(args, scn.processing), name=args.name or scn.name
         )
         out = Path(args.out) if args.out else Path(f"{scn.name}_products")
         products, l0 = process_scenario(scn, out)
+        made = [(l0, products)]
     else:
+        if args.name and len(sources) > 1:
+            raise StationError(
+                "--name names one archive's products; several are named after theirs"
+            )
+        if args.gcps and len(args.gcps) != len(sources):
+            raise StationError(
+                f"--gcps given {len(args.gcps)} time(s) for {len(sources)} L0 archive(s): "
+                "once per archive, or not at all"
+            )
         base = scenario.processing if scenario is not None else ProcessingOptions()
-        l0 = source
-        name = args.name or l0_stem(source)
-        out = Path(args.out) if args.out else Path(f"{name}_products")
-        products = reprocess_l0(
-            source,
+        names = [args.name] if args.name else [l0_stem(s) for s in sources]
+        out = Path(args.out) if args.out else Path(f"{names[0]}_products")
+        passes = reprocess_pass(
+            sources,
             out,
             options=_options(args, base),
             scenario=scenario,
-            name=name,
+            names=names,
             gcps=args.gcps,
         )
+        made = list(zip(sources, passes, strict=True))
+    data = [_archive_data(l0, out, products) for l0, products in made]
+    emit(args, data[0] if len(data) == 1 else {"archives": data}, _text)
+    return 0
+
+
+def _archive_data(l0: Path, out: Path, products: Any) -> dict[str, Any]:
     rows = [
         {
             "scene": s.index,
@@ -118,7 +143,7 @@ def _process(args: argparse.Namespace) -> int:
         for s in products.scenes
         for lv in s.paths
     ]
-    data = {
+    return {
         "l0": str(l0),
         "out": str(out),
         "tail_lines": products.tail_lines,
@@ -126,8 +151,6 @@ def _process(args: argparse.Namespace) -> int:
         "products": rows,
         "skipped": [dataclasses.asdict(k) for k in products.skipped],
     }
-    emit(args, data, _text)
-    return 0
 
 
 def _first_band(row: dict[str, Any]) -> str | None:
@@ -139,6 +162,8 @@ def _first_band(row: dict[str, Any]) -> str | None:
 
 
 def _text(data: dict[str, Any]) -> str:
+    if "archives" in data:
+        return "\n".join(_text(d) for d in data["archives"])
     from station.run import approximation_max_px
 
     t = data["timings_s"]

@@ -17,7 +17,7 @@ import numpy as np
 from levels.errors import L0Error
 from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
 from levels.options import ProcessingOptions
-from levels.process import PassProducts, nominal_pixel_size_m, process_l0
+from levels.process import PassProducts, nominal_pixel_size_m, process_l0, process_pass
 from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
 from levels.readers.l0 import L0Archive, read_l0
 from station.errors import ScenarioError
@@ -33,6 +33,7 @@ __all__ = [
     "measured_control_points",
     "process_scenario",
     "reprocess_l0",
+    "reprocess_pass",
     "truth_for",
 ]
 
@@ -155,16 +156,52 @@ def reprocess_l0(
     Level 2 reads the control points from ``gcps``, by default the ``<name>.gcp.csv`` a run
     wrote beside the archive.
     """
-    path = Path(l0_path)
-    archive = read_l0(path)
+    return reprocess_pass(
+        [l0_path],
+        out_dir,
+        options=options,
+        scenario=scenario,
+        names=[name] if name else None,
+        gcps=[gcps] if gcps else None,
+    )[0]
+
+
+def reprocess_pass(
+    l0_paths: list[str | Path],
+    out_dir: str | Path,
+    *,
+    options: ProcessingOptions | None = None,
+    scenario: Scenario | None = None,
+    names: list[str] | None = None,
+    gcps: list[str | Path] | None = None,
+) -> list[PassProducts]:
+    """:func:`reprocess_l0` of the archives of one pass, one per HRV, together
+    (:func:`levels.process.process_pass`: with ``adjustment = "twin"``, level 2 adjusts
+    both HRVs at once). ``names`` and ``gcps``, when given, one per archive."""
+    paths = [Path(p) for p in l0_paths]
+    for what, given in (("names", names), ("control-point files", gcps)):
+        if given is not None and len(given) != len(paths):
+            raise L0Error(f"{len(paths)} L0 archives but {len(given)} {what}")
+    archives = [read_l0(p) for p in paths]
     opts = options or (scenario.processing if scenario is not None else ProcessingOptions())
-    truth = truth_for(scenario, archive) if scenario is not None else None
+    truths = [truth_for(scenario, a) if scenario is not None else None for a in archives]
     points = None
     if "2" in opts.levels:
-        where = Path(gcps) if gcps else path.with_name(f"{l0_stem(path)}.gcp.csv")
-        points = read_gcps(where, archive.n_lines, archive.n_columns)
-    return process_l0(
-        archive, opts, out_dir, name=name or l0_stem(path), checkpoints=truth, gcps=points
+        where = (
+            [Path(g) for g in gcps]
+            if gcps
+            else [p.with_name(f"{l0_stem(p)}.gcp.csv") for p in paths]
+        )
+        points = [
+            read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)
+        ]
+    return process_pass(
+        archives,
+        opts,
+        out_dir,
+        names=names or [l0_stem(p) for p in paths],
+        checkpoints=truths,
+        gcps=points,
     )
 
 
