@@ -87,3 +87,7 @@ class CheckpointSource(Protocol):
     def level_2a(
         self, scene: Any, geometry: Any, band_index: int, per_side: int
     ) -> dict[str, Any]: ...
+
+    def level_3(
+        self, scene: Any, geometry: Any, band_index: int, per_side: int
+    ) -> dict[str, Any]: ...

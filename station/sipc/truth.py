@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
+from levels.geo.level3 import Level3Geometry
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.frames import apply, enu_from_ecef
 from levels.geometry.model import PushbroomModel
@@ -61,6 +62,12 @@ class Truth:
     ) -> dict:
         """:func:`checkpoints_2a` (the :class:`levels.quality.CheckpointSource` protocol)."""
         return checkpoints_2a(self, scene, geometry, band_index, per_side)
+
+    def level_3(
+        self, scene: SceneGeometry, geometry: Level3Geometry, band_index: int, per_side: int
+    ) -> dict:
+        """:func:`checkpoints_3` (the :class:`levels.quality.CheckpointSource` protocol)."""
+        return checkpoints_3(self, scene, geometry, band_index, per_side)
 
     def model(self, band: int) -> PushbroomModel:
         if band not in self._models:
@@ -170,4 +177,34 @@ def checkpoints_2a(
         "output_col": j,
         "error_e_m": e - et,
         "error_n_m": n - nt,
+    }
+
+
+def checkpoints_3(
+    truth: Truth, scene: SceneGeometry, geom: Level3Geometry, band: int, per_side: int
+) -> dict:
+    """Checkpoint errors of a level 3 product in its map: where it puts each checkpoint's raw
+    pixel against where that pixel truly looked on the terrain (``ground``); pixels whose
+    ray missed the terrain, or that fall on a void of the DEM, are left out."""
+    line, col = truth.lattice(scene, per_side)
+    tl = truth.truth_lines(scene, line)
+    g = truth.ground(band, tl, col)
+    ok = np.all(np.isfinite(g), axis=1)
+    lat, lon, _h = truth.model(band).ellipsoid.to_geodetic(g[ok])
+    to_map = pyproj.Transformer.from_crs(
+        "EPSG:4326", pyproj.CRS.from_wkt(geom.crs_wkt), always_xy=True
+    )
+    eg, ng = (np.asarray(v) for v in to_map.transform(np.degrees(lon), np.degrees(lat)))
+    i, j = geom.output_of(line[ok], col[ok], geom.ij_of_map(eg, ng))
+    e, n = geom.map_of(i, j)
+    fine = np.isfinite(e) & np.isfinite(n)
+    return {
+        "axes": "1: easting, 2: northing of the map",
+        "ground": error_stats((e - eg)[fine], (n - ng)[fine], geom.pixel_size_m),
+        "raw_line": line[ok][fine],
+        "raw_column": col[ok][fine],
+        "output_row": i[fine],
+        "output_col": j[fine],
+        "error_e_m": (e - eg)[fine],
+        "error_n_m": (n - ng)[fine],
     }

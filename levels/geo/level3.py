@@ -1,0 +1,367 @@
+"""Level 3 geometry: orthorectification over a DEM, the indirect method (Shu Ning, ``002_…``).
+
+Levels 1B–2 put every pixel on a surface of constant height; relief then shifts it by about
+``h · tan θ``. Level 3 puts each output pixel where the terrain is:
+
+1. **Anchor grids at several heights.** The 2A chain (direct grid, inversion, inverse grid:
+   :mod:`levels.geo.level2a`, with its care for the CCD buttings) is run at
+   ``HEIGHT_LEVELS`` reference heights spanning the DEM over the scene, all on one map grid.
+   Each gives, at every anchor of the output grid, the raw ``(L, C)`` that sees the map
+   point *at that height*: a 3-D anchor grid over (row, column, height).
+2. **The DEM per pixel.** The DEM (:mod:`levels.readers.dem`, any CRS and datum) is sampled
+   at the nodes of a grid in the output CRS at its own spacing (``dem_step_px`` output
+   pixels), and bilinearly between them at every output pixel: the terrain height under
+   the pixel.
+3. **Densification.** At each output pixel, each height level's grid is interpolated
+   bilinearly (as in 2A), and the levels are combined by Lagrange interpolation in the
+   pixel's height (quadratic through three levels: the raw position of a ground point moves
+   almost linearly with its height, ``h · tan θ``, and the quadratic takes the rest).
+
+The anchor grid's error is measured, never assumed: :meth:`Level3Geometry.anchor_error`
+takes a lattice of output pixels to the ground at their DEM height and into the raw image
+through the rigorous model, and compares with the grid. :func:`level3_geometry` halves the
+anchor spacing until that error is at most ``ANCHOR_TOLERANCE_PX``.
+
+Pixels hidden by the relief (behind a ridge at a steep view angle) are found by a z-buffer
+in the raw image (:func:`levels.cor.resample.resample_3`): of the ground points that fall in
+one raw pixel, the highest is the one seen (every line of sight descends), and a point more
+than ``HIDDEN_TOLERANCE_PX`` raw pixels of line of sight below it is hidden. Voids of the DEM
+leave their pixels invalid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import pyproj
+from numpy.typing import ArrayLike, NDArray
+
+from levels.errors import GeometryError
+from levels.geo.inverse_grid import bilinear_grid
+from levels.geo.level2a import Level2AGeometry, level2a_geometry
+from levels.geo.scenes import SceneGeometry
+from levels.geometry.sensor import butting_columns
+from levels.quality import raw_error_stats
+from levels.readers.dem import Dem
+
+__all__ = [
+    "ANCHOR_TOLERANCE_PX",
+    "HEIGHT_LEVELS",
+    "Level3Geometry",
+    "lagrange_weights",
+    "level3_geometry",
+]
+
+#: Reference heights of the anchor grid (Lagrange in height through them).
+HEIGHT_LEVELS = 3
+#: The anchor grid's error against the rigorous model must not exceed this (raw pixels).
+ANCHOR_TOLERANCE_PX = 0.05
+#: Height margin (m) of the anchor levels beyond the DEM's range over the scene.
+HEIGHT_MARGIN_M = 50.0
+#: A ground point more than this many raw pixels of line of sight below the highest point
+#: seen in its raw pixel is hidden (steep slopes facing the sensor put neighbours that much
+#: apart in height within one raw pixel).
+HIDDEN_TOLERANCE_PX = 1.5
+#: The DEM is resampled onto the output CRS at this many nodes per DEM spacing: bilinear
+#: between them then follows the DEM's own bilinear surface (at one node per spacing, the
+#: two interpolations differ by metres of height on rough terrain, 0.5 px at 27°).
+DEM_OVERSAMPLING = 4
+#: Lattice of output pixels per side where the anchor error is measured.
+ANCHOR_CHECK_LATTICE = 41
+
+
+def lagrange_weights(nodes: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Lagrange interpolation weights at ``x`` through ``nodes``, shape ``(K, *x.shape)``."""
+    w = np.ones((nodes.size, *np.shape(x)))
+    for k in range(nodes.size):
+        for m in range(nodes.size):
+            if m != k:
+                w[k] *= (x - nodes[m]) / (nodes[k] - nodes[m])
+    return w
+
+
+@dataclass(frozen=True, eq=False)
+class Level3Geometry:
+    """GEO for level 3: anchor grids at ``heights_m`` sharing one map grid, the DEM's
+    ellipsoidal heights on a grid of the output CRS, the anchor grid's measured error."""
+
+    levels: tuple[Level2AGeometry, ...]
+    heights_m: NDArray[np.float64]
+    dem_height_m: NDArray[np.float64]  # (rows, cols) on output pixels (a·step, b·step)
+    dem_step_px: float
+    dem_source: str
+    dem_vertical: str
+    dem_spacing_m: float
+    anchor_error_px: dict[str, float]
+
+    # the map grid: every level's
+    @property
+    def grid(self) -> Level2AGeometry:
+        return self.levels[0]
+
+    @property
+    def crs_wkt(self) -> str:
+        return self.grid.crs_wkt
+
+    @property
+    def pixel_size_m(self) -> float:
+        return self.grid.pixel_size_m
+
+    @property
+    def n_rows(self) -> int:
+        return self.grid.n_rows
+
+    @property
+    def n_cols(self) -> int:
+        return self.grid.n_cols
+
+    @property
+    def n_raw_lines(self) -> int:
+        return self.grid.n_raw_lines
+
+    @property
+    def n_raw_columns(self) -> int:
+        return self.grid.n_raw_columns
+
+    @property
+    def geotransform(self) -> tuple[float, float, float, float, float, float]:
+        return self.grid.geotransform
+
+    def map_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return self.grid.map_of(i, j)
+
+    def ij_of_map(
+        self, e_m: ArrayLike, n_m: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return self.grid.ij_of_map(e_m, n_m)
+
+    def height_at(self, i: ArrayLike, j: ArrayLike) -> NDArray[np.float64]:
+        """The DEM's ellipsoidal height under output pixels (NaN over voids)."""
+        a = np.asarray(i, dtype=np.float64) / self.dem_step_px
+        b = np.asarray(j, dtype=np.float64) / self.dem_step_px
+        nr, nc = self.dem_height_m.shape
+        a0 = np.clip(np.floor(a).astype(np.int64), 0, nr - 2)
+        b0 = np.clip(np.floor(b).astype(np.int64), 0, nc - 2)
+        u, v = a - a0, b - b0
+        z = self.dem_height_m
+        return (1 - u) * ((1 - v) * z[a0, b0] + v * z[a0, b0 + 1]) + u * (
+            (1 - v) * z[a0 + 1, b0] + v * z[a0 + 1, b0 + 1]
+        )
+
+    def raw_of(
+        self, i: ArrayLike, j: ArrayLike, h_m: ArrayLike | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Raw ``(L, C)`` of output pixels on the terrain (the DEM's height, or ``h_m``):
+        each level's grid bilinearly, the levels by Lagrange in height; the line from the
+        segment of the interpolated column (NaN over voids)."""
+        i_a, j_a = np.broadcast_arrays(
+            np.asarray(i, dtype=np.float64), np.asarray(j, dtype=np.float64)
+        )
+        h = self.height_at(i_a, j_a) if h_m is None else np.broadcast_to(h_m, i_a.shape)
+        w = lagrange_weights(self.heights_m, h)
+        g = self.grid
+        rows, cols = g.inverse_rows, g.inverse_cols
+        col = sum(
+            w[k] * bilinear_grid(rows, cols, lv.inverse_column, i_a, j_a)
+            for k, lv in enumerate(self.levels)
+        )
+        col = np.asarray(col)
+        seg = g.segment_of(np.nan_to_num(col))
+        line = np.full(col.shape, np.nan)
+        for s in np.unique(seg):
+            m = seg == s
+            line[m] = sum(
+                w[k][m] * bilinear_grid(rows, cols, lv.inverse_line[s], i_a[m], j_a[m])
+                for k, lv in enumerate(self.levels)
+            )
+        return line, np.where(np.isfinite(h), col, np.nan)
+
+    def output_of(
+        self, line: ArrayLike, column: ArrayLike, first_guess: tuple[NDArray, NDArray]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Output ``(I, J)`` where raw ``(L, C)`` lands on the terrain: Newton from
+        ``first_guess`` with the grid's Jacobian (the DEM's slopes included)."""
+        la, ca = (np.asarray(x, dtype=np.float64).ravel() for x in (line, column))
+        i, j = (np.asarray(x, dtype=np.float64).ravel().copy() for x in first_guess)
+        eps = 0.25
+        for _ in range(8):
+            lo, co = self.raw_of(i, j)
+            li, ci = self.raw_of(i + eps, j)
+            lj, cj = self.raw_of(i, j + eps)
+            a11, a12 = (li - lo) / eps, (lj - lo) / eps
+            a21, a22 = (ci - co) / eps, (cj - co) / eps
+            det = a11 * a22 - a12 * a21
+            rl, rc = la - lo, ca - co
+            i = i + (a22 * rl - a12 * rc) / det
+            j = j + (-a21 * rl + a11 * rc) / det
+        return i, j
+
+    def anchor_error(self, scene: SceneGeometry, band: str | None = None) -> dict[str, float]:
+        """The anchor grid against the rigorous model at the pixels' DEM heights, in raw
+        pixels, over a lattice of output pixels inside the raw image (butting gaps left
+        out, as for 2A: no detector sees there)."""
+        model = scene.models[band] if band is not None else scene.model
+        n = ANCHOR_CHECK_LATTICE
+        i, j = (
+            a.ravel()
+            for a in np.meshgrid(
+                np.linspace(0, self.n_rows - 1, n),
+                np.linspace(0, self.n_cols - 1, n),
+                indexing="ij",
+            )
+        )
+        h = self.height_at(i, j)
+        la, ca = self.raw_of(i, j, h)
+        inside = (
+            np.isfinite(h)
+            & (la >= 0)
+            & (la <= self.n_raw_lines - 1)
+            & (ca >= 0)
+            & (ca <= self.n_raw_columns - 1)
+        )
+        e, nn = self.map_of(i[inside], j[inside])
+        to_geo = pyproj.Transformer.from_crs(
+            pyproj.CRS.from_wkt(self.crs_wkt), "EPSG:4326", always_xy=True
+        )
+        lon, lat = to_geo.transform(e, nn)
+        exact = model.ground_to_image(
+            np.radians(lat), np.radians(lon), h[inside], first_line=la[inside]
+        )
+        gap = np.zeros(exact.column.size, dtype=bool)
+        for first in butting_columns(model.look_angles)[1::2]:
+            gap |= (exact.column > first - 1) & (exact.column < first)
+        ok = exact.converged & ~gap
+        return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
+
+    def product_tree(self) -> dict[str, Any]:
+        """``geometry/level_3`` of a product (``docs/products.md``); the anchor grids of each
+        height are in ``levels/<k>`` as a 2A tree."""
+        return {
+            "method": "indirect",
+            "heights_m": self.heights_m,
+            "dem": {
+                "source": self.dem_source,
+                "vertical_datum": self.dem_vertical,
+                "spacing_m": self.dem_spacing_m,
+                "step_px": self.dem_step_px,
+                "height_m": self.dem_height_m.astype(np.float32),
+            },
+            "anchor_error_px": dict(self.anchor_error_px),
+            "anchor_step_px": np.asarray(self.grid.inverse_step, dtype=np.int64),
+            "levels": {
+                str(k): Level2AGeometry.product_tree({"_": lv})["bands"]["_"]
+                for k, lv in enumerate(self.levels)
+            },
+        }
+
+
+def _dem_on_grid(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray[np.float64]:
+    """The DEM's ellipsoidal heights at output pixels ``(a·step, b·step)`` covering the grid."""
+    na = int(np.ceil((grid.n_rows - 1) / step_px)) + 2
+    nb = int(np.ceil((grid.n_cols - 1) / step_px)) + 2
+    a, b = np.meshgrid(np.arange(na) * step_px, np.arange(nb) * step_px, indexing="ij")
+    e, n = grid.map_of(a, b)
+    to_geo = pyproj.Transformer.from_crs(
+        pyproj.CRS.from_wkt(grid.crs_wkt), "EPSG:4326", always_xy=True
+    )
+    lon, lat = to_geo.transform(e.ravel(), n.ravel())
+    return dem.heights(np.radians(lat), np.radians(lon)).reshape(na, nb)
+
+
+def _dem_spacing_m(dem: Dem, lat_rad: float) -> float:
+    sx, sy = dem.spacing
+    crs = pyproj.CRS.from_wkt(dem.crs_wkt)
+    if crs.is_geographic:
+        r = 6371000.0
+        return float(np.radians(min(sx * np.cos(lat_rad), sy)) * r)
+    return float(min(sx, sy))
+
+
+def level3_geometry(
+    scene: SceneGeometry,
+    dem: Dem,
+    pixel_size_m: float,
+    crs: pyproj.CRS,
+    method: str = "nearest4",
+    grid_rows: str = "attitude",
+    band: str | None = None,
+    like: Level3Geometry | None = None,
+    grid_columns: str = "butting",
+    inverse_step_px: int = 0,
+) -> Level3Geometry:
+    """GEO for level 3 (module docstring): the anchor spacing is halved from 2A's until
+    its error is at most :data:`ANCHOR_TOLERANCE_PX` (``inverse_step_px`` fixes it)."""
+    b = band or next(iter(scene.models))
+    # the scene's footprint at its reference height tells which DEM heights it spans
+    probe = level2a_geometry(
+        scene, pixel_size_m, crs, method, grid_rows=grid_rows, band=b, grid_columns=grid_columns
+    )
+    spacing = _dem_spacing_m(dem, scene.centre_lat_rad)
+    step = max(1.0, spacing / pixel_size_m / DEM_OVERSAMPLING)
+    heights_probe = _dem_on_grid(dem, probe, step)
+    if not np.isfinite(heights_probe).any():
+        raise GeometryError(
+            f"level 3: the DEM {dem.source or ''} does not cover scene {scene.cut.index}"
+        )
+    lo = float(np.nanmin(heights_probe)) - HEIGHT_MARGIN_M
+    hi = float(np.nanmax(heights_probe)) + HEIGHT_MARGIN_M
+    heights = np.linspace(lo, hi, HEIGHT_LEVELS)
+    # one map grid for every level: the union of the footprints at the lowest and highest
+    at = [replace(scene, reference_height_m=float(h)) for h in heights]
+    if like is not None:
+        template = like.grid
+    else:
+        ends = [
+            level2a_geometry(
+                s, pixel_size_m, crs, method, grid_rows=grid_rows, band=b, grid_columns=grid_columns
+            )
+            for s in (at[0], at[-1])
+        ]
+        res = ends[0].pixel_size_m
+        x_min = min(g.x_min_m for g in ends)
+        y_max = max(g.y_max_m for g in ends)
+        x_max = max(g.x_min_m + g.n_cols * res for g in ends)
+        y_min = min(g.y_max_m - g.n_rows * res for g in ends)
+        n_rows = round((y_max - y_min) / res)
+        n_cols = round((x_max - x_min) / res)
+        s_i, s_j = ends[0].inverse_step
+        step_ij = inverse_step_px or max(s_i, s_j)
+        template = replace(
+            ends[0],
+            x_min_m=x_min,
+            y_max_m=y_max,
+            n_rows=n_rows,
+            n_cols=n_cols,
+            inverse_rows=np.arange(0.0, n_rows - 1 + step_ij, step_ij),
+            inverse_cols=np.arange(0.0, n_cols - 1 + step_ij, step_ij),
+        )
+    dem_grid = _dem_on_grid(dem, template, step)
+    while True:
+        levels = tuple(
+            level2a_geometry(
+                s,
+                pixel_size_m,
+                crs,
+                method,
+                grid_rows=grid_rows,
+                band=b,
+                like=template,
+                grid_columns=grid_columns,
+            )
+            for s in at
+        )
+        geom = Level3Geometry(
+            levels, heights, dem_grid, step, dem.source, dem.vertical, spacing, {}
+        )
+        err = geom.anchor_error(scene, b)
+        current = template.inverse_step[0]
+        if err["max_px"] <= ANCHOR_TOLERANCE_PX or inverse_step_px or current <= 1 or like:
+            return replace(geom, anchor_error_px=err)
+        half = max(1, current // 2)
+        template = replace(
+            template,
+            inverse_rows=np.arange(0.0, template.n_rows - 1 + half, half),
+            inverse_cols=np.arange(0.0, template.n_cols - 1 + half, half),
+        )
