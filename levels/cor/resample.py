@@ -29,8 +29,16 @@ from numpy.typing import NDArray
 
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
+from levels.geo.level3 import Level3Geometry
 
-__all__ = ["INTERPOLATIONS_1B", "RESAMPLINGS_2A", "resample_1b", "resample_2a", "with_nan"]
+__all__ = [
+    "INTERPOLATIONS_1B",
+    "RESAMPLINGS_2A",
+    "resample_1b",
+    "resample_2a",
+    "resample_3",
+    "with_nan",
+]
 
 INTERPOLATIONS_1B = ("nearest", "cubic")
 RESAMPLINGS_2A = ("nearest", "bilinear", "cubic")
@@ -324,3 +332,177 @@ def resample_2a(
         ok,
     )
     return out, ok
+
+
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
+def _sample_at(img, c, seg_lines, seg_of, method):
+    """Value at raw column ``c`` where each CCD segment's raw line is ``seg_lines[s]`` (NaN
+    if a pixel used is not valid or outside): level 3's sampling, one pixel at a time."""
+    n_lines, n_cols = img.shape
+    nan = np.float32(np.nan)
+    if not (c >= -0.5 and c <= n_cols - 0.5):
+        return nan
+    if method == 0:
+        ci = min(max(int(np.floor(c + 0.5)), 0), n_cols - 1)
+        li = int(np.floor(seg_lines[seg_of[ci]] + 0.5))
+        if 0 <= li < n_lines:
+            return img[li, ci]
+        return nan
+    cubic = method == 2
+    cf = int(np.floor(c))
+    first = cf - 1 if cubic else cf
+    last = cf + 2 if cubic else cf + 1
+    line0 = seg_lines[seg_of[min(max(first, 0), n_cols - 1)]]
+    if not (line0 >= -0.5 and line0 <= n_lines - 0.5):
+        return nan
+    wc = _keys(c - cf) if cubic else (1.0 - (c - cf), c - cf, 0.0, 0.0)
+    acc = 0.0
+    for m in range(last - first + 1):
+        cm = min(max(first + m, 0), n_cols - 1)
+        acc += wc[m] * _sample_column(img, seg_lines[seg_of[cm]], cm, n_lines, cubic)
+    return acc
+
+
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
+def _coords_3(r, k, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, seg_of, lines):
+    """Raw column of output pixel ``(r, k)`` on the terrain, each segment's line in
+    ``lines``, and the terrain height (NaN over a void): level 3's densification
+    (:mod:`levels.geo.level3`)."""
+    n_lev, n_seg, na, nb_ = inv_line.shape
+    nr, nc = dem.shape
+    x, y = r / dem_step, k / dem_step
+    a0 = min(max(int(np.floor(x)), 0), nr - 2)
+    b0 = min(max(int(np.floor(y)), 0), nc - 2)
+    u, v = x - a0, y - b0
+    h = (1 - u) * ((1 - v) * dem[a0, b0] + v * dem[a0, b0 + 1]) + u * (
+        (1 - v) * dem[a0 + 1, b0] + v * dem[a0 + 1, b0 + 1]
+    )
+    if h != h:
+        return np.nan, h
+    a = min(r // step_i, na - 2)
+    b = min(k // step_j, nb_ - 2)
+    gu = (r - a * step_i) / step_i
+    gv = (k - b * step_j) / step_j
+    c = 0.0
+    for s in range(n_seg):
+        lines[s] = 0.0
+    for q in range(n_lev):
+        w = 1.0
+        for m in range(n_lev):
+            if m != q:
+                w *= (h - heights[m]) / (heights[q] - heights[m])
+        c += w * (
+            (1 - gv) * ((1 - gu) * inv_col[q, a, b] + gu * inv_col[q, a + 1, b])
+            + gv * ((1 - gu) * inv_col[q, a, b + 1] + gu * inv_col[q, a + 1, b + 1])
+        )
+        for s in range(n_seg):
+            z = inv_line[q, s]
+            lines[s] += w * (
+                (1 - gv) * ((1 - gu) * z[a, b] + gu * z[a + 1, b])
+                + gv * ((1 - gu) * z[a, b + 1] + gu * z[a + 1, b + 1])
+            )
+    return c, h
+
+
+@nb.njit(cache=True, fastmath=_FAST)
+def _zbuffer_3(shape, n_out, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, seg_of):
+    """The highest terrain seen in each raw pixel (every line of sight descends, so the
+    highest ground point in a raw pixel is the one it sees). Serial: a max over pixels
+    written by many output pixels must not race."""
+    zbuf = np.full(shape, -np.inf, dtype=np.float32)
+    lines = np.empty(inv_line.shape[1])
+    n_lines, n_cols = shape
+    for r in range(n_out[0]):
+        for k in range(n_out[1]):
+            c, h = _coords_3(
+                r, k, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, seg_of, lines
+            )
+            if c == c:
+                ci = int(np.floor(c + 0.5))
+                if 0 <= ci < n_cols:
+                    li = int(np.floor(lines[seg_of[ci]] + 0.5))
+                    if 0 <= li < n_lines and h > zbuf[li, ci]:
+                        zbuf[li, ci] = h
+    return zbuf
+
+
+@nb.njit(cache=True, parallel=True, fastmath=_FAST)
+def _kernel_3(
+    img,
+    step_i,
+    step_j,
+    inv_line,
+    inv_col,
+    heights,
+    dem,
+    dem_step,
+    seg_of,
+    zbuf,
+    ztol,
+    method,
+    out,
+    ok,
+    hidden,
+):
+    n_out_rows, n_out_cols = out.shape
+    n_lines, n_cols = img.shape
+    for r in nb.prange(n_out_rows):
+        lines = np.empty(inv_line.shape[1])
+        for k in range(n_out_cols):
+            c, h = _coords_3(
+                r, k, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, seg_of, lines
+            )
+            val = np.float32(np.nan)
+            hid = False
+            if c == c:
+                ci = int(np.floor(c + 0.5))
+                if 0 <= ci < n_cols:
+                    li = int(np.floor(lines[seg_of[ci]] + 0.5))
+                    if 0 <= li < n_lines and h < zbuf[li, ci] - ztol:
+                        hid = True
+                if not hid:
+                    val = _sample_at(img, c, lines, seg_of, method)
+            hidden[r, k] = hid
+            if val == val:
+                out[r, k] = _store(val)
+                ok[r, k] = True
+            else:
+                out[r, k] = 0
+                ok[r, k] = False
+
+
+def resample_3(
+    image: NDArray[np.float32],
+    valid: NDArray[np.bool_] | None,
+    geom: Level3Geometry,
+    resampling: str = "cubic",
+) -> tuple[NDArray[np.uint8], NDArray[np.bool_], NDArray[np.bool_]]:
+    """Level 3 image, its mask and the pixels hidden by the relief (:mod:`levels.geo.level3`).
+
+    Hidden pixels: a z-buffer in the raw image keeps the highest terrain each raw pixel
+    sees; an output pixel more than ``HIDDEN_TOLERANCE_PX`` raw pixels of line of sight
+    below it is hidden (the tolerance in height from the grids' own relief displacement,
+    raw columns per metre: none at nadir).
+    """
+    from levels.geo.level3 import HIDDEN_TOLERANCE_PX
+
+    if resampling not in RESAMPLINGS_2A:
+        raise ValueError(f"level 3 resampling {resampling!r}: expected one of {RESAMPLINGS_2A}")
+    g = geom.grid
+    step_i, step_j = g.inverse_step
+    img = image if valid is None else with_nan(image, valid)
+    img = np.ascontiguousarray(img, dtype=np.float32)
+    seg_of = g.segment_of(np.arange(img.shape[1])).astype(np.int64)
+    inv_line = np.ascontiguousarray(np.stack([lv.inverse_line for lv in geom.levels]))
+    inv_col = np.ascontiguousarray(np.stack([lv.inverse_column for lv in geom.levels]))
+    heights = np.ascontiguousarray(geom.heights_m, dtype=np.float64)
+    dem = np.ascontiguousarray(geom.dem_height_m, dtype=np.float64)
+    args = (step_i, step_j, inv_line, inv_col, heights, dem, float(geom.dem_step_px), seg_of)
+    zbuf = _zbuffer_3(img.shape, (geom.n_rows, geom.n_cols), *args)
+    c_per_m = float(np.nanmedian(np.abs(inv_col[-1] - inv_col[0]))) / float(np.ptp(heights))
+    ztol = HIDDEN_TOLERANCE_PX / max(c_per_m, 1e-9)
+    out = np.empty((geom.n_rows, geom.n_cols), dtype=np.uint8)
+    ok = np.empty(out.shape, dtype=bool)
+    hidden = np.empty(out.shape, dtype=bool)
+    _kernel_3(img, *args, zbuf, ztol, RESAMPLINGS_2A.index(resampling), out, ok, hidden)
+    return out, ok, hidden
