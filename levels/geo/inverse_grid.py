@@ -10,6 +10,8 @@ inverse grid is tens of thousands of nodes, a checkpoint lattice hundreds of poi
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numba as nb
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -237,3 +239,28 @@ def bilinear_grid(
     at_b = (1.0 - u) * z[a, b] + u * z[a + 1, b]
     at_b1 = (1.0 - u) * z[a, b + 1] + u * z[a + 1, b + 1]
     return (1.0 - v) * at_b + v * at_b1
+
+
+def invert_by_newton(
+    raw_of: Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[NDArray, NDArray]],
+    line: ArrayLike,
+    column: ArrayLike,
+    first_guess: tuple[NDArray, NDArray],
+    iterations: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Output ``(I, J)`` that ``raw_of`` sends to raw ``(L, C)``: Newton from
+    ``first_guess``, the Jacobian by forward differences of a quarter pixel."""
+    la, ca = (np.asarray(x, dtype=np.float64).ravel() for x in (line, column))
+    i, j = (np.asarray(x, dtype=np.float64).ravel().copy() for x in first_guess)
+    eps = 0.25
+    for _ in range(iterations):
+        lo, co = raw_of(i, j)
+        li, ci = raw_of(i + eps, j)
+        lj, cj = raw_of(i, j + eps)
+        a11, a12 = (li - lo) / eps, (lj - lo) / eps
+        a21, a22 = (ci - co) / eps, (cj - co) / eps
+        det = a11 * a22 - a12 * a21
+        rl, rc = la - lo, ca - co
+        i = i + (a22 * rl - a12 * rc) / det
+        j = j + (-a21 * rl + a11 * rc) / det
+    return i, j

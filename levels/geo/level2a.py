@@ -34,7 +34,13 @@ import pyproj
 from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError, ProductError
-from levels.geo.inverse_grid import bilinear_grid, invert_nodes, invert_scattered, segment_cells
+from levels.geo.inverse_grid import (
+    bilinear_grid,
+    invert_by_newton,
+    invert_nodes,
+    invert_scattered,
+    segment_cells,
+)
 from levels.geo.level1b import N_BREAKPOINTS
 from levels.geo.maps import map_crs
 from levels.geo.polynomial import Poly2D
@@ -177,20 +183,7 @@ class Level2AGeometry:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Output ``(I, J)`` where the inverse grid sends raw ``(L, C)``: where a raw pixel
         appears in the product. Newton from ``first_guess``, with the grid's Jacobian."""
-        la, ca = (np.asarray(x, dtype=np.float64).ravel() for x in (line, column))
-        i, j = (np.asarray(x, dtype=np.float64).ravel().copy() for x in first_guess)
-        eps = 0.25
-        for _ in range(6):
-            lo, co = self.raw_of(i, j)
-            li, ci = self.raw_of(i + eps, j)
-            lj, cj = self.raw_of(i, j + eps)
-            a11, a12 = (li - lo) / eps, (lj - lo) / eps
-            a21, a22 = (ci - co) / eps, (cj - co) / eps
-            det = a11 * a22 - a12 * a21
-            rl, rc = la - lo, ca - co
-            i = i + (a22 * rl - a12 * rc) / det
-            j = j + (-a21 * rl + a11 * rc) / det
-        return i, j
+        return invert_by_newton(self.raw_of, line, column, first_guess, 6)
 
     def approximation_error(
         self,

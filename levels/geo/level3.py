@@ -39,7 +39,7 @@ import pyproj
 from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
-from levels.geo.inverse_grid import bilinear_grid
+from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
 from levels.geo.level2a import Level2AGeometry, level2a_geometry
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.sensor import butting_columns
@@ -183,20 +183,7 @@ class Level3Geometry:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Output ``(I, J)`` where raw ``(L, C)`` lands on the terrain: Newton from
         ``first_guess`` with the grid's Jacobian (the DEM's slopes included)."""
-        la, ca = (np.asarray(x, dtype=np.float64).ravel() for x in (line, column))
-        i, j = (np.asarray(x, dtype=np.float64).ravel().copy() for x in first_guess)
-        eps = 0.25
-        for _ in range(8):
-            lo, co = self.raw_of(i, j)
-            li, ci = self.raw_of(i + eps, j)
-            lj, cj = self.raw_of(i, j + eps)
-            a11, a12 = (li - lo) / eps, (lj - lo) / eps
-            a21, a22 = (ci - co) / eps, (cj - co) / eps
-            det = a11 * a22 - a12 * a21
-            rl, rc = la - lo, ca - co
-            i = i + (a22 * rl - a12 * rc) / det
-            j = j + (-a21 * rl + a11 * rc) / det
-        return i, j
+        return invert_by_newton(self.raw_of, line, column, first_guess, 8)
 
     def anchor_error(self, scene: SceneGeometry, band: str | None = None) -> dict[str, float]:
         """The anchor grid against the rigorous model at the pixels' DEM heights, in raw
