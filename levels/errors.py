@@ -5,6 +5,7 @@ expect (the rasterio habit), so ``except ValueError`` still works.
 """
 
 __all__ = [
+    "DemError",
     "DimapError",
     "GcpError",
     "GeometryError",
@@ -41,3 +42,7 @@ class OptionsError(LevelsError, ValueError):
 
 class GcpError(LevelsError, ValueError):
     """A control-point file that is missing, malformed, or inconsistent with its image."""
+
+
+class DemError(LevelsError, ValueError):
+    """A DEM that cannot be read or used as declared."""

@@ -42,9 +42,9 @@ from levels.errors import GeometryError
 from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
 from levels.geo.level2a import Level2AGeometry, level2a_geometry
 from levels.geo.scenes import SceneGeometry
+from levels.geometry.dem import Dem
 from levels.geometry.sensor import butting_columns
 from levels.quality import raw_error_stats
-from levels.readers.dem import Dem
 
 __all__ = [
     "ANCHOR_TOLERANCE_PX",
