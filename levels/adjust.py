@@ -492,13 +492,16 @@ _LOSS_RHO = {
 STEP_TOL, COST_TOL, MAX_ITERATIONS, MAX_HALVINGS = 1e-7, 1e-10, 30, 8
 
 
-def _cost(prob: _Problem, x: NDArray[np.float64], use: NDArray[np.bool_], loss: str) -> float:
+def _cost(
+    prob: _Problem, x: NDArray[np.float64], use: NDArray[np.bool_], loss: str
+) -> tuple[float, NDArray[np.float64]]:
     """The robust cost: ``Σ ρ(z)`` over the observations (in ``ROBUST_SCALE²`` units), plus
-    the squared prior rows (never down-weighted: a prior is not a blunder)."""
+    the squared prior rows (never down-weighted: a prior is not a blunder); and the
+    residuals it was computed from."""
     r = prob.residuals(x, use)
     n = 2 * int(use.sum())
     z = (r[:n] / ROBUST_SCALE) ** 2
-    return float(ROBUST_SCALE**2 * np.sum(_LOSS_RHO[loss](z)) + np.sum(r[n:] ** 2))
+    return float(ROBUST_SCALE**2 * np.sum(_LOSS_RHO[loss](z)) + np.sum(r[n:] ** 2)), r
 
 
 def _solve(
@@ -514,9 +517,8 @@ def _solve(
     3–5 steps."""
     x = x0.copy()
     n = 2 * int(use.sum())
-    cost = _cost(prob, x, use, loss)
+    cost, r = _cost(prob, x, use, loss)
     for _ in range(MAX_ITERATIONS):
-        r = prob.residuals(x, use)
         jac = prob.jacobian(x, use)
         w = np.ones(r.size)
         w[:n] = _LOSS_WEIGHT[loss]((r[:n] / ROBUST_SCALE) ** 2)
@@ -524,13 +526,13 @@ def _solve(
         normal = (jac.T @ wj).toarray()
         dx = -cho_solve(cho_factor(normal), wj.T @ r)
         for _ in range(MAX_HALVINGS):
-            trial = _cost(prob, x + dx, use, loss)
+            trial, r_trial = _cost(prob, x + dx, use, loss)
             if trial <= cost * (1 + 1e-12) + 1e-12:
                 break
             dx = 0.5 * dx
         else:
             break  # no descent along the Gauss–Newton direction: at the minimum
-        x, decrease, cost = x + dx, cost - trial, trial
+        x, decrease, cost, r = x + dx, cost - trial, trial, r_trial
         if np.max(np.abs(dx)) < STEP_TOL or decrease <= COST_TOL * cost:
             break
     return x
@@ -549,6 +551,37 @@ def _normalised(
     r = prob.residuals(x, use)
     w = np.abs(r[: 2 * n]) / np.sqrt(np.clip(1.0 - leverage, 1e-12, None))
     return w.reshape(n, 2).max(axis=1), cov, float(np.sum(r**2))
+
+
+def _fit(
+    prob: _Problem, n_points: int, prior_cov: NDArray[np.float64], options: ProcessingOptions
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray, float]:
+    """The robust fit, then Baarda's data snooping with plain fits until no point is beyond
+    the threshold: the solution, the points kept, each point's last normalised residual,
+    the scaled covariance and χ². Without points, the priors alone."""
+    x = np.zeros(prob.n_params)
+    active = np.ones(n_points, dtype=bool)
+    wr = np.full(n_points, np.nan)
+    if not n_points:
+        return x, active, wr, prior_cov, 0.0
+    # the robust fit is tested first; every later test is of a plain fit
+    x, robust = _solve(prob, active, x, options.robust_loss), True
+    for _ in range(MAX_SNOOPING_ROUNDS):
+        w, cov, chi2 = _normalised(prob, x, active)
+        wr[active] = w
+        bad = np.flatnonzero(active)[w > options.blunder_threshold]
+        if bad.size == 0 or bad.size >= active.sum():
+            break
+        active[bad] = False
+        x, robust = _solve(prob, active, x, "linear"), False
+    else:  # out of rounds: the last fit is not tested yet
+        w, cov, chi2 = _normalised(prob, x, active)
+        wr[active] = w
+    if robust:
+        x = _solve(prob, active, x, "linear")
+        w, cov, chi2 = _normalised(prob, x, active)
+        wr[active] = w
+    return x, active, wr, cov, chi2
 
 
 def _predicted(
@@ -614,7 +647,9 @@ def _scene_of_points(
     scenes: list[SceneGeometry], line: NDArray[np.float64]
 ) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
     """Position in ``scenes`` of each point's scene (the nearest centre among the scenes
-    holding its line), and whether any does."""
+    holding its line; 0 where none does), and whether any does."""
+    if not scenes:
+        return np.zeros(line.size, dtype=np.int64), np.zeros(line.size, dtype=bool)
     first = np.array([s.cut.first_line for s in scenes], dtype=np.float64)
     n = np.array([s.cut.n_lines for s in scenes], dtype=np.float64)
     inside = (line[:, None] >= first - 0.5) & (line[:, None] <= first + n - 0.5)
@@ -705,15 +740,13 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
     node_of = np.empty(t_all.size, dtype=np.int64)
     node_of[order] = np.cumsum(first) - 1
     scene_node = np.split(node_of, np.cumsum([t.size for t in t_scene])[:-1])
-    located = [_scene_of_points(s.scenes, s.gcps.line) if s.scenes else None for s in strips]
-    point_node, has = [], []
-    for s, sn, loc in zip(strips, scene_node, located, strict=True):
-        if loc is None:
-            point_node.append(np.zeros(len(s.gcps), dtype=np.int64))
-            has.append(np.zeros(len(s.gcps), dtype=bool))
-        else:
-            point_node.append(sn[loc[0]])
-            has.append(loc[1])
+    index = [np.array([sc.cut.index for sc in s.scenes], dtype=np.int64) for s in strips]
+    point_node, has, point_scene = [], [], []
+    for s, sn, idx in zip(strips, scene_node, index, strict=True):
+        pos, inside = _scene_of_points(s.scenes, s.gcps.line)
+        point_node.append(sn[pos] if sn.size else pos)
+        has.append(inside)
+        point_scene.append(np.where(inside, idx[pos] if idx.size else -1, -1))
     n_nodes = t_node.size
     groups = (
         [[j] for j in range(n_nodes)] if options.adjustment == "scene" else [list(range(n_nodes))]
@@ -735,35 +768,13 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
         ids = [np.flatnonzero(u) for u in uses]
         # the problem's points, strip after strip: where each strip's begin
         cut = np.cumsum([0] + [i.size for i in ids])
-        x = np.zeros(prob.n_params)
-        f = prob.condition(x)
+        f = prob.condition(np.zeros(prob.n_params))
         for k in range(len(strips)):
             before[k][ids[k]] = f[cut[k] : cut[k + 1]]
-        active = np.ones(cut[-1], dtype=bool)
-        wr = np.full(cut[-1], np.nan)
         rows = prob.prior_rows
         prior_cov = np.linalg.inv(rows.T @ rows)
-        cov = prior_cov
-        if cut[-1]:
-            # the robust fit is tested first; every later test is of a plain fit
-            x = _solve(prob, active, x, options.robust_loss)
-            robust = True
-            for _ in range(MAX_SNOOPING_ROUNDS):
-                w, cov, chi2_group = _normalised(prob, x, active)
-                wr[active] = w
-                bad = np.flatnonzero(active)[w > options.blunder_threshold]
-                if bad.size == 0 or bad.size >= active.sum():
-                    break
-                active[bad] = False
-                x, robust = _solve(prob, active, x, "linear"), False
-            else:  # out of rounds: the last fit is not tested yet
-                w, cov, chi2_group = _normalised(prob, x, active)
-                wr[active] = w
-            if robust:
-                x = _solve(prob, active, x, "linear")
-                w, cov, chi2_group = _normalised(prob, x, active)
-                wr[active] = w
-            chi2, dof = chi2 + chi2_group, dof + 2 * int(active.sum())
+        x, active, wr, cov, chi2_group = _fit(prob, cut[-1], prior_cov, options)
+        chi2, dof = chi2 + chi2_group, dof + 2 * int(active.sum())
         f = prob.condition(x)
         for k in range(len(strips)):
             span = slice(cut[k], cut[k + 1])
@@ -787,19 +798,19 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
                 )
         node_inc[group], node_lost[group] = prob.increment_sigma, lost
     sigma0 = float(np.sqrt(chi2 / dof)) if dof else float("nan")
-    mode = "twin" if len(strips) > 1 and options.adjustment != "scene" else options.adjustment
-    mode = "pass" if mode == "twin" and len(strips) == 1 else mode
+    if options.adjustment == "scene":
+        mode = "scene"
+    else:
+        mode = "twin" if len(strips) > 1 else "pass"
     elapsed = {"adjust": time.perf_counter() - t0}
     out = []
     for k, s in enumerate(strips):
-        index = np.array([sc.cut.index for sc in s.scenes], dtype=np.int64)
         sn = scene_node[k]
-        located_scene = located[k][0] if located[k] is not None else point_node[k]
         out.append(
             Adjustment(
                 mode,
                 t_ref,
-                index,
+                index[k],
                 t_node[sn],
                 node_pass[sn],
                 node_scene[sn],
@@ -809,7 +820,7 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
                 node_inc[sn],
                 node_lost[sn],
                 tuple(s.gcps.id),
-                np.where(has[k], index[located_scene] if index.size else -1, -1),
+                point_scene[k],
                 tuple(str(v) for v in status[k]),
                 before[k],
                 after[k],

@@ -149,6 +149,7 @@ class PassSetup:
     scenes: list[SceneGeometry]
     skipped: list[SkippedScene]
     scene_lines: int
+    pixel_valid: dict[str, NDArray[np.bool_]]
     time_s: float
 
 
@@ -192,8 +193,8 @@ def geo_pass(
     n_det = archive.bands[band_names[0]].counts.shape[1]
     scene_lines = options.scene_lines or n_det
     cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines)
-    valid = [archive.bands[b].pixel_valid() for b in band_names]
-    rows_seen = np.logical_or.reduce([v.any(axis=1) for v in valid])
+    pixel_valid = {b: archive.bands[b].pixel_valid() for b in band_names}
+    rows_seen = np.logical_or.reduce([v.any(axis=1) for v in pixel_valid.values()])
     scenes, skipped = [], []
     for c in cuts:
         if not rows_seen[c.first_line : c.first_line + c.n_lines].any():
@@ -209,7 +210,9 @@ def geo_pass(
             skipped.append(
                 SkippedScene(c.index, c.first_line, c.n_lines, f"GEO could not place it: {exc}")
             )
-    return PassSetup(archive, pg, scenes, skipped, scene_lines, time.perf_counter() - t0)
+    return PassSetup(
+        archive, pg, scenes, skipped, scene_lines, pixel_valid, time.perf_counter() - t0
+    )
 
 
 def _need_gcps(options: ProcessingOptions, gcps: Any) -> None:
@@ -265,7 +268,6 @@ def process_l0(
     setup = setup or geo_pass(archive, options)
     pg, scenes = setup.pg, setup.scenes
     band_names = list(archive.bands)
-    pixel_valid = {b: archive.bands[b].pixel_valid() for b in band_names}
     res = options.pixel_size_m or nominal_pixel_size_m(pg.look_angles[band_names[0]])
     taps = (
         deconvolution_taps(options.psf_fwhm_px, options.noise_to_signal)
@@ -290,7 +292,17 @@ def process_l0(
             )
         adjustment = adjust(pg, scenes, mine, options, band_names[0])
     ctx = _PassContext(
-        archive, pg, options, res, taps, pixel_valid, out, name, checkpoints, prov, adjustment
+        archive,
+        pg,
+        options,
+        res,
+        taps,
+        setup.pixel_valid,
+        out,
+        name,
+        checkpoints,
+        prov,
+        adjustment,
     )
     results = []
     for scene in scenes:
@@ -336,18 +348,18 @@ def process_pass(
         records = platform_records(archives)
         setups = [geo_pass(a, options, records) for a in archives]
         placed = [k for k, s in enumerate(setups) if s.scenes]
-        if not any(len(points[k].of_hrv(archives[k].hrv)) for k in placed):
+        strips = [
+            Strip(
+                setups[k].pg,
+                setups[k].scenes,
+                points[k].of_hrv(archives[k].hrv),  # type: ignore[union-attr]
+                next(iter(archives[k].bands)),
+            )
+            for k in placed
+        ]
+        if strips and not any(len(s.gcps) for s in strips):
             raise GcpError("level 2 of a twin pass: no control point in either HRV's file")
-        if placed:
-            strips = [
-                Strip(
-                    setups[k].pg,
-                    setups[k].scenes,
-                    points[k].of_hrv(archives[k].hrv),
-                    next(iter(archives[k].bands)),
-                )
-                for k in placed
-            ]
+        if strips:
             for k, adj in zip(placed, adjust_strips(strips, options), strict=True):
                 adjustments[k] = adj
     return [

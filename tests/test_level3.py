@@ -28,31 +28,28 @@ def srtm_path(refdata) -> Path:
 
 
 def test_dems_in_the_formats_a_station_is_handed(refdata, srtm_path) -> None:
-    SRTM = srtm_path
-    REFDATA = refdata
-    srtm = read_dem(SRTM, "ellipsoid")
+    srtm = read_dem(srtm_path, "ellipsoid")
     assert srtm.height_m.shape == (1201, 1201)
     assert srtm.spacing == pytest.approx((1 / 1200, 1 / 1200))
     # the same bilinear surface as the emulator's reader of the tile
-    grid = read_hgt(SRTM)
+    grid = read_hgt(srtm_path)
     lat, lon = np.radians([0.5, 0.2501, 0.9]), np.radians([10.5, 10.7502, 10.1])
     from scipy.interpolate import RegularGridInterpolator
 
     ref = RegularGridInterpolator((grid.lat_rad, grid.lon_rad), grid.height_m)
     assert srtm.heights(lat, lon) == pytest.approx(ref(np.stack([lat, lon], axis=-1)), abs=1e-9)
     assert np.isnan(srtm.heights(np.radians([1.5]), np.radians([10.5])))[0]  # outside
-    dted = read_dem(REFDATA / "dem" / "n43.dt0", "ellipsoid")
+    dted = read_dem(refdata / "dem" / "n43.dt0", "ellipsoid")
     assert dted.height_m.shape == (121, 121) and dted.void_fraction == 0.0
-    etopo = read_dem(REFDATA / "dem" / "ETOPO1_Ice_g_geotiff.resampled-1deg.tif", "ellipsoid")
+    etopo = read_dem(refdata / "dem" / "ETOPO1_Ice_g_geotiff.resampled-1deg.tif", "ellipsoid")
     assert etopo.heights(np.radians([27.99]), np.radians([86.93]))[0] > 3000.0  # Himalaya
 
 
 def test_dem_errors_are_clear(tmp_path, srtm_path) -> None:
-    SRTM = srtm_path
     with pytest.raises(DemError, match="not found"):
         read_dem(tmp_path / "none.tif", "ellipsoid")
     with pytest.raises(DemError, match="vertical datum"):
-        read_dem(SRTM, "geoid")
+        read_dem(srtm_path, "geoid")
     junk = tmp_path / "junk.tif"
     junk.write_bytes(b"not a raster")
     with pytest.raises(DemError, match="not a raster"):
@@ -62,14 +59,13 @@ def test_dem_errors_are_clear(tmp_path, srtm_path) -> None:
 def test_egm96_heights_need_the_geoid_grid(srtm_path) -> None:
     """EGM96 heights are turned into ellipsoidal ones through PROJ's grid; without the grid,
     a clear error instead of PROJ's silent null 'ballpark' shift."""
-    SRTM = srtm_path
-    dem = read_dem(SRTM, "egm96")
+    dem = read_dem(srtm_path, "egm96")
     if egm96_grid_installed():
         h = dem.heights(np.radians([0.5]), np.radians([10.5]))
         # EGM96's undulation over Gabon is about +10 m
-        assert h[0] - read_dem(SRTM, "ellipsoid").heights(np.radians([0.5]), np.radians([10.5]))[
-            0
-        ] == pytest.approx(10.0, abs=6.0)
+        assert h[0] - read_dem(srtm_path, "ellipsoid").heights(
+            np.radians([0.5]), np.radians([10.5])
+        )[0] == pytest.approx(10.0, abs=6.0)
     else:
         with pytest.raises(DemError, match=r"us_nga_egm96_15\.tif"):
             dem.heights(np.radians([0.5]), np.radians([10.5]))
@@ -95,10 +91,17 @@ def rugged(srtm_path) -> tuple:
     return acq, scene, res
 
 
-def test_level_3_puts_pixels_on_the_terrain(rugged, srtm_path) -> None:
-    acq, scene, res = rugged
+@pytest.fixture(scope="module")
+def rugged_level3(rugged, srtm_path) -> tuple:
+    """The rugged scene's level 3 geometry over the tile, and its map CRS."""
+    _acq, scene, res = rugged
     crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad, None)
-    geom = level3_geometry(scene, read_dem(srtm_path, "ellipsoid"), res, crs)
+    return level3_geometry(scene, read_dem(srtm_path, "ellipsoid"), res, crs), crs
+
+
+def test_level_3_puts_pixels_on_the_terrain(rugged, rugged_level3) -> None:
+    acq, scene, res = rugged
+    geom, crs = rugged_level3
     assert geom.anchor_error_px["max_px"] <= ANCHOR_TOLERANCE_PX
     assert geom.heights_m[0] < 100.0 and geom.heights_m[-1] > 900.0  # the tile's relief
     truth = Truth(acq, 0)
@@ -110,14 +113,13 @@ def test_level_3_puts_pixels_on_the_terrain(rugged, srtm_path) -> None:
     assert c2["rms_px"] > 10 * EXACT_RMS_PX
 
 
-def test_level_3_resampling_follows_its_geometry(rugged, srtm_path) -> None:
+def test_level_3_resampling_follows_its_geometry(rugged, rugged_level3) -> None:
     """The kernel's densification is the geometry's: with nearest-neighbour resampling each
     valid output pixel holds the raw pixel that :meth:`Level3Geometry.raw_of` names."""
     from levels.cor.resample import resample_3
 
-    _acq, scene, res = rugged
-    crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad, None)
-    geom = level3_geometry(scene, read_dem(srtm_path, "ellipsoid"), res, crs)
+    _acq, scene, _res = rugged
+    geom, _crs = rugged_level3
     rng = np.random.default_rng(3)
     img = rng.uniform(0, 255, (scene.cut.n_lines, scene.model.n_columns)).astype(np.float32)
     out, ok, hidden = resample_3(img, np.ones(img.shape, dtype=bool), geom, "nearest")

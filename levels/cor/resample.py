@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
-from levels.geo.level3 import Level3Geometry
+from levels.geo.level3 import HIDDEN_TOLERANCE_PX, Level3Geometry
 
 __all__ = [
     "INTERPOLATIONS_1B",
@@ -337,7 +337,12 @@ def resample_2a(
 @nb.njit(cache=True, inline="always", fastmath=_FAST)
 def _sample_at(img, c, seg_lines, seg_of, method):
     """Value at raw column ``c`` where each CCD segment's raw line is ``seg_lines[s]`` (NaN
-    if a pixel used is not valid or outside): level 3's sampling, one pixel at a time."""
+    if a pixel used is not valid or outside): level 3's sampling, one pixel at a time.
+
+    :func:`_pixel_2a` does the same from a row of the inverse grid, one segment's line at a
+    time. Routing its edge and butting path through here gave the same bytes but cost 2A
+    5 % in cubic and 12–19 % in nearest and bilinear (one full P scene, one thread): the
+    two stay apart."""
     n_lines, n_cols = img.shape
     nan = np.float32(np.nan)
     if not (c >= -0.5 and c <= n_cols - 0.5):
@@ -484,8 +489,6 @@ def resample_3(
     below it is hidden (the tolerance in height from the grids' own relief displacement,
     raw columns per metre: none at nadir).
     """
-    from levels.geo.level3 import HIDDEN_TOLERANCE_PX
-
     if resampling not in RESAMPLINGS_2A:
         raise ValueError(f"level 3 resampling {resampling!r}: expected one of {RESAMPLINGS_2A}")
     g = geom.grid

@@ -32,7 +32,6 @@ leave their pixels invalid.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 import pyproj
@@ -221,27 +220,6 @@ class Level3Geometry:
             gap |= (exact.column > first - 1) & (exact.column < first)
         ok = exact.converged & ~gap
         return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
-
-    def product_tree(self) -> dict[str, Any]:
-        """``geometry/level_3`` of a product (``docs/products.md``); the anchor grids of each
-        height are in ``levels/<k>`` as a 2A tree."""
-        return {
-            "method": "indirect",
-            "heights_m": self.heights_m,
-            "dem": {
-                "source": self.dem_source,
-                "vertical_datum": self.dem_vertical,
-                "spacing_m": self.dem_spacing_m,
-                "step_px": self.dem_step_px,
-                "height_m": self.dem_height_m.astype(np.float32),
-            },
-            "anchor_error_px": dict(self.anchor_error_px),
-            "anchor_step_px": np.asarray(self.grid.inverse_step, dtype=np.int64),
-            "levels": {
-                str(k): Level2AGeometry.product_tree({"_": lv})["bands"]["_"]
-                for k, lv in enumerate(self.levels)
-            },
-        }
 
 
 def _dem_on_grid(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray[np.float64]:
