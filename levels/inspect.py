@@ -66,6 +66,19 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
             "geotransform": list(grid.geotransform),
             "inverse_method": product.geometry.get("level_2a", {}).get("inverse_method"),
         }
+    g3 = product.geometry.get("level_3")
+    if g3:
+        dem = g3.get("dem", {})
+        out["dem"] = {
+            "source": Path(str(dem.get("source", ""))).name,
+            "vertical": dem.get("vertical"),
+            "spacing_m": float(dem.get("spacing_m", np.nan)),
+            "anchor_heights_m": np.asarray(g3.get("heights_m", [])).tolist(),
+            "anchor_error_max_px": max(
+                (float(e.get("max_px", np.nan)) for e in g3.get("anchor_error_px", {}).values()),
+                default=None,
+            ),
+        }
     g1b = product.geometry.get("level_1b")
     if g1b:
         out["plane"] = {
@@ -103,7 +116,14 @@ def summary_text(s: dict[str, Any]) -> str:
         gt = m["geotransform"]
         lines.append(
             f"  map: {m['crs']}, origin ({gt[0]:.1f}, {gt[3]:.1f}) m, pixel "
-            f"{gt[1]:g} m; inverse {m['inverse_method']}"
+            f"{gt[1]:g} m" + (f"; inverse {m['inverse_method']}" if m["inverse_method"] else "")
+        )
+    if "dem" in s:
+        d = s["dem"]
+        lines.append(
+            f"  DEM {d['source']} ({d['vertical']}, {d['spacing_m']:.0f} m), anchor grids at "
+            + ", ".join(f"{h:.0f}" for h in d["anchor_heights_m"])
+            + f" m, their error ≤ {d['anchor_error_max_px']:.4f} px"
         )
     q = {k: v for k, v in s["quality"].items() if k.endswith(_HEADLINE_SUFFIXES)}
     for k, v in q.items():

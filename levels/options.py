@@ -32,7 +32,7 @@ __all__ = [
 ]
 
 #: Levels the processing centre makes, in processing order.
-LEVELS = ("1A", "1B", "2A", "2")
+LEVELS = ("1A", "1B", "2A", "2", "3")
 
 _URAD = 1e-6
 
@@ -188,7 +188,11 @@ class ProcessingOptions:
     """
 
     levels: tuple[str, ...] = option(
-        ["1A", "1B", "2A"], "levels", "levels to produce (2: with control points)", choices=LEVELS
+        ["1A", "1B", "2A"],
+        "levels",
+        "levels to produce (2: with control points; 3: over a DEM, on level 2's model when 2 "
+        "is made too)",
+        choices=LEVELS,
     )
     scene_lines: int = option(
         0, "scene_lines", "lines per scene (0: as many as detectors)", lo=0, hi=10**6
@@ -313,6 +317,20 @@ class ProcessingOptions:
         1.0,
         2.0,
         100.0,
+    )
+    dem_path: str = option(
+        "",
+        "dem_path",
+        "level 3: the DEM (any GDAL raster: GeoTIFF, SRTM .hgt, DTED), relative to the "
+        "scenario or options file; empty: the scenario's [dem] export, or <name>.dem.tif "
+        "beside the L0 archive",
+    )
+    dem_vertical: str = option(
+        "ellipsoid",
+        "dem_vertical",
+        "level 3: the DEM's heights are above the WGS84 ellipsoid, or the EGM96 geoid "
+        "(SRTM, DTED: needs PROJ's us_nga_egm96_15.tif grid)",
+        choices=("ellipsoid", "egm96"),
     )
     checkpoints_per_side: int = option(
         11, "checkpoints_per_side", "checkpoint lattice of the quality figures", lo=2, hi=101

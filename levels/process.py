@@ -42,16 +42,18 @@ from levels.cor.radiometry import (
     stripe_level,
     to_counts,
 )
-from levels.cor.resample import resample_1b, resample_2a, with_nan
-from levels.errors import GcpError, GeometryError
+from levels.cor.resample import resample_1b, resample_2a, resample_3, with_nan
+from levels.errors import DemError, GcpError, GeometryError
 from levels.geo.level1b import Level1BGeometry, level1b_geometry
 from levels.geo.level2a import INVERSE_METHODS, Level2AGeometry, level2a_geometry
+from levels.geo.level3 import Level3Geometry, level3_geometry
 from levels.geo.maps import ascending_node_lon_rad, map_crs
 from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
 from levels.geometry.sensor import LookAngleTable
 from levels.options import ProcessingOptions
 from levels.products import BandImage, MapGrid, Product, product_name, write_product
 from levels.quality import CheckpointSource, scalar_figures
+from levels.readers.dem import Dem, read_dem
 from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
 from levels.spot import ORBIT_ALTITUDE_M
@@ -63,6 +65,7 @@ __all__ = [
     "SkippedScene",
     "geo_pass",
     "nominal_pixel_size_m",
+    "pass_dem",
     "platform_records",
     "process_l0",
     "process_pass",
@@ -110,7 +113,7 @@ def nominal_pixel_size_m(look: LookAngleTable) -> float:
     return max(10.0, 10.0 * round(pitch * ORBIT_ALTITUDE_M / 10.0))
 
 
-_G = TypeVar("_G", Level1BGeometry, Level2AGeometry)
+_G = TypeVar("_G", Level1BGeometry, Level2AGeometry, Level3Geometry)
 
 
 def _per_band(scene: SceneGeometry, make: Callable[[str, _G | None], _G]) -> dict[str, _G]:
@@ -138,6 +141,7 @@ class _PassContext:
     checkpoints: CheckpointSource | None
     provenance: dict[str, Any]
     adjustment: Adjustment | None
+    dem: Dem | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -215,6 +219,19 @@ def geo_pass(
     )
 
 
+def pass_dem(options: ProcessingOptions) -> Dem | None:
+    """The DEM of level 3 (``options.dem_path``, heights above ``options.dem_vertical``),
+    or None when level 3 is not asked; :class:`DemError` when it is and no DEM is named."""
+    if "3" not in options.levels:
+        return None
+    if not options.dem_path:
+        raise DemError(
+            "level 3 needs a DEM: set [processing] dem_path to a DEM file (GeoTIFF, SRTM "
+            ".hgt, DTED) and dem_vertical to its datum, or give the scenario a [dem] section"
+        )
+    return read_dem(options.dem_path, options.dem_vertical)
+
+
 def _need_gcps(options: ProcessingOptions, gcps: Any) -> None:
     if "2" in options.levels and gcps is None:
         raise GcpError(
@@ -235,6 +252,7 @@ def process_l0(
     gcps: ControlPointSet | None = None,
     setup: PassSetup | None = None,
     adjustment: Adjustment | None = None,
+    dem: Dem | None = None,
 ) -> PassProducts:
     """GEO and COR over a pass (module docstring); products go to ``out_dir``.
 
@@ -258,9 +276,15 @@ def process_l0(
     setup, adjustment
         GEO's set-up and level 2's adjustment when already made (:func:`process_pass`
         makes them for both HRVs of a twin pass together).
+    dem
+        Level 3's DEM when already read (by default :func:`pass_dem` reads the options').
+        Level 3 is made on level 2's refined model when level 2 is made too, on the system
+        model otherwise.
     """
     if adjustment is None:
         _need_gcps(options, gcps)
+    if dem is None:
+        dem = pass_dem(options)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter
@@ -303,6 +327,7 @@ def process_l0(
         checkpoints,
         prov,
         adjustment,
+        dem,
     )
     results = []
     for scene in scenes:
@@ -340,6 +365,7 @@ def process_pass(
     hrvs = [a.hrv for a in archives]
     if len(set(hrvs)) != n:
         raise GeometryError(f"one archive per HRV of a pass: got HRVs {hrvs}")
+    dem = pass_dem(options)  # read once for both HRVs
     setups: list[PassSetup | None] = [None] * n
     adjustments: list[Adjustment | None] = [None] * n
     if options.adjustment == "twin" and "2" in options.levels and n > 1:
@@ -374,6 +400,7 @@ def process_pass(
             gcps=points[k],
             setup=setups[k],
             adjustment=adjustments[k],
+            dem=dem,
         )
         for k, a in enumerate(archives)
     ]
@@ -391,9 +418,10 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     if "1B" in opt.levels:
         g1b = _per_band(scene, lambda b, like: level1b_geometry(scene, res, band=b, like=like))
 
+    node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
+    crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
+
     def map_geometry(sg: SceneGeometry) -> dict[str, Level2AGeometry]:
-        node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
-        crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
         return _per_band(
             sg,
             lambda b, like: level2a_geometry(
@@ -417,8 +445,29 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         maps["2"] = map_geometry(refined)
     g2a = maps.get("2A")
     timings["geometry"] = clock() - t
+    g3 = None
+    scene3 = refined if refined is not None else scene  # level 2's model when it is made
+    if "3" in opt.levels:
+        t = clock()
+        assert ctx.dem is not None
+        g3 = _per_band(
+            scene3,
+            lambda b, like: level3_geometry(
+                scene3,
+                ctx.dem,  # type: ignore[arg-type]
+                res,
+                crs,
+                opt.inverse_2a,
+                grid_rows=opt.grid_rows,
+                band=b,
+                like=like,
+                grid_columns=opt.grid_columns,
+            ),
+        )
+        timings["3_geometry"] = clock() - t
     images: dict[str, dict[str, BandImage]] = {lv: {} for lv in opt.levels}
     stripes: dict[str, dict[str, float]] = {}
+    hidden: dict[str, float] = {}
     for bname, band in ctx.archive.bands.items():
         t = clock()
         counts, valid = band.counts[rows], ctx.pixel_valid[bname][rows]
@@ -430,7 +479,7 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         if "1A" in opt.levels:
             images["1A"][bname] = BandImage(to_counts(cal), valid)
         timings["1A"] = timings.get("1A", 0.0) + clock() - t
-        if g1b is None and not maps:
+        if g1b is None and not maps and g3 is None:
             continue
         t = clock()
         dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
@@ -441,7 +490,7 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
                 *resample_1b(dec, dvalid, g1b[bname], opt.interpolation_1b)
             )
             timings["1B"] = timings.get("1B", 0.0) + clock() - t
-        nan_dec = with_nan(dec, dvalid) if maps else None
+        nan_dec = with_nan(dec, dvalid) if maps or g3 is not None else None
         for level, grids in maps.items():
             if level in opt.levels:  # 2A's grids may be there for level 2's checkpoints only
                 t = clock()
@@ -449,6 +498,13 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
                     *resample_2a(nan_dec, None, grids[bname], opt.resampling_2a)
                 )
                 timings[level] = timings.get(level, 0.0) + clock() - t
+        if g3 is not None:
+            t = clock()
+            image, ok, hid = resample_3(nan_dec, None, g3[bname], opt.resampling_2a)
+            images["3"][bname] = BandImage(image, ok)
+            # of the pixels the scene covers, the share hidden by the relief
+            hidden[bname] = float(hid.sum() / max(1, int(ok.sum() + hid.sum())))
+            timings["3"] = timings.get("3", 0.0) + clock() - t
     t = clock()
     quality = _quality(scene, opt, g1b, g2a, stripes, ctx.taps, ctx.checkpoints)
     if refined is not None:
@@ -462,6 +518,10 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
             ctx.adjustment,
             opt,
             ctx.checkpoints,
+        )
+    if g3 is not None:
+        quality["3"] = _quality_3(
+            scene3, g3, hidden, quality["radiometry"], refined is not None, opt, ctx.checkpoints
         )
     quality = {lv: quality[lv] for lv in opt.levels}
     timings["quality"] = clock() - t
@@ -479,6 +539,12 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
             geometry = ctx.pg.product_tree(refined)
             geometry["level_2a"] = Level2AGeometry.product_tree(maps["2"])
             geometry["adjustment"] = ctx.adjustment.product_tree(scene.cut.index)
+        if level == "3":
+            assert g3 is not None
+            geometry = ctx.pg.product_tree(scene3)
+            geometry["level_3"] = Level3Geometry.product_tree(g3)
+            if ctx.adjustment is not None and refined is not None:
+                geometry["adjustment"] = ctx.adjustment.product_tree(scene.cut.index)
         first = next(iter(images[level].values())).image
         attrs = {
             "level": level,
@@ -492,8 +558,8 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
             "pixel_size_m": res if level != "1A" else 0.0,
         }
         grid = None
-        if level in maps:
-            g = next(iter(maps[level].values()))
+        if level in maps or level == "3":
+            g = next(iter((g3 if level == "3" else maps[level]).values()))  # type: ignore[union-attr]
             grid = MapGrid(g.crs_wkt, g.geotransform)
         product = Product(
             attrs, images[level], geometry, quality[level], {**ctx.provenance, "level": level}, grid
@@ -559,6 +625,45 @@ def _quality(
             q["2A"]["checkpoints"] = {
                 b: checkpoints.level_2a(scene, g2a[b], k, per_side) for k, b in enumerate(bands)
             }
+    return q
+
+
+def _quality_3(
+    scene: SceneGeometry,
+    g3: dict[str, Level3Geometry],
+    hidden: dict[str, float],
+    radiometry: dict[str, Any],
+    refined: bool,
+    opt: ProcessingOptions,
+    checkpoints: CheckpointSource | None,
+) -> dict[str, Any]:
+    """Level 3's quality: the anchor grid's error against the rigorous model (every band's),
+    the DEM used, the pixels hidden by the relief or over voids, and with a checkpoint
+    source the errors on the terrain beside those 2A had at the same points."""
+    bands = list(scene.models)
+    g = g3[bands[0]]
+    dem_nodes = np.isfinite(g.dem_height_m)
+    q: dict[str, Any] = {
+        "radiometry": radiometry,
+        "model": "level 2 (adjusted on control points)" if refined else "system",
+        "anchor_error_px": {b: dict(g3[b].anchor_error_px) for b in bands},
+        "anchor_step_px": int(g.grid.inverse_step[0]),
+        "anchor_heights_m": g.heights_m,
+        "dem": {
+            "source": Path(g.dem_source).name,
+            "vertical": g.dem_vertical,
+            "spacing_m": g.dem_spacing_m,
+            "void_fraction": float(1.0 - dem_nodes.mean()),
+            "height_min_m": float(np.nanmin(g.dem_height_m)) if dem_nodes.any() else None,
+            "height_max_m": float(np.nanmax(g.dem_height_m)) if dem_nodes.any() else None,
+        },
+        "hidden_fraction": hidden,
+    }
+    if checkpoints is not None:
+        q["checkpoints"] = {
+            b: checkpoints.level_3(scene, g3[b], k, opt.checkpoints_per_side)
+            for k, b in enumerate(bands)
+        }
     return q
 
 

@@ -9,7 +9,7 @@ becomes an HDF5 group, an array a dataset, a scalar or string an attribute of it
 
 Format version 2 is netCDF-4 as the netCDF library, GDAL and xarray read it: each band is a
 root variable ``<band>`` (uint8) with its mask ``<band>_valid``, on dimension scales; a
-map-projected product (2A, and 2 and 3 to come) has CF coordinates ``x`` and ``y`` (pixel
+map-projected product (2A, 2 and 3) has CF coordinates ``x`` and ``y`` (pixel
 centres, metres) and a ``crs`` grid-mapping variable (its WKT, GDAL's ``spatial_ref`` and
 ``GeoTransform``), so that ``NETCDF:"<file>":P`` opens georeferenced in GDAL and QGIS, and
 ``xarray.open_dataset`` gives the image with its coordinates, with no export step. Products
@@ -73,8 +73,12 @@ REQUIRED_GEOMETRY = {
     "1B": ("scene", "level_1b"),
     "2A": ("scene", "level_2a"),
     "2": ("scene", "level_2a", "adjustment"),
+    "3": ("scene", "level_3"),
 }
 _CHUNK = 512
+#: Metadata arrays of at least this many numbers (anchor grids, the DEM a level 3 product
+#: carries) are stored shuffled and deflated: a third to a half of their size.
+_PACKED_SIZE = 4096
 _UNITS = (
     ("_m_per_s", "m s-1"),
     ("_rad_per_s", "rad s-1"),
@@ -189,7 +193,12 @@ def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
         if isinstance(value, dict):
             _write_tree(group.create_group(name), value)
         elif isinstance(value, np.ndarray):
-            ds = group.create_dataset(name, data=value, **checksummed(value))
+            packed = (
+                {"compression": "gzip", "compression_opts": 1, "shuffle": True}
+                if value.size >= _PACKED_SIZE and value.dtype.kind in "fiu"
+                else {}
+            )
+            ds = group.create_dataset(name, data=value, **checksummed(value), **packed)
             ds.attrs["units"] = units_of(name)
             ds.attrs["long_name"] = name.replace("_", " ")
         else:
@@ -352,11 +361,16 @@ def _check_geometry_trees(geometry: dict[str, Any], bands: list[str]) -> None:
     ``from_tree`` raises :class:`ProductError` naming what is missing or malformed)."""
     from levels.geo.level1b import Level1BGeometry
     from levels.geo.level2a import Level2AGeometry
+    from levels.geo.level3 import Level3Geometry
 
-    for key, cls in (("level_1b", Level1BGeometry), ("level_2a", Level2AGeometry)):
+    for key, check in (
+        ("level_1b", Level1BGeometry.from_tree),
+        ("level_2a", Level2AGeometry.from_tree),
+        ("level_3", Level3Geometry.check_tree),
+    ):
         if key in geometry:
             for band in bands:
-                cls.from_tree(geometry[key], band)
+                check(geometry[key], band)
 
 
 def _read_bands(f: h5py.File, names: list[str], version: int, images: bool) -> dict[str, BandImage]:

@@ -37,6 +37,8 @@ RENDERED = {
     "pass_ends",
     "single_gcp",
     "twin_gcp",
+    "fractal_relief",
+    "dem_errors",
 }
 
 

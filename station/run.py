@@ -9,6 +9,7 @@ directory then holds the L0 archive, the products, a quicklook PNG per product a
 
     <out>/<name>.l0.h5
     <out>/<name>.gcp.csv
+    <out>/<name>.dem.tif          (with [dem]: the DEM the station is handed for level 3)
     <out>/<name>_s<scene>_<level>.h5
     <out>/quicklooks/<name>_s<scene>_<level>.png
     <out>/report.json
@@ -25,6 +26,7 @@ with the same scenario and seed give identical products and the same report
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from dataclasses import dataclass
@@ -80,9 +82,18 @@ def run_scenario(
     acqs = emulate_pass(scn)
     timings["emulate"] = clock() - t
     stages.update()
+    options = scn.processing
+    if scn.dem is not None:
+        from station.spacecraft.dem import export_dem
+
+        t = clock()
+        dem_file = export_dem(acqs, scn.dem, scn.seed, out / f"{scn.name}.dem.tif")
+        timings["dem_export"] = clock() - t
+        if not options.dem_path:
+            options = dataclasses.replace(options, dem_path=str(dem_file))
     tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
     received = [_receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)]
-    passes = _process(acqs, received, tags, timings, stages, progress)
+    passes = _process(acqs, received, tags, options, timings, stages, progress)
     hrvs, made = [], []
     for acq, rec, products in zip(acqs, received, passes, strict=True):
         hrvs.append(_section(acq, rec, products))
@@ -128,6 +139,11 @@ def run_scenario(
             "seed": scn.seed,
         },
         "hrvs": hrvs,
+        **(
+            {"dem": {"file": f"{scn.name}.dem.tif", **dataclasses.asdict(scn.dem)}}
+            if scn.dem is not None
+            else {}
+        ),
         "products": rows,
         "timings_s": _rounded(timings),
     }
@@ -160,6 +176,7 @@ def prepare_run_dir(out_dir: str | Path, name: str) -> Path:
         *out.glob(f"{name}_hrv[12].l0.h5"),
         *out.glob(f"{name}.gcp.csv"),
         *out.glob(f"{name}_hrv[12].gcp.csv"),
+        *out.glob(f"{name}.dem.tif"),
         *out.glob(f"{name}_s[0-9][0-9][0-9]_*.h5"),
         *out.glob(f"{name}_hrv[12]_s[0-9][0-9][0-9]_*.h5"),
         *(out / "quicklooks").glob(f"{name}_*.png"),
@@ -213,6 +230,7 @@ def _process(
     acqs: Any,
     received: list[_Received],
     tags: list[str],
+    options: Any,
     timings: dict[str, Any],
     stages: Any,
     progress: bool,
@@ -234,7 +252,7 @@ def _process(
 
     passes = process_pass(
         [r.archive for r in received],
-        scn.processing,
+        options,
         received[0].l0.parent,
         names=tags,
         checkpoints=[r.truth for r in received],
@@ -335,8 +353,14 @@ def _fmt(x: Any, spec: str) -> str:
 
 
 def approximation_max_px(quality: dict[str, Any]) -> float | None:
-    """A product's headline approximation figure: its 1B polynomials', or its 2A inverse's
-    (the method it was made with), against the rigorous model; None for 1A."""
+    """A product's headline approximation figure: its 1B polynomials', its 2A inverse's
+    (the method it was made with), or its level 3 anchor grid's (the worst band), against
+    the rigorous model; None for 1A."""
+    anchors = [
+        v for k, v in quality.items() if k.startswith("anchor_error_px/") and k.endswith("/max_px")
+    ]
+    if anchors:
+        return max(anchors)
     return quality.get(
         "polynomials_vs_model/max_px",
         quality.get(f"inverse_vs_model/{quality.get('inverse_method', '')}/max_px"),

@@ -20,7 +20,7 @@ import hashlib
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +36,7 @@ __all__ = [
     "BulletinConfig",
     "CalibrationConfig",
     "ChannelConfig",
+    "DemConfig",
     "DownlinkConfig",
     "GcpConfig",
     "GroundStationConfig",
@@ -307,6 +308,32 @@ class WorldConfig:
 
 
 @dataclass(frozen=True)
+class DemConfig:
+    """The DEM the station is handed for level 3: the world's terrain sampled on a
+    latitude–longitude grid over the pass (ellipsoidal heights), with errors of a known
+    size, written as ``<name>.dem.tif`` into the run directory
+    (:func:`station.spacecraft.dem.export_dem`); never the truth itself."""
+
+    spacing_arcsec: float = option(
+        1.0, "spacing_arcsec", 'grid spacing (1: SRTM 1", about 30 m)', 1.0, 0.1, 3600.0
+    )
+    error_rms_m: float = option(
+        0.0, "error_rms_m", "1σ of the height error added at each node", 1.0, 0.0, 1000.0
+    )
+    error_correlation_m: float = option(
+        0.0,
+        "error_correlation_m",
+        "correlation length of that error (0: white from node to node); the error keeps its 1σ",
+        1.0,
+        0.0,
+        1e5,
+    )
+    margin_km: float = option(
+        5.0, "margin_km", "the grid's margin around the pass's footprint", 1.0, 0.0, 500.0
+    )
+
+
+@dataclass(frozen=True)
 class BulletinConfig:
     """Ephemeris bulletins handed to the station, with their errors (along, across, radial)."""
 
@@ -474,6 +501,7 @@ _SECTIONS = {
     "bulletins": BulletinConfig,
     "calibration": CalibrationConfig,
     "gcps": GcpConfig,
+    "dem": DemConfig,
     "downlink": DownlinkConfig,
     "channel": ChannelConfig,
     "processing": ProcessingConfig,
@@ -499,6 +527,8 @@ class Scenario:
     bulletins: BulletinConfig = field(default_factory=BulletinConfig)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
     gcps: GcpConfig = field(default_factory=GcpConfig)
+    #: The DEM exported for level 3 (``[dem]`` given), or None.
+    dem: DemConfig | None = None
     downlink: DownlinkConfig = field(default_factory=DownlinkConfig)
     channel: ChannelConfig = field(default_factory=ChannelConfig)
     processing: ProcessingConfig = field(default_factory=ProcessingConfig)
@@ -604,7 +634,12 @@ def scenario_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Scen
             )
         else:
             raise ScenarioError(f"unknown key {key!r}; allowed: {', '.join(allowed)}")
-    return Scenario(**kwargs)
+    scn = Scenario(**kwargs)
+    if scn.processing.dem_path:  # the scenario's paths are relative to its file
+        scn = replace(
+            scn, processing=replace(scn.processing, dem_path=str(scn.path(scn.processing.dem_path)))
+        )
+    return scn
 
 
 def read_toml(path: str | Path, what: str = "scenario") -> tuple[dict[str, Any], bytes]:

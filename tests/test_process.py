@@ -123,7 +123,8 @@ def test_station_process_without_the_truth(run_dir: Path, tmp_path: Path, capsys
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--levels", "1A,3"], "--levels 1A,3"),
+        (["--levels", "1A,4"], "--levels 1A,4"),
+        (["--levels", "1A,3"], "level 3 needs a DEM"),
         (["--scenario", str(ROOT / "scenarios" / "quickstart.toml")], "recorded from scenario"),
     ],
 )

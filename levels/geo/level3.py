@@ -31,17 +31,20 @@ leave their pixels invalid.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import pyproj
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import RectBivariateSpline
 
-from levels.errors import GeometryError
+from levels.errors import DemError, GeometryError, ProductError
 from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
 from levels.geo.level2a import Level2AGeometry, level2a_geometry
 from levels.geo.scenes import SceneGeometry
-from levels.geometry.dem import Dem
+from levels.geometry.dem import Dem, geoid_to_ellipsoid
 from levels.geometry.sensor import butting_columns
 from levels.quality import raw_error_stats
 
@@ -88,12 +91,110 @@ class Level3Geometry:
 
     levels: tuple[Level2AGeometry, ...]
     heights_m: NDArray[np.float64]
+    dem: Dem  # the part of the DEM under the scene, in its own CRS and datum
     dem_height_m: NDArray[np.float64]  # (rows, cols) on output pixels (a·step, b·step)
     dem_step_px: float
-    dem_source: str
-    dem_vertical: str
     dem_spacing_m: float
     anchor_error_px: dict[str, float]
+
+    @staticmethod
+    def product_tree(bands: dict[str, Level3Geometry]) -> dict[str, Any]:
+        """The ``geometry/level_3`` tree of a product whose bands have these geometries
+        (``docs/products.md``): the DEM used (its window, CRS, datum, spacing), the anchor
+        grids' heights, each height's 2A tree, and the anchor error measured."""
+        g = next(iter(bands.values()))
+        dem = g.dem
+        exact32 = np.array_equal(dem.height_m.astype(np.float32), dem.height_m, equal_nan=True)
+        return {
+            "heights_m": g.heights_m,
+            "dem_step_px": g.dem_step_px,
+            "anchor_error_px": {
+                b: {k: v for k, v in geom.anchor_error_px.items()} for b, geom in bands.items()
+            },
+            "dem": {
+                "height_m": dem.height_m.astype(np.float32) if exact32 else dem.height_m,
+                "geotransform": np.asarray(dem.geotransform),
+                "crs_wkt": dem.crs_wkt,
+                "vertical": dem.vertical,
+                "source": dem.source,
+                "spacing_m": g.dem_spacing_m,
+            },
+            **{
+                f"height_{k}": Level2AGeometry.product_tree(
+                    {b: gb.levels[k] for b, gb in bands.items()}
+                )
+                for k in range(g.heights_m.size)
+            },
+        }
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any], band: str | None = None) -> Level3Geometry:
+        """The geometry of ``band`` (the first by default) from a product's
+        ``geometry/level_3`` tree (the DEM's heights on the output grid computed again from
+        the DEM window it stores); :class:`ProductError` names what is missing or bad."""
+        levels, heights, dem, step, spacing, err = cls._parts(tree, band)
+        return cls(levels, heights, dem, _dem_on_grid(dem, levels[0], step), step, spacing, err)
+
+    @classmethod
+    def check_tree(cls, tree: dict[str, Any], band: str | None = None) -> None:
+        """:class:`ProductError` if ``from_tree`` would fail (without its heavy part)."""
+        cls._parts(tree, band)
+
+    @staticmethod
+    def _parts(tree: dict[str, Any], band: str | None) -> tuple[Any, ...]:
+        try:
+            heights = np.asarray(tree["heights_m"], dtype=np.float64).ravel()
+            if heights.size < 2 or not np.all(np.diff(heights) > 0):
+                raise ValueError(f"anchor heights {heights} must increase")
+            levels = tuple(
+                Level2AGeometry.from_tree(tree[f"height_{k}"], band) for k in range(heights.size)
+            )
+            d = tree["dem"]
+            gt = tuple(float(v) for v in np.asarray(d["geotransform"]).ravel())
+            if len(gt) != 6:
+                raise ValueError(f"DEM geotransform {gt}: 6 numbers expected")
+            pyproj.CRS.from_wkt(str(d["crs_wkt"]))
+            dem = Dem(
+                np.asarray(d["height_m"], dtype=np.float64),
+                gt,  # type: ignore[arg-type]
+                str(d["crs_wkt"]),
+                str(d["vertical"]),
+                str(d["source"]),
+            )
+            step = float(tree["dem_step_px"])
+            if not step > 0:
+                raise ValueError(f"dem_step_px = {step}")
+            errors = tree["anchor_error_px"]
+            err = errors[band if band is not None else next(iter(errors))]
+            return (
+                levels,
+                heights,
+                dem,
+                step,
+                float(d["spacing_m"]),
+                {k: float(v) for k, v in err.items()},
+            )
+        except (
+            KeyError,
+            TypeError,
+            ValueError,
+            StopIteration,
+            DemError,
+            pyproj.exceptions.CRSError,
+        ) as exc:
+            if isinstance(exc, ProductError):
+                raise
+            raise ProductError(
+                f"level 3 geometry tree is incomplete or damaged ({type(exc).__name__}: {exc})"
+            ) from None
+
+    @property
+    def dem_source(self) -> str:
+        return self.dem.source
+
+    @property
+    def dem_vertical(self) -> str:
+        return self.dem.vertical
 
     # the map grid: every level's
     @property
@@ -222,17 +323,91 @@ class Level3Geometry:
         return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
 
 
-def _dem_on_grid(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray[np.float64]:
-    """The DEM's ellipsoidal heights at output pixels ``(a·step, b·step)`` covering the grid."""
+#: The map → DEM-pixel transformation is computed exactly every this many DEM nodes along
+#: each axis and by cubic splines between (it is smooth: UTM to geographic over a few
+#: kilometres bends by micro-pixels), sparing PROJ ten million points per scene.
+PROJ_LATTICE = 16
+
+
+def _dem_nodes(grid: Level2AGeometry, step_px: float) -> tuple[NDArray, NDArray]:
+    """Output rows and columns ``(a·step, b·step)`` of the DEM nodes covering the grid."""
     na = int(np.ceil((grid.n_rows - 1) / step_px)) + 2
     nb = int(np.ceil((grid.n_cols - 1) / step_px)) + 2
-    a, b = np.meshgrid(np.arange(na) * step_px, np.arange(nb) * step_px, indexing="ij")
-    e, n = grid.map_of(a, b)
-    to_geo = pyproj.Transformer.from_crs(
-        pyproj.CRS.from_wkt(grid.crs_wkt), "EPSG:4326", always_xy=True
+    return np.arange(na) * step_px, np.arange(nb) * step_px
+
+
+def _smooth_on_nodes(
+    a: NDArray, b: NDArray, f: Callable[[NDArray, NDArray], tuple[NDArray, ...]]
+) -> tuple[NDArray[np.float64], ...]:
+    """``f`` of the output pixels ``(a, b)``, full lattice, from exact values on every
+    :data:`PROJ_LATTICE`-th node and bicubic splines between."""
+    ka = np.union1d(np.arange(0, a.size, PROJ_LATTICE), [a.size - 1])
+    kb = np.union1d(np.arange(0, b.size, PROJ_LATTICE), [b.size - 1])
+    ca, cb = np.meshgrid(a[ka], b[kb], indexing="ij")
+    values = f(ca, cb)
+    out = []
+    for v in values:
+        spline = RectBivariateSpline(
+            a[ka], b[kb], v.reshape(ca.shape), kx=min(3, ka.size - 1), ky=min(3, kb.size - 1)
+        )
+        out.append(spline(a, b))
+    return tuple(out)
+
+
+def _dem_pixels(
+    dem: Dem, grid: Level2AGeometry, step_px: float, coarse: bool = False
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The DEM's fractional (row, column) under the output nodes of :func:`_dem_nodes`
+    (``coarse``: only under every :data:`PROJ_LATTICE`-th node and the last)."""
+    to_dem = pyproj.Transformer.from_crs(
+        pyproj.CRS.from_wkt(grid.crs_wkt), pyproj.CRS.from_wkt(dem.crs_wkt), always_xy=True
     )
-    lon, lat = to_geo.transform(e.ravel(), n.ravel())
-    return dem.heights(np.radians(lat), np.radians(lon)).reshape(na, nb)
+
+    def pixel(i: NDArray, j: NDArray) -> tuple[NDArray, NDArray]:
+        x, y = to_dem.transform(*(v.ravel() for v in grid.map_of(i, j)))
+        return dem.pixel_of(np.asarray(x), np.asarray(y))
+
+    a, b = _dem_nodes(grid, step_px)
+    if coarse:
+        ka = np.union1d(np.arange(0, a.size, PROJ_LATTICE), [a.size - 1])
+        kb = np.union1d(np.arange(0, b.size, PROJ_LATTICE), [b.size - 1])
+        return pixel(*np.meshgrid(a[ka], b[kb], indexing="ij"))
+    row, col = _smooth_on_nodes(a, b, pixel)
+    return row, col
+
+
+def _dem_on_grid(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray[np.float64]:
+    """The DEM's ellipsoidal heights at output pixels ``(a·step, b·step)`` covering the grid
+    (bilinear in the DEM's own grid; EGM96's undulation, smooth, from the coarse lattice)."""
+    row, col = _dem_pixels(dem, grid, step_px)
+    h = dem.sample(row.ravel(), col.ravel()).reshape(row.shape)
+    if dem.vertical == "egm96":
+        to_geo = pyproj.Transformer.from_crs(
+            pyproj.CRS.from_wkt(grid.crs_wkt), "EPSG:4326", always_xy=True
+        )
+
+        def undulation(i: NDArray, j: NDArray) -> tuple[NDArray]:
+            lon, lat = to_geo.transform(*(v.ravel() for v in grid.map_of(i, j)))
+            lat_r, lon_r = np.radians(lat), np.radians(lon)
+            return (geoid_to_ellipsoid(lat_r, lon_r, np.zeros(lat_r.shape)),)
+
+        h = h + _smooth_on_nodes(*_dem_nodes(grid, step_px), undulation)[0]
+    return h
+
+
+def _dem_window(dem: Dem, grid: Level2AGeometry, step_px: float) -> Dem:
+    """The part of the DEM under the grid (a margin of two DEM nodes beyond the coarse
+    lattice's extremes, which bound the smooth mapping's): what a product stores."""
+    row, col = _dem_pixels(dem, grid, step_px, coarse=True)
+    nr, nc = dem.height_m.shape
+    inside = (row > -1) & (row < nr) & (col > -1) & (col < nc)
+    if not inside.any():
+        raise GeometryError(f"level 3: the DEM {dem.source or ''} does not cover the scene")
+    r, c = row[inside], col[inside]
+    return dem.window(
+        slice(max(0, int(np.floor(r.min())) - 2), int(np.ceil(r.max())) + 3),
+        slice(max(0, int(np.floor(c.min())) - 2), int(np.ceil(c.max())) + 3),
+    )
 
 
 def _dem_spacing_m(dem: Dem, lat_rad: float) -> float:
@@ -265,7 +440,8 @@ def level3_geometry(
     )
     spacing = _dem_spacing_m(dem, scene.centre_lat_rad)
     step = max(1.0, spacing / pixel_size_m / DEM_OVERSAMPLING)
-    heights_probe = _dem_on_grid(dem, probe, step)
+    # the heights' range at one node per DEM spacing (a bilinear surface peaks at nodes)
+    heights_probe = _dem_on_grid(dem, probe, step * DEM_OVERSAMPLING)
     if not np.isfinite(heights_probe).any():
         raise GeometryError(
             f"level 3: the DEM {dem.source or ''} does not cover scene {scene.cut.index}"
@@ -302,7 +478,8 @@ def level3_geometry(
             inverse_rows=np.arange(0.0, n_rows - 1 + step_ij, step_ij),
             inverse_cols=np.arange(0.0, n_cols - 1 + step_ij, step_ij),
         )
-    dem_grid = _dem_on_grid(dem, template, step)
+    window = _dem_window(dem, template, step)
+    dem_grid = _dem_on_grid(window, template, step)
     while True:
         levels = tuple(
             level2a_geometry(
@@ -317,9 +494,7 @@ def level3_geometry(
             )
             for s in at
         )
-        geom = Level3Geometry(
-            levels, heights, dem_grid, step, dem.source, dem.vertical, spacing, {}
-        )
+        geom = Level3Geometry(levels, heights, window, dem_grid, step, spacing, {})
         err = geom.anchor_error(scene, b)
         current = template.inverse_step[0]
         if err["max_px"] <= ANCHOR_TOLERANCE_PX or inverse_step_px or current <= 1 or like:

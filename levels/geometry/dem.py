@@ -86,6 +86,16 @@ class Dem:
         row = (-g[4] * dx + g[1] * dy) / det - 0.5
         return row, col
 
+    def window(self, rows: slice, cols: slice) -> Dem:
+        """The part of the grid in ``rows`` and ``cols`` (clipped to it), georeferenced."""
+        r0, r1, _ = rows.indices(self.height_m.shape[0])
+        c0, c1, _ = cols.indices(self.height_m.shape[1])
+        if r1 - r0 < 2 or c1 - c0 < 2:
+            raise DemError(f"{self.source or 'DEM'}: window {rows}, {cols} leaves under 2 × 2")
+        g = self.geotransform
+        gt = (g[0] + c0 * g[1] + r0 * g[2], g[1], g[2], g[3] + c0 * g[4] + r0 * g[5], g[4], g[5])
+        return Dem(self.height_m[r0:r1, c0:c1], gt, self.crs_wkt, self.vertical, self.source)
+
     def sample(self, row: NDArray[np.float64], col: NDArray[np.float64]) -> NDArray[np.float64]:
         """Heights in the file's datum at fractional pixels, bilinear (NaN if a corner is
         a void or the point is outside the grid)."""

@@ -66,6 +66,10 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
     if args.options:
         table, _ = read_toml(args.options, "options")
         opts = ProcessingOptions.from_table(table.get("processing", {}), error=ScenarioError)
+        if opts.dem_path and not Path(opts.dem_path).is_absolute():  # relative to the file
+            opts = dataclasses.replace(
+                opts, dem_path=str(Path(args.options).parent / opts.dem_path)
+            )
     if args.levels:
         levels = [lv.strip() for lv in args.levels.split(",") if lv.strip()]
         known = ProcessingOptions.__dataclass_fields__["levels"].metadata["choices"]

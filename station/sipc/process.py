@@ -10,6 +10,7 @@ products are then those of the run, bit for bit.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -185,6 +186,8 @@ def reprocess_pass(
     archives = [read_l0(p) for p in paths]
     opts = options or (scenario.processing if scenario is not None else ProcessingOptions())
     truths = [truth_for(scenario, a) if scenario is not None else None for a in archives]
+    if "3" in opts.levels and not opts.dem_path:
+        opts = dataclasses.replace(opts, dem_path=str(_run_dem(paths[0], archives[0])))
     points = None
     if "2" in opts.levels:
         where = (
@@ -202,6 +205,22 @@ def reprocess_pass(
         names=names or [l0_stem(p) for p in paths],
         checkpoints=truths,
         gcps=points,
+    )
+
+
+def _run_dem(l0_path: Path, archive: L0Archive) -> Path:
+    """The DEM a run exported beside its L0 archive (``<scenario>.dem.tif``), for level 3
+    when no ``dem_path`` is given; :class:`DemError` naming both when there is none."""
+    from levels.errors import DemError
+
+    names = [str(archive.provenance.get("scenario", "")), l0_stem(l0_path)]
+    for name in filter(None, names):
+        candidate = l0_path.with_name(f"{name}.dem.tif")
+        if candidate.is_file():
+            return candidate
+    raise DemError(
+        f"level 3 needs a DEM: no [processing] dem_path given and no {names[-1]}.dem.tif "
+        f"beside {l0_path}; set dem_path in --options (or --scenario)"
     )
 
 
@@ -229,9 +248,16 @@ def process_scenario(
     truth, gcps = measured_control_points(
         acq, archive, Path(l0).with_name(f"{l0_stem(l0)}.gcp.csv")
     )
+    options = scn.processing
+    if scn.dem is not None:
+        from station.spacecraft.dem import export_dem
+
+        dem = export_dem([acq], scn.dem, scn.seed, out / f"{scn.name}.dem.tif")
+        if not options.dem_path:
+            options = dataclasses.replace(options, dem_path=str(dem))
     products = process_l0(
         archive,
-        scn.processing,
+        options,
         out,
         name=scn.name,
         checkpoints=truth,

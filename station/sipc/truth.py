@@ -33,7 +33,7 @@ from levels.readers.l0 import L0Archive
 from station.spacecraft.emulator import Acquisition, truth_model
 from station.spacecraft.imaging import trace_pixels
 
-__all__ = ["Truth", "checkpoints_1b", "checkpoints_2a"]
+__all__ = ["Truth", "checkpoints_1b", "checkpoints_2a", "checkpoints_3"]
 
 
 @dataclass(eq=False)
@@ -184,8 +184,11 @@ def checkpoints_3(
     truth: Truth, scene: SceneGeometry, geom: Level3Geometry, band: int, per_side: int
 ) -> dict:
     """Checkpoint errors of a level 3 product in its map: where it puts each checkpoint's raw
-    pixel against where that pixel truly looked on the terrain (``ground``); pixels whose
-    ray missed the terrain, or that fall on a void of the DEM, are left out."""
+    pixel against where that pixel truly looked on the terrain (``ground``), and beside it
+    where a product at the scene's reference height (2A) puts the same pixels
+    (``ground_2a``: the relief displacement level 3 removed), and the DEM's height error
+    under them (``dem_error``). Pixels whose ray missed the terrain, or that fall on a void
+    of the DEM, are left out."""
     line, col = truth.lattice(scene, per_side)
     tl = truth.truth_lines(scene, line)
     g = truth.ground(band, tl, col)
@@ -198,9 +201,32 @@ def checkpoints_3(
     i, j = geom.output_of(line[ok], col[ok], geom.ij_of_map(eg, ng))
     e, n = geom.map_of(i, j)
     fine = np.isfinite(e) & np.isfinite(n)
+    model = scene.models[list(scene.models)[band]]
+    flat = model.image_to_ground(line[ok], col[ok], scene.reference_height_m)
+    e2, n2 = (
+        np.asarray(v) for v in to_map.transform(np.degrees(flat.lon_rad), np.degrees(flat.lat_rad))
+    )
+    dh = geom.height_at(*geom.ij_of_map(eg, ng)) - _h
+    # each pixel's ground point moves by k metres per metre of height along the view:
+    # a DEM error δh moves level 3 by k·δh (k = tan θ on flat ground)
+    up = model.image_to_ground(line[ok], col[ok], scene.reference_height_m + 1.0)
+    e3, n3 = (
+        np.asarray(v) for v in to_map.transform(np.degrees(up.lon_rad), np.degrees(up.lat_rad))
+    )
+    k = np.hypot(e3 - e2, n3 - n2)
+    res = geom.pixel_size_m
     return {
         "axes": "1: easting, 2: northing of the map",
-        "ground": error_stats((e - eg)[fine], (n - ng)[fine], geom.pixel_size_m),
+        "ground": error_stats((e - eg)[fine], (n - ng)[fine], res),
+        "ground_2a": error_stats((e2 - eg)[fine], (n2 - ng)[fine], res),
+        "dem_error": {
+            "rms_m": float(np.sqrt(np.mean(dh[fine] ** 2))) if fine.any() else None,
+            "max_m": float(np.max(np.abs(dh[fine]))) if fine.any() else None,
+            "tan_view_angle": float(np.median(k[fine])) if fine.any() else None,
+            "predicted_ground_rms_m": (
+                float(np.sqrt(np.mean((k * dh)[fine] ** 2))) if fine.any() else None
+            ),
+        },
         "raw_line": line[ok][fine],
         "raw_column": col[ok][fine],
         "output_row": i[fine],

@@ -1,4 +1,5 @@
-"""Real DEM files for the emulated world: SRTM ``.hgt`` tiles.
+"""DEM files and the emulated world: SRTM ``.hgt`` tiles read as the world's terrain, and
+the world's terrain exported as the DEM a station is handed for level 3.
 
 An SRTM tile ``NxxEyyy.hgt`` is a square grid of big-endian int16 heights (m above the EGM96
 geoid, which the emulator takes as ellipsoidal: the world only has to be *a* terrain),
@@ -12,13 +13,19 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.ndimage import gaussian_filter
 
 from station.errors import StationError
 from station.spacecraft.world import DemGrid
 
-__all__ = ["DemError", "read_hgt"]
+if TYPE_CHECKING:
+    from station.scenario import DemConfig
+    from station.spacecraft.emulator import Acquisition
+
+__all__ = ["DemError", "export_dem", "read_hgt"]
 
 _VOID = -32768
 _NAME = re.compile(r"^([NS])(\d{2})([EW])(\d{3})\.hgt$", re.IGNORECASE)
@@ -51,3 +58,98 @@ def read_hgt(path: str | Path) -> DemGrid:
     lat = np.radians(lat0) + step * np.arange(side)
     lon = np.radians(lon0) + step * np.arange(side)
     return DemGrid(lat, lon, heights, error_rms_m=0.0)
+
+
+#: Edge pixels traced per side of each strip to find its footprint.
+_FOOTPRINT_SAMPLES = 64
+_NODATA = -32768.0
+
+
+def _footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]:
+    """South, north, west, east bounds (rad) of the terrain the strips truly see."""
+    from station.spacecraft.imaging import trace_pixels
+
+    lat, lon = [], []
+    for acq in acqs:
+        t0, t1 = acq.line_times_s[0], acq.line_times_s[-1]
+        n_col = acq.hrv.n_columns - 1
+        s = np.linspace(0.0, 1.0, _FOOTPRINT_SAMPLES)
+        t = np.concatenate([t0 + s * (t1 - t0), t0 + s * (t1 - t0), np.full(2 * s.size, t0)])
+        t[3 * s.size :] = t1
+        col = np.concatenate([np.zeros(s.size), np.full(s.size, n_col), s * n_col, s * n_col])
+        pts, ok = trace_pixels(acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world, t, col)
+        lat.append(pts[ok, 0])
+        lon.append(pts[ok, 1])
+    la, lo = np.concatenate(lat), np.concatenate(lon)
+    if not la.size:
+        raise DemError("[dem]: no pixel of the pass meets the world's terrain; nothing to export")
+    return float(la.min()), float(la.max()), float(lo.min()), float(lo.max())
+
+
+def export_dem(acqs: list[Acquisition], cfg: DemConfig, seed: int, path: str | Path) -> Path:
+    """The world's terrain under the pass as a GeoTIFF DEM of known quality (``[dem]``).
+
+    The grid is geographic (WGS84, ellipsoidal heights, north-up), every
+    ``cfg.spacing_arcsec`` over the strips' footprint plus ``cfg.margin_km``; its nodes are
+    the world's heights plus an error of 1σ ``cfg.error_rms_m`` (white, or Gaussian-
+    correlated over ``cfg.error_correlation_m`` and scaled back to that 1σ), drawn from the
+    scenario's ``seed``. Voids of the world (outside a real tile) are no-data. Written
+    atomically; returns the path.
+    """
+    import rasterio
+    from rasterio.transform import Affine
+
+    from levels.files import atomic_path
+
+    south, north, west, east = _footprint_rad(acqs)
+    margin = cfg.margin_km * 1e3 / 6371e3
+    step = np.radians(cfg.spacing_arcsec / 3600.0)
+    coslat = max(np.cos(max(abs(south), abs(north))), 1e-3)
+    lat0 = np.floor((south - margin) / step) * step
+    lon0 = np.floor((west - margin / coslat) / step) * step
+    n_lat = int(np.ceil((north + margin - lat0) / step)) + 1
+    n_lon = int(np.ceil((east + margin / coslat - lon0) / step)) + 1
+    if n_lat * n_lon > 2e8:
+        raise DemError(
+            f'[dem]: {n_lat} × {n_lon} nodes at {cfg.spacing_arcsec:g}" is too large a grid; '
+            "take a coarser spacing_arcsec"
+        )
+    world = acqs[0].world
+    grid = world.dem((lat0, lat0 + (n_lat - 1) * step), (lon0, lon0 + (n_lon - 1) * step), step)
+    h = grid.height_m
+    if cfg.error_rms_m > 0:
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0x0DE3,)))
+        noise = rng.standard_normal(h.shape)
+        if cfg.error_correlation_m > 0:
+            sigma = cfg.error_correlation_m / (np.radians(cfg.spacing_arcsec / 3600) * 6371e3)
+            noise = gaussian_filter(noise, sigma, mode="wrap")
+            noise /= noise.std()
+        h = h + cfg.error_rms_m * noise
+    north_up = np.where(np.isnan(h), _NODATA, h)[::-1].astype(np.float32)
+    deg = np.degrees(step)
+    west_deg, north_deg = np.degrees(grid.lon_rad[0]), np.degrees(grid.lat_rad[-1])
+    profile = {
+        "driver": "GTiff",
+        "width": h.shape[1],
+        "height": h.shape[0],
+        "count": 1,
+        "dtype": "float32",
+        "crs": "EPSG:4326",
+        # pixel-is-area: the node (row 0, column 0) is the centre of the first pixel
+        "transform": Affine(deg, 0.0, west_deg - deg / 2, 0.0, -deg, north_deg + deg / 2),
+        "nodata": _NODATA,
+        "tiled": True,
+        "compress": "deflate",
+        "predictor": 3,
+    }
+    out = Path(path)
+    with atomic_path(out) as tmp, rasterio.open(tmp, "w", **profile) as ds:
+        ds.write(north_up, 1)
+        ds.update_tags(
+            source="spot-station emulated world",
+            vertical_datum="WGS84 ellipsoid",
+            error_rms_m=str(cfg.error_rms_m),
+            error_correlation_m=str(cfg.error_correlation_m),
+            spacing_arcsec=str(cfg.spacing_arcsec),
+        )
+    return out
