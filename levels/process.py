@@ -642,7 +642,7 @@ def _quality_3(
     source the errors on the terrain beside those 2A had at the same points."""
     bands = list(scene.models)
     g = g3[bands[0]]
-    dem_nodes = np.isfinite(g.dem_height_m)
+    lo, hi = g.terrain_range_m
     q: dict[str, Any] = {
         "radiometry": radiometry,
         "model": "level 2 (adjusted on control points)" if refined else "system",
@@ -653,9 +653,9 @@ def _quality_3(
             "source": Path(g.dem_source).name,
             "vertical": g.dem_vertical,
             "spacing_m": g.dem_spacing_m,
-            "void_fraction": float(1.0 - dem_nodes.mean()),
-            "height_min_m": float(np.nanmin(g.dem_height_m)) if dem_nodes.any() else None,
-            "height_max_m": float(np.nanmax(g.dem_height_m)) if dem_nodes.any() else None,
+            "void_fraction": g.dem.void_fraction,
+            "height_min_m": lo if np.isfinite(lo) else None,
+            "height_max_m": hi if np.isfinite(hi) else None,
         },
         "hidden_fraction": hidden,
     }

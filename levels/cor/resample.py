@@ -369,18 +369,32 @@ def _sample_at(img, c, seg_lines, seg_of, method):
 
 
 @nb.njit(cache=True, inline="always", fastmath=_FAST)
-def _coords_3(r, k, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, seg_of, lines):
+def _coords_3(
+    r, k, step_i, step_j, inv_line, inv_col, heights, dem, dem_rc, dem_step, seg_of, lines
+):
     """Raw column of output pixel ``(r, k)`` on the terrain, each segment's line in
-    ``lines``, and the terrain height (NaN over a void): level 3's densification
-    (:mod:`levels.geo.level3`)."""
+    ``lines``, and the terrain height (NaN over a void or outside the DEM): level 3's
+    densification (:mod:`levels.geo.level3`: the DEM's own bilinear surface at the DEM
+    (row, column) interpolated from ``dem_rc``)."""
     n_lev, n_seg, na, nb_ = inv_line.shape
-    nr, nc = dem.shape
     x, y = r / dem_step, k / dem_step
-    a0 = min(max(int(np.floor(x)), 0), nr - 2)
-    b0 = min(max(int(np.floor(y)), 0), nc - 2)
+    a0 = min(max(int(np.floor(x)), 0), dem_rc.shape[1] - 2)
+    b0 = min(max(int(np.floor(y)), 0), dem_rc.shape[2] - 2)
     u, v = x - a0, y - b0
-    h = (1 - u) * ((1 - v) * dem[a0, b0] + v * dem[a0, b0 + 1]) + u * (
-        (1 - v) * dem[a0 + 1, b0] + v * dem[a0 + 1, b0 + 1]
+    rr = (1 - v) * ((1 - u) * dem_rc[0, a0, b0] + u * dem_rc[0, a0 + 1, b0]) + v * (
+        (1 - u) * dem_rc[0, a0, b0 + 1] + u * dem_rc[0, a0 + 1, b0 + 1]
+    )
+    cc = (1 - v) * ((1 - u) * dem_rc[1, a0, b0] + u * dem_rc[1, a0 + 1, b0]) + v * (
+        (1 - u) * dem_rc[1, a0, b0 + 1] + u * dem_rc[1, a0 + 1, b0 + 1]
+    )
+    nr, nc = dem.shape
+    if not (0.0 <= rr <= nr - 1 and 0.0 <= cc <= nc - 1):
+        return np.nan, np.nan
+    p0 = min(int(np.floor(rr)), nr - 2)
+    q0 = min(int(np.floor(cc)), nc - 2)
+    ds, dt = rr - p0, cc - q0
+    h = (1 - ds) * ((1 - dt) * dem[p0, q0] + dt * dem[p0, q0 + 1]) + ds * (
+        (1 - dt) * dem[p0 + 1, q0] + dt * dem[p0 + 1, q0 + 1]
     )
     if h != h:
         return np.nan, h
@@ -410,7 +424,9 @@ def _coords_3(r, k, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, s
 
 
 @nb.njit(cache=True, fastmath=_FAST)
-def _zbuffer_3(shape, n_out, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, seg_of):
+def _zbuffer_3(
+    shape, n_out, step_i, step_j, inv_line, inv_col, heights, dem, dem_rc, dem_step, seg_of
+):
     """The highest terrain seen in each raw pixel (every line of sight descends, so the
     highest ground point in a raw pixel is the one it sees). Serial: a max over pixels
     written by many output pixels must not race."""
@@ -420,7 +436,18 @@ def _zbuffer_3(shape, n_out, step_i, step_j, inv_line, inv_col, heights, dem, de
     for r in range(n_out[0]):
         for k in range(n_out[1]):
             c, h = _coords_3(
-                r, k, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, seg_of, lines
+                r,
+                k,
+                step_i,
+                step_j,
+                inv_line,
+                inv_col,
+                heights,
+                dem,
+                dem_rc,
+                dem_step,
+                seg_of,
+                lines,
             )
             if c == c:
                 ci = int(np.floor(c + 0.5))
@@ -440,6 +467,7 @@ def _kernel_3(
     inv_col,
     heights,
     dem,
+    dem_rc,
     dem_step,
     seg_of,
     zbuf,
@@ -455,7 +483,18 @@ def _kernel_3(
         lines = np.empty(inv_line.shape[1])
         for k in range(n_out_cols):
             c, h = _coords_3(
-                r, k, step_i, step_j, inv_line, inv_col, heights, dem, dem_step, seg_of, lines
+                r,
+                k,
+                step_i,
+                step_j,
+                inv_line,
+                inv_col,
+                heights,
+                dem,
+                dem_rc,
+                dem_step,
+                seg_of,
+                lines,
             )
             val = np.float32(np.nan)
             hid = False
@@ -499,8 +538,10 @@ def resample_3(
     inv_line = np.ascontiguousarray(np.stack([lv.inverse_line for lv in geom.levels]))
     inv_col = np.ascontiguousarray(np.stack([lv.inverse_column for lv in geom.levels]))
     heights = np.ascontiguousarray(geom.heights_m, dtype=np.float64)
-    dem = np.ascontiguousarray(geom.dem_height_m, dtype=np.float64)
-    args = (step_i, step_j, inv_line, inv_col, heights, dem, float(geom.dem_step_px), seg_of)
+    dem = np.ascontiguousarray(geom.dem_ellipsoidal_m, dtype=np.float64)
+    dem_rc = np.ascontiguousarray(geom.dem_rc, dtype=np.float64)
+    step = float(geom.dem_step_px)
+    args = (step_i, step_j, inv_line, inv_col, heights, dem, dem_rc, step, seg_of)
     zbuf = _zbuffer_3(img.shape, (geom.n_rows, geom.n_cols), *args)
     c_per_m = float(np.nanmedian(np.abs(inv_col[-1] - inv_col[0]))) / float(np.ptp(heights))
     ztol = HIDDEN_TOLERANCE_PX / max(c_per_m, 1e-9)

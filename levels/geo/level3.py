@@ -8,10 +8,12 @@ Levels 1B–2 put every pixel on a surface of constant height; relief then shift
    ``HEIGHT_LEVELS`` reference heights spanning the DEM over the scene, all on one map grid.
    Each gives, at every anchor of the output grid, the raw ``(L, C)`` that sees the map
    point *at that height*: a 3-D anchor grid over (row, column, height).
-2. **The DEM per pixel.** The DEM (:mod:`levels.readers.dem`, any CRS and datum) is sampled
-   at the nodes of a grid in the output CRS at its own spacing (``dem_step_px`` output
-   pixels), and bilinearly between them at every output pixel: the terrain height under
-   the pixel.
+2. **The DEM per pixel.** The DEM (:mod:`levels.readers.dem`, any CRS and datum) keeps its
+   own grid: every ``DEM_COORD_STEP`` output pixels, the fractional (row, column) of the
+   DEM under the pixel is computed exactly through PROJ, and bilinearly between (the map
+   → DEM mapping is smooth: micro-pixels over a few hundred metres); at every output pixel
+   the DEM is then sampled bilinearly in its own grid, so the terrain height under a pixel
+   is the DEM's own surface, however fine or coarse the DEM is against the pixel.
 3. **Densification.** At each output pixel, each height level's grid is interpolated
    bilinearly (as in 2A), and the levels are combined by Lagrange interpolation in the
    pixel's height (quadratic through three levels: the raw position of a ground point moves
@@ -31,14 +33,12 @@ leave their pixels invalid.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import pyproj
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import RectBivariateSpline
 
 from levels.errors import DemError, GeometryError, ProductError
 from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
@@ -66,10 +66,9 @@ HEIGHT_MARGIN_M = 50.0
 #: seen in its raw pixel is hidden (steep slopes facing the sensor put neighbours that much
 #: apart in height within one raw pixel).
 HIDDEN_TOLERANCE_PX = 1.5
-#: The DEM is resampled onto the output CRS at this many nodes per DEM spacing: bilinear
-#: between them then follows the DEM's own bilinear surface (at one node per spacing, the
-#: two interpolations differ by metres of height on rough terrain, 0.5 px at 27°).
-DEM_OVERSAMPLING = 4
+#: Output pixels between the nodes where the DEM's (row, column) under the output grid is
+#: computed through PROJ (bilinear between: the mapping bends by micro-pixels over them).
+DEM_COORD_STEP = 16
 #: Lattice of output pixels per side where the anchor error is measured.
 ANCHOR_CHECK_LATTICE = 41
 
@@ -92,7 +91,8 @@ class Level3Geometry:
     levels: tuple[Level2AGeometry, ...]
     heights_m: NDArray[np.float64]
     dem: Dem  # the part of the DEM under the scene, in its own CRS and datum
-    dem_height_m: NDArray[np.float64]  # (rows, cols) on output pixels (a·step, b·step)
+    dem_ellipsoidal_m: NDArray[np.float64]  # its heights above the ellipsoid
+    dem_rc: NDArray[np.float64]  # (2, na, nb): its (row, column) at output (a·step, b·step)
     dem_step_px: float
     dem_spacing_m: float
     anchor_error_px: dict[str, float]
@@ -133,7 +133,16 @@ class Level3Geometry:
         ``geometry/level_3`` tree (the DEM's heights on the output grid computed again from
         the DEM window it stores); :class:`ProductError` names what is missing or bad."""
         levels, heights, dem, step, spacing, err = cls._parts(tree, band)
-        return cls(levels, heights, dem, _dem_on_grid(dem, levels[0], step), step, spacing, err)
+        return cls(
+            levels,
+            heights,
+            dem,
+            _ellipsoidal(dem),
+            _dem_coordinates(dem, levels[0], step),
+            step,
+            spacing,
+            err,
+        )
 
     @classmethod
     def check_tree(cls, tree: dict[str, Any], band: str | None = None) -> None:
@@ -241,14 +250,20 @@ class Level3Geometry:
         """The DEM's ellipsoidal height under output pixels (NaN over voids)."""
         a = np.asarray(i, dtype=np.float64) / self.dem_step_px
         b = np.asarray(j, dtype=np.float64) / self.dem_step_px
-        nr, nc = self.dem_height_m.shape
-        a0 = np.clip(np.floor(a).astype(np.int64), 0, nr - 2)
-        b0 = np.clip(np.floor(b).astype(np.int64), 0, nc - 2)
-        u, v = a - a0, b - b0
-        z = self.dem_height_m
-        return (1 - u) * ((1 - v) * z[a0, b0] + v * z[a0, b0 + 1]) + u * (
-            (1 - v) * z[a0 + 1, b0] + v * z[a0 + 1, b0 + 1]
-        )
+        row = bilinear_grid(self._nodes(0), self._nodes(1), self.dem_rc[0], a, b)
+        col = bilinear_grid(self._nodes(0), self._nodes(1), self.dem_rc[1], a, b)
+        return _bilinear_dem(self.dem_ellipsoidal_m, row, col)
+
+    def _nodes(self, axis: int) -> NDArray[np.float64]:
+        return np.arange(float(self.dem_rc.shape[1 + axis]))
+
+    @property
+    def terrain_range_m(self) -> tuple[float, float]:
+        """The lowest and highest DEM heights (ellipsoidal) under the scene; NaN if none."""
+        h = self.dem_ellipsoidal_m
+        if not np.isfinite(h).any():
+            return float("nan"), float("nan")
+        return float(np.nanmin(h)), float(np.nanmax(h))
 
     def raw_of(
         self, i: ArrayLike, j: ArrayLike, h_m: ArrayLike | None = None
@@ -323,82 +338,56 @@ class Level3Geometry:
         return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
 
 
-#: The map → DEM-pixel transformation is computed exactly every this many DEM nodes along
-#: each axis and by cubic splines between (it is smooth: UTM to geographic over a few
-#: kilometres bends by micro-pixels), sparing PROJ ten million points per scene.
-PROJ_LATTICE = 16
+def _bilinear_dem(
+    z: NDArray[np.float64], row: NDArray[np.float64], col: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The DEM's own bilinear surface at fractional (row, column): NaN outside or where a
+    corner is a void (the arithmetic of the level 3 kernel)."""
+    nr, nc = z.shape
+    inside = (row >= 0) & (row <= nr - 1) & (col >= 0) & (col <= nc - 1)
+    p0 = np.clip(np.floor(np.nan_to_num(row)).astype(np.int64), 0, nr - 2)
+    q0 = np.clip(np.floor(np.nan_to_num(col)).astype(np.int64), 0, nc - 2)
+    s, t = row - p0, col - q0
+    h = (1 - s) * ((1 - t) * z[p0, q0] + t * z[p0, q0 + 1]) + s * (
+        (1 - t) * z[p0 + 1, q0] + t * z[p0 + 1, q0 + 1]
+    )
+    return np.where(inside, h, np.nan)
 
 
-def _dem_nodes(grid: Level2AGeometry, step_px: float) -> tuple[NDArray, NDArray]:
-    """Output rows and columns ``(a·step, b·step)`` of the DEM nodes covering the grid."""
+def _dem_coordinates(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray[np.float64]:
+    """The DEM's fractional (row, column) at output pixels ``(a·step, b·step)`` covering
+    the grid, shape ``(2, na, nb)``."""
     na = int(np.ceil((grid.n_rows - 1) / step_px)) + 2
     nb = int(np.ceil((grid.n_cols - 1) / step_px)) + 2
-    return np.arange(na) * step_px, np.arange(nb) * step_px
-
-
-def _smooth_on_nodes(
-    a: NDArray, b: NDArray, f: Callable[[NDArray, NDArray], tuple[NDArray, ...]]
-) -> tuple[NDArray[np.float64], ...]:
-    """``f`` of the output pixels ``(a, b)``, full lattice, from exact values on every
-    :data:`PROJ_LATTICE`-th node and bicubic splines between."""
-    ka = np.union1d(np.arange(0, a.size, PROJ_LATTICE), [a.size - 1])
-    kb = np.union1d(np.arange(0, b.size, PROJ_LATTICE), [b.size - 1])
-    ca, cb = np.meshgrid(a[ka], b[kb], indexing="ij")
-    values = f(ca, cb)
-    out = []
-    for v in values:
-        spline = RectBivariateSpline(
-            a[ka], b[kb], v.reshape(ca.shape), kx=min(3, ka.size - 1), ky=min(3, kb.size - 1)
-        )
-        out.append(spline(a, b))
-    return tuple(out)
-
-
-def _dem_pixels(
-    dem: Dem, grid: Level2AGeometry, step_px: float, coarse: bool = False
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The DEM's fractional (row, column) under the output nodes of :func:`_dem_nodes`
-    (``coarse``: only under every :data:`PROJ_LATTICE`-th node and the last)."""
+    a, b = np.meshgrid(np.arange(na) * step_px, np.arange(nb) * step_px, indexing="ij")
     to_dem = pyproj.Transformer.from_crs(
         pyproj.CRS.from_wkt(grid.crs_wkt), pyproj.CRS.from_wkt(dem.crs_wkt), always_xy=True
     )
-
-    def pixel(i: NDArray, j: NDArray) -> tuple[NDArray, NDArray]:
-        x, y = to_dem.transform(*(v.ravel() for v in grid.map_of(i, j)))
-        return dem.pixel_of(np.asarray(x), np.asarray(y))
-
-    a, b = _dem_nodes(grid, step_px)
-    if coarse:
-        ka = np.union1d(np.arange(0, a.size, PROJ_LATTICE), [a.size - 1])
-        kb = np.union1d(np.arange(0, b.size, PROJ_LATTICE), [b.size - 1])
-        return pixel(*np.meshgrid(a[ka], b[kb], indexing="ij"))
-    row, col = _smooth_on_nodes(a, b, pixel)
-    return row, col
+    x, y = to_dem.transform(*(v.ravel() for v in grid.map_of(a, b)))
+    row, col = dem.pixel_of(np.asarray(x), np.asarray(y))
+    return np.stack([row.reshape(na, nb), col.reshape(na, nb)])
 
 
-def _dem_on_grid(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray[np.float64]:
-    """The DEM's ellipsoidal heights at output pixels ``(a·step, b·step)`` covering the grid
-    (bilinear in the DEM's own grid; EGM96's undulation, smooth, from the coarse lattice)."""
-    row, col = _dem_pixels(dem, grid, step_px)
-    h = dem.sample(row.ravel(), col.ravel()).reshape(row.shape)
-    if dem.vertical == "egm96":
-        to_geo = pyproj.Transformer.from_crs(
-            pyproj.CRS.from_wkt(grid.crs_wkt), "EPSG:4326", always_xy=True
-        )
-
-        def undulation(i: NDArray, j: NDArray) -> tuple[NDArray]:
-            lon, lat = to_geo.transform(*(v.ravel() for v in grid.map_of(i, j)))
-            lat_r, lon_r = np.radians(lat), np.radians(lon)
-            return (geoid_to_ellipsoid(lat_r, lon_r, np.zeros(lat_r.shape)),)
-
-        h = h + _smooth_on_nodes(*_dem_nodes(grid, step_px), undulation)[0]
-    return h
+def _ellipsoidal(dem: Dem) -> NDArray[np.float64]:
+    """The DEM's heights above the ellipsoid at its own nodes (EGM96's undulation added
+    through PROJ's grid for a geoid DEM)."""
+    if dem.vertical == "ellipsoid":
+        return dem.height_m
+    r, c = np.meshgrid(*(np.arange(float(n)) for n in dem.height_m.shape), indexing="ij")
+    g = dem.geotransform
+    x = g[0] + (c + 0.5) * g[1] + (r + 0.5) * g[2]
+    y = g[3] + (c + 0.5) * g[4] + (r + 0.5) * g[5]
+    to_geo = pyproj.Transformer.from_crs(
+        pyproj.CRS.from_wkt(dem.crs_wkt), "EPSG:4326", always_xy=True
+    )
+    lon, lat = to_geo.transform(x.ravel(), y.ravel())
+    h = geoid_to_ellipsoid(np.radians(lat), np.radians(lon), dem.height_m.ravel())
+    return h.reshape(dem.height_m.shape)
 
 
-def _dem_window(dem: Dem, grid: Level2AGeometry, step_px: float) -> Dem:
-    """The part of the DEM under the grid (a margin of two DEM nodes beyond the coarse
-    lattice's extremes, which bound the smooth mapping's): what a product stores."""
-    row, col = _dem_pixels(dem, grid, step_px, coarse=True)
+def _dem_window(dem: Dem, grid: Level2AGeometry) -> Dem:
+    """The part of the DEM under the grid, two nodes of margin: what a product stores."""
+    row, col = _dem_coordinates(dem, grid, DEM_COORD_STEP)
     nr, nc = dem.height_m.shape
     inside = (row > -1) & (row < nr) & (col > -1) & (col < nc)
     if not inside.any():
@@ -439,15 +428,14 @@ def level3_geometry(
         scene, pixel_size_m, crs, method, grid_rows=grid_rows, band=b, grid_columns=grid_columns
     )
     spacing = _dem_spacing_m(dem, scene.centre_lat_rad)
-    step = max(1.0, spacing / pixel_size_m / DEM_OVERSAMPLING)
-    # the heights' range at one node per DEM spacing (a bilinear surface peaks at nodes)
-    heights_probe = _dem_on_grid(dem, probe, step * DEM_OVERSAMPLING)
-    if not np.isfinite(heights_probe).any():
+    # the heights' range over the footprint (a bilinear surface peaks at its nodes)
+    probe_dem = _ellipsoidal(_dem_window(dem, probe))
+    if not np.isfinite(probe_dem).any():
         raise GeometryError(
-            f"level 3: the DEM {dem.source or ''} does not cover scene {scene.cut.index}"
+            f"level 3: the DEM {dem.source or ''} has only voids under scene {scene.cut.index}"
         )
-    lo = float(np.nanmin(heights_probe)) - HEIGHT_MARGIN_M
-    hi = float(np.nanmax(heights_probe)) + HEIGHT_MARGIN_M
+    lo = float(np.nanmin(probe_dem)) - HEIGHT_MARGIN_M
+    hi = float(np.nanmax(probe_dem)) + HEIGHT_MARGIN_M
     heights = np.linspace(lo, hi, HEIGHT_LEVELS)
     # one map grid for every level: the union of the footprints at the lowest and highest
     at = [replace(scene, reference_height_m=float(h)) for h in heights]
@@ -478,8 +466,9 @@ def level3_geometry(
             inverse_rows=np.arange(0.0, n_rows - 1 + step_ij, step_ij),
             inverse_cols=np.arange(0.0, n_cols - 1 + step_ij, step_ij),
         )
-    window = _dem_window(dem, template, step)
-    dem_grid = _dem_on_grid(window, template, step)
+    window = _dem_window(dem, template)
+    ellipsoidal = _ellipsoidal(window)
+    coordinates = _dem_coordinates(window, template, DEM_COORD_STEP)
     while True:
         levels = tuple(
             level2a_geometry(
@@ -494,7 +483,9 @@ def level3_geometry(
             )
             for s in at
         )
-        geom = Level3Geometry(levels, heights, window, dem_grid, step, spacing, {})
+        geom = Level3Geometry(
+            levels, heights, window, ellipsoidal, coordinates, DEM_COORD_STEP, spacing, {}
+        )
         err = geom.anchor_error(scene, b)
         current = template.inverse_step[0]
         if err["max_px"] <= ANCHOR_TOLERANCE_PX or inverse_step_px or current <= 1 or like:
@@ -505,3 +496,66 @@ def level3_geometry(
             inverse_rows=np.arange(0.0, template.n_rows - 1 + half, half),
             inverse_cols=np.arange(0.0, template.n_cols - 1 + half, half),
         )
+
+
+def on_terrain(
+    model: Any, line: NDArray[np.float64], column: NDArray[np.float64], dem: Dem, h0_m: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Where raw pixels meet the DEM (the direct method's step): latitude, longitude (rad),
+    height, and whether the damped fixed point ``h ← DEM(ground(h))`` converged to 1 cm
+    (slopes facing the sensor steeper than the view itself have no single answer)."""
+    h = np.full(np.shape(line), float(h0_m))
+    ok = np.zeros(h.shape, dtype=bool)
+    for _ in range(60):
+        g = model.image_to_ground(line, column, h)
+        terrain = dem.heights(g.lat_rad, g.lon_rad)
+        step = terrain - h
+        ok = np.abs(step) < 0.01
+        if np.all(ok | ~np.isfinite(step)):
+            break
+        h = np.where(np.isfinite(step), h + 0.7 * step, h)
+    return g.lat_rad, g.lon_rad, h, ok & np.isfinite(terrain)
+
+
+def direct_method_error(
+    scene: SceneGeometry, geom: Level3Geometry, band: str | None = None, n_check: int = 41
+) -> dict[str, float]:
+    """Shu Ning's direct method at the indirect grid's density, for comparison: anchors on
+    a regular grid of the raw image (as many raw pixels apart as the indirect anchors are
+    output pixels apart), each put on the DEM by the rigorous model (:func:`on_terrain`),
+    every raw pixel's map position bilinear between its cell's four anchors. Its error
+    against the rigorous answer at a lattice of raw pixels off the anchors, in output
+    pixels (the indirect grid's :meth:`Level3Geometry.anchor_error` is in raw pixels: both
+    are about the pixel size apart)."""
+    model = scene.models[band] if band is not None else scene.model
+    step = float(geom.grid.inverse_step[0])
+    nl, nc = scene.cut.n_lines, model.n_columns
+    al = np.arange(0.0, nl - 1 + step, step)
+    ac = np.arange(0.0, nc - 1 + step, step)
+    to_map = pyproj.Transformer.from_crs(
+        "EPSG:4326", pyproj.CRS.from_wkt(geom.crs_wkt), always_xy=True
+    )
+    h0 = float(np.mean(geom.heights_m))
+
+    def located(line: NDArray, col: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        lat, lon, _h, ok = on_terrain(model, line, col, geom.dem, h0)
+        e, n = to_map.transform(np.degrees(lon), np.degrees(lat))
+        return np.asarray(e), np.asarray(n), ok
+
+    ll, cc = np.meshgrid(al, ac, indexing="ij")
+    e_a, n_a, ok_a = located(ll.ravel(), cc.ravel())
+    e_a, n_a = (np.where(ok_a, v, np.nan).reshape(ll.shape) for v in (e_a, n_a))
+    cl, ccol = np.meshgrid(
+        np.linspace(0.37, nl - 1.37, n_check), np.linspace(0.41, nc - 1.41, n_check), indexing="ij"
+    )
+    line, col = cl.ravel(), ccol.ravel()
+    e, n, ok = located(line, col)
+    e_d = bilinear_grid(al, ac, e_a, line, col)
+    n_d = bilinear_grid(al, ac, n_a, line, col)
+    d = np.hypot(e_d - e, n_d - n)[ok & np.isfinite(e_d) & np.isfinite(n_d)] / geom.pixel_size_m
+    return {
+        "n_points": int(d.size),
+        "rms_px": float(np.sqrt(np.mean(d**2))) if d.size else float("nan"),
+        "max_px": float(d.max()) if d.size else float("nan"),
+        "anchor_step_raw_px": step,
+    }
