@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+import pyproj
 
 from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
 from levels.geo.level3 import level3_geometry, on_terrain
@@ -175,7 +176,7 @@ def bench_gdal(l0: Path, dem_path: Path) -> None:
                 LINE_OFFSET="0",
                 PIXEL_STEP=str(GEOLOC_STEP),
                 LINE_STEP=str(GEOLOC_STEP),
-                SRS="EPSG:4326",
+                SRS=pyproj.CRS.from_epsg(4326).to_wkt(),
                 GEOREFERENCING_CONVENTION="PIXEL_CENTER",
             )
 

@@ -376,7 +376,7 @@ def _coords_3(
     ``lines``, and the terrain height (NaN over a void or outside the DEM): level 3's
     densification (:mod:`levels.geo.level3`: the DEM's own bilinear surface at the DEM
     (row, column) interpolated from ``dem_rc``)."""
-    n_lev, n_seg, na, nb_ = inv_line.shape
+    n_lev, _n_seg, na, nb_ = inv_line.shape
     x, y = r / dem_step, k / dem_step
     a0 = min(max(int(np.floor(x)), 0), dem_rc.shape[1] - 2)
     b0 = min(max(int(np.floor(y)), 0), dem_rc.shape[2] - 2)
@@ -403,18 +403,23 @@ def _coords_3(
     gu = (r - a * step_i) / step_i
     gv = (k - b * step_j) / step_j
     c = 0.0
-    for s in range(n_seg):
-        lines[s] = 0.0
     for q in range(n_lev):
-        w = 1.0
-        for m in range(n_lev):
-            if m != q:
-                w *= (h - heights[m]) / (heights[q] - heights[m])
-        c += w * (
+        c += _lagrange(h, heights, q) * (
             (1 - gv) * ((1 - gu) * inv_col[q, a, b] + gu * inv_col[q, a + 1, b])
             + gv * ((1 - gu) * inv_col[q, a, b + 1] + gu * inv_col[q, a + 1, b + 1])
         )
-        for s in range(n_seg):
+    if c != c:
+        return c, h
+    # only the segments of the columns a cubic kernel around c reads (one, or two at a
+    # butting): the others' lines are never read
+    n_cols = seg_of.size
+    s_lo = seg_of[min(max(int(np.floor(c)) - 1, 0), n_cols - 1)]
+    s_hi = seg_of[min(max(int(np.floor(c)) + 2, 0), n_cols - 1)]
+    for s in range(s_lo, s_hi + 1):
+        lines[s] = 0.0
+    for q in range(n_lev):
+        w = _lagrange(h, heights, q)
+        for s in range(s_lo, s_hi + 1):
             z = inv_line[q, s]
             lines[s] += w * (
                 (1 - gv) * ((1 - gu) * z[a, b] + gu * z[a + 1, b])
@@ -423,39 +428,51 @@ def _coords_3(
     return c, h
 
 
-@nb.njit(cache=True, fastmath=_FAST)
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
+def _lagrange(h, heights, q):
+    """Lagrange weight of height level ``q`` at height ``h``."""
+    w = 1.0
+    for m in range(heights.size):
+        if m != q:
+            w *= (h - heights[m]) / (heights[q] - heights[m])
+    return w
+
+
+@nb.njit(cache=True, parallel=True, fastmath=_FAST)
 def _zbuffer_3(
-    shape, n_out, step_i, step_j, inv_line, inv_col, heights, dem, dem_rc, dem_step, seg_of
+    zbufs, n_out, step_i, step_j, inv_line, inv_col, heights, dem, dem_rc, dem_step, seg_of
 ):
     """The highest terrain seen in each raw pixel (every line of sight descends, so the
-    highest ground point in a raw pixel is the one it sees). Serial: a max over pixels
-    written by many output pixels must not race."""
-    zbuf = np.full(shape, -np.inf, dtype=np.float32)
-    lines = np.empty(inv_line.shape[1])
-    n_lines, n_cols = shape
-    for r in range(n_out[0]):
-        for k in range(n_out[1]):
-            c, h = _coords_3(
-                r,
-                k,
-                step_i,
-                step_j,
-                inv_line,
-                inv_col,
-                heights,
-                dem,
-                dem_rc,
-                dem_step,
-                seg_of,
-                lines,
-            )
-            if c == c:
-                ci = int(np.floor(c + 0.5))
-                if 0 <= ci < n_cols:
-                    li = int(np.floor(lines[seg_of[ci]] + 0.5))
-                    if 0 <= li < n_lines and h > zbuf[li, ci]:
-                        zbuf[li, ci] = h
-    return zbuf
+    highest ground point in a raw pixel is the one it sees), one z-buffer per block of
+    output rows (``zbufs``: blocks × raw lines × raw columns, −inf): blocks run in
+    parallel without racing, and their maximum is the same whatever the blocks."""
+    n_blocks, n_lines, n_cols = zbufs.shape
+    per = (n_out[0] + n_blocks - 1) // n_blocks
+    for t in nb.prange(n_blocks):
+        zbuf = zbufs[t]
+        lines = np.empty(inv_line.shape[1])
+        for r in range(t * per, min((t + 1) * per, n_out[0])):
+            for k in range(n_out[1]):
+                c, h = _coords_3(
+                    r,
+                    k,
+                    step_i,
+                    step_j,
+                    inv_line,
+                    inv_col,
+                    heights,
+                    dem,
+                    dem_rc,
+                    dem_step,
+                    seg_of,
+                    lines,
+                )
+                if c == c:
+                    ci = int(np.floor(c + 0.5))
+                    if 0 <= ci < n_cols:
+                        li = int(np.floor(lines[seg_of[ci]] + 0.5))
+                        if 0 <= li < n_lines and h > zbuf[li, ci]:
+                            zbuf[li, ci] = h
 
 
 @nb.njit(cache=True, parallel=True, fastmath=_FAST)
@@ -542,7 +559,10 @@ def resample_3(
     dem_rc = np.ascontiguousarray(geom.dem_rc, dtype=np.float64)
     step = float(geom.dem_step_px)
     args = (step_i, step_j, inv_line, inv_col, heights, dem, dem_rc, step, seg_of)
-    zbuf = _zbuffer_3(img.shape, (geom.n_rows, geom.n_cols), *args)
+    zbufs = np.full((nb.get_num_threads(), *img.shape), -np.inf, dtype=np.float32)
+    _zbuffer_3(zbufs, (geom.n_rows, geom.n_cols), *args)
+    zbuf = zbufs.max(axis=0)
+    del zbufs
     c_per_m = float(np.nanmedian(np.abs(inv_col[-1] - inv_col[0]))) / float(np.ptp(heights))
     ztol = HIDDEN_TOLERANCE_PX / max(c_per_m, 1e-9)
     out = np.empty((geom.n_rows, geom.n_cols), dtype=np.uint8)
