@@ -223,7 +223,9 @@ def test_calibration_measures_this_code(tmp_path: Path, capsys) -> None:
     table = json.loads((tmp_path / "st.json").read_text())
     for mode in ("P", "XS"):
         cor = table["cor_s"][mode]
-        assert 0 < cor["1A"] < cor["1B"] < cor["2A"]  # each level includes the ones below
+        # 1B and 2A each include 1A and the deconvolution (which of the two is slower is a
+        # timing, not asserted: machines are shared)
+        assert 0 < cor["1A"] < min(cor["1B"], cor["2A"])
         assert table["geo_s_per_scene"][mode] > 0 and table["archive_s"][mode]["2A"] > 0
     assert table["ingest_s_per_signal_s"] > 0
     assert "wrote" in capsys.readouterr().out
