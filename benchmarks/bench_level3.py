@@ -25,12 +25,12 @@ from __future__ import annotations
 import dataclasses
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numba
 import numpy as np
 import pyproj
+from bench_levels import best  # the same best-of-N timer (run as a script: its directory)
 
 from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
 from levels.geo.level3 import level3_geometry, on_terrain
@@ -44,15 +44,6 @@ from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
 REPEATS = 2
 GEOLOC_STEP = 16
 REFERENCE_HEIGHT_M = 700.0
-
-
-def best(f, repeats: int = REPEATS) -> tuple[float, object]:
-    times, out = [], None
-    for _ in range(repeats):
-        t = time.perf_counter()
-        out = f()
-        times.append(time.perf_counter() - t)
-    return min(times), out
 
 
 def make_inputs(directory: Path) -> tuple[Path, Path]:
@@ -89,7 +80,7 @@ def bench_chain(l0: Path, dem: Path, out: Path) -> None:
         dem_path=str(dem),
         reference_height_m=REFERENCE_HEIGHT_M,
     )
-    t_total, result = best(lambda: process_l0(read_l0(l0), opts, out, name="bench3"))
+    t_total, result = best(lambda: process_l0(read_l0(l0), opts, out, name="bench3"), REPEATS)
     scene = result.scenes[0]
     t = scene.timings_s
     print(
@@ -133,9 +124,9 @@ def bench_gdal(l0: Path, dem_path: Path) -> None:
     )
     n_threads = numba.get_num_threads()
     numba.set_num_threads(1)
-    t_one, (ours, _ok, _h) = best(lambda: resample_3(img, ok, geom, "cubic"))
+    t_one, (ours, _ok, _h) = best(lambda: resample_3(img, ok, geom, "cubic"), REPEATS)
     numba.set_num_threads(n_threads)
-    t_all, _ = best(lambda: resample_3(img, ok, geom, "cubic"))
+    t_all, _ = best(lambda: resample_3(img, ok, geom, "cubic"), REPEATS)
     # the terrain point of every 16th raw pixel, by the rigorous model on the same DEM
     nl, nc = img.shape
     gl = np.arange(0, nl, GEOLOC_STEP, dtype=float)
@@ -194,8 +185,8 @@ def bench_gdal(l0: Path, dem_path: Path) -> None:
                 )
             return dst
 
-        t_gdal1, _ = best(lambda: gdal(1))
-        t_gdal, _ = best(lambda: gdal(n_threads))
+        t_gdal1, _ = best(lambda: gdal(1), REPEATS)
+        t_gdal, _ = best(lambda: gdal(n_threads), REPEATS)
     mpx = geom.n_rows * geom.n_cols / 1e6
     print(
         f"\n2. level 3 cubic resampling, {geom.n_rows} × {geom.n_cols} output ({mpx:.1f} Mpx) "

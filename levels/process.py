@@ -421,18 +421,13 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
     crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
 
+    grids = {"grid_rows": opt.grid_rows, "grid_columns": opt.grid_columns}
+
     def map_geometry(sg: SceneGeometry) -> dict[str, Level2AGeometry]:
         return _per_band(
             sg,
             lambda b, like: level2a_geometry(
-                sg,
-                res,
-                crs,
-                opt.inverse_2a,
-                grid_rows=opt.grid_rows,
-                band=b,
-                like=like,
-                grid_columns=opt.grid_columns,
+                sg, res, crs, opt.inverse_2a, band=b, like=like, **grids
             ),
         )
 
@@ -449,19 +444,12 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     scene3 = refined if refined is not None else scene  # level 2's model when it is made
     if "3" in opt.levels:
         t = clock()
-        assert ctx.dem is not None
+        dem = ctx.dem
+        assert dem is not None
         g3 = _per_band(
             scene3,
             lambda b, like: level3_geometry(
-                scene3,
-                ctx.dem,  # type: ignore[arg-type]
-                res,
-                crs,
-                opt.inverse_2a,
-                grid_rows=opt.grid_rows,
-                band=b,
-                like=like,
-                grid_columns=opt.grid_columns,
+                scene3, dem, res, crs, opt.inverse_2a, band=b, like=like, **grids
             ),
         )
         timings["3_geometry"] = clock() - t
@@ -543,7 +531,8 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
             assert g3 is not None
             geometry = ctx.pg.product_tree(scene3)
             geometry["level_3"] = Level3Geometry.product_tree(g3)
-            if ctx.adjustment is not None and refined is not None:
+            if refined is not None:  # made on level 2's model
+                assert ctx.adjustment is not None
                 geometry["adjustment"] = ctx.adjustment.product_tree(scene.cut.index)
         first = next(iter(images[level].values())).image
         attrs = {
@@ -650,8 +639,8 @@ def _quality_3(
         "anchor_step_px": int(g.grid.inverse_step[0]),
         "anchor_heights_m": g.heights_m,
         "dem": {
-            "source": Path(g.dem_source).name,
-            "vertical": g.dem_vertical,
+            "source": Path(g.dem.source).name,
+            "vertical": g.dem.vertical,
             "spacing_m": g.dem_spacing_m,
             "void_fraction": g.dem.void_fraction,
             "height_min_m": lo if np.isfinite(lo) else None,

@@ -26,10 +26,9 @@ with the same scenario and seed give identical products and the same report
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +63,7 @@ def run_scenario(
     from tqdm import tqdm
 
     from levels.quicklook import write_quicklook
+    from station.sipc.process import with_exported_dem
     from station.spacecraft.emulator import emulate_pass
 
     out = prepare_run_dir(out_dir, scn.name)
@@ -82,15 +82,10 @@ def run_scenario(
     acqs = emulate_pass(scn)
     timings["emulate"] = clock() - t
     stages.update()
-    options = scn.processing
+    t = clock()
+    options = with_exported_dem(scn, acqs, out)
     if scn.dem is not None:
-        from station.spacecraft.dem import export_dem
-
-        t = clock()
-        dem_file = export_dem(acqs, scn.dem, scn.seed, out / f"{scn.name}.dem.tif")
         timings["dem_export"] = clock() - t
-        if not options.dem_path:
-            options = dataclasses.replace(options, dem_path=str(dem_file))
     tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
     received = [_receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)]
     passes = _process(acqs, received, tags, options, timings, stages, progress)
@@ -140,7 +135,7 @@ def run_scenario(
         },
         "hrvs": hrvs,
         **(
-            {"dem": {"file": f"{scn.name}.dem.tif", **dataclasses.asdict(scn.dem)}}
+            {"dem": {"file": f"{scn.name}.dem.tif", **asdict(scn.dem)}}
             if scn.dem is not None
             else {}
         ),

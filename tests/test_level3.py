@@ -181,9 +181,9 @@ def test_the_whole_shadow_of_a_wall_is_hidden(wall) -> None:
     assert wall["hidden"].sum() > 10 * wall["geom"].n_rows * 0.5
 
 
-#: A DEM height error δh moves a level 3 pixel by δh·tan θ: the issue's agreement.
+#: A DEM height error δh moves a level 3 pixel by δh·tan θ: the issue's agreement (the
+#: DEM error under 121 checkpoints, correlated over 300 m, is itself a sample of σh).
 SIGMA_TAN_THETA_TOLERANCE = 0.20
-#: The anchor grid's error, stored in every product (the issue's figure).
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 
 
@@ -241,14 +241,13 @@ def test_level_3_product_carries_its_dem_and_exports(dem_errors_run, tmp_path) -
     # 3" of longitude at the scene's latitude
     lat0 = np.radians(float(p.geometry["scene"]["centre_lat_deg"]))
     spacing = np.radians(3 / 3600) * 6371e3 * np.cos(lat0)
-    assert geom.dem_vertical == "ellipsoid" and geom.dem_spacing_m == pytest.approx(spacing, 1e-3)
+    assert geom.dem.vertical == "ellipsoid" and geom.dem_spacing_m == pytest.approx(spacing, 1e-3)
     exported = read_dem(out / "dem_errors.dem.tif", "ellipsoid")
     rows, cols = np.meshgrid(np.arange(5, 50, 7.3), np.arange(3, 60, 5.1), indexing="ij")
     x = geom.dem.geotransform[0] + (cols + 0.5) * geom.dem.geotransform[1]
     y = geom.dem.geotransform[3] + (rows + 0.5) * geom.dem.geotransform[5]
     lat, lon = np.radians(y), np.radians(x)
     assert geom.dem.heights(lat, lon) == pytest.approx(exported.heights(lat, lon), abs=1e-9)
-    # the stored grid is the one the product was made with: the anchor error measured again
     tif = write_geotiff(p, tmp_path / "l3.tif")
     with rasterio.open(tif) as ds:
         assert ds.crs.to_wkt() and ds.tags()["level"] == "3"

@@ -30,14 +30,13 @@ from pathlib import Path
 from typing import Any
 
 from levels.adjust import adjust
-from levels.geo.level2a import level2a_geometry
 from levels.geo.level3 import direct_method_error, level3_geometry
 from levels.geo.maps import map_crs
 from levels.options import ProcessingOptions
 from levels.readers.dem import read_dem
 from station.scenario import ERRORS_OFF, DemConfig, merge_tables, scenario_from_dict
 from station.sipc.process import control_points, emulated_pass
-from station.sipc.truth import Truth, checkpoints_2a, checkpoints_3
+from station.sipc.truth import Truth, checkpoints_3
 from station.spacecraft.dem import export_dem
 from station.spacecraft.emulator import emulate
 
@@ -88,13 +87,11 @@ def run_case(case: str, seed: int) -> dict[str, Any]:
     t_geo = time.perf_counter() - t
     truth = Truth(acq, 0)
     c3 = checkpoints_3(truth, scene, geom, 0, PER_SIDE)
-    c2 = checkpoints_2a(truth, scene, level2a_geometry(scene, 10.0, crs), 0, PER_SIDE)
     direct = direct_method_error(scene, geom)
     return {
         "case": case,
         "ground": c3["ground"],
         "ground_2a_same_points": c3["ground_2a"],
-        "ground_2a_lattice": c2["ground"],
         "dem_error": c3["dem_error"],
         "anchor": geom.anchor_error_px,
         "anchor_step": geom.grid.inverse_step[0],

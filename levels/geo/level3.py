@@ -44,7 +44,7 @@ from levels.errors import DemError, GeometryError, ProductError
 from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
 from levels.geo.level2a import Level2AGeometry, level2a_geometry
 from levels.geo.scenes import SceneGeometry
-from levels.geometry.dem import Dem, geoid_to_ellipsoid
+from levels.geometry.dem import Dem, bilinear_surface, geoid_to_ellipsoid
 from levels.geometry.sensor import butting_columns
 from levels.quality import raw_error_stats
 
@@ -85,8 +85,9 @@ def lagrange_weights(nodes: NDArray[np.float64], x: NDArray[np.float64]) -> NDAr
 
 @dataclass(frozen=True, eq=False)
 class Level3Geometry:
-    """GEO for level 3: anchor grids at ``heights_m`` sharing one map grid, the DEM's
-    ellipsoidal heights on a grid of the output CRS, the anchor grid's measured error."""
+    """GEO for level 3: anchor grids at ``heights_m`` sharing one map grid, the DEM window
+    under the scene (as given, and its heights above the ellipsoid), the DEM's (row,
+    column) under every ``dem_step_px``-th output pixel, the anchor grid's measured error."""
 
     levels: tuple[Level2AGeometry, ...]
     heights_m: NDArray[np.float64]
@@ -108,9 +109,7 @@ class Level3Geometry:
         return {
             "heights_m": g.heights_m,
             "dem_step_px": g.dem_step_px,
-            "anchor_error_px": {
-                b: {k: v for k, v in geom.anchor_error_px.items()} for b, geom in bands.items()
-            },
+            "anchor_error_px": {b: dict(geom.anchor_error_px) for b, geom in bands.items()},
             "dem": {
                 "height_m": dem.height_m.astype(np.float32) if exact32 else dem.height_m,
                 "geotransform": np.asarray(dem.geotransform),
@@ -197,14 +196,6 @@ class Level3Geometry:
                 f"level 3 geometry tree is incomplete or damaged ({type(exc).__name__}: {exc})"
             ) from None
 
-    @property
-    def dem_source(self) -> str:
-        return self.dem.source
-
-    @property
-    def dem_vertical(self) -> str:
-        return self.dem.vertical
-
     # the map grid: every level's
     @property
     def grid(self) -> Level2AGeometry:
@@ -252,7 +243,7 @@ class Level3Geometry:
         b = np.asarray(j, dtype=np.float64) / self.dem_step_px
         row = bilinear_grid(self._nodes(0), self._nodes(1), self.dem_rc[0], a, b)
         col = bilinear_grid(self._nodes(0), self._nodes(1), self.dem_rc[1], a, b)
-        return _bilinear_dem(self.dem_ellipsoidal_m, row, col)
+        return bilinear_surface(self.dem_ellipsoidal_m, row, col)
 
     def _nodes(self, axis: int) -> NDArray[np.float64]:
         return np.arange(float(self.dem_rc.shape[1 + axis]))
@@ -338,22 +329,6 @@ class Level3Geometry:
         return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
 
 
-def _bilinear_dem(
-    z: NDArray[np.float64], row: NDArray[np.float64], col: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """The DEM's own bilinear surface at fractional (row, column): NaN outside or where a
-    corner is a void (the arithmetic of the level 3 kernel)."""
-    nr, nc = z.shape
-    inside = (row >= 0) & (row <= nr - 1) & (col >= 0) & (col <= nc - 1)
-    p0 = np.clip(np.floor(np.nan_to_num(row)).astype(np.int64), 0, nr - 2)
-    q0 = np.clip(np.floor(np.nan_to_num(col)).astype(np.int64), 0, nc - 2)
-    s, t = row - p0, col - q0
-    h = (1 - s) * ((1 - t) * z[p0, q0] + t * z[p0, q0 + 1]) + s * (
-        (1 - t) * z[p0 + 1, q0] + t * z[p0 + 1, q0 + 1]
-    )
-    return np.where(inside, h, np.nan)
-
-
 def _dem_coordinates(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray[np.float64]:
     """The DEM's fractional (row, column) at output pixels ``(a·step, b·step)`` covering
     the grid, shape ``(2, na, nb)``."""
@@ -374,9 +349,7 @@ def _ellipsoidal(dem: Dem) -> NDArray[np.float64]:
     if dem.vertical == "ellipsoid":
         return dem.height_m
     r, c = np.meshgrid(*(np.arange(float(n)) for n in dem.height_m.shape), indexing="ij")
-    g = dem.geotransform
-    x = g[0] + (c + 0.5) * g[1] + (r + 0.5) * g[2]
-    y = g[3] + (c + 0.5) * g[4] + (r + 0.5) * g[5]
+    x, y = dem.xy_of(r, c)
     to_geo = pyproj.Transformer.from_crs(
         pyproj.CRS.from_wkt(dem.crs_wkt), "EPSG:4326", always_xy=True
     )

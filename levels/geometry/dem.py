@@ -22,11 +22,16 @@ from dataclasses import dataclass
 import numpy as np
 import pyproj
 from numpy.typing import ArrayLike, NDArray
-from scipy.ndimage import map_coordinates
 
 from levels.errors import DemError
 
-__all__ = ["VERTICAL_DATUMS", "Dem", "egm96_grid_installed", "geoid_to_ellipsoid"]
+__all__ = [
+    "VERTICAL_DATUMS",
+    "Dem",
+    "bilinear_surface",
+    "egm96_grid_installed",
+    "geoid_to_ellipsoid",
+]
 
 VERTICAL_DATUMS = ("ellipsoid", "egm96")
 _EGM96 = "EPSG:4326+5773"  # WGS84 with EGM96 heights
@@ -96,17 +101,36 @@ class Dem:
         gt = (g[0] + c0 * g[1] + r0 * g[2], g[1], g[2], g[3] + c0 * g[4] + r0 * g[5], g[4], g[5])
         return Dem(self.height_m[r0:r1, c0:c1], gt, self.crs_wkt, self.vertical, self.source)
 
+    def xy_of(
+        self, row: NDArray[np.float64], col: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """CRS coordinates of fractional (row, column): the inverse of :meth:`pixel_of`."""
+        g = self.geotransform
+        return (
+            g[0] + (col + 0.5) * g[1] + (row + 0.5) * g[2],
+            g[3] + (col + 0.5) * g[4] + (row + 0.5) * g[5],
+        )
+
     def sample(self, row: NDArray[np.float64], col: NDArray[np.float64]) -> NDArray[np.float64]:
         """Heights in the file's datum at fractional pixels, bilinear (NaN if a corner is
         a void or the point is outside the grid)."""
-        nr, nc = self.height_m.shape
-        inside = (row >= 0) & (row <= nr - 1) & (col >= 0) & (col <= nc - 1)
-        out = np.full(row.shape, np.nan)
-        if inside.any():
-            out[inside] = map_coordinates(
-                self.height_m, [row[inside], col[inside]], order=1, mode="nearest"
-            )
-        return out
+        return bilinear_surface(self.height_m, row, col)
+
+
+def bilinear_surface(z: NDArray[np.float64], row: ArrayLike, col: ArrayLike) -> NDArray[np.float64]:
+    """A grid's bilinear surface at fractional (row, column): NaN outside it or where a
+    corner is a void. The arithmetic of the level 3 kernel (``levels.cor.resample``), so
+    that the geometry and the image agree to the last bit."""
+    row, col = np.asarray(row, dtype=np.float64), np.asarray(col, dtype=np.float64)
+    nr, nc = z.shape
+    inside = (row >= 0) & (row <= nr - 1) & (col >= 0) & (col <= nc - 1)
+    p0 = np.clip(np.floor(np.nan_to_num(row)).astype(np.int64), 0, nr - 2)
+    q0 = np.clip(np.floor(np.nan_to_num(col)).astype(np.int64), 0, nc - 2)
+    s, t = row - p0, col - q0
+    h = (1 - s) * ((1 - t) * z[p0, q0] + t * z[p0, q0 + 1]) + s * (
+        (1 - t) * z[p0 + 1, q0] + t * z[p0 + 1, q0 + 1]
+    )
+    return np.where(inside, h, np.nan)
 
 
 def _egm96_transformers() -> list[pyproj.Transformer]:

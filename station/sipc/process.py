@@ -36,6 +36,7 @@ __all__ = [
     "reprocess_l0",
     "reprocess_pass",
     "truth_for",
+    "with_exported_dem",
 ]
 
 
@@ -208,6 +209,20 @@ def reprocess_pass(
     )
 
 
+def with_exported_dem(scn: Scenario, acqs: list[Acquisition], out: Path) -> ProcessingOptions:
+    """The scenario's processing options, after its ``[dem]`` (if any) is exported as
+    ``<name>.dem.tif`` into ``out``: the DEM level 3 then uses unless ``dem_path`` names
+    another."""
+    options = scn.processing
+    if scn.dem is not None:
+        from station.spacecraft.dem import export_dem
+
+        dem = export_dem(acqs, scn.dem, scn.seed, out / f"{scn.name}.dem.tif")
+        if not options.dem_path:
+            options = dataclasses.replace(options, dem_path=str(dem))
+    return options
+
+
 def _run_dem(l0_path: Path, archive: L0Archive) -> Path:
     """The DEM a run exported beside its L0 archive (``<scenario>.dem.tif``), for level 3
     when no ``dem_path`` is given; :class:`DemError` naming both when there is none."""
@@ -248,16 +263,9 @@ def process_scenario(
     truth, gcps = measured_control_points(
         acq, archive, Path(l0).with_name(f"{l0_stem(l0)}.gcp.csv")
     )
-    options = scn.processing
-    if scn.dem is not None:
-        from station.spacecraft.dem import export_dem
-
-        dem = export_dem([acq], scn.dem, scn.seed, out / f"{scn.name}.dem.tif")
-        if not options.dem_path:
-            options = dataclasses.replace(options, dem_path=str(dem))
     products = process_l0(
         archive,
-        options,
+        with_exported_dem(scn, [acq], out),
         out,
         name=scn.name,
         checkpoints=truth,

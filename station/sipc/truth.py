@@ -16,6 +16,7 @@ matched to emulator lines by their time (the line clock is good to well under a 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -142,19 +143,24 @@ def checkpoints_1b(
     }
 
 
+def _to_map(crs_wkt: str) -> Callable[[NDArray, NDArray], tuple[NDArray, NDArray]]:
+    """(latitude, longitude) in radians → the map's (easting, northing) in metres."""
+    to_map = pyproj.Transformer.from_crs("EPSG:4326", pyproj.CRS.from_wkt(crs_wkt), always_xy=True)
+
+    def en(lat: NDArray, lon: NDArray) -> tuple[NDArray, NDArray]:
+        e, n = to_map.transform(np.degrees(lon), np.degrees(lat))
+        return np.asarray(e), np.asarray(n)
+
+    return en
+
+
 def checkpoints_2a(
     truth: Truth, scene: SceneGeometry, geom: Level2AGeometry, band: int, per_side: int
 ) -> dict:
     """Checkpoint errors of a 2A product in its map (easting, northing)."""
     line, col = truth.lattice(scene, per_side)
     h_ref = scene.reference_height_m
-    crs = pyproj.CRS.from_wkt(geom.crs_wkt)
-    to_map = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
-
-    def en(lat: NDArray, lon: NDArray) -> tuple[NDArray, NDArray]:
-        e, n = to_map.transform(np.degrees(lon), np.degrees(lat))
-        return np.asarray(e), np.asarray(n)
-
+    en = _to_map(geom.crs_wkt)
     model = scene.models[list(scene.models)[band]]
     p = model.image_to_ground(line, col, h_ref)
     i0, j0 = geom.ij_of_map(*en(p.lat_rad, p.lon_rad))
@@ -193,39 +199,33 @@ def checkpoints_3(
     tl = truth.truth_lines(scene, line)
     g = truth.ground(band, tl, col)
     ok = np.all(np.isfinite(g), axis=1)
-    lat, lon, _h = truth.model(band).ellipsoid.to_geodetic(g[ok])
-    to_map = pyproj.Transformer.from_crs(
-        "EPSG:4326", pyproj.CRS.from_wkt(geom.crs_wkt), always_xy=True
-    )
-    eg, ng = (np.asarray(v) for v in to_map.transform(np.degrees(lon), np.degrees(lat)))
-    i, j = geom.output_of(line[ok], col[ok], geom.ij_of_map(eg, ng))
+    lat, lon, h_true = truth.model(band).ellipsoid.to_geodetic(g[ok])
+    en = _to_map(geom.crs_wkt)
+    eg, ng = en(lat, lon)
+    ij_true = geom.ij_of_map(eg, ng)
+    i, j = geom.output_of(line[ok], col[ok], ij_true)
     e, n = geom.map_of(i, j)
     fine = np.isfinite(e) & np.isfinite(n)
     model = scene.models[list(scene.models)[band]]
     flat = model.image_to_ground(line[ok], col[ok], scene.reference_height_m)
-    e2, n2 = (
-        np.asarray(v) for v in to_map.transform(np.degrees(flat.lon_rad), np.degrees(flat.lat_rad))
-    )
-    dh = geom.height_at(*geom.ij_of_map(eg, ng)) - _h
+    e2, n2 = en(flat.lat_rad, flat.lon_rad)
+    dh = (geom.height_at(*ij_true) - h_true)[fine]
     # each pixel's ground point moves by k metres per metre of height along the view:
     # a DEM error δh moves level 3 by k·δh (k = tan θ on flat ground)
     up = model.image_to_ground(line[ok], col[ok], scene.reference_height_m + 1.0)
-    e3, n3 = (
-        np.asarray(v) for v in to_map.transform(np.degrees(up.lon_rad), np.degrees(up.lat_rad))
-    )
-    k = np.hypot(e3 - e2, n3 - n2)
+    e3, n3 = en(up.lat_rad, up.lon_rad)
+    k = np.hypot(e3 - e2, n3 - n2)[fine]
     res = geom.pixel_size_m
+    some = bool(fine.any())
     return {
         "axes": "1: easting, 2: northing of the map",
         "ground": error_stats((e - eg)[fine], (n - ng)[fine], res),
         "ground_2a": error_stats((e2 - eg)[fine], (n2 - ng)[fine], res),
         "dem_error": {
-            "rms_m": float(np.sqrt(np.mean(dh[fine] ** 2))) if fine.any() else None,
-            "max_m": float(np.max(np.abs(dh[fine]))) if fine.any() else None,
-            "tan_view_angle": float(np.median(k[fine])) if fine.any() else None,
-            "predicted_ground_rms_m": (
-                float(np.sqrt(np.mean((k * dh)[fine] ** 2))) if fine.any() else None
-            ),
+            "rms_m": float(np.sqrt(np.mean(dh**2))) if some else None,
+            "max_m": float(np.max(np.abs(dh))) if some else None,
+            "tan_view_angle": float(np.median(k)) if some else None,
+            "predicted_ground_rms_m": float(np.sqrt(np.mean((k * dh) ** 2))) if some else None,
         },
         "raw_line": line[ok][fine],
         "raw_column": col[ok][fine],

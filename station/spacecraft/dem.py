@@ -63,6 +63,7 @@ def read_hgt(path: str | Path) -> DemGrid:
 #: Edge pixels traced per side of each strip to find its footprint.
 _FOOTPRINT_SAMPLES = 64
 _NODATA = -32768.0
+_EARTH_RADIUS_M = 6371e3  # mean: sizes the grid and the error's correlation in nodes
 
 
 def _footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]:
@@ -74,9 +75,10 @@ def _footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]
         t0, t1 = acq.line_times_s[0], acq.line_times_s[-1]
         n_col = acq.hrv.n_columns - 1
         s = np.linspace(0.0, 1.0, _FOOTPRINT_SAMPLES)
-        t = np.concatenate([t0 + s * (t1 - t0), t0 + s * (t1 - t0), np.full(2 * s.size, t0)])
-        t[3 * s.size :] = t1
-        col = np.concatenate([np.zeros(s.size), np.full(s.size, n_col), s * n_col, s * n_col])
+        along, across, n = t0 + s * (t1 - t0), s * n_col, s.size
+        # the first and last columns along the strip, the first and last lines across it
+        t = np.concatenate([along, along, np.full(n, t0), np.full(n, t1)])
+        col = np.concatenate([np.zeros(n), np.full(n, n_col), across, across])
         pts, ok = trace_pixels(acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world, t, col)
         lat.append(pts[ok, 0])
         lon.append(pts[ok, 1])
@@ -102,7 +104,7 @@ def export_dem(acqs: list[Acquisition], cfg: DemConfig, seed: int, path: str | P
     from levels.files import atomic_path
 
     south, north, west, east = _footprint_rad(acqs)
-    margin = cfg.margin_km * 1e3 / 6371e3
+    margin = cfg.margin_km * 1e3 / _EARTH_RADIUS_M
     step = np.radians(cfg.spacing_arcsec / 3600.0)
     coslat = max(np.cos(max(abs(south), abs(north))), 1e-3)
     lat0 = np.floor((south - margin) / step) * step
@@ -121,7 +123,7 @@ def export_dem(acqs: list[Acquisition], cfg: DemConfig, seed: int, path: str | P
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0x0DE3,)))
         noise = rng.standard_normal(h.shape)
         if cfg.error_correlation_m > 0:
-            sigma = cfg.error_correlation_m / (np.radians(cfg.spacing_arcsec / 3600) * 6371e3)
+            sigma = cfg.error_correlation_m / (step * _EARTH_RADIUS_M)  # in nodes
             noise = gaussian_filter(noise, sigma, mode="wrap")
             noise /= noise.std()
         h = h + cfg.error_rms_m * noise
