@@ -43,7 +43,7 @@ from levels.cor.radiometry import (
     to_counts,
 )
 from levels.cor.resample import resample_1b, resample_2a, resample_3, with_nan
-from levels.errors import DemError, GcpError, GeometryError
+from levels.errors import DemError, GcpError, GeometryError, LevelsError
 from levels.geo.level1b import Level1BGeometry, level1b_geometry
 from levels.geo.level2a import INVERSE_METHODS, Level2AGeometry, level2a_geometry
 from levels.geo.level3 import Level3Geometry, level3_geometry
@@ -58,18 +58,26 @@ from levels.readers.dem import Dem, read_dem
 from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
 from levels.spot import ORBIT_ALTITUDE_M
+from levels.tasks import InProcess, Runner, TaskFailure
 
 __all__ = [
+    "PassPlan",
     "PassProducts",
     "PassSetup",
     "SceneProducts",
+    "ScenesFailed",
     "SkippedScene",
+    "all_made",
     "geo_pass",
+    "make_scene",
     "nominal_pixel_size_m",
     "pass_dem",
+    "plan_l0",
+    "plan_pass",
     "platform_records",
     "process_l0",
     "process_pass",
+    "run_plans",
 ]
 
 
@@ -159,7 +167,6 @@ class _PassContext:
     options: ProcessingOptions
     pixel_size_m: float
     taps: NDArray[np.float64]
-    pixel_valid: dict[str, NDArray[np.bool_]]
     out: Path
     name: str
     checkpoints: CheckpointSource | None
@@ -177,7 +184,6 @@ class PassSetup:
     scenes: list[SceneGeometry]
     skipped: list[SkippedScene]
     scene_lines: int
-    pixel_valid: dict[str, NDArray[np.bool_]]
     time_s: float
 
 
@@ -221,8 +227,8 @@ def geo_pass(
     n_det = archive.bands[band_names[0]].counts.shape[1]
     scene_lines = options.scene_lines or n_det
     cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines)
-    pixel_valid = {b: archive.bands[b].pixel_valid() for b in band_names}
-    rows_seen = np.logical_or.reduce([v.any(axis=1) for v in pixel_valid.values()])
+    # a row is seen when one of its segments arrived (every segment has detectors)
+    rows_seen = np.logical_or.reduce([archive.bands[b].valid.any(axis=1) for b in band_names])
     scenes, skipped = [], []
     for c in cuts:
         if not rows_seen[c.first_line : c.first_line + c.n_lines].any():
@@ -238,9 +244,7 @@ def geo_pass(
             skipped.append(
                 SkippedScene(c.index, c.first_line, c.n_lines, f"GEO could not place it: {exc}")
             )
-    return PassSetup(
-        archive, pg, scenes, skipped, scene_lines, pixel_valid, time.perf_counter() - t0
-    )
+    return PassSetup(archive, pg, scenes, skipped, scene_lines, time.perf_counter() - t0)
 
 
 def pass_dem(options: ProcessingOptions) -> Dem | None:
@@ -277,13 +281,15 @@ def process_l0(
     setup: PassSetup | None = None,
     adjustment: Adjustment | None = None,
     dem: Dem | None = None,
+    runner: Runner | None = None,
 ) -> PassProducts:
     """GEO and COR over a pass (module docstring); products go to ``out_dir``.
 
     Parameters
     ----------
     archive
-        The pass, as :func:`levels.readers.l0.read_l0` reads it.
+        The pass, as :func:`levels.readers.l0.read_l0` reads it (``lazy=True`` to keep one
+        scene's counts in memory at a time).
     options
         What to make and how.
     name
@@ -304,7 +310,72 @@ def process_l0(
         Level 3's DEM when already read (by default :func:`pass_dem` reads the options').
         Level 3 is made on level 2's refined model when level 2 is made too, on the system
         model otherwise.
+    runner
+        Where the scenes are made (:mod:`levels.tasks`; by default one after another in
+        this process). A scene that fails does not stop the others: once they are made,
+        :class:`ScenesFailed` names every failed scene (the error itself when one is a
+        bug).
     """
+    plan = plan_l0(
+        archive,
+        options,
+        out_dir,
+        name=name,
+        checkpoints=checkpoints,
+        provenance=provenance,
+        gcps=gcps,
+        setup=setup,
+        adjustment=adjustment,
+        dem=dem,
+    )
+    return all_made(run_plans([plan], runner, on_scene))[0]
+
+
+@dataclass(frozen=True, eq=False)
+class PassPlan:
+    """One HRV's pass ready for its scene tasks (:func:`plan_l0`): what every scene
+    shares, the scenes to make, those skipped, GEO's time."""
+
+    ctx: _PassContext
+    scenes: list[SceneGeometry]
+    skipped: list[SkippedScene]
+    tail_lines: int
+    timings_s: dict[str, float]
+
+    @property
+    def name(self) -> str:
+        return self.ctx.name
+
+    def task_name(self, scene: SceneGeometry) -> str:
+        """How a scene's task is named in reports: ``<name>-s<scene index>``."""
+        return f"{self.ctx.name}-s{scene.cut.index:03d}"
+
+
+class ScenesFailed(LevelsError):
+    """Scenes of a pass that could not be made, each named, after the others were made
+    (``failures``: :class:`levels.tasks.TaskFailure`; ``made``: the pass's products)."""
+
+    def __init__(self, failures: list[TaskFailure], made: list[PassProducts | None]) -> None:
+        super().__init__("; ".join(f.line() for f in failures))
+        self.failures = failures
+        self.made = made
+
+
+def plan_l0(
+    archive: L0Archive,
+    options: ProcessingOptions,
+    out_dir: str | Path,
+    *,
+    name: str = "pass",
+    checkpoints: CheckpointSource | None = None,
+    provenance: dict[str, Any] | None = None,
+    gcps: ControlPointSet | None = None,
+    setup: PassSetup | None = None,
+    adjustment: Adjustment | None = None,
+    dem: Dem | None = None,
+) -> PassPlan:
+    """Everything of :func:`process_l0` before its scenes (same parameters): GEO's set-up,
+    level 2's adjustment, the DEM, the output directory."""
     if adjustment is None:
         _need_gcps(options, gcps)
     if dem is None:
@@ -340,29 +411,77 @@ def process_l0(
             )
         adjustment = adjust(pg, scenes, mine, options, band_names[0])
     ctx = _PassContext(
-        archive,
-        pg,
-        options,
-        res,
-        taps,
-        setup.pixel_valid,
-        out,
-        name,
-        checkpoints,
-        prov,
-        adjustment,
-        dem,
+        archive, pg, options, res, taps, out, name, checkpoints, prov, adjustment, dem
     )
-    results = []
-    for scene in scenes:
-        results.append(_process_scene(ctx, scene))
-        if on_scene is not None:
-            on_scene(results[-1], len(scenes))
-    tail = pg.tail_lines(setup.scene_lines, options.overlap_lines)
     timings = {"geo": t_geo, "total": setup.time_s + clock() - t0}
     if adjustment is not None:
         timings["adjust"] = adjustment.timings_s["adjust"]
-    return PassProducts(results, tail, timings, list(setup.skipped), adjustment)
+    tail = pg.tail_lines(setup.scene_lines, options.overlap_lines)
+    return PassPlan(ctx, list(scenes), list(setup.skipped), tail, timings)
+
+
+def make_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
+    """One scene's task: its products written, their paths and figures returned."""
+    return _process_scene(ctx, scene)
+
+
+def run_plans(
+    plans: Sequence[PassPlan],
+    runner: Runner | None = None,
+    on_scene: Callable[[SceneProducts, int], None] | None = None,
+) -> list[PassProducts | ScenesFailed]:
+    """Make every scene of the ``plans`` as tasks of ``runner`` (:mod:`levels.tasks`; in
+    this process by default): per plan its products, or :class:`ScenesFailed` naming its
+    failed scenes (the other scenes' products are made). ``on_scene(products, n_scenes)``
+    after each scene, in the order they end."""
+    runner = runner or InProcess()
+    clock = time.perf_counter
+    t0 = clock()
+    handles: dict[Any, tuple[int, SceneGeometry]] = {}
+    for k, plan in enumerate(plans):
+        shared = runner.share(plan.ctx) if plan.scenes else None
+        for scene in plan.scenes:
+            handles[runner.submit(plan.task_name(scene), make_scene, shared, scene)] = (k, scene)
+    made: list[dict[int, SceneProducts]] = [{} for _ in plans]
+    failed: list[list[TaskFailure]] = [[] for _ in plans]
+    ended = [0.0] * len(plans)
+    n_scenes = sum(len(p.scenes) for p in plans)
+    for handle, result in runner.completed(handles):
+        k, scene = handles[handle]
+        ended[k] = clock() - t0
+        if isinstance(result, TaskFailure):
+            failed[k].append(result)
+            continue
+        made[k][scene.cut.index] = result
+        if on_scene is not None:
+            on_scene(result, n_scenes)
+    out: list[PassProducts | ScenesFailed] = []
+    for k, plan in enumerate(plans):
+        timings = {**plan.timings_s, "total": plan.timings_s["total"] + ended[k]}
+        products = PassProducts(
+            [made[k][i] for i in sorted(made[k])],
+            plan.tail_lines,
+            timings,
+            plan.skipped,
+            plan.ctx.adjustment,
+        )
+        out.append(ScenesFailed(failed[k], [products]) if failed[k] else products)
+    return out
+
+
+def all_made(results: list[PassProducts | ScenesFailed]) -> list[PassProducts]:
+    """What :func:`run_plans` made, all of it: the products of every plan, or the
+    failures raised once all tasks ended: a bug raised as itself (its task named in a
+    note), bad input as :class:`ScenesFailed`."""
+    failures = [f for r in results if isinstance(r, ScenesFailed) for f in r.failures]
+    if not failures:
+        return results  # type: ignore[return-value]
+    made = [r.made[0] if isinstance(r, ScenesFailed) else r for r in results]
+    bug = next((f for f in failures if not f.bad_input), None)
+    if bug is not None:
+        bug.error.add_note(f"in task {bug.name}; failed: {', '.join(f.name for f in failures)}")
+        raise bug.error
+    raise ScenesFailed(failures, made)
 
 
 def process_pass(
@@ -375,12 +494,37 @@ def process_pass(
     provenance: dict[str, Any] | None = None,
     on_scene: Callable[[SceneProducts, int], None] | None = None,
     gcps: Sequence[ControlPointSet | None] | None = None,
+    runner: Runner | None = None,
 ) -> list[PassProducts]:
     """Every HRV of one pass (one L0 archive each, ``names`` theirs): :func:`process_l0`
-    for each, except that with ``adjustment = "twin"`` and level 2 both HRVs' GEO use the
-    platform's gyro records of either channel (:func:`platform_records`) and are refined
-    by one adjustment (:func:`levels.adjust.adjust_strips`), so that control points in one
-    HRV serve the other. ``gcps[k]`` are the points of ``archives[k]``'s HRV."""
+    for each, their scenes as tasks of one ``runner``, except that with ``adjustment =
+    "twin"`` and level 2 both HRVs' GEO use the platform's gyro records of either channel
+    (:func:`platform_records`) and are refined by one adjustment
+    (:func:`levels.adjust.adjust_strips`), so that control points in one HRV serve the
+    other. ``gcps[k]`` are the points of ``archives[k]``'s HRV."""
+    plans = plan_pass(
+        archives,
+        options,
+        out_dir,
+        names=names,
+        checkpoints=checkpoints,
+        provenance=provenance,
+        gcps=gcps,
+    )
+    return all_made(run_plans(plans, runner, on_scene))
+
+
+def plan_pass(
+    archives: Sequence[L0Archive],
+    options: ProcessingOptions,
+    out_dir: str | Path,
+    *,
+    names: Sequence[str],
+    checkpoints: Sequence[CheckpointSource | None] | None = None,
+    provenance: dict[str, Any] | None = None,
+    gcps: Sequence[ControlPointSet | None] | None = None,
+) -> list[PassPlan]:
+    """Everything of :func:`process_pass` before its scenes: one plan per archive."""
     n = len(archives)
     if len(names) != n:
         raise ValueError(f"{n} archives but {len(names)} names")
@@ -413,14 +557,13 @@ def process_pass(
             for k, adj in zip(placed, adjust_strips(strips, options), strict=True):
                 adjustments[k] = adj
     return [
-        process_l0(
+        plan_l0(
             a,
             options,
             out_dir,
             name=names[k],
             checkpoints=marks[k],
             provenance=provenance,
-            on_scene=on_scene,
             gcps=points[k],
             setup=setups[k],
             adjustment=adjustments[k],
@@ -486,7 +629,7 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     hidden: dict[str, float] = {}
     for bname, band in ctx.archive.bands.items():
         t = clock()
-        counts, valid = band.counts[rows], ctx.pixel_valid[bname][rows]
+        counts, valid = band.counts[rows], band.pixel_valid_rows(rows)
         cal = calibrate(counts, valid, band.gain, band.offset_counts)
         stripes[bname] = {
             "raw_counts": stripe_level(counts, valid),

@@ -9,8 +9,11 @@ byte), and writes one report, ``DIR/campaign.json``: per archive its status, its
 and their headline figures, or the reason it failed. An archive that fails (damaged,
 unreadable, a bug) is reported by name and the others are still processed.
 
-The archives go one after another on this machine; the scenes within each use every core
-(the numba kernels).
+The archives are planned one after another here (read lazily, GEO); their scenes are
+tasks (:mod:`levels.tasks`): in this process by default, each using every core, or on a
+Dask cluster (``--workers N``, ``--scheduler ADDRESS``), where the products are the same
+bit for bit. A scene that fails makes its archive fail, named with the scene; its other
+scenes and the other archives are finished.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from typing import Any
 from levels.errors import LevelsError
 from levels.files import writable_dir, write_json
 from levels.options import ProcessingOptions
+from levels.tasks import Runner
 from station import __version__
 from station.errors import StationError
 
@@ -64,11 +68,18 @@ def run_campaign(
     out: str | Path,
     options: ProcessingOptions,
     progress: Callable[[int, int, str], None] | None = None,
+    runner: Runner | None = None,
 ) -> dict[str, Any]:
     """Process each archive into ``out/<archive>/`` (module docstring); returns the
-    campaign report, also written to ``out/campaign.json``. ``progress(done, total, name)``
-    is called before each archive and once at the end."""
-    from station.sipc.process import l0_stem, reprocess_l0
+    campaign report, also written to ``out/campaign.json``.
+
+    Each archive is planned here (read lazily, GEO, its output directory), then every
+    scene of every archive goes to ``runner`` as a task (:mod:`levels.tasks`; in this
+    process by default, else on a Dask cluster). ``progress(done, total, what)`` counts
+    scenes: called while planning (``total`` 0), then after each scene, and at the end.
+    """
+    from levels.process import PassProducts, run_plans
+    from station.sipc.process import l0_stem, plan_reprocess
 
     target = writable_dir(out)  # an unwritable output fails before any work
     names = [l0_stem(a) for a in archives]
@@ -77,53 +88,89 @@ def run_campaign(
         raise StationError(
             f"archives with the same name would share a directory: {', '.join(clashes)}"
         )
-    entries = []
-    t0 = time.perf_counter()
-    for k, (archive, name) in enumerate(zip(archives, names, strict=True)):
+    clock = time.perf_counter
+    t0 = clock()
+    entries: list[dict[str, Any]] = []
+    plans = []
+    for archive, name in zip(archives, names, strict=True):
         if progress is not None:
-            progress(k, len(archives), name)
+            progress(0, 0, f"GEO {name}")
         entry: dict[str, Any] = {"l0": str(archive), "name": name, "out": str(target / name)}
-        t = time.perf_counter()
+        t = clock()
         try:
-            products = reprocess_l0(archive, target / name, options=options, name=name)
-        except (LevelsError, StationError, OSError) as exc:
-            entry.update(status="failed", kind="bad input", reason=str(exc).splitlines()[0])
-        except Exception as exc:  # a bug: this archive is reported, the others go on
+            [plan] = plan_reprocess([archive], target / name, options=options, names=[name])
+        except Exception as exc:  # reported by name; the other archives go on
+            entry.update(_failure(exc, traceback.format_exc()))
+        else:
+            plans.append((entry, plan))
+        entry["time_s"] = clock() - t
+        entries.append(entry)
+    total = sum(len(plan.scenes) for _, plan in plans)
+    done = 0
+
+    def on_scene(_made: Any, _n: int) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total, "scenes")
+
+    if progress is not None:
+        progress(0, total, "scenes")
+    results = run_plans([plan for _, plan in plans], runner, on_scene)
+    for (entry, _), result in zip(plans, results, strict=True):
+        made = result if isinstance(result, PassProducts) else result.made[0]
+        entry.update(
+            status="ok",
+            scenes=len(made.scenes),
+            skipped=[dataclasses.asdict(s) for s in made.skipped],
+            products=[
+                {"scene": s.index, "level": lv, "path": str(p)}
+                for s in made.scenes
+                for lv, p in s.paths.items()
+            ],
+        )
+        # the archive's processing time: GEO here, and its scene tasks wherever they ran
+        entry["time_s"] += sum(sum(s.timings_s.values()) for s in made.scenes)
+        if not isinstance(result, PassProducts):
+            bugs = [f for f in result.failures if not f.bad_input]
             entry.update(
                 status="failed",
-                kind="internal error",
-                reason=f"{type(exc).__name__}: {exc}",
-                traceback=traceback.format_exc(),
+                kind="internal error" if bugs else "bad input",
+                reason=str(result),
+                failed_scenes=[f.name for f in result.failures],
             )
-        else:
-            entry.update(
-                status="ok",
-                scenes=len(products.scenes),
-                skipped=[dataclasses.asdict(s) for s in products.skipped],
-                products=[
-                    {"scene": s.index, "level": lv, "path": str(p)}
-                    for s in products.scenes
-                    for lv, p in s.paths.items()
-                ],
-            )
-        entry["time_s"] = time.perf_counter() - t
-        entries.append(entry)
+            if bugs:
+                entry["traceback"] = "".join(traceback.format_exception(bugs[0].error))
     if progress is not None:
-        progress(len(archives), len(archives), "")
+        progress(total, total, "")
     failed = [e for e in entries if e["status"] != "ok"]
     report = {
         "format": CAMPAIGN_FORMAT,
         "format_version": 1,
         "software": f"spot-station {__version__}",
         "options": dataclasses.asdict(options),
+        "workers": 1 if runner is None else runner.workers,
         "archives": entries,
         "summary": {
             "archives": len(entries),
             "ok": len(entries) - len(failed),
             "failed": len(failed),
+            "scenes": sum(e.get("scenes", 0) for e in entries),
             "products": sum(len(e.get("products", [])) for e in entries),
-            "time_s": time.perf_counter() - t0,
+            "time_s": clock() - t0,
         },
     }
     write_json(target / "campaign.json", report)
     return report
+
+
+def _failure(exc: BaseException, trace: str) -> dict[str, Any]:
+    """A campaign entry's failure: bad input (the library's own errors) or a bug."""
+    if isinstance(exc, LevelsError | StationError | OSError):
+        return {"status": "failed", "kind": "bad input", "reason": str(exc).splitlines()[0]}
+    return {
+        "status": "failed",
+        "kind": "internal error",
+        "reason": f"{type(exc).__name__}: {exc}",
+        "traceback": trace,
+    }

@@ -34,6 +34,7 @@ from typing import Any
 
 from levels.files import json_default, remove_partials, writable_dir, write_json
 from levels.products import read_product
+from levels.tasks import Runner
 from station import __version__
 from station.errors import StationError
 from station.scenario import Scenario
@@ -54,11 +55,17 @@ _VARYING = ("timings_s", "size_mb", "receive_speed_x_real_time")
 
 
 def run_scenario(
-    scn: Scenario, out_dir: str | Path, *, quicklooks: bool = True, progress: bool = False
+    scn: Scenario,
+    out_dir: str | Path,
+    *,
+    quicklooks: bool = True,
+    progress: bool = False,
+    runner: Runner | None = None,
 ) -> dict[str, Any]:
     """Run ``scn`` end to end into ``out_dir``; returns the report (also in report.json).
 
-    ``progress`` shows progress bars on stderr (stages, then scenes).
+    ``progress`` shows progress bars on stderr (stages, then scenes). The scenes are tasks
+    of ``runner`` (:mod:`levels.tasks`; in this process by default).
     """
     from tqdm import tqdm
 
@@ -88,7 +95,7 @@ def run_scenario(
         timings["dem_export"] = clock() - t
     tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
     received = [_receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)]
-    passes = _process(acqs, received, tags, options, timings, stages, progress)
+    passes = _process(acqs, received, tags, options, timings, stages, progress, runner)
     hrvs, made = [], []
     for acq, rec, products in zip(acqs, received, passes, strict=True):
         hrvs.append(_section(acq, rec, products))
@@ -215,7 +222,7 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
     timings["record"] = timings.get("record", 0.0) + clock() - t
     decode = downlink_report(acq, result)
     stages.update()
-    archive = read_l0(l0)
+    archive = read_l0(l0, lazy=True)  # each scene task reads its own rows
     gcps_path = out / f"{tag}.gcp.csv"
     truth, gcps = measured_control_points(acq, archive, gcps_path)
     return _Received(l0, archive, decode, truth, gcps, gcps_path)
@@ -229,6 +236,7 @@ def _process(
     timings: dict[str, Any],
     stages: Any,
     progress: bool,
+    runner: Runner | None,
 ) -> list[Any]:
     """GEO and COR of every HRV of the pass (``levels.process.process_pass``: a twin pass's
     HRVs adjusted together when the scenario asks); adds the wall times to ``timings``."""
@@ -241,8 +249,7 @@ def _process(
     scenes = tqdm(desc="scenes", unit="scene", disable=not progress, leave=False)
 
     def on_scene(_done: Any, total: int) -> None:
-        if scenes.n >= (scenes.total or 0):
-            scenes.total = (scenes.total or 0) + total
+        scenes.total = total
         scenes.update()
 
     passes = process_pass(
@@ -254,6 +261,7 @@ def _process(
         provenance=scn.provenance(),
         on_scene=on_scene,
         gcps=[r.gcps for r in received],
+        runner=runner,
     )
     scenes.close()
     cor = timings.setdefault("cor", {})

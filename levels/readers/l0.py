@@ -25,7 +25,15 @@ from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch
 from levels.hdf5 import ATTRS_DIGEST, check_attrs_digest, damage_as, hdf5_damage
 
-__all__ = ["L0_FORMAT", "L0_VERSION", "L0Archive", "L0Band", "pixel_mask", "read_l0"]
+__all__ = [
+    "L0_FORMAT",
+    "L0_VERSION",
+    "L0Archive",
+    "L0Band",
+    "L0Rows",
+    "pixel_mask",
+    "read_l0",
+]
 
 L0_FORMAT = "SPOT-L0"
 L0_VERSION = 1
@@ -41,13 +49,48 @@ def pixel_mask(
     return np.take(valid, seg, axis=1)
 
 
+@dataclass(frozen=True)
+class L0Rows:
+    """A band's counts left in the archive, read by rows when sliced (``rows[a:b]``): what
+    a scene task holds instead of the whole pass (:func:`read_l0` with ``lazy=True``). It
+    names the file and the dataset only, so it travels to another process as a few bytes;
+    the file is opened for each read, and a damaged chunk is an :class:`L0Error`."""
+
+    path: Path
+    dataset: str
+    shape: tuple[int, int]
+    dtype: np.dtype = field(default=np.dtype(np.uint8))
+
+    @property
+    def ndim(self) -> int:
+        return 2
+
+    def __getitem__(self, rows: slice) -> NDArray[np.uint8]:
+        if not isinstance(rows, slice):
+            raise TypeError(f"L0 counts are read by rows: a slice, not {rows!r}")
+        with damage_as(L0Error, self.path):
+            try:
+                with h5py.File(self.path, "r") as f:
+                    return f[self.dataset][rows]
+            except (OSError, RuntimeError) as exc:
+                raise L0Error(
+                    f"{self.path}: dataset '{self.dataset}' rows {rows.start}:{rows.stop} "
+                    f"cannot be read: {hdf5_damage(exc)}"
+                ) from None
+
+    def __array__(self, dtype: Any = None, copy: Any = None) -> NDArray[Any]:
+        a = self[:]
+        return a if dtype is None else a.astype(dtype)
+
+
 @dataclass(frozen=True, eq=False)
 class L0Band:
-    """One band of the pass: counts (lines, detectors), segment validity (lines, segments),
-    the nominal look-angle table and the calibration table."""
+    """One band of the pass: counts (lines, detectors; :class:`L0Rows` when read lazily),
+    segment validity (lines, segments), the nominal look-angle table and the calibration
+    table."""
 
     name: str
-    counts: NDArray[np.uint8]
+    counts: NDArray[np.uint8] | L0Rows
     valid: NDArray[np.bool_]
     look: LookAngleTable
     gain: NDArray[np.float64]
@@ -56,7 +99,11 @@ class L0Band:
 
     def pixel_valid(self) -> NDArray[np.bool_]:
         """The segment mask expanded to every pixel (lines, detectors)."""
-        return pixel_mask(self.valid, self.segment_first_detector, self.counts.shape[1])
+        return self.pixel_valid_rows(slice(None))
+
+    def pixel_valid_rows(self, rows: slice) -> NDArray[np.bool_]:
+        """The segment mask of ``rows`` expanded to every pixel (rows, detectors)."""
+        return pixel_mask(self.valid[rows], self.segment_first_detector, self.counts.shape[1])
 
     @property
     def line_valid(self) -> NDArray[np.bool_]:
@@ -66,7 +113,8 @@ class L0Band:
 
 @dataclass(frozen=True, eq=False)
 class L0Archive:
-    """A whole L0 pass archive in memory (times in s since ``epoch``)."""
+    """An L0 pass archive in memory (times in s since ``epoch``), its counts too unless
+    read lazily (:class:`L0Rows`)."""
 
     path: Path
     epoch: Epoch
@@ -150,14 +198,32 @@ def _need(cond: bool, where: Path, what: str) -> None:
         raise L0Error(f"{where}: inconsistent L0 archive: {what}")
 
 
-def read_l0(path: str | Path) -> L0Archive:
-    """Read and check an L0 pass archive (module docstring)."""
+def read_l0(path: str | Path, *, lazy: bool = False) -> L0Archive:
+    """Read and check an L0 pass archive (module docstring).
+
+    With ``lazy``, the counts stay in the file (:class:`L0Rows`: their shape and type are
+    checked, the rows are read when a scene needs them): a whole pass is 2.7 GB of counts
+    per band, and a scene task holds only its own. A damaged chunk of counts is then found
+    when its scene is made, not here."""
     where = Path(path)
     with damage_as(L0Error, where):
-        return _read_l0(where)
+        return _read_l0(where, lazy)
 
 
-def _read_l0(where: Path) -> L0Archive:
+def _counts(f: h5py.File, name: str, where: Path, lazy: bool) -> NDArray[np.uint8] | L0Rows:
+    if not lazy:
+        return _get(f, name, 2, where)
+    if name not in f or not isinstance(f[name], h5py.Dataset):
+        raise L0Error(f"{where}: dataset '{name}' is missing; not a complete L0 archive")
+    ds = f[name]
+    if ds.ndim != 2 or ds.dtype != np.uint8:
+        raise L0Error(
+            f"{where}: dataset '{name}' is {ds.dtype} in {ds.ndim} dimensions, expected uint8 in 2"
+        )
+    return L0Rows(where, name, (int(ds.shape[0]), int(ds.shape[1])))
+
+
+def _read_l0(where: Path, lazy: bool) -> L0Archive:
     if not where.is_file():
         raise L0Error(f"{where}: no such L0 file")
     try:
@@ -221,7 +287,12 @@ def _read_l0(where: Path) -> L0Archive:
             raise L0Error(f"{where}: band_names is not a JSON list") from None
         bands = {}
         for name in names:
-            b = {k: _get(f, f"bands/{name}/{k}", nd, where) for k, nd in _BAND.items()}
+            b: dict[str, Any] = {
+                k: _get(f, f"bands/{name}/{k}", nd, where)
+                for k, nd in _BAND.items()
+                if k != "counts"
+            }
+            b["counts"] = _counts(f, f"bands/{name}/counts", where, lazy)
             _need(
                 b["counts"].shape == (n_lines, n_det),
                 where,

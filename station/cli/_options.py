@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from levels.files import json_default
 
-__all__ = ["add_json", "add_out", "emit"]
+__all__ = ["add_json", "add_out", "add_runner", "emit", "runner_of"]
 
 
 def add_json(parser: argparse.ArgumentParser, what: str = "JSON instead of text") -> None:
@@ -25,3 +26,40 @@ def add_out(parser: argparse.ArgumentParser, help_text: str) -> None:
 def emit(args: argparse.Namespace, data: Any, text: Callable[[Any], str]) -> None:
     """Print ``data`` as JSON with ``--json``, else as ``text(data)``."""
     print(json.dumps(data, indent=2, default=json_default) if args.json else text(data))
+
+
+def add_runner(parser: argparse.ArgumentParser, what: str = "scenes") -> None:
+    """``--workers N`` and ``--scheduler ADDRESS``: where the tasks run (levels.tasks)."""
+    g = parser.add_argument_group(
+        "where the work runs",
+        f"The {what} are tasks: in this process by default (every core for each), on a "
+        "local Dask cluster of N worker processes (--workers), or on a running Dask "
+        "cluster (--scheduler, or $DASK_SCHEDULER_ADDRESS). Products are the same bit for "
+        "bit. Dask is the optional extra: pip install 'spot-station[distributed]'.",
+    )
+    g.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        metavar="N",
+        help="start a local Dask cluster of N worker processes, one task each at a time",
+    )
+    g.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="the Dask scheduler of a running cluster (e.g. tcp://10.0.0.5:8786)",
+    )
+
+
+@contextlib.contextmanager
+def runner_of(args: argparse.Namespace) -> Iterator[Any]:
+    """The runner :func:`add_runner`'s options ask for (``levels.tasks.dask_runner``)."""
+    from levels.tasks import dask_runner
+    from station.errors import StationError
+
+    if args.workers < 0:
+        raise StationError(f"--workers {args.workers}: give a positive number of workers")
+    if args.workers and args.scheduler:
+        raise StationError("give --workers (a local cluster) or --scheduler, not both")
+    with dask_runner(args.scheduler, args.workers) as runner:
+        yield runner

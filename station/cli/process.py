@@ -9,7 +9,7 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from station.cli._options import add_json, add_out, emit
+from station.cli._options import add_json, add_out, add_runner, emit, runner_of
 from station.errors import StationError
 
 __all__ = ["register"]
@@ -53,6 +53,7 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     add_out(p, "directory of the products (default: <name>_products)")
+    add_runner(p)
     add_json(p)
     p.set_defaults(func=_process)
     c = sub.add_parser(
@@ -72,6 +73,7 @@ def register(sub: Any) -> None:
     c.add_argument("--levels", help="comma-separated levels to make; overrides the options'")
     c.add_argument("--out", required=True, help="directory of the campaign's products")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_runner(c, "scenes of every archive")
     add_json(c, "the campaign report as JSON instead of the summary")
     c.set_defaults(func=_campaign)
 
@@ -125,7 +127,8 @@ def _process(args: argparse.Namespace) -> int:
             scn, processing=_options(args, scn.processing), name=args.name or scn.name
         )
         out = Path(args.out) if args.out else Path(f"{scn.name}_products")
-        products, l0 = process_scenario(scn, out)
+        with runner_of(args) as runner:
+            products, l0 = process_scenario(scn, out, runner=runner)
         made = [(l0, products)]
     else:
         if args.name and len(sources) > 1:
@@ -140,14 +143,16 @@ def _process(args: argparse.Namespace) -> int:
         base = scenario.processing if scenario is not None else ProcessingOptions()
         names = [args.name] if args.name else [l0_stem(s) for s in sources]
         out = Path(args.out) if args.out else Path(f"{names[0]}_products")
-        passes = reprocess_pass(
-            sources,
-            out,
-            options=_options(args, base),
-            scenario=scenario,
-            names=names,
-            gcps=args.gcps,
-        )
+        with runner_of(args) as runner:
+            passes = reprocess_pass(
+                sources,
+                out,
+                options=_options(args, base),
+                scenario=scenario,
+                names=names,
+                gcps=args.gcps,
+                runner=runner,
+            )
         made = list(zip(sources, passes, strict=True))
     data = [_archive_data(l0, out, products) for l0, products in made]
     emit(args, data[0] if len(data) == 1 else {"archives": data}, _text)
@@ -166,15 +171,17 @@ def _campaign(args: argparse.Namespace) -> int:
     if not args.quiet and not args.json:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(archives), unit="archive", file=sys.stderr)
+        bar = tqdm(total=0, unit="scene", file=sys.stderr)
 
-    def progress(done: int, total: int, name: str) -> None:
+    def progress(done: int, total: int, what: str) -> None:
         if bar is not None:
-            bar.set_description(name, refresh=False)
+            bar.total = total
+            bar.set_description(what, refresh=False)
             bar.update(done - bar.n)
 
     try:
-        report = run_campaign(archives, args.out, options, progress)
+        with runner_of(args) as runner:
+            report = run_campaign(archives, args.out, options, progress, runner)
     finally:
         if bar is not None:
             bar.close()

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from station.cli._options import add_json, add_out
+from station.cli._options import add_json, add_out, add_runner, runner_of
 from station.errors import StationError
 
 __all__ = ["DEFAULT_SCENARIO", "register"]
@@ -32,6 +32,7 @@ def register(sub: Any) -> None:
     add_json(p, "the report instead of a table")
     p.add_argument("--no-quicklooks", action="store_true", help="skip the quicklook PNGs")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_runner(p)
     p.set_defaults(func=_run)
 
 
@@ -51,8 +52,13 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / scn.name
     if not args.json:
         print(f"running {path} into {out}/ ...", file=sys.stderr)
-    report = run_scenario(
-        scn, out, quicklooks=not args.no_quicklooks, progress=not args.quiet and sys.stderr.isatty()
-    )
+    with runner_of(args) as runner:
+        report = run_scenario(
+            scn,
+            out,
+            quicklooks=not args.no_quicklooks,
+            progress=not args.quiet and sys.stderr.isatty(),
+            runner=runner,
+        )
     print(json.dumps(report, indent=2) if args.json else summary_table(report, out))
     return 0

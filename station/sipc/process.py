@@ -18,9 +18,18 @@ import numpy as np
 from levels.errors import L0Error
 from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
 from levels.options import ProcessingOptions
-from levels.process import PassProducts, nominal_pixel_size_m, process_l0, process_pass
+from levels.process import (
+    PassPlan,
+    PassProducts,
+    all_made,
+    nominal_pixel_size_m,
+    plan_pass,
+    process_l0,
+    run_plans,
+)
 from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
 from levels.readers.l0 import L0Archive, read_l0
+from levels.tasks import Runner
 from station.errors import ScenarioError
 from station.scenario import Scenario
 from station.sipc.truth import Truth
@@ -32,6 +41,7 @@ __all__ = [
     "emulated_scene",
     "l0_stem",
     "measured_control_points",
+    "plan_reprocess",
     "process_scenario",
     "reprocess_l0",
     "reprocess_pass",
@@ -149,8 +159,10 @@ def reprocess_l0(
     scenario: Scenario | None = None,
     name: str | None = None,
     gcps: str | Path | None = None,
+    runner: Runner | None = None,
 ) -> PassProducts:
-    """Process a recorded L0 archive again into ``out_dir``.
+    """Process a recorded L0 archive again into ``out_dir``, its scenes as tasks of
+    ``runner`` (:mod:`levels.tasks`).
 
     ``options`` default to the scenario's ``[processing]``, else to the defaults; with the
     ``scenario``, the checkpoints are measured against its truth. Products are named after
@@ -165,6 +177,7 @@ def reprocess_l0(
         scenario=scenario,
         names=[name] if name else None,
         gcps=[gcps] if gcps else None,
+        runner=runner,
     )[0]
 
 
@@ -176,15 +189,34 @@ def reprocess_pass(
     scenario: Scenario | None = None,
     names: list[str] | None = None,
     gcps: list[str | Path] | None = None,
+    runner: Runner | None = None,
 ) -> list[PassProducts]:
     """:func:`reprocess_l0` of the archives of one pass, one per HRV, together
     (:func:`levels.process.process_pass`: with ``adjustment = "twin"``, level 2 adjusts
-    both HRVs at once). ``names`` and ``gcps``, when given, one per archive."""
+    both HRVs at once). ``names`` and ``gcps``, when given, one per archive; the scenes
+    are tasks of ``runner`` (:mod:`levels.tasks`, in this process by default)."""
+    plans = plan_reprocess(
+        l0_paths, out_dir, options=options, scenario=scenario, names=names, gcps=gcps
+    )
+    return all_made(run_plans(plans, runner))
+
+
+def plan_reprocess(
+    l0_paths: list[str | Path],
+    out_dir: str | Path,
+    *,
+    options: ProcessingOptions | None = None,
+    scenario: Scenario | None = None,
+    names: list[str] | None = None,
+    gcps: list[str | Path] | None = None,
+) -> list[PassPlan]:
+    """Everything of :func:`reprocess_pass` before its scene tasks: the archives read
+    lazily (a scene's counts are read by its task), GEO, the truth, the adjustment."""
     paths = [Path(p) for p in l0_paths]
     for what, given in (("names", names), ("control-point files", gcps)):
         if given is not None and len(given) != len(paths):
             raise L0Error(f"{len(paths)} L0 archives but {len(given)} {what}")
-    archives = [read_l0(p) for p in paths]
+    archives = [read_l0(p, lazy=True) for p in paths]
     opts = options or (scenario.processing if scenario is not None else ProcessingOptions())
     truths = [truth_for(scenario, a) if scenario is not None else None for a in archives]
     if "3" in opts.levels and not opts.dem_path:
@@ -199,7 +231,7 @@ def reprocess_pass(
         points = [
             read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)
         ]
-    return process_pass(
+    return plan_pass(
         archives,
         opts,
         out_dir,
@@ -249,9 +281,13 @@ def l0_stem(path: str | Path) -> str:
 
 
 def process_scenario(
-    scn: Scenario, out_dir: str | Path, l0_path: str | Path | None = None
+    scn: Scenario,
+    out_dir: str | Path,
+    l0_path: str | Path | None = None,
+    runner: Runner | None = None,
 ) -> tuple[PassProducts, Path]:
-    """Emulate, downlink, record and process a scenario; products measured against truth."""
+    """Emulate, downlink, record and process a scenario; products measured against truth,
+    the scenes as tasks of ``runner`` (:mod:`levels.tasks`)."""
     from station.srrs.session import downlink, record
 
     out = Path(out_dir)
@@ -259,7 +295,7 @@ def process_scenario(
     acq = emulate(scn)
     result = downlink(acq)
     l0 = record(acq, result, l0_path or out / f"{scn.name}.l0.h5")
-    archive = read_l0(l0)
+    archive = read_l0(l0, lazy=True)
     truth, gcps = measured_control_points(
         acq, archive, Path(l0).with_name(f"{l0_stem(l0)}.gcp.csv")
     )
@@ -271,5 +307,6 @@ def process_scenario(
         checkpoints=truth,
         provenance=scn.provenance(),
         gcps=gcps,
+        runner=runner,
     )
     return products, l0

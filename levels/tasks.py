@@ -1,0 +1,209 @@
+"""Where the scenes of a pass are made: one after another in this process, or as tasks on
+a Dask distributed cluster.
+
+The processing is cut into tasks that share nothing but what they are handed: one task per
+scene, given the pass's set-up (GEO's pass geometry, the options, the L0 archive read
+lazily, :class:`levels.readers.l0.L0Rows`) and the scene, writing its products and
+returning their paths and figures. A *runner* says where the tasks run:
+
+- :class:`InProcess` (the default): each task is called in this process, in the order
+  submitted, with every core for its kernels (numba). Nothing to start, nothing to install.
+- :class:`DaskRunner`: each task is a Dask future on a ``distributed.Client`` (a cluster
+  the user runs, ``station … --scheduler ADDRESS``, or a local one it starts,
+  ``--workers N``). The pass's set-up is scattered once and each worker holds one scene at
+  a time (run workers with one thread each; ``NUMBA_NUM_THREADS`` sets how many cores a
+  worker's kernels use).
+
+A task's result does not depend on where it ran: the products are bit for bit the same
+with either runner and any number of workers (``tests/test_distributed.py``). A task that
+fails is reported by its name (``<archive>-s<scene>``) with its error, and the others are
+finished (:class:`TaskFailure`).
+
+Dask is an optional dependency (the ``distributed`` extra); only :class:`DaskRunner`
+imports it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import uuid
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from levels.errors import LevelsError
+
+__all__ = [
+    "SCHEDULER_ENV",
+    "DaskRunner",
+    "InProcess",
+    "Runner",
+    "TaskFailure",
+    "dask_runner",
+    "scheduler_address",
+]
+
+#: The usual Dask environment variable naming a scheduler (Dask's configuration key
+#: ``scheduler-address``): a run with it set goes to that cluster.
+SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
+
+
+@dataclass(frozen=True)
+class TaskFailure:
+    """A task that raised: its name and its error (with its traceback, remote or not)."""
+
+    name: str
+    error: BaseException
+
+    @property
+    def bad_input(self) -> bool:
+        """The error is the library's own (bad input, damaged file), not a bug."""
+        return isinstance(self.error, LevelsError | OSError)
+
+    def line(self) -> str:
+        first = (str(self.error).splitlines() or [""])[0]
+        kind = "" if self.bad_input else f"{type(self.error).__name__}: "
+        return f"{self.name}: {kind}{first}"
+
+
+class Runner(Protocol):
+    """Where tasks run (module docstring)."""
+
+    #: How many tasks run at once.
+    workers: int
+
+    def share(self, obj: Any) -> Any:
+        """``obj`` as tasks receive it: itself in process, a scattered future on Dask."""
+        ...
+
+    def submit(self, name: str, fn: Callable[..., Any], *args: Any) -> Any:
+        """A handle on ``fn(*args)``, named ``name``, started now or when asked."""
+        ...
+
+    def completed(self, handles: Iterable[Any]) -> Iterator[tuple[Any, Any]]:
+        """Each handle with its result or its :class:`TaskFailure`, as they end."""
+        ...
+
+
+@dataclass(frozen=True, eq=False)
+class _Call:
+    name: str
+    fn: Callable[..., Any]
+    args: tuple[Any, ...]
+
+
+class InProcess:
+    """Tasks called in this process, in the order submitted, when their results are asked
+    for (:meth:`completed`)."""
+
+    workers = 1
+
+    def share(self, obj: Any) -> Any:
+        return obj
+
+    def submit(self, name: str, fn: Callable[..., Any], *args: Any) -> _Call:
+        return _Call(name, fn, args)
+
+    def completed(self, handles: Iterable[_Call]) -> Iterator[tuple[_Call, Any]]:
+        for h in handles:
+            try:
+                result = h.fn(*h.args)
+            except Exception as exc:  # reported by name; the other tasks go on
+                result = TaskFailure(h.name, exc)
+            yield h, result
+
+
+class DaskRunner:
+    """Tasks as futures of a ``distributed.Client`` (module docstring). Task keys are the
+    task's name and a token of this runner, so that two runs on one cluster never share a
+    result."""
+
+    def __init__(self, client: Any) -> None:
+        self.client = client
+        self._token = uuid.uuid4().hex[:8]
+        self._names: dict[str, str] = {}
+
+    @property
+    def workers(self) -> int:
+        info = self.client.scheduler_info(n_workers=-1)["workers"]
+        return max(1, sum(int(w.get("nthreads", 1)) for w in info.values()))
+
+    def share(self, obj: Any) -> Any:
+        return self.client.scatter(obj, broadcast=True, hash=False)
+
+    def submit(self, name: str, fn: Callable[..., Any], *args: Any) -> Any:
+        key = f"{name}-{self._token}"
+        self._names[key] = name
+        return self.client.submit(fn, *args, key=key, pure=False)
+
+    def completed(self, handles: Iterable[Any]) -> Iterator[tuple[Any, Any]]:
+        from distributed import as_completed
+
+        for future in as_completed(list(handles)):
+            name = self._names.pop(future.key, str(future.key))
+            if future.status == "error":
+                exc = future.exception()
+                tb = future.traceback()
+                result = TaskFailure(name, exc.with_traceback(tb) if tb is not None else exc)
+            elif future.status == "cancelled":
+                result = TaskFailure(name, RuntimeError("the task was cancelled"))
+            else:
+                result = future.result()
+            future.release()
+            yield future, result
+
+
+def scheduler_address(given: str | None = None) -> str | None:
+    """The scheduler to use: ``given``, else ``$DASK_SCHEDULER_ADDRESS`` (Dask's own
+    configuration when Dask is installed), else None (run in process)."""
+    if given:
+        return given
+    try:
+        import dask.config
+    except ImportError:
+        return os.environ.get(SCHEDULER_ENV) or None
+    return dask.config.get("scheduler-address", None) or os.environ.get(SCHEDULER_ENV) or None
+
+
+@contextlib.contextmanager
+def dask_runner(
+    address: str | None = None, workers: int = 0, memory_limit: str = "auto"
+) -> Iterator[InProcess | DaskRunner]:
+    """The runner of a command: a client of the scheduler at ``address``
+    (:func:`scheduler_address`), else a local cluster of ``workers`` processes started and
+    stopped here (one thread each, this machine's cores shared among their kernels, bound
+    to 127.0.0.1), else :class:`InProcess`. :class:`LevelsError` when Dask is needed and
+    not installed, or the scheduler does not answer."""
+    address = scheduler_address(address)
+    if not address and workers <= 0:
+        yield InProcess()
+        return
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise LevelsError(
+            "running on Dask needs the distributed extra: pip install 'spot-station[distributed]'"
+        ) from None
+    if address:
+        try:
+            client = Client(address, timeout="20s")
+        except OSError as exc:
+            raise LevelsError(f"no Dask scheduler answers at {address}: {exc}") from None
+        with client:
+            yield DaskRunner(client)
+        return
+    cores = max(1, (os.cpu_count() or 1) // workers)
+    with (
+        LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+            memory_limit=memory_limit,
+            env={"NUMBA_NUM_THREADS": str(cores)},
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield DaskRunner(client)
