@@ -202,12 +202,18 @@ def new_hdf5(target: str | Path) -> Iterator[h5py.File]:
     (through :func:`levels.files.atomic_path`). HDF5 never writes to the disk itself: a full
     disk is one clean ``OSError`` from the final write, and the temporary file is removed;
     HDF5's own failing writes would end in a flood of errors and a crash of the library.
-    The products and the L0 archive are held in memory by their readers anyway."""
+    The products and the L0 archive are held in memory by their readers anyway.
+
+    Without a chunk cache (``rdcc_nbytes=0``), each chunk is placed in the file when it is
+    written: with one, a small dataset's chunk was placed when its Python object happened
+    to be freed, and the same product came out laid out differently (same content, other
+    bytes) in one run of 24 on a Dask worker."""
     f = h5py.File(
         f"memory-{os.getpid()}-{next(_MEMORY_FILES)}.h5",
         "w",
         driver="core",
         backing_store=False,
+        rdcc_nbytes=0,
         **HDF5_FILE_OPTIONS,
     )
     try:

@@ -47,6 +47,8 @@ __all__ = [
 #: The usual Dask environment variable naming a scheduler (Dask's configuration key
 #: ``scheduler-address``): a run with it set goes to that cluster.
 SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
+#: How long a client waits for a scheduler to answer before saying there is none.
+CONNECT_TIMEOUT_S = 20.0
 
 
 @dataclass(frozen=True)
@@ -187,8 +189,8 @@ def dask_runner(
         ) from None
     if address:
         try:
-            client = Client(address, timeout="20s")
-        except OSError as exc:
+            client = Client(address, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError) as exc:
             raise LevelsError(f"no Dask scheduler answers at {address}: {exc}") from None
         with client:
             yield DaskRunner(client)
@@ -200,7 +202,7 @@ def dask_runner(
             threads_per_worker=1,
             processes=True,
             host="127.0.0.1",
-            dashboard_address=None,
+            dashboard_address="127.0.0.1:0",  # no fixed port: never 8787 taken
             memory_limit=memory_limit,
             env={"NUMBA_NUM_THREADS": str(cores)},
         ) as cluster,

@@ -74,3 +74,24 @@ def test_fletcher32_is_hdf5s_and_catches_a_flipped_byte(tmp_path) -> None:
     path.write_bytes(bytes(raw))
     with h5py.File(path) as f, pytest.raises(OSError):
         f["x"][:256, :256]
+
+
+def test_a_file_s_bytes_do_not_depend_on_when_its_datasets_are_freed(tmp_path) -> None:
+    """A chunk held in HDF5's chunk cache was placed when its dataset object was freed:
+    a Dask worker that freed one later wrote the same product with other bytes. Without
+    the cache, the bytes follow the writes alone."""
+    from levels.hdf5 import new_hdf5
+
+    def write(path, hold: bool) -> bytes:
+        held = []
+        with new_hdf5(path) as f:
+            for k in range(4):
+                ds = f.create_dataset(
+                    f"a{k}", data=np.arange(300.0) * k, chunks=(300,), fletcher32=True
+                )
+                if hold:
+                    held.append(ds)
+            f.create_group("g").attrs["x"] = 1
+        return path.read_bytes()
+
+    assert write(tmp_path / "a.h5", hold=False) == write(tmp_path / "b.h5", hold=True)

@@ -46,6 +46,7 @@ __all__ = [
     "Stage",
     "StationSimulation",
     "pass_pattern",
+    "pass_patterns",
     "simulate",
 ]
 
@@ -102,14 +103,21 @@ class StationSimulation:
     """One replication of a capacity scenario as a simpy model (module docstring): the
     stages, the random streams, the counters; :meth:`run` runs it to the end."""
 
-    def __init__(self, scn: CapacityScenario, service: Service, replication: int = 0) -> None:
+    def __init__(
+        self,
+        scn: CapacityScenario,
+        service: Service,
+        replication: int = 0,
+        patterns: tuple[PassPattern, PassPattern | None] | None = None,
+    ) -> None:
         rng = np.random.default_rng(np.random.SeedSequence(scn.seed, spawn_key=(replication,)))
         self.rng_plan, self.rng_service, rng_fail, self.rng_orders = rng.spawn(4)
         self.scn, self.service = scn, service
         sim, res = scn.simulation, scn.resources
         self.warmup = sim.warmup_days * _DAY
         self.t_end = self.warmup + sim.days * _DAY
-        self.pattern = pass_pattern(scn.ground_station)
+        spot, landsat = patterns or pass_patterns(scn)
+        self.pattern = spot
         self.env = env = simpy.Environment()
         sh = scn.shifts
         shift = Shift(
@@ -169,13 +177,8 @@ class StationSimulation:
         self.rng_landsat, self.rng_tm = rng.spawn(2)
         self.extra_2a_s = {m: cor_window_s(service, scn.service, m) for m in ("P", "XS")}
         ls = scn.landsat
-        if ls.antenna_share > 0:
-            orbit = OrbitConfig(
-                repeat_revs=ls.repeat_revs,
-                repeat_days=ls.repeat_days,
-                descending_node_local_time_h=ls.descending_node_local_time_h,
-            )
-            env.process(self.landsat_passes(pass_pattern(scn.ground_station, orbit)))
+        if landsat is not None:
+            env.process(self.landsat_passes(landsat))
         if ls.tm_jobs_per_day > 0 and ls.tm_job_s > 0:
             env.process(self.tm_jobs())
 
@@ -379,9 +382,31 @@ def cor_window_s(service: Service, cfg: ServiceConfig, mode: str) -> float:
     return (passes - 1) * m.detectors * line_mb / cfg.raw_read_mb_per_s
 
 
-def simulate(scn: CapacityScenario, service: Service, replication: int = 0) -> Replication:
-    """One replication of the scenario (module docstring)."""
-    return StationSimulation(scn, service, replication).run()
+def pass_patterns(scn: CapacityScenario) -> tuple[PassPattern, PassPattern | None]:
+    """The passes over the scenario's station of SPOT and, when it shares the antenna, of
+    Landsat (:func:`~station.capacity.passes.pass_pattern`)."""
+    ls = scn.landsat
+    landsat = None
+    if ls.antenna_share > 0:
+        orbit = OrbitConfig(
+            repeat_revs=ls.repeat_revs,
+            repeat_days=ls.repeat_days,
+            descending_node_local_time_h=ls.descending_node_local_time_h,
+        )
+        landsat = pass_pattern(scn.ground_station, orbit)
+    return pass_pattern(scn.ground_station), landsat
+
+
+def simulate(
+    scn: CapacityScenario,
+    service: Service,
+    replication: int = 0,
+    patterns: tuple[PassPattern, PassPattern | None] | None = None,
+) -> Replication:
+    """One replication of the scenario (module docstring); ``patterns``: its passes when
+    already computed (:func:`pass_patterns`: 15 s of orbit propagation, which a task on
+    another process would otherwise repeat)."""
+    return StationSimulation(scn, service, replication, patterns).run()
 
 
 def _clearing(stage: Stage, start_s: float, duration_s: float) -> dict[str, float]:

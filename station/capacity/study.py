@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 
 from levels.files import atomic_path, plain, writable_dir, write_text
+from levels.tasks import InProcess, Runner, TaskFailure
 from station.capacity.config import CapacityScenario, with_value
-from station.capacity.model import LEVELS, Replication, Service, simulate
+from station.capacity.model import LEVELS, Replication, Service, pass_patterns, simulate
 from station.capacity.stats import mean_ci
 from station.errors import ScenarioError
 
@@ -88,19 +89,46 @@ def run_study(
     replications: int | None = None,
     plots: bool = True,
     service: Service | None = None,
+    runner: Runner | None = None,
 ) -> dict[str, Any]:
-    """Replicate the scenario (for each sweep value); write the outputs to ``out_dir``."""
+    """Replicate the scenario (for each sweep value); write the outputs to ``out_dir``.
+
+    Every replication of every sweep value is a task of ``runner`` (:mod:`levels.tasks`:
+    in this process by default, else on a Dask cluster); each draws its own random
+    streams from the seed and its number, so the figures do not depend on where it ran.
+    A replication that fails is named once the others ended."""
     if out_dir is not None:
         writable_dir(out_dir)  # now, not after the simulation
     service = service or load_service(scn)
     n = replications or scn.simulation.replications
     param, values = sweep if sweep else ("", [""])
     variants = [(v, with_value(scn, param, v) if param else scn) for v in values]
-    runs, first = [], None
-    for value, variant in variants:
-        reps = [simulate(variant, service, r) for r in range(n)]
-        first = first or reps[0]
-        runs.append({"value": value, **_aggregate(reps)})
+    runner = runner or InProcess()
+    shared = runner.share(service)
+    handles = {}
+    for k, (value, variant) in enumerate(variants):
+        patterns = runner.share(pass_patterns(variant))  # once here, not in every task
+        for r in range(n):
+            name = f"{scn.name}{f'-{param}={value}' if param else ''}-r{r}"
+            handles[runner.submit(name, simulate, variant, shared, r, patterns)] = (k, r)
+    reps: dict[tuple[int, int], Replication] = {}
+    failures = []
+    for handle, result in runner.completed(handles):
+        if isinstance(result, TaskFailure):
+            failures.append(result)
+        else:
+            reps[handles[handle]] = result
+    if failures:
+        first_failure = failures[0].error
+        first_failure.add_note(
+            f"in replication {failures[0].name}; failed: {', '.join(f.name for f in failures)}"
+        )
+        raise first_failure
+    runs = [
+        {"value": value, **_aggregate([reps[k, r] for r in range(n)])}
+        for k, (value, _) in enumerate(variants)
+    ]
+    first = reps[0, 0]
     summary = {
         "format": "spot-station-capacity",
         "format_version": 1,

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from station.cli._options import add_json, add_out, emit
+from station.cli._options import add_json, add_out, add_runner, emit, runner_of
 from station.errors import StationError
 
 __all__ = ["register"]
@@ -30,6 +30,7 @@ def register(sub: Any) -> None:
         "output directory (default runs/<name>/); for calibrate, the service-time "
         "file (default service_times.json)",
     )
+    add_runner(cap, "replications (of every sweep value)")
     add_json(cap, "the summary as JSON")
     cap.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     cap.set_defaults(func=_capacity)
@@ -64,7 +65,10 @@ def _capacity(args: argparse.Namespace) -> int:
     if args.replications is not None and args.replications < 1:
         raise StationError(f"--replications {args.replications}: expected at least 1")
     out = Path(args.out) if args.out else Path("runs") / scn.name
-    summary = run_study(scn, out, sweep, args.replications, plots=not args.no_plots)
+    with runner_of(args) as runner:
+        summary = run_study(
+            scn, out, sweep, args.replications, plots=not args.no_plots, runner=runner
+        )
     files = "summary.json, stages.csv, levels.csv, station.csv, queues.csv" + (
         "" if args.no_plots else ", queues.png, latency.png" + (", sweep.png" if sweep else "")
     )

@@ -167,24 +167,24 @@ def _campaign(args: argparse.Namespace) -> int:
 
     archives = campaign_archives(args.source)
     options = _options(args, ProcessingOptions())
-    bar = None
-    if not args.quiet and not args.json:
-        from tqdm import tqdm
+    with runner_of(args) as runner:  # a scheduler that does not answer fails first
+        bar = None
+        if not args.quiet and not args.json:
+            from tqdm import tqdm
 
-        bar = tqdm(total=0, unit="scene", file=sys.stderr)
+            bar = tqdm(total=0, unit="scene", file=sys.stderr)
 
-    def progress(done: int, total: int, what: str) -> None:
-        if bar is not None:
-            bar.total = total
-            bar.set_description(what, refresh=False)
-            bar.update(done - bar.n)
+        def progress(done: int, total: int, what: str) -> None:
+            if bar is not None:
+                bar.total = total
+                bar.set_description(what, refresh=False)
+                bar.update(done - bar.n)
 
-    try:
-        with runner_of(args) as runner:
+        try:
             report = run_campaign(archives, args.out, options, progress, runner)
-    finally:
-        if bar is not None:
-            bar.close()
+        finally:
+            if bar is not None:
+                bar.close()
     emit(args, report, _campaign_text)
     failed = [a for a in report["archives"] if a["status"] != "ok"]
     if not failed:
