@@ -727,7 +727,7 @@ def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
             attrs, images[level], geometry, quality[level], {**ctx.provenance, "level": level}, grid
         )
         paths[level] = write_product(
-            ctx.out / product_name(ctx.name, scene.cut.index, level), product
+            ctx.out / product_name(ctx.name, scene.cut.index, level), product, opt.deflate_level
         )
     timings["write"] = clock() - t
     return SceneProducts(

@@ -243,8 +243,10 @@ def _grid_mapping(f: h5py.File, grid: MapGrid) -> None:
     var.attrs["long_name"] = "map projection of the product"
 
 
-def write_product(path: str | Path, product: Product) -> Path:
-    """Write a product atomically (module docstring); returns its path."""
+def write_product(path: str | Path, product: Product, deflate_level: int = 1) -> Path:
+    """Write a product atomically (module docstring); returns its path. Its image bands
+    are deflated at ``deflate_level`` (0: stored: the zlib stream any reader inflates,
+    without compression), their validity masks at level 1 (they shrink 100-fold)."""
     target = Path(path)
     with new_hdf5(target) as f:
         f.attrs["format"] = PRODUCT_FORMAT
@@ -306,7 +308,8 @@ def write_product(path: str | Path, product: Product) -> Path:
                     f"pixel of band {name} is valid (every raw pixel it uses arrived)",
                 ),
             ):
-                ds = deflated_dataset(f, var, data, chunks)
+                level = deflate_level if var == name else 1
+                ds = deflated_dataset(f, var, data, chunks, level=level)
                 for axis, dim in enumerate(dims):
                     ds.dims[axis].attach_scale(dim)
                 ds.attrs["units"] = "1"

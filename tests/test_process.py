@@ -312,3 +312,23 @@ def test_a_control_point_outside_the_image_is_refused(run_dir: Path) -> None:
 
     with pytest.raises(GcpError, match="outside the image"):
         read_gcps(run_dir / "small_test.gcp.csv", n_lines=10, n_columns=10)
+
+
+def test_stored_image_bands_read_the_same_everywhere(run_dir: Path, tmp_path: Path) -> None:
+    """``deflate_level = 0`` stores the image bands uncompressed inside the same deflate
+    filter: GDAL and h5py read the same pixels as from the compressed product; only the
+    size changes (the reduced scene's noise-like 8-bit image: compressed to about 60 %)."""
+    opts = tmp_path / "stored.toml"
+    opts.write_text("[processing]\ndeflate_level = 0\nlevels = ['2A']\n")
+    l0 = run_dir / "small_test.l0.h5"
+    argv = ["process", str(l0), "--levels", "2A", "--out"]
+    assert main([*argv, str(tmp_path / "z")]) == 0
+    assert main([*argv, str(tmp_path / "s"), "--options", str(opts)]) == 0
+    z, s = tmp_path / "z" / "small_test_s000_2A.h5", tmp_path / "s" / "small_test_s000_2A.h5"
+    a, b = read_product(z), read_product(s)
+    assert np.array_equal(a.bands["P"].image, b.bands["P"].image)
+    assert np.array_equal(a.bands["P"].valid, b.bands["P"].valid)
+    with rasterio.open(f'NETCDF:"{z}":P') as x, rasterio.open(f'NETCDF:"{s}":P') as y:
+        assert np.array_equal(x.read(1), y.read(1))
+    image_bytes = a.bands["P"].image.nbytes
+    assert s.stat().st_size - z.stat().st_size > 0.2 * image_bytes
