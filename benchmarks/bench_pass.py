@@ -39,7 +39,7 @@ from pathlib import Path
 
 from levels.options import ProcessingOptions
 from levels.process import all_made, run_plans
-from levels.tasks import DaskRunner, InProcess, Runner
+from levels.tasks import DaskRunner, InProcess, Runner, dask_runner
 from station.scenario import scenario_from_dict
 from station.sipc.process import plan_reprocess
 
@@ -82,28 +82,15 @@ def _peak_rss_mb() -> float:
 def on_cluster(l0: Path, out: Path, workers: int) -> tuple[float, float, int, float]:
     """Best wall time on a local cluster of ``workers`` one-core workers, its start time,
     the scenes, and the peak resident memory of its largest worker (MB)."""
-    from distributed import Client, LocalCluster
-
-    one_core = {k: "1" for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
     t = time.perf_counter()
-    with (
-        LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address="127.0.0.1:0",
-            env=one_core,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+    with dask_runner(workers=workers, cores_per_worker=1) as runner:
+        assert isinstance(runner, DaskRunner)
         start = time.perf_counter() - t
-        runner = DaskRunner(client)
         times = []
         for _ in range(REPEATS):
             dt, n = run_pass(l0, out, runner)
             times.append(dt)
-        peak = max(client.run(_peak_rss_mb).values())
+        peak = max(runner.client.run(_peak_rss_mb).values())
     return min(times), start, n, peak
 
 

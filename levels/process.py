@@ -353,9 +353,9 @@ class PassPlan:
 
 class ScenesFailed(LevelsError):
     """Scenes of a pass that could not be made, each named, after the others were made
-    (``failures``: :class:`levels.tasks.TaskFailure`; ``made``: the pass's products)."""
+    (``failures``: :class:`levels.tasks.TaskFailure`; ``made``: what was made)."""
 
-    def __init__(self, failures: list[TaskFailure], made: list[PassProducts | None]) -> None:
+    def __init__(self, failures: list[TaskFailure], made: list[PassProducts]) -> None:
         super().__init__("; ".join(f.line() for f in failures))
         self.failures = failures
         self.made = made
@@ -476,7 +476,7 @@ def all_made(results: list[PassProducts | ScenesFailed]) -> list[PassProducts]:
     failures = [f for r in results if isinstance(r, ScenesFailed) for f in r.failures]
     if not failures:
         return results  # type: ignore[return-value]
-    made = [r.made[0] if isinstance(r, ScenesFailed) else r for r in results]
+    made = [p for r in results for p in (r.made if isinstance(r, ScenesFailed) else [r])]
     bug = next((f for f in failures if not f.bad_input), None)
     if bug is not None:
         bug.error.add_note(f"in task {bug.name}; failed: {', '.join(f.name for f in failures)}")

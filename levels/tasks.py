@@ -170,13 +170,17 @@ def scheduler_address(given: str | None = None) -> str | None:
 
 @contextlib.contextmanager
 def dask_runner(
-    address: str | None = None, workers: int = 0, memory_limit: str = "auto"
+    address: str | None = None,
+    workers: int = 0,
+    memory_limit: str = "auto",
+    cores_per_worker: int = 0,
 ) -> Iterator[InProcess | DaskRunner]:
     """The runner of a command: a client of the scheduler at ``address``
     (:func:`scheduler_address`), else a local cluster of ``workers`` processes started and
-    stopped here (one thread each, this machine's cores shared among their kernels, bound
-    to 127.0.0.1), else :class:`InProcess`. :class:`LevelsError` when Dask is needed and
-    not installed, or the scheduler does not answer."""
+    stopped here (one task at a time each, bound to 127.0.0.1; their kernels share this
+    machine's cores, or use ``cores_per_worker`` each, BLAS one), else
+    :class:`InProcess`. :class:`LevelsError` when Dask is needed and not installed, or the
+    scheduler does not answer."""
     address = scheduler_address(address)
     if not address and workers <= 0:
         yield InProcess()
@@ -195,7 +199,9 @@ def dask_runner(
         with client:
             yield DaskRunner(client)
         return
-    cores = max(1, (os.cpu_count() or 1) // workers)
+    cores = cores_per_worker or max(1, (os.cpu_count() or 1) // workers)
+    threads = {"NUMBA_NUM_THREADS": str(cores), "OMP_NUM_THREADS": "1"}
+    threads["OPENBLAS_NUM_THREADS"] = "1"
     with (
         LocalCluster(
             n_workers=workers,
@@ -204,7 +210,7 @@ def dask_runner(
             host="127.0.0.1",
             dashboard_address="127.0.0.1:0",  # no fixed port: never 8787 taken
             memory_limit=memory_limit,
-            env={"NUMBA_NUM_THREADS": str(cores)},
+            env=threads,
         ) as cluster,
         Client(cluster) as client,
     ):
