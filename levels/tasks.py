@@ -128,7 +128,10 @@ class DaskRunner:
 
     @property
     def workers(self) -> int:
-        info = self.client.scheduler_info(n_workers=-1)["workers"]
+        try:  # newer Dask lists only some workers unless asked for all
+            info = self.client.scheduler_info(n_workers=-1)["workers"]
+        except TypeError:
+            info = self.client.scheduler_info()["workers"]
         return max(1, sum(int(w.get("nthreads", 1)) for w in info.values()))
 
     def share(self, obj: Any) -> Any:
