@@ -73,12 +73,14 @@ def run_campaign(
     """Process each archive into ``out/<archive>/`` (module docstring); returns the
     campaign report, also written to ``out/campaign.json``.
 
-    Each archive is planned here (read lazily, GEO, its output directory), then every
-    scene of every archive goes to ``runner`` as a task (:mod:`levels.tasks`; in this
-    process by default, else on a Dask cluster). ``progress(done, total, what)`` counts
-    scenes: called while planning (``total`` 0), then after each scene, and at the end.
+    The archives go in batches (one in process; twice as many as workers on Dask, so
+    that the workers always have scenes while the next archives are planned): each is
+    planned here (read lazily, GEO, its output directory), then every scene of the batch
+    goes to ``runner`` as a task (:mod:`levels.tasks`). ``progress(done, total, what)``
+    counts scenes (``total``: those of the archives planned so far): called while
+    planning, after each scene, and at the end.
     """
-    from levels.process import PassProducts, run_plans
+    from levels.process import run_plans
     from station.sipc.process import l0_stem, plan_reprocess
 
     target = writable_dir(out)  # an unwritable output fails before any work
@@ -90,57 +92,48 @@ def run_campaign(
         )
     clock = time.perf_counter
     t0 = clock()
+    # archives go in batches: a year of passes is never planned, nor held, all at once
+    workers = runner.workers if runner is not None else 1
+    batch = 1 if workers <= 1 else 2 * workers
     entries: list[dict[str, Any]] = []
-    plans = []
-    for archive, name in zip(archives, names, strict=True):
-        if progress is not None:
-            progress(0, 0, f"GEO {name}")
-        entry: dict[str, Any] = {"l0": str(archive), "name": name, "out": str(target / name)}
-        t = clock()
-        try:
-            [plan] = plan_reprocess([archive], target / name, options=options, names=[name])
-        except Exception as exc:  # reported by name; the other archives go on
-            entry.update(_failure(exc, traceback.format_exc()))
-        else:
-            plans.append((entry, plan))
-        entry["time_s"] = clock() - t
-        entries.append(entry)
-    total = sum(len(plan.scenes) for _, plan in plans)
-    done = 0
+    done = total = 0
+    what = ""
 
     def on_scene(_made: Any, _n: int) -> None:
         nonlocal done
         done += 1
         if progress is not None:
-            progress(done, total, "scenes")
+            progress(done, total, what)
 
-    if progress is not None:
-        progress(0, total, "scenes")
-    results = run_plans([plan for _, plan in plans], runner, on_scene)
-    for (entry, _), result in zip(plans, results, strict=True):
-        made = result if isinstance(result, PassProducts) else result.made[0]
-        entry.update(
-            status="ok",
-            scenes=len(made.scenes),
-            skipped=[dataclasses.asdict(s) for s in made.skipped],
-            products=[
-                {"scene": s.index, "level": lv, "path": str(p)}
-                for s in made.scenes
-                for lv, p in s.paths.items()
-            ],
+    for first in range(0, len(archives), batch):
+        plans = []
+        for archive, name in zip(
+            archives[first : first + batch], names[first : first + batch], strict=True
+        ):
+            if progress is not None:
+                progress(done, total, f"GEO {name}")
+            entry: dict[str, Any] = {"l0": str(archive), "name": name, "out": str(target / name)}
+            t = clock()
+            try:
+                [plan] = plan_reprocess([archive], target / name, options=options, names=[name])
+            except Exception as exc:  # reported by name; the other archives go on
+                entry.update(_failure(exc, traceback.format_exc()))
+            else:
+                plans.append((entry, plan))
+            entry["time_s"] = clock() - t
+            entries.append(entry)
+        total += sum(len(plan.scenes) for _, plan in plans)
+        last = min(first + batch, len(archives))
+        what = (
+            f"archive {last} of {len(archives)}"
+            if batch == 1
+            else (f"archives {first + 1}–{last} of {len(archives)}")
         )
-        # the archive's processing time: GEO here, and its scene tasks wherever they ran
-        entry["time_s"] += sum(sum(s.timings_s.values()) for s in made.scenes)
-        if not isinstance(result, PassProducts):
-            bugs = [f for f in result.failures if not f.bad_input]
-            entry.update(
-                status="failed",
-                kind="internal error" if bugs else "bad input",
-                reason=str(result),
-                failed_scenes=[f.name for f in result.failures],
-            )
-            if bugs:
-                entry["traceback"] = "".join(traceback.format_exception(bugs[0].error))
+        if progress is not None:
+            progress(done, total, what)
+        results = run_plans([plan for _, plan in plans], runner, on_scene)
+        for (entry, _), result in zip(plans, results, strict=True):
+            _record(entry, result)
     if progress is not None:
         progress(total, total, "")
     failed = [e for e in entries if e["status"] != "ok"]
@@ -162,6 +155,35 @@ def run_campaign(
     }
     write_json(target / "campaign.json", report)
     return report
+
+
+def _record(entry: dict[str, Any], result: Any) -> None:
+    """An archive's entry from what :func:`levels.process.run_plans` made of it."""
+    from levels.process import PassProducts
+
+    made = result if isinstance(result, PassProducts) else result.made[0]
+    entry.update(
+        status="ok",
+        scenes=len(made.scenes),
+        skipped=[dataclasses.asdict(s) for s in made.skipped],
+        products=[
+            {"scene": s.index, "level": lv, "path": str(p)}
+            for s in made.scenes
+            for lv, p in s.paths.items()
+        ],
+    )
+    # the archive's processing time: GEO here, and its scene tasks wherever they ran
+    entry["time_s"] += sum(sum(s.timings_s.values()) for s in made.scenes)
+    if not isinstance(result, PassProducts):
+        bugs = [f for f in result.failures if not f.bad_input]
+        entry.update(
+            status="failed",
+            kind="internal error" if bugs else "bad input",
+            reason=str(result),
+            failed_scenes=[f.name for f in result.failures],
+        )
+        if bugs:
+            entry["traceback"] = "".join(traceback.format_exception(bugs[0].error))
 
 
 def _failure(exc: BaseException, trace: str) -> dict[str, Any]:

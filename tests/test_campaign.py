@@ -59,3 +59,32 @@ def test_a_campaign_names_its_failures_and_finishes_the_rest(archives, tmp_path,
 def test_a_campaign_without_archives_is_bad_input(tmp_path, capsys):
     assert main(["campaign", str(tmp_path), "--out", str(tmp_path / "o")]) == EXIT_BAD_INPUT
     assert "no L0 archives" in capsys.readouterr().err
+
+
+def test_archives_are_planned_one_after_another_in_process(archives, tmp_path, monkeypatch):
+    """A year of passes is never planned all at once: in process, each archive's scenes
+    are made before the next archive is read (what a worker holds stays one pass)."""
+    import levels.process
+    import station.sipc.process
+
+    events = []
+    plan, scene = station.sipc.process.plan_reprocess, levels.process._process_scene
+
+    def planned(paths, *a, **k):
+        events.append(("plan", Path(paths[0]).name))
+        return plan(paths, *a, **k)
+
+    def made(ctx, s):
+        events.append(("scene", ctx.name))
+        return scene(ctx, s)
+
+    monkeypatch.setattr(station.sipc.process, "plan_reprocess", planned)
+    monkeypatch.setattr(levels.process, "_process_scene", made)
+    good = [archives / "pass_a.l0.h5", archives / "older" / "pass_b.l0.h5"]
+    assert main(["campaign", *map(str, good), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    assert events == [
+        ("plan", "pass_a.l0.h5"),
+        ("scene", "pass_a"),
+        ("plan", "pass_b.l0.h5"),
+        ("scene", "pass_b"),
+    ]
