@@ -9,11 +9,12 @@ byte), and writes one report, ``DIR/campaign.json``: per archive its status, its
 and their headline figures, or the reason it failed. An archive that fails (damaged,
 unreadable, a bug) is reported by name and the others are still processed.
 
-The archives are planned one after another here (read lazily, GEO); their scenes are
-tasks (:mod:`levels.tasks`): in this process by default, each using every core, or on a
-Dask cluster (``--workers N``, ``--scheduler ADDRESS``), where the products are the same
-bit for bit. A scene that fails makes its archive fail, named with the scene; its other
-scenes and the other archives are finished.
+The archives are planned here in batches (read lazily, GEO: one archive at a time in
+process, twice as many as workers on Dask); their scenes are tasks (:mod:`levels.tasks`):
+in this process by default, each using every core, or on a Dask cluster (``--workers N``,
+``--scheduler ADDRESS``), where the products are the same bit for bit. A scene that fails
+makes its archive fail, named with the scene; its other scenes and the other archives are
+finished.
 """
 
 from __future__ import annotations
