@@ -58,7 +58,7 @@ from levels.readers.dem import Dem, read_dem
 from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
 from levels.spot import ORBIT_ALTITUDE_M
-from levels.tasks import InProcess, Runner, TaskFailure
+from levels.tasks import InProcess, Runner, TaskFailure, raise_first
 
 __all__ = [
     "PassPlan",
@@ -342,10 +342,6 @@ class PassPlan:
     tail_lines: int
     timings_s: dict[str, float]
 
-    @property
-    def name(self) -> str:
-        return self.ctx.name
-
     def task_name(self, scene: SceneGeometry) -> str:
         """How a scene's task is named in reports: ``<name>-s<scene index>``."""
         return f"{self.ctx.name}-s{scene.cut.index:03d}"
@@ -420,11 +416,6 @@ def plan_l0(
     return PassPlan(ctx, list(scenes), list(setup.skipped), tail, timings)
 
 
-def make_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
-    """One scene's task: its products written, their paths and figures returned."""
-    return _process_scene(ctx, scene)
-
-
 def run_plans(
     plans: Sequence[PassPlan],
     runner: Runner | None = None,
@@ -476,12 +467,10 @@ def all_made(results: list[PassProducts | ScenesFailed]) -> list[PassProducts]:
     failures = [f for r in results if isinstance(r, ScenesFailed) for f in r.failures]
     if not failures:
         return results  # type: ignore[return-value]
-    made = [p for r in results for p in (r.made if isinstance(r, ScenesFailed) else [r])]
     bug = next((f for f in failures if not f.bad_input), None)
     if bug is not None:
-        bug.error.add_note(f"in task {bug.name}; failed: {', '.join(f.name for f in failures)}")
-        raise bug.error
-    raise ScenesFailed(failures, made)
+        raise_first(failures, first=bug)
+    raise ScenesFailed(failures, [r.made[0] if isinstance(r, ScenesFailed) else r for r in results])
 
 
 def process_pass(
@@ -573,7 +562,8 @@ def plan_pass(
     ]
 
 
-def _process_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
+def make_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
+    """One scene's task: its products written, their paths and figures returned."""
     clock = time.perf_counter
     opt, res = ctx.options, ctx.pixel_size_m
     timings: dict[str, float] = {}

@@ -30,7 +30,7 @@ import os
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, NoReturn, Protocol
 
 from levels.errors import LevelsError
 
@@ -41,6 +41,7 @@ __all__ = [
     "Runner",
     "TaskFailure",
     "dask_runner",
+    "raise_first",
     "scheduler_address",
 ]
 
@@ -67,6 +68,17 @@ class TaskFailure:
         first = (str(self.error).splitlines() or [""])[0]
         kind = "" if self.bad_input else f"{type(self.error).__name__}: "
         return f"{self.name}: {kind}{first}"
+
+
+def raise_first(
+    failures: list[TaskFailure], what: str = "task", first: TaskFailure | None = None
+) -> NoReturn:
+    """Raise one failure's error as itself (``first``, by default the first), with a note
+    naming its task and every task that failed: once all tasks have ended, the others'
+    results kept."""
+    one = first or failures[0]
+    one.error.add_note(f"in {what} {one.name}; failed: {', '.join(f.name for f in failures)}")
+    raise one.error
 
 
 class Runner(Protocol):

@@ -143,7 +143,7 @@ def run_campaign(
         "format_version": 1,
         "software": f"spot-station {__version__}",
         "options": dataclasses.asdict(options),
-        "workers": 1 if runner is None else runner.workers,
+        "workers": workers,
         "archives": entries,
         "summary": {
             "archives": len(entries),

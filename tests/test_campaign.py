@@ -13,17 +13,12 @@ import pytest
 
 from station.cli import EXIT_BAD_INPUT, main
 
-ROOT = Path(__file__).resolve().parents[1]
-SMALL = ROOT / "scenarios" / "small_test.toml"
-
 
 @pytest.fixture(scope="module")
-def archives(tmp_path_factory) -> Path:
+def archives(run_dir, tmp_path_factory) -> Path:
     """A directory of two good archives (one in a subdirectory) and a truncated one."""
-    run = tmp_path_factory.mktemp("run") / "small"
-    assert main(["run", str(SMALL), "--out", str(run), "--quiet", "--no-quicklooks"]) == 0
     d = tmp_path_factory.mktemp("archive")
-    l0 = run / "small_test.l0.h5"
+    l0 = run_dir / "small_test.l0.h5"
     shutil.copy(l0, d / "pass_a.l0.h5")
     (d / "older").mkdir()
     shutil.copy(l0, d / "older" / "pass_b.l0.h5")
@@ -68,7 +63,7 @@ def test_archives_are_planned_one_after_another_in_process(archives, tmp_path, m
     import station.sipc.process
 
     events = []
-    plan, scene = station.sipc.process.plan_reprocess, levels.process._process_scene
+    plan, scene = station.sipc.process.plan_reprocess, levels.process.make_scene
 
     def planned(paths, *a, **k):
         events.append(("plan", Path(paths[0]).name))
@@ -79,7 +74,7 @@ def test_archives_are_planned_one_after_another_in_process(archives, tmp_path, m
         return scene(ctx, s)
 
     monkeypatch.setattr(station.sipc.process, "plan_reprocess", planned)
-    monkeypatch.setattr(levels.process, "_process_scene", made)
+    monkeypatch.setattr(levels.process, "make_scene", made)
     good = [archives / "pass_a.l0.h5", archives / "older" / "pass_b.l0.h5"]
     assert main(["campaign", *map(str, good), "--out", str(tmp_path / "o"), "--quiet"]) == 0
     assert events == [

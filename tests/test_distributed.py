@@ -35,21 +35,12 @@ psutil = pytest.importorskip("psutil")  # a dependency of distributed
 
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory) -> Path:
-    """The small scenario run in process."""
-    run = tmp_path_factory.mktemp("run") / "small"
-    assert main(["run", str(SMALL), "--out", str(run), "--quiet", "--no-quicklooks"]) == 0
-    return run
-
-
-@pytest.fixture(scope="module")
 def archives(run_dir, tmp_path_factory) -> Path:
     """Two archives of one small pass (as a campaign has) and the options cutting them
     into four scenes."""
-    run = run_dir
     d = tmp_path_factory.mktemp("archives")
     for name in ("pass_a", "pass_b"):
-        shutil.copy(run / "small_test.l0.h5", d / f"{name}.l0.h5")
+        shutil.copy(run_dir / "small_test.l0.h5", d / f"{name}.l0.h5")
     (d / "options.toml").write_text(f"[processing]\nscene_lines = {SCENE_LINES}\n")
     return d
 
@@ -222,14 +213,14 @@ def test_a_bug_in_one_scene_is_raised_after_the_others(archives, tmp_path, monke
     made; the campaign reports it as an internal error (exit 3)."""
     import levels.process
 
-    real = levels.process._process_scene
+    real = levels.process.make_scene
 
     def buggy(ctx, scene):
         if scene.cut.index == 1:
             raise ZeroDivisionError("a bug")
         return real(ctx, scene)
 
-    monkeypatch.setattr(levels.process, "_process_scene", buggy)
+    monkeypatch.setattr(levels.process, "make_scene", buggy)
     code, report = _campaign(archives, tmp_path / "out")
     assert code == EXIT_INTERNAL
     entry = report["archives"][0]

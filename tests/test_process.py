@@ -26,13 +26,6 @@ SMALL = ROOT / "scenarios" / "small_test.toml"
 LEVELS = ("1A", "1B", "2A")
 
 
-@pytest.fixture(scope="module")
-def run_dir(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("run") / "small"
-    assert main(["run", str(SMALL), "--out", str(out), "--quiet", "--no-quicklooks"]) == 0
-    return out
-
-
 def test_levels_alone_processes_an_l0_archive(run_dir: Path, tmp_path: Path) -> None:
     """The driver runs with ``station`` never imported (a fresh interpreter says so)."""
     code = textwrap.dedent(f"""

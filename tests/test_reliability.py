@@ -17,13 +17,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "scenarios" / "small_test.toml"
 
 
-@pytest.fixture(scope="module")
-def run_dir(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("run") / "small"
-    assert main(["run", str(SMALL), "--out", str(out), "--quiet", "--no-quicklooks"]) == 0
-    return out
-
-
 def _one_line(capsys, code: int, expected: int, *words: str) -> str:
     err = capsys.readouterr().err
     assert code == expected, err

@@ -181,11 +181,16 @@ _BAND = {
 }
 
 
-def _get(f: h5py.File, name: str, ndim: int, where: Path) -> np.ndarray:
+def _dataset(f: h5py.File, name: str, where: Path) -> h5py.Dataset:
     if name not in f or not isinstance(f[name], h5py.Dataset):
         raise L0Error(f"{where}: dataset '{name}' is missing; not a complete L0 archive")
+    return f[name]
+
+
+def _get(f: h5py.File, name: str, ndim: int, where: Path) -> np.ndarray:
+    ds = _dataset(f, name, where)
     try:
-        data = f[name][()]
+        data = ds[()]
     except (OSError, RuntimeError) as exc:  # a chunk cut off or damaged
         raise L0Error(f"{where}: dataset '{name}' cannot be read: {hdf5_damage(exc)}") from None
     if np.ndim(data) != ndim:
@@ -213,9 +218,7 @@ def read_l0(path: str | Path, *, lazy: bool = False) -> L0Archive:
 def _counts(f: h5py.File, name: str, where: Path, lazy: bool) -> NDArray[np.uint8] | L0Rows:
     if not lazy:
         return _get(f, name, 2, where)
-    if name not in f or not isinstance(f[name], h5py.Dataset):
-        raise L0Error(f"{where}: dataset '{name}' is missing; not a complete L0 archive")
-    ds = f[name]
+    ds = _dataset(f, name, where)
     if ds.ndim != 2 or ds.dtype != np.uint8:
         raise L0Error(
             f"{where}: dataset '{name}' is {ds.dtype} in {ds.ndim} dimensions, expected uint8 in 2"

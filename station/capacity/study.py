@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from levels.files import atomic_path, plain, writable_dir, write_text
-from levels.tasks import InProcess, Runner, TaskFailure
+from levels.tasks import InProcess, Runner, TaskFailure, raise_first
 from station.capacity.config import CapacityScenario, with_value
 from station.capacity.model import LEVELS, Replication, Service, pass_patterns, simulate
 from station.capacity.stats import mean_ci
@@ -119,11 +119,7 @@ def run_study(
         else:
             reps[handles[handle]] = result
     if failures:
-        first_failure = failures[0].error
-        first_failure.add_note(
-            f"in replication {failures[0].name}; failed: {', '.join(f.name for f in failures)}"
-        )
-        raise first_failure
+        raise_first(failures, "replication")
     runs = [
         {"value": value, **_aggregate([reps[k, r] for r in range(n)])}
         for k, (value, _) in enumerate(variants)
