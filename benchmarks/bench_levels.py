@@ -15,6 +15,11 @@ Figures printed (issue 5's targets in brackets):
 3. **GEO for a pass of 74 scenes** (11 min of P imaging, about a whole Cuiabá pass):
    integration of the rates, scene cutting, centre and corners, 1B polynomials, 2A direct
    and inverse grids (< 2 s).
+4. **Writing one full P product** (1A, 1B, 2A of figure 1), from the product in memory to
+   its file on disk, on every core: at the default ``deflate_level`` (ISA-L's level 2),
+   against the same file with its bands through HDF5's own deflate filter (zlib level 1,
+   one chunk at a time: what ``h5py`` does) and stored uncompressed (``deflate_level = 0``:
+   the cost of everything but compression), with the sizes (≤ 0.5 s).
 
 Run: ``python benchmarks/bench_levels.py [L0.h5]``. Without an archive, the default P scene
 is emulated and received first (about a minute) into a temporary directory. Best of 3.
@@ -195,10 +200,51 @@ def bench_geo() -> None:
     )
 
 
+def bench_writing(out: Path) -> None:
+    import h5py
+
+    import levels.products as products
+    from levels.products import read_product, write_product
+
+    print(f"\n4. writing one full P product, {numba.get_num_threads()} threads (target ≤ 0.5 s):")
+    own = products.deflated_dataset
+
+    def hdf5s_own(group, name, data, chunks, shuffle=False, level=2):
+        return group.create_dataset(
+            name,
+            data=data,
+            chunks=chunks,
+            compression="gzip",
+            compression_opts=1,
+            shuffle=shuffle,
+            fletcher32=True,
+        )
+
+    for path in sorted(out.glob("bench_s000_*.h5")):
+        product = read_product(path)
+        target = out / "rewritten.h5"
+        figures = []
+        for label, level, writer in (
+            ("ours (ISA-L level 2)", 2, own),
+            ("HDF5's own filter (zlib level 1, one thread)", 2, hdf5s_own),
+            ("stored (level 0)", 0, own),
+        ):
+            products.deflated_dataset = writer
+            try:
+                t, _ = best(lambda t=target, p=product, lv=level: write_product(t, p, lv))
+            finally:
+                products.deflated_dataset = own
+            with h5py.File(target) as f:
+                assert f[next(iter(product.bands))].compression == "gzip"
+            figures.append(f"{label} {t:.2f} s, {target.stat().st_size / 1e6:.1f} MB")
+        print(f"   {product.level}: " + "; ".join(figures))
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         l0 = Path(sys.argv[1]) if len(sys.argv) > 1 else make_l0(Path(tmp))
         bench_chain(l0, Path(tmp))
+        bench_writing(Path(tmp))
         bench_resampling(l0)
         bench_geo()
 

@@ -239,10 +239,11 @@ class ProcessingOptions:
     crs: str = option("utm", "crs", "2A map: 'utm' (zone of the centre), 'som', or EPSG/WKT")
     deconvolution: bool = option(True, "deconvolution", "deconvolve 1B and 2A")
     deflate_level: int = option(
-        1,
+        2,
         "deflate_level",
-        "zlib level of the products' image bands (0: stored, about 10× faster to write and "
-        "1.7–2.1× larger for a full P scene; 1: the fastest that compresses; up to 9)",
+        "deflate level of the products' image bands (0: stored, 1.7–2.1× larger for a full "
+        "P scene; 1–3: ISA-L's levels, 2 the smallest of the fastest; 4–9: zlib's, slower "
+        "and hardly smaller)",
         lo=0,
         hi=9,
     )
