@@ -264,9 +264,14 @@ def _kernel_2a(img, step_i, step_j, inv_line, inv_col, seg_of, row0, col0, metho
         for r in range(r_lo, r_hi):
             a = min((row0 + r) // step_i, na - 2)
             u = (row0 + r - a * step_i) * inv_step_i
-            col_rows[r - r_lo] = (1.0 - u) * inv_col[a] + u * inv_col[a + 1]
-            for s in range(n_seg):
-                line_rows[r - r_lo, s] = (1.0 - u) * inv_line[s, a] + u * inv_line[s, a + 1]
+            # loops, not array expressions: numba would compile their shape-mismatch
+            # message, seconds of a fresh install's first run
+            for q in range(nb_):
+                col_rows[r - r_lo, q] = (1.0 - u) * inv_col[a, q] + u * inv_col[a + 1, q]
+                for s in range(n_seg):
+                    line_rows[r - r_lo, s, q] = (1.0 - u) * inv_line[s, a, q] + u * inv_line[
+                        s, a + 1, q
+                    ]
         for k_lo in range(0, n_out_cols, _BLOCK_COLS):
             k_hi = min(k_lo + _BLOCK_COLS, n_out_cols)
             for r in range(r_lo, r_hi):

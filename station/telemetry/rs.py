@@ -21,6 +21,8 @@ How it is fast
     against ~8 µs for Horner evaluation of 32 syndromes. Only a codeword whose syndromes are
     not all zero goes through Berlekamp–Massey, Chien search and Forney's formula, which work
     with powers of β so that the code is an ordinary RS code with first root b = 112.
+    The kernels copy arrays in loops, not by slice assignment: numba compiles a slice
+    copy's shape-mismatch message, about 4 s of the first run after a fresh install.
 
 References
     CCSDS 131.0-B-4, *TM Synchronization and Channel Coding*, §4 and Annex F (dual basis).
@@ -161,7 +163,8 @@ def _encode_blocks(
     depth = info.shape[1] // DATA
     acc = np.zeros(4, np.uint64)
     for f in range(info.shape[0]):
-        out[f, : DATA * depth] = info[f]
+        for j in range(DATA * depth):  # a loop, not a slice copy (module note)
+            out[f, j] = info[f, j]
         for c in range(depth):
             _xor_rows(check_rows, info[f], depth, c, DATA, acc)
             parity = acc.view(np.uint8)
@@ -210,12 +213,14 @@ def _correct(
             shift += 1
             continue
         coef = _gf_mul(d, exp_b[255 - log_b[b_disc]], exp_b, log_b)  # d / b
-        tmp[:] = lam
+        for i in range(t2 + 1):  # loops, not slice copies (module note)
+            tmp[i] = lam[i]
         for i in range(shift, t2 + 1):
             lam[i] ^= _gf_mul(coef, prev[i - shift], exp_b, log_b)
         if 2 * length <= n:
             length = n + 1 - length
-            prev[:] = tmp
+            for i in range(t2 + 1):
+                prev[i] = tmp[i]
             b_disc = d
             shift = 1
         else:
