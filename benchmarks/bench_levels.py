@@ -11,7 +11,8 @@ Figures printed (issue 5's targets in brackets):
    the same run (≥ 4× GDAL on one thread). GDAL is given the raw image georeferenced by the
    affine transform that best fits the direct grid: its cheapest coordinate path, so that
    the ratio is conservative (our kernel interpolates the inverse grid and the butting
-   segments at every pixel). Our kernel is timed on one thread and on all.
+   segments at every pixel). Our kernel is timed on one thread and on all, and beside the
+   memory-bandwidth limit: one plain copy of the bytes it reads and writes.
 3. **GEO for a pass of 74 scenes** (11 min of P imaging, about a whole Cuiabá pass):
    integration of the rates, scene cutting, centre and corners, 1B polynomials, 2A direct
    and inverse grids (< 2 s).
@@ -144,6 +145,16 @@ def bench_resampling(l0: Path) -> None:
         return dst
 
     t_gdal, _ = best(gdal)
+    # the memory-bandwidth limit: one plain copy of the bytes the kernel reads and writes
+    # (the float32 image in, the uint8 image and its mask out), on one thread
+    src_copy, out_copy, ok_copy = np.empty_like(img), np.empty_like(ours), np.empty_like(ours)
+
+    def copy() -> None:
+        np.copyto(src_copy, img)
+        np.copyto(out_copy, ours)
+        np.copyto(ok_copy, ours)
+
+    t_copy, _ = best(copy)
     mpx = g.n_rows * g.n_cols / 1e6
     print(
         f"\n2. 2A cubic resampling, {g.n_rows} × {g.n_cols} output ({mpx:.1f} Mpx) from "
@@ -156,6 +167,12 @@ def bench_resampling(l0: Path) -> None:
     print(
         f"   ratio GDAL / ours: {t_gdal / t_one:.1f}× on one thread each, "
         f"{t_gdal / t_all:.1f}× with ours on {n_threads} (target ≥ 4×)"
+    )
+    print(
+        f"   memory-bandwidth limit, a plain copy of the same bytes ({img.nbytes / 1e6:.0f} MB in, "
+        f"{2 * ours.nbytes / 1e6:.0f} MB out), 1 thread: {t_copy:.3f} s: ours takes "
+        f"{t_one / t_copy:.0f}× that (compute-bound: about {t_one / ours.size * 1e9:.0f} ns "
+        "per output pixel)"
     )
     inside = ours > 0
     diff = np.abs(ours[inside].astype(float) - np.clip(np.rint(dst[inside]), 0, 255))
