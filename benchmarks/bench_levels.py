@@ -226,7 +226,7 @@ def bench_writing(out: Path) -> None:
     print(f"\n4. writing one full P product, {numba.get_num_threads()} threads (target ≤ 0.5 s):")
     own = products.deflated_dataset
 
-    def hdf5s_own(group, name, data, chunks, shuffle=False, level=2):
+    def hdf5s_own(group, name, data, chunks, shuffle=False, level=2):  # level: zlib's 1 always
         return group.create_dataset(
             name,
             data=data,

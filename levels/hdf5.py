@@ -37,6 +37,7 @@ from levels.files import atomic_path
 
 __all__ = [
     "ATTRS_DIGEST",
+    "DEFLATE_LEVEL",
     "HDF5_FILE_OPTIONS",
     "ISAL_LEVELS",
     "attrs_digest",
@@ -96,6 +97,9 @@ def fletcher32(data: np.ndarray) -> int:
 #: level, and smaller: on a full P 2A image, 0.27 s and 22.2 MB at ISA-L's level 2 against
 #: 0.93 s and 22.3 MB at zlib's level 1, one core (``benchmarks/bench_levels.py``).
 ISAL_LEVELS = (1, 2, 3)
+#: The products' deflate level by default (ISA-L's level 2: as fast as its level 1, and
+#: smaller), of their image bands (``[processing] deflate_level``) and always of their masks.
+DEFLATE_LEVEL = 2
 
 
 def deflate(data: Any, level: int) -> bytes:
@@ -125,12 +129,12 @@ def deflated_dataset(
     data: np.ndarray,
     chunks: tuple[int, ...],
     shuffle: bool = False,
-    level: int = 2,
+    level: int = DEFLATE_LEVEL,
 ) -> h5py.Dataset:
     """``group[name]``: ``data`` chunked, deflated at ``level`` (:func:`deflate`; shuffled
-    first if asked)
-    and checksummed, as ``create_dataset`` with those filters would store it, every chunk
-    compressed by a pool of threads (numba's thread count) and written as it is."""
+    first if asked) and checksummed, as ``create_dataset`` with those filters would store
+    it, every chunk compressed by a pool of threads (numba's thread count) and written as
+    it is."""
     ds = group.create_dataset(
         name,
         shape=data.shape,

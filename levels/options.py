@@ -21,6 +21,7 @@ from dataclasses import MISSING, dataclass, field, fields
 from typing import Any
 
 from levels.errors import OptionsError
+from levels.hdf5 import DEFLATE_LEVEL
 
 __all__ = [
     "LEVELS",
@@ -239,7 +240,7 @@ class ProcessingOptions:
     crs: str = option("utm", "crs", "2A map: 'utm' (zone of the centre), 'som', or EPSG/WKT")
     deconvolution: bool = option(True, "deconvolution", "deconvolve 1B and 2A")
     deflate_level: int = option(
-        2,
+        DEFLATE_LEVEL,
         "deflate_level",
         "deflate level of the products' image bands (0: stored, 1.7–2.1× larger for a full "
         "P scene; 1–3: ISA-L's levels, 2 the smallest of the fastest; 4–9: zlib's, slower "

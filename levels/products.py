@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from levels.errors import ProductError
 from levels.hdf5 import (
     ATTRS_DIGEST,
+    DEFLATE_LEVEL,
     check_attrs_digest,
     checksummed,
     damage_as,
@@ -77,9 +78,6 @@ REQUIRED_GEOMETRY = {
     "3": ("scene", "level_3"),
 }
 _CHUNK = 512
-#: Deflate level of the validity masks (ISA-L's level 2: 0.11 MB for a full P 2A mask, in
-#: 13 ms on 2 cores; zlib's level 1 took 0.28 MB and 0.10 s on one).
-_MASK_LEVEL = 2
 #: Metadata arrays of at least this many numbers (anchor grids, the DEM a level 3 product
 #: carries) are stored shuffled and deflated: a third to a half of their size.
 _PACKED_SIZE = 4096
@@ -246,11 +244,12 @@ def _grid_mapping(f: h5py.File, grid: MapGrid) -> None:
     var.attrs["long_name"] = "map projection of the product"
 
 
-def write_product(path: str | Path, product: Product, deflate_level: int = 2) -> Path:
+def write_product(path: str | Path, product: Product, deflate_level: int = DEFLATE_LEVEL) -> Path:
     """Write a product atomically (module docstring); returns its path. Its image bands
     are deflated at ``deflate_level`` (:func:`levels.hdf5.deflate`; 0: stored: the zlib
     stream any reader inflates, without compression), their validity masks at
-    :data:`_MASK_LEVEL` (they shrink 100-fold)."""
+    :data:`levels.hdf5.DEFLATE_LEVEL` whatever it is (0.11 MB for a full P 2A mask, in 13
+    ms on 2 cores)."""
     target = Path(path)
     with new_hdf5(target) as f:
         f.attrs["format"] = PRODUCT_FORMAT
@@ -312,7 +311,7 @@ def write_product(path: str | Path, product: Product, deflate_level: int = 2) ->
                     f"pixel of band {name} is valid (every raw pixel it uses arrived)",
                 ),
             ):
-                level = deflate_level if var == name else _MASK_LEVEL
+                level = deflate_level if var == name else DEFLATE_LEVEL
                 ds = deflated_dataset(f, var, data, chunks, level=level)
                 for axis, dim in enumerate(dims):
                     ds.dims[axis].attach_scale(dim)

@@ -265,7 +265,7 @@ def _kernel_2a(img, step_i, step_j, inv_line, inv_col, seg_of, row0, col0, metho
             a = min((row0 + r) // step_i, na - 2)
             u = (row0 + r - a * step_i) * inv_step_i
             # loops, not array expressions: numba would compile their shape-mismatch
-            # message, seconds of a fresh install's first run
+            # message (station/telemetry/rs.py's note)
             for q in range(nb_):
                 col_rows[r - r_lo, q] = (1.0 - u) * inv_col[a, q] + u * inv_col[a + 1, q]
                 for s in range(n_seg):
@@ -361,15 +361,22 @@ def _row_3(r, step_i, poly_line, poly_col, dem_rc, inv_dem_step, line_row, col_r
     """Level 3's tables of output row ``r``: the height polynomials' coefficients along the
     row at the inverse grid's columns (per segment for the lines), and the DEM (row,
     column) at the DEM nodes' columns; linear between grid rows."""
-    na = poly_col.shape[0]
+    n_seg, na, nb_, n_pow = poly_line.shape
     a = min(r // step_i, na - 2)
     u = (r - a * step_i) / step_i
-    col_row[:] = (1.0 - u) * poly_col[a] + u * poly_col[a + 1]
-    line_row[:] = (1.0 - u) * poly_line[:, a] + u * poly_line[:, a + 1]
+    for b in range(nb_):  # loops, not array expressions (as in _kernel_2a)
+        for p in range(n_pow):
+            col_row[b, p] = (1.0 - u) * poly_col[a, b, p] + u * poly_col[a + 1, b, p]
+            for s in range(n_seg):
+                line_row[s, b, p] = (1.0 - u) * poly_line[s, a, b, p] + u * poly_line[
+                    s, a + 1, b, p
+                ]
     x = r * inv_dem_step
     a0 = min(max(int(np.floor(x)), 0), dem_rc.shape[1] - 2)
     w = x - a0
-    rc_row[:] = (1.0 - w) * dem_rc[:, a0] + w * dem_rc[:, a0 + 1]
+    for q in range(dem_rc.shape[2]):
+        for m in range(2):
+            rc_row[m, q] = (1.0 - w) * dem_rc[m, a0, q] + w * dem_rc[m, a0 + 1, q]
 
 
 @nb.njit(cache=True, fastmath=_FAST)

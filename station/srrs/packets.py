@@ -108,7 +108,7 @@ def _place_segments(
         out = images[band[k], row[k], first_det[k] : first_det[k] + count[k]]
         p = starts[k] + payload
         if encoding[k] == ENCODING_RAW8:
-            for j in range(count[k]):  # a loop, not a slice copy (rs.py's note)
+            for j in range(count[k]):  # a loop, not a slice copy (telemetry/rs.py's note)
                 out[j] = zone[p + j]
         else:
             dpcm.decode_one(zone, p, count[k], value, out)
