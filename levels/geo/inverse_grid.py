@@ -22,34 +22,50 @@ __all__ = ["bilinear_grid", "invert_nodes", "invert_scattered", "segment_cells"]
 
 
 @nb.njit(cache=True, nogil=True)
-def _walk(gl, gc, gi, gj, ip, jp, a, b, u, v, b_lo, b_hi, max_moves):
+def _cell_coefficients(gi, gj):
+    """The bilinear map of every direct-grid cell ``(a, b)`` as
+    ``I = i0 + iu·u + iv·v + iuv·u·v`` and the same for ``J``: the eight numbers
+    ``(i0, iu, iv, iuv, j0, ju, jv, juv)``, side by side (one cache line) for the walk."""
+    na, nb_ = gi.shape
+    k = np.empty((na - 1, nb_ - 1, 8))
+    for a in range(na - 1):
+        for b in range(nb_ - 1):
+            for f, g in ((0, gi), (4, gj)):
+                k[a, b, f] = g[a, b]
+                k[a, b, f + 1] = g[a + 1, b] - g[a, b]
+                k[a, b, f + 2] = g[a, b + 1] - g[a, b]
+                k[a, b, f + 3] = (g[a + 1, b + 1] - g[a + 1, b]) - (g[a, b + 1] - g[a, b])
+    return k
+
+
+@nb.njit(cache=True, nogil=True)
+def _walk(gl, gc, k, ip, jp, a, b, u, v, b_lo, b_hi, max_moves):
     """Raw ``(L, C)`` of output point ``(ip, jp)``: Newton on the bilinear map of direct-grid
-    cell ``(a, b)`` from local coordinates ``(u, v)``, moving to the neighbouring cell while
-    they fall outside [0, 1]. Cells are kept within rows ``0 .. na − 2`` and columns
-    ``b_lo .. b_hi − 1`` (a CCD segment's own columns); beyond them the edge cell is
-    extrapolated. The walk moves one cell at a time: a butting cell is one pixel wide, and
-    its bilinear map extrapolated far from it has spurious roots that a jump of several
-    cells would take. Returns ``(L, C, a, b, u, v)``."""
-    na = gi.shape[0]
+    cell ``(a, b)`` (its coefficients ``k[a, b]``, :func:`_cell_coefficients`) from local
+    coordinates ``(u, v)``, moving to the neighbouring cell while they fall outside [0, 1].
+    Cells are kept within rows ``0 .. na − 2`` and columns ``b_lo .. b_hi − 1`` (a CCD
+    segment's own columns); beyond them the edge cell is extrapolated. The walk moves one
+    cell at a time: a butting cell is one pixel wide, and its bilinear map extrapolated far
+    from it has spurious roots that a jump of several cells would take. Returns
+    ``(L, C, a, b, u, v)``."""
+    last_row = k.shape[0] - 1
     for _move in range(max_moves):
+        i0, iu, iv, iuv = k[a, b, 0], k[a, b, 1], k[a, b, 2], k[a, b, 3]
+        j0, ju, jv, juv = k[a, b, 4], k[a, b, 5], k[a, b, 6], k[a, b, 7]
         for _it in range(6):
-            i00, i01, i10, i11 = gi[a, b], gi[a, b + 1], gi[a + 1, b], gi[a + 1, b + 1]
-            j00, j01, j10, j11 = gj[a, b], gj[a, b + 1], gj[a + 1, b], gj[a + 1, b + 1]
-            ii = (1 - u) * ((1 - v) * i00 + v * i01) + u * ((1 - v) * i10 + v * i11)
-            jj = (1 - u) * ((1 - v) * j00 + v * j01) + u * ((1 - v) * j10 + v * j11)
-            a11 = (1 - v) * (i10 - i00) + v * (i11 - i01)
-            a12 = (1 - u) * (i01 - i00) + u * (i11 - i10)
-            a21 = (1 - v) * (j10 - j00) + v * (j11 - j01)
-            a22 = (1 - u) * (j01 - j00) + u * (j11 - j10)
-            det = a11 * a22 - a12 * a21
-            ri, rj = ip - ii, jp - jj
-            du = (a22 * ri - a12 * rj) / det
-            dv = (-a21 * ri + a11 * rj) / det
+            # the Jacobian [[a11, a12], [a21, a22]] of (I, J) in (u, v)
+            a11, a12 = iu + iuv * v, iv + iuv * u
+            a21, a22 = ju + juv * v, jv + juv * u
+            ri = ip - (i0 + a11 * u + iv * v)
+            rj = jp - (j0 + a21 * u + jv * v)
+            inv_det = 1.0 / (a11 * a22 - a12 * a21)
+            du = (a22 * ri - a12 * rj) * inv_det
+            dv = (a11 * rj - a21 * ri) * inv_det
             u += du
             v += dv
             if abs(du) + abs(dv) < 1e-7:
                 break  # Newton's quadratic convergence: what remains is below 1e-14
-        na_ = min(max(a + (1 if u >= 1.0 else (-1 if u < 0.0 else 0)), 0), na - 2)
+        na_ = min(max(a + (1 if u >= 1.0 else (-1 if u < 0.0 else 0)), 0), last_row)
         nb2 = min(max(b + (1 if v >= 1.0 else (-1 if v < 0.0 else 0)), b_lo), b_hi - 1)
         if na_ == a and nb2 == b:
             break
@@ -60,14 +76,15 @@ def _walk(gl, gc, gi, gj, ip, jp, a, b, u, v, b_lo, b_hi, max_moves):
 
 
 @nb.njit(cache=True, nogil=True)
-def _segment_line(gl, gc, gi, gj, ip, jp, line, a, b, u, v, b0, b1):
+def _segment_line(gl, gc, k, ip, jp, line, a, b, u, v, b0, b1):
     """The line of segment ``b0 .. b1 − 1`` at output point ``(ip, jp)``, from the whole
     grid's walk (``line`` in cell ``(a, b)`` at ``(u, v)``): the same if that cell is the
     segment's, else a walk over the segment's cells from its nearest one."""
     if b0 <= b < b1:
         return line
     bs = min(max(b, b0), b1 - 1)
-    return _walk(gl, gc, gi, gj, ip, jp, a, bs, u, v + b - bs, b0, b1, gi.shape[0] + gi.shape[1])[0]
+    moves = k.shape[0] + k.shape[1] + 2
+    return _walk(gl, gc, k, ip, jp, a, bs, u, v + b - bs, b0, b1, moves)[0]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -78,14 +95,15 @@ def _invert_points(gl, gc, gi, gj, i_pts, j_pts, a0, b0, seg_b0, seg_b1, lines, 
     answer already."""
     n_seg = lines.shape[0]
     na, nb_ = gi.shape
-    for k in range(i_pts.size):
+    k = _cell_coefficients(gi, gj)
+    for p in range(i_pts.size):
         line, c, a, b, u, v = _walk(
-            gl, gc, gi, gj, i_pts[k], j_pts[k], a0[k], b0[k], 0.5, 0.5, 0, nb_ - 1, na + nb_
+            gl, gc, k, i_pts[p], j_pts[p], a0[p], b0[p], 0.5, 0.5, 0, nb_ - 1, na + nb_
         )
-        col[k] = c
+        col[p] = c
         for s in range(n_seg):
-            lines[s, k] = _segment_line(
-                gl, gc, gi, gj, i_pts[k], j_pts[k], line, a, b, u, v, seg_b0[s], seg_b1[s]
+            lines[s, p] = _segment_line(
+                gl, gc, k, i_pts[p], j_pts[p], line, a, b, u, v, seg_b0[s], seg_b1[s]
             )
 
 
@@ -95,8 +113,8 @@ def invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lin
     the node before it, at the cell coordinates extrapolated from the two nodes before it:
     a step of the inverse grid is a fraction of a direct-grid cell, so a walk rarely moves
     and Newton starts close (a row's first node starts from the centre of the grid).
-    Serial: a scene's grid takes milliseconds, and idle parallel threads would spin
-    against BLAS.
+    Serial: a scene's grid takes a few milliseconds, and scenes are the unit of
+    parallelism (``levels.tasks``).
 
     A segment's line is taken exactly (over its own columns, extrapolated beyond) at the
     nodes of every inverse-grid cell whose column range meets the raw columns that belong
@@ -107,6 +125,7 @@ def invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lin
     n_seg = lines.shape[0]
     na, nb_ = gi.shape
     nr, nc = rows.size, cols.size
+    k = _cell_coefficients(gi, gj)
     cell_a = np.empty((nr, nc), dtype=np.int64)
     cell_b = np.empty((nr, nc), dtype=np.int64)
     cell_u = np.empty((nr, nc))
@@ -114,43 +133,38 @@ def invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lin
     whole = np.empty((nr, nc))
     for r in range(nr):
         a, b, u, v = (na - 1) // 2, (nb_ - 1) // 2, 0.5, 0.5
+        x1 = y1 = x2 = y2 = 0.0  # global cell coordinates of the two nodes before
         for c in range(nc):
             if c >= 2:  # linear prediction in global cell coordinates
-                pu = 2.0 * (cell_a[r, c - 1] + cell_u[r, c - 1]) - (
-                    cell_a[r, c - 2] + cell_u[r, c - 2]
-                )
-                pv = 2.0 * (cell_b[r, c - 1] + cell_v[r, c - 1]) - (
-                    cell_b[r, c - 2] + cell_v[r, c - 2]
-                )
+                pu, pv = 2.0 * x1 - x2, 2.0 * y1 - y2
                 a = min(max(int(np.floor(pu)), 0), na - 2)
                 b = min(max(int(np.floor(pv)), 0), nb_ - 2)
                 u, v = pu - a, pv - b
             moves = na + nb_ if c == 0 else 16
-            line, cc, a, b, u, v = _walk(
-                gl, gc, gi, gj, rows[r], cols[c], a, b, u, v, 0, nb_ - 1, moves
-            )
+            line, cc, a, b, u, v = _walk(gl, gc, k, rows[r], cols[c], a, b, u, v, 0, nb_ - 1, moves)
             whole[r, c], col[r, c] = line, cc
             cell_a[r, c], cell_b[r, c], cell_u[r, c], cell_v[r, c] = a, b, u, v
-    need = np.zeros((n_seg, nr, nc), dtype=np.bool_)
-    for r in range(nr - 1):
-        for c in range(nc - 1):
-            lo = min(min(col[r, c], col[r, c + 1]), min(col[r + 1, c], col[r + 1, c + 1]))
-            hi = max(max(col[r, c], col[r, c + 1]), max(col[r + 1, c], col[r + 1, c + 1]))
+            x2, y2, x1, y1 = x1, y1, a + u, b + v
+    # The raw columns the cells around a node span: the range of its 3 × 3 nodes (2 × 2
+    # cells, fewer at the edges), first along rows, then along columns.
+    row_lo = np.empty((nr, nc))
+    row_hi = np.empty((nr, nc))
+    for r in range(nr):
+        for c in range(nc):
+            c0, c1 = max(c - 1, 0), min(c + 1, nc - 1)
+            row_lo[r, c] = min(min(col[r, c0], col[r, c]), col[r, c1])
+            row_hi[r, c] = max(max(col[r, c0], col[r, c]), col[r, c1])
+    for r in range(nr):
+        r0, r1 = max(r - 1, 0), min(r + 1, nr - 1)
+        for c in range(nc):
+            lo = min(min(row_lo[r0, c], row_lo[r, c]), row_lo[r1, c])
+            hi = max(max(row_hi[r0, c], row_hi[r, c]), row_hi[r1, c])
             for s in range(n_seg):
                 if lo < seg_hi[s] and hi >= seg_lo[s]:
-                    need[s, r, c] = need[s, r, c + 1] = True
-                    need[s, r + 1, c] = need[s, r + 1, c + 1] = True
-    for r in range(nr):
-        for s in range(n_seg):
-            for c in range(nc):
-                lines[s, r, c] = (
-                    whole[r, c]
-                    if not need[s, r, c]
-                    else _segment_line(
+                    lines[s, r, c] = _segment_line(
                         gl,
                         gc,
-                        gi,
-                        gj,
+                        k,
                         rows[r],
                         cols[c],
                         whole[r, c],
@@ -161,7 +175,8 @@ def invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lin
                         seg_b0[s],
                         seg_b1[s],
                     )
-                )
+                else:
+                    lines[s, r, c] = whole[r, c]
 
 
 def segment_cells(
