@@ -57,6 +57,40 @@ def test_polynomials_fit_and_invert() -> None:
     assert Poly2D.fit(i, j, z, 3)(i, j) == pytest.approx(z, abs=1e-6)
 
 
+#: The normal equations against QR on a direct-grid-like design (condition number ~125):
+#: cond² · ε ≈ 2e-12 relative, on lines of thousands of pixels.
+NORMAL_EQUATIONS_TOL_PX = 1e-7
+
+
+def test_poly2d_normal_equations_agree_with_qr() -> None:
+    i, j = np.meshgrid(np.linspace(-30, 7200, 67), np.linspace(10, 6900, 74))
+    z = 3000.0 + 0.9 * i - 0.3 * j + 2e-5 * i * j - 1e-9 * i**3 + 1e-16 * j**5
+    fits = Poly2D.fit_orders(i, j, z, (3, 4, 5))
+    for order, p in fits.items():
+        design = p._design(i.ravel(), j.ravel())
+        ref = np.linalg.lstsq(design, z.ravel(), rcond=None)[0]
+        assert p(i, j).ravel() == pytest.approx(design @ ref, abs=NORMAL_EQUATIONS_TOL_PX), order
+
+
+@pytest.mark.parametrize("spread", [0.1, 1e-3])
+def test_poly2d_falls_back_to_qr_on_an_ill_conditioned_design(monkeypatch, spread) -> None:
+    """Breakpoints bunched in a corner but one: the design's condition number is 2e8
+    (Cholesky succeeds, R's diagonal says no) or 3e17 (Cholesky fails); QR answers."""
+    from levels.geo import polynomial
+
+    rng = np.random.default_rng(0)
+    x = np.append(spread * rng.random(40), 1.0)
+    y = np.append(spread * rng.random(40), 1.0)
+    design = Poly2D(np.zeros(21), 5, (0.5, 0.5), (0.5, 0.5))._design(x, y)
+    assert np.linalg.cond(design) > polynomial._NORMAL_EQUATIONS_MAX_COND
+    calls = []
+    qr = np.linalg.qr
+    monkeypatch.setattr(np.linalg, "qr", lambda *a, **k: calls.append(1) or qr(*a, **k))
+    p = Poly2D.fit(x, y, x + 2 * y, 5)
+    assert calls
+    assert p(x, y) == pytest.approx(x + 2 * y, abs=1e-6)
+
+
 def test_scene_cutting() -> None:
     cuts = cut_scenes(20000, 6000, 500)
     assert [c.first_line for c in cuts] == [0, 5500, 11000]

@@ -259,15 +259,17 @@ def level1b_geometry(
     # centre line breakpoints fix Y (INPE: "Y axis corresponding to the center line")
     line_c = np.full(n_breakpoints, lc)
     col_c = k * (nc - 1)
-    r, los = model.sight(line_c, col_c)
-    plane = _tangent_plane(scene, model, r, los) if like is None else like.plane
-    xl, yl = plane.intersect(r, los)
     line_k = k * (nl - 1)
-    r, los = model.sight(line_k, np.full(n_breakpoints, cc))
-    xk, yk = plane.intersect(r, los)
     bl, bc = raw_border(nl, nc)
-    r, los = model.sight(bl, bc)
-    xb, yb = plane.intersect(r, los)
+    # centre line, centre column and border, sighted in one call
+    r, los = model.sight(
+        np.concatenate([line_c, line_k, bl]),
+        np.concatenate([col_c, np.full(n_breakpoints, cc), bc]),
+    )
+    n = n_breakpoints
+    plane = _tangent_plane(scene, model, r[:n], los[:n]) if like is None else like.plane
+    x, y = plane.intersect(r, los)
+    xl, yl, xk, yk, xb, yb = x[:n], y[:n], x[n : 2 * n], y[n : 2 * n], x[2 * n :], y[2 * n :]
     if not np.all(np.isfinite(np.concatenate([xl, yl, xk, yk, xb, yb]))):
         raise GeometryError("level 1B: a breakpoint's line of sight misses the tangent plane")
     res = float(pixel_size_m)

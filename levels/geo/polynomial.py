@@ -76,6 +76,32 @@ class Poly1D:
         return cls(a[2:].copy(), float(a[0]), float(a[1]))
 
 
+#: Largest condition number of a design fitted through its normal equations (their
+#: square, 1e10, leaves 6 digits); beyond it, QR.
+_NORMAL_EQUATIONS_MAX_COND = 1e5
+
+
+def _triangular_factor(
+    design: NDArray[np.float64], z: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Upper-triangular R with ``RᵀR = AᵀA`` and ``Qᵀz = R⁻ᵀAᵀz``: the least-squares
+    solution of ``A c ≈ z`` is ``R c = Qᵀz``, and that of the leading columns of ``A`` the
+    leading block of both."""
+    try:
+        lower = np.linalg.cholesky(design.T @ design)
+        d = np.abs(np.diagonal(lower))
+        # the ratio of R's diagonal bounds the design's condition number from below
+        if d.min() * _NORMAL_EQUATIONS_MAX_COND > d.max():
+            qz = scipy.linalg.solve_triangular(lower, design.T @ z, lower=True, check_finite=False)
+            return lower.T, qz
+    except np.linalg.LinAlgError:
+        pass  # not positive definite in floating point: QR below
+    # R of [A | z] holds R of A and, in its last column, Qᵀz: Q is never formed
+    n = design.shape[1]
+    r_aug = np.linalg.qr(np.column_stack([design, z]), mode="r")
+    return r_aug[:n, :n], r_aug[:n, n]
+
+
 def _exponents(order: int) -> NDArray[np.int64]:
     """(p, q) of every monomial ``u^p v^q`` with ``p + q <= order``."""
     return np.array(
@@ -100,9 +126,16 @@ class Poly2D:
     def fit_orders(
         cls, x: ArrayLike, y: ArrayLike, z: ArrayLike, orders: Sequence[int]
     ) -> dict[int, Poly2D]:
-        """The least-squares fits of several orders on the same points, from one QR
+        """The least-squares fits of several orders on the same points, from one
         factorisation: the monomials are ordered by total degree, so the design matrix of a
-        lower order is the leading columns of the highest's, and so is its R."""
+        lower order is the leading columns of the highest's, and so is its R.
+
+        R is the Cholesky factor of the normal matrix ``AᵀA``: on variables normalised to
+        [−1, 1] the design's condition number is about 125 for a direct grid (``AᵀA``'s
+        1.6e4), so the normal equations lose 4 of 16 digits and cost a seventh of a QR
+        factorisation. A design conditioned worse than ``_NORMAL_EQUATIONS_MAX_COND``
+        (few or clustered breakpoints) is factorised by QR.
+        """
         x, y, z = (np.asarray(a, dtype=np.float64).ravel() for a in (x, y, z))
         top = max(orders)
         n_top = (top + 1) * (top + 2) // 2
@@ -110,14 +143,12 @@ class Poly2D:
             raise GeometryError(f"{x.size} breakpoints cannot fix {n_top} coefficients")
         cx, sx = _normaliser(x)
         cy, sy = _normaliser(y)
-        # R of [A | z] holds R of A and, in its last column, Qᵀz: Q is never formed
         design = cls(np.zeros(n_top), top, (cx, cy), (sx, sy))._design(x, y)
-        r_aug = np.linalg.qr(np.column_stack([design, z]), mode="r")
-        r, qz = r_aug[:n_top, :n_top], r_aug[:n_top, n_top]
+        r, qz = _triangular_factor(design, z)
         out = {}
         for order in orders:
             n = (order + 1) * (order + 2) // 2
-            coef = scipy.linalg.solve_triangular(r[:n, :n], qz[:n])
+            coef = scipy.linalg.solve_triangular(r[:n, :n], qz[:n], check_finite=False)
             out[order] = cls(coef, order, (cx, cy), (sx, sy))
         return out
 

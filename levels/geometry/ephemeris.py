@@ -64,7 +64,9 @@ def lagrange_interpolate(
         for j in range(1, m):
             np.multiply(prefix[j - 1], diff[j - 1], out=prefix[j])
             np.multiply(suffix[m - j], diff[m - j], out=suffix[m - 1 - j])
-        denom = np.array([np.prod(np.delete(x[j] - x, j)) for j in range(m)])
+        gaps = x[:, None] - x[None, :]
+        np.fill_diagonal(gaps, 1.0)
+        denom = gaps.prod(axis=1)  # Π over m ≠ j of (x_j − x_m)
         prefix *= suffix
         prefix /= denom[:, None]
         out[sel] = prefix.T @ y_nodes[s0 : s0 + m]
