@@ -154,29 +154,43 @@ def invert_nodes(gl, gc, gi, gj, rows, cols, seg_b0, seg_b1, seg_lo, seg_hi, lin
             c0, c1 = max(c - 1, 0), min(c + 1, nc - 1)
             row_lo[r, c] = min(min(col[r, c0], col[r, c]), col[r, c1])
             row_hi[r, c] = max(max(col[r, c0], col[r, c]), col[r, c1])
+    lo = np.empty((nr, nc))
+    hi = np.empty((nr, nc))
     for r in range(nr):
         r0, r1 = max(r - 1, 0), min(r + 1, nr - 1)
         for c in range(nc):
-            lo = min(min(row_lo[r0, c], row_lo[r, c]), row_lo[r1, c])
-            hi = max(max(row_hi[r0, c], row_hi[r, c]), row_hi[r1, c])
-            for s in range(n_seg):
-                if lo < seg_hi[s] and hi >= seg_lo[s]:
-                    lines[s, r, c] = _segment_line(
-                        gl,
-                        gc,
-                        k,
-                        rows[r],
-                        cols[c],
-                        whole[r, c],
-                        cell_a[r, c],
-                        cell_b[r, c],
-                        cell_u[r, c],
-                        cell_v[r, c],
-                        seg_b0[s],
-                        seg_b1[s],
-                    )
-                else:
-                    lines[s, r, c] = whole[r, c]
+            lo[r, c] = min(min(row_lo[r0, c], row_lo[r, c]), row_lo[r1, c])
+            hi[r, c] = max(max(row_hi[r0, c], row_hi[r, c]), row_hi[r1, c])
+    # Each segment: the whole grid's line first, then a walk at the few nodes (a strip
+    # along each butting) where the segment is needed but the whole grid's cell is not
+    # its own. Two passes: the walk inlined in the first would slow every node.
+    walks = np.empty(nr * nc, dtype=np.int64)
+    for s in range(n_seg):
+        n_walks = 0
+        for r in range(nr):
+            for c in range(nc):
+                lines[s, r, c] = whole[r, c]
+                b = cell_b[r, c]
+                if lo[r, c] < seg_hi[s] and hi[r, c] >= seg_lo[s]:
+                    if b < seg_b0[s] or b >= seg_b1[s]:
+                        walks[n_walks] = r * nc + c
+                        n_walks += 1
+        for w in range(n_walks):
+            r, c = walks[w] // nc, walks[w] % nc
+            lines[s, r, c] = _segment_line(
+                gl,
+                gc,
+                k,
+                rows[r],
+                cols[c],
+                whole[r, c],
+                cell_a[r, c],
+                cell_b[r, c],
+                cell_u[r, c],
+                cell_v[r, c],
+                seg_b0[s],
+                seg_b1[s],
+            )
 
 
 def segment_cells(
