@@ -160,10 +160,12 @@ class PushbroomModel:
             np.atleast_1d(np.asarray(line, dtype=np.float64)),
             np.atleast_1d(np.asarray(column, dtype=np.float64)),
         )
-        # grids repeat each line many times: orient each distinct time once
+        # grids repeat each line and column many times: orient each distinct time once,
+        # and look along each distinct column once
         t_u, at = np.unique(self.clock.time_s(line_a.ravel()), return_inverse=True)
         r, axes, body = (x[at] for x in self._orientation(t_u))
-        u = self.look_angles.directions(col_a.ravel())
+        c_u, ac = np.unique(col_a.ravel(), return_inverse=True)
+        u = self.look_angles.directions(c_u)[ac]
         los = apply(axes, apply(body, u))
         return r, los
 
