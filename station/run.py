@@ -61,19 +61,24 @@ def run_scenario(
     quicklooks: bool = True,
     progress: bool = False,
     runner: Runner | None = None,
+    warm_up: bool = False,
 ) -> dict[str, Any]:
     """Run ``scn`` end to end into ``out_dir``; returns the report (also in report.json).
 
     ``progress`` shows progress bars on stderr (stages, then scenes). The scenes are tasks
-    of ``runner`` (:mod:`levels.tasks`; in this process by default).
+    of ``runner`` (:mod:`levels.tasks`; in this process by default). ``warm_up``: if the
+    processing kernels are not compiled yet, compile them in a background process while
+    the pass is emulated and received (:mod:`levels.warmup`; what ``station run`` does).
     """
     from tqdm import tqdm
 
     from levels.quicklook import write_quicklook
+    from levels.warmup import start_warm_up, wait_for_warm_up
     from station.sipc.process import with_exported_dem
     from station.spacecraft.emulator import emulate_pass
 
     out = prepare_run_dir(out_dir, scn.name)
+    warming = start_warm_up() if warm_up else None
     clock = time.perf_counter
     timings: dict[str, Any] = {}
     t_start = clock()
@@ -95,6 +100,10 @@ def run_scenario(
         timings["dem_export"] = clock() - t
     tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
     received = [_receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)]
+    t = clock()
+    wait_for_warm_up(warming)  # its kernels are cached: the processing loads them
+    if warming is not None:
+        timings["warm_up_wait"] = clock() - t
     passes = _process(acqs, received, tags, options, timings, stages, progress, runner)
     hrvs, made = [], []
     for acq, rec, products in zip(acqs, received, passes, strict=True):
@@ -451,6 +460,11 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
         f"emulate {t['emulate']:.1f}",
         f"downlink {t.get('transmit', 0) + t.get('channel', 0) + t.get('receive', 0):.1f}",
         f"record {t['record']:.1f}",
+        *(
+            [f"waiting for the kernels' compilation {t['warm_up_wait']:.1f}"]
+            if "warm_up_wait" in t
+            else []
+        ),
         f"GEO {t['geo']:.2f}",
         f"COR {cor:.1f}",
     ]

@@ -59,6 +59,7 @@ def _run(args: argparse.Namespace) -> int:
             quicklooks=not args.no_quicklooks,
             progress=not args.quiet and sys.stderr.isatty(),
             runner=runner,
+            warm_up=True,
         )
     print(json.dumps(report, indent=2) if args.json else summary_table(report, out))
     return 0
