@@ -33,6 +33,7 @@ __all__ = [
     "WARM_UP_ARCHIVE",
     "cache_is_cold",
     "start_warm_up",
+    "stop_warm_up",
     "wait_for_warm_up",
     "warm_up",
 ]
@@ -104,6 +105,13 @@ def wait_for_warm_up(process: subprocess.Popen | None, timeout_s: float = WAIT_S
     try:
         process.wait(timeout=timeout_s)
     except subprocess.TimeoutExpired:
+        stop_warm_up(process)
+
+
+def stop_warm_up(process: subprocess.Popen | None) -> None:
+    """End a background warm-up that is still running (a run that fails or is
+    interrupted does not leave it behind)."""
+    if process is not None and process.poll() is None:
         process.kill()
         process.wait()
 

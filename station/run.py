@@ -73,7 +73,7 @@ def run_scenario(
     from tqdm import tqdm
 
     from levels.quicklook import write_quicklook
-    from levels.warmup import start_warm_up, wait_for_warm_up
+    from levels.warmup import start_warm_up, stop_warm_up, wait_for_warm_up
     from station.sipc.process import with_exported_dem
     from station.spacecraft.emulator import emulate_pass
 
@@ -90,20 +90,26 @@ def run_scenario(
         disable=not progress,
         leave=False,
     )
-    t = clock()
-    acqs = emulate_pass(scn)
-    timings["emulate"] = clock() - t
-    stages.update()
-    t = clock()
-    options = with_exported_dem(scn, acqs, out)
-    if scn.dem is not None:
-        timings["dem_export"] = clock() - t
-    tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
-    received = [_receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)]
-    t = clock()
-    wait_for_warm_up(warming)  # its kernels are cached: the processing loads them
-    if warming is not None:
-        timings["warm_up_wait"] = clock() - t
+    try:  # a failed or interrupted run ends the warm-up it started
+        t = clock()
+        acqs = emulate_pass(scn)
+        timings["emulate"] = clock() - t
+        stages.update()
+        t = clock()
+        options = with_exported_dem(scn, acqs, out)
+        if scn.dem is not None:
+            timings["dem_export"] = clock() - t
+        tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
+        received = [
+            _receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)
+        ]
+        t = clock()
+        wait_for_warm_up(warming)  # its kernels are cached: the processing loads them
+        if warming is not None:
+            timings["warm_up_wait"] = clock() - t
+    except BaseException:
+        stop_warm_up(warming)
+        raise
     passes = _process(acqs, received, tags, options, timings, stages, progress, runner)
     hrvs, made = [], []
     for acq, rec, products in zip(acqs, received, passes, strict=True):

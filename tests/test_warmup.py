@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from levels.readers.l0 import read_l0
 from levels.warmup import WARM_UP_ARCHIVE, cache_is_cold, start_warm_up, wait_for_warm_up
@@ -87,3 +88,30 @@ def test_no_background_warm_up_when_the_cache_is_warm() -> None:
     process = start_warm_up()
     assert process is None
     wait_for_warm_up(process)
+
+
+def test_a_failed_run_ends_the_warm_up_it_started(monkeypatch, tmp_path: Path) -> None:
+    """The emulation fails while the warm-up compiles: the run stops the process it
+    started (killed, not left to finish) and the error comes through."""
+    import levels.warmup
+    import station.spacecraft.emulator
+    from station.run import run_scenario
+    from station.scenario import load_scenario
+
+    started = []
+    real_start = levels.warmup.start_warm_up
+    monkeypatch.setattr(levels.warmup, "cache_is_cold", lambda: True)
+    monkeypatch.setattr(
+        levels.warmup, "start_warm_up", lambda: started.append(real_start()) or started[-1]
+    )
+
+    def broken(_scn):
+        raise RuntimeError("emulator down")
+
+    monkeypatch.setattr(station.spacecraft.emulator, "emulate_pass", broken)
+    scn = load_scenario(ROOT / "scenarios" / "small_test.toml")
+    with pytest.raises(RuntimeError, match="emulator down"):
+        run_scenario(scn, tmp_path / "run", warm_up=True)
+    (process,) = started
+    assert process is not None
+    assert process.returncode is not None and process.returncode < 0  # killed by the run
