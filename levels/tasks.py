@@ -133,8 +133,9 @@ class DaskRunner:
     task's name and a token of this runner, so that two runs on one cluster never share a
     result."""
 
-    def __init__(self, client: Any) -> None:
+    def __init__(self, client: Any, kernel_threads: int = 0) -> None:
         self.client = client
+        self.kernel_threads = kernel_threads  # 0: the workers' own NUMBA_NUM_THREADS
         self._token = uuid.uuid4().hex[:8]
         self._names: dict[str, str] = {}
 
@@ -152,6 +153,10 @@ class DaskRunner:
     def submit(self, name: str, fn: Callable[..., Any], *args: Any) -> Any:
         key = f"{name}-{self._token}"
         self._names[key] = name
+        if self.kernel_threads:
+            return self.client.submit(
+                _with_kernel_threads, self.kernel_threads, fn, *args, key=key, pure=False
+            )
         return self.client.submit(fn, *args, key=key, pure=False)
 
     def completed(self, handles: Iterable[Any]) -> Iterator[tuple[Any, Any]]:
@@ -169,6 +174,33 @@ class DaskRunner:
                 result = future.result()
             future.release()
             yield future, result
+
+
+def _with_kernel_threads(n: int, fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)`` with numba's kernels on ``n`` threads (at most its pool), set in the
+    thread that runs the task: numba's count is per thread, and a worker's pool is sized
+    when numba is first imported there, which a spawned worker may do before its
+    environment is set (the parent's main module imports it again)."""
+    import numba
+
+    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    return fn(*args)
+
+
+@contextlib.contextmanager
+def _environment(values: dict[str, str]) -> Iterator[None]:
+    """``os.environ`` with ``values`` while the block runs: what processes started in it
+    inherit (a spawned worker reads its thread counts when it imports numpy and numba)."""
+    saved = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def scheduler_address(given: str | None = None) -> str | None:
@@ -217,8 +249,11 @@ def dask_runner(
     cores = cores_per_worker or max(1, (os.cpu_count() or 1) // workers)
     threads = {"NUMBA_NUM_THREADS": str(cores), "OMP_NUM_THREADS": "1"}
     threads["OPENBLAS_NUM_THREADS"] = "1"
-    with (
-        LocalCluster(
+    # The nanny sets ``env`` once the worker runs, after the spawned process has imported
+    # the parent's main module (and, through it, numpy and numba): the thread counts are
+    # also in the environment the workers are spawned with, and each task sets numba's.
+    with _environment(threads):
+        cluster = LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
             processes=True,
@@ -226,7 +261,6 @@ def dask_runner(
             dashboard_address="127.0.0.1:0",  # no fixed port: never 8787 taken
             memory_limit=memory_limit,
             env=threads,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        yield DaskRunner(client)
+        )
+    with cluster, Client(cluster) as client:
+        yield DaskRunner(client, kernel_threads=cores)

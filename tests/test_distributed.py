@@ -271,3 +271,42 @@ def test_capacity_sweeps_on_the_cluster_are_those_in_process(cluster, tmp_path, 
     assert (tmp_path / "a" / "summary.json").read_bytes() == (
         tmp_path / "b" / "summary.json"
     ).read_bytes()
+
+
+#: A program whose main module imports numba, as ``station`` and the benchmarks do: a
+#: spawned worker imports it again before the nanny sets its environment.
+_THREADS_PROBE = """
+import numba  # at the top of the main module
+from levels.tasks import dask_runner
+
+def threads():
+    import numba
+    return numba.get_num_threads()
+
+if __name__ == "__main__":
+    with dask_runner(workers=1, cores_per_worker=1) as runner:
+        [(_, n)] = list(runner.completed([runner.submit("probe", threads)]))
+    print(n)
+"""
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: every worker has one anyway")
+def test_a_one_core_worker_runs_its_kernels_on_one_thread(tmp_path) -> None:
+    """``--workers N`` with one core each: a task's kernels run on one numba thread even
+    when the program's main module imported numba (it took both cores: the pass
+    benchmark's one worker was a two-core one)."""
+    script = tmp_path / "probe.py"
+    script.write_text(_THREADS_PROBE)
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}
+    env.pop("DASK_SCHEDULER_ADDRESS", None)
+    done = subprocess.run(
+        [sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=START_S + STOP_S,
+        cwd=tmp_path,
+        env=env,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split()[-1] == "1"
