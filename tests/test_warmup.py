@@ -90,6 +90,7 @@ def test_no_background_warm_up_when_the_cache_is_warm() -> None:
     wait_for_warm_up(process)
 
 
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no warm-up is started")
 def test_a_failed_run_ends_the_warm_up_it_started(monkeypatch, tmp_path: Path) -> None:
     """The emulation fails while the warm-up compiles: the run stops the process it
     started (killed, not left to finish) and the error comes through."""

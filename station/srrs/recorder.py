@@ -40,13 +40,17 @@ class BandAncillary:
     offset_counts: NDArray[np.float64]
 
 
+def _described(ds: h5py.Dataset, units: str, long_name: str) -> h5py.Dataset:
+    ds.attrs["units"] = units
+    ds.attrs["long_name"] = long_name
+    return ds
+
+
 def _dataset(
     group: h5py.Group, name: str, data: np.ndarray, units: str, long_name: str, **kwargs
 ) -> h5py.Dataset:
     ds = group.create_dataset(name, data=data, **{**checksummed(data), **kwargs})
-    ds.attrs["units"] = units
-    ds.attrs["long_name"] = long_name
-    return ds
+    return _described(ds, units, long_name)
 
 
 def write_l0(
@@ -121,9 +125,8 @@ def _write(
         g = bands.create_group(anc.name)
         # deflated by ISA-L on every core, as the products are: a full P scene in 0.2 s,
         # not h5py's 1.2 s through zlib on one (5 % larger)
-        counts = deflated_dataset(g, "counts", np.ascontiguousarray(img), chunks, shuffle=True)
-        counts.attrs["units"] = "1"
-        counts.attrs["long_name"] = f"raw counts of band {anc.name}"
+        counts = deflated_dataset(g, "counts", img, chunks, shuffle=True)
+        _described(counts, "1", f"raw counts of band {anc.name}")
         _dataset(
             g, "valid", ok, "1", "segment received complete (per line, segment)", compression="gzip"
         )
