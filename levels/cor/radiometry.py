@@ -30,6 +30,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from levels.threads import over_blocks
+
 __all__ = [
     "calibrate",
     "deconvolution_taps",
@@ -53,7 +55,9 @@ def calibrate(
     """Level 1A: each detector's counts normalised by the calibration table (float32, 0 where
     not valid)."""
     out = np.empty(counts.shape, dtype=np.float32)
-    _calibrate(
+    over_blocks(
+        _calibrate,
+        counts.shape[0],
         np.ascontiguousarray(counts),
         np.ascontiguousarray(valid),
         offset_counts.astype(np.float32),
@@ -97,14 +101,14 @@ def deconvolution_taps(
     return taps / taps.sum()
 
 
-@nb.njit(cache=True, parallel=True)
-def _fir_along_lines(src, w, out):
+@nb.njit(cache=True, nogil=True)
+def _fir_along_lines(lo, hi, src, w, out):
     """``out = src ∗ w`` along each line (axis 1), edges replicated. The symmetric form and
     its order of operations in double precision are those of ``scipy.ndimage.convolve1d``:
     the same bytes, on every core."""
-    n, m = src.shape
+    m = src.shape[1]
     half = w.size // 2
-    for i in nb.prange(n):
+    for i in range(lo, hi):
         row = src[i]
         for j in range(m):
             acc = np.float64(row[j]) * w[half]
@@ -115,14 +119,14 @@ def _fir_along_lines(src, w, out):
             out[i, j] = acc
 
 
-@nb.njit(cache=True, parallel=True)
-def _fir_along_columns(src, w, out):
+@nb.njit(cache=True, nogil=True)
+def _fir_along_columns(lo, hi, src, w, out):
     """``out = src ∗ w`` along each column (axis 0), edges replicated, a line at a time
     (contiguous rows, where scipy walks the columns with a stride): the same operations
     per pixel as :func:`_fir_along_lines`."""
     n, m = src.shape
     half = w.size // 2
-    for i in nb.prange(n):
+    for i in range(lo, hi):
         acc = np.empty(m)
         for j in range(m):
             acc[j] = np.float64(src[i, j]) * w[half]
@@ -134,14 +138,12 @@ def _fir_along_columns(src, w, out):
             out[i, j] = acc[j]
 
 
-@nb.njit(cache=True, parallel=True)
-def _valid_after(valid, half, out):
-    """A pixel is valid after the FIR when every pixel within ``half`` lines and columns
-    of it was (edges replicated): each line's run of valid pixels across its window, then
-    those of ``2·half + 1`` lines, a line at a time."""
-    n, m = valid.shape
-    across = np.empty((n, m), dtype=np.bool_)
-    for i in nb.prange(n):
+@nb.njit(cache=True, nogil=True)
+def _valid_across(lo, hi, valid, half, across):
+    """Per line, whether every pixel within ``half`` columns is valid (edges replicated):
+    the run of valid pixels across the window, a line at a time."""
+    m = valid.shape[1]
+    for i in range(lo, hi):
         bad = 0  # invalid pixels in the window [j − half, j + half], clipped
         for j in range(min(half, m - 1) + 1):
             bad += not valid[i, j]
@@ -151,7 +153,14 @@ def _valid_after(valid, half, out):
                 bad += not valid[i, j + half + 1]
             if j - half >= 0:
                 bad -= not valid[i, j - half]
-    for i in nb.prange(n):
+
+
+@nb.njit(cache=True, nogil=True)
+def _valid_after(lo, hi, across, half, out):
+    """A pixel is valid after the FIR when every pixel within ``half`` lines and columns
+    of it was: :func:`_valid_across` of the ``2·half + 1`` lines around it."""
+    n, m = across.shape
+    for i in range(lo, hi):
         for j in range(m):
             out[i, j] = True
         for ii in range(max(i - half, 0), min(i + half, n - 1) + 1):
@@ -159,30 +168,31 @@ def _valid_after(valid, half, out):
                 out[i, j] &= across[ii, j]
 
 
-@nb.njit(cache=True, parallel=True)
-def _calibrate(counts, valid, offset, inv_gain, out):
-    n, m = counts.shape
-    for i in nb.prange(n):
+@nb.njit(cache=True, nogil=True)
+def _calibrate(lo, hi, counts, valid, offset, inv_gain, out):
+    m = counts.shape[1]
+    for i in range(lo, hi):
         for j in range(m):
             out[i, j] = (np.float32(counts[i, j]) - offset[j]) * inv_gain[j] if valid[i, j] else 0
 
 
-@nb.njit(cache=True, parallel=True)
-def _column_sums(image, valid):
-    """Per column, the sum (float64) and the number of valid pixels, line after line in
-    order (numpy's ``sum(axis=0)`` arithmetic: the same figures), columns in parallel."""
+#: Columns per block of :func:`_column_sums`.
+_SUM_BLOCK = 256
+
+
+@nb.njit(cache=True, nogil=True)
+def _column_sums(lo, hi, image, valid, sums, count):
+    """Per column of blocks ``lo … hi − 1`` (of ``_SUM_BLOCK`` columns), the sum (float64)
+    and the number of valid pixels, line after line in order (numpy's ``sum(axis=0)``
+    arithmetic: the same figures)."""
     n, m = image.shape
-    sums = np.zeros(m)
-    count = np.zeros(m, dtype=np.int64)
-    n_blocks = (m + 255) // 256
-    for blk in nb.prange(n_blocks):
-        j0, j1 = blk * 256, min(blk * 256 + 256, m)
+    for blk in range(lo, hi):
+        j0, j1 = blk * _SUM_BLOCK, min(blk * _SUM_BLOCK + _SUM_BLOCK, m)
         for i in range(n):
             for j in range(j0, j1):
                 if valid[i, j]:
                     sums[j] += np.float64(image[i, j])
                     count[j] += 1
-    return sums, count
 
 
 def deconvolve(
@@ -195,17 +205,23 @@ def deconvolve(
         raise ValueError(f"deconvolution: need a symmetric FIR of odd length, got {taps}")
     src = np.ascontiguousarray(image, dtype=np.float32)
     along = np.empty(src.shape, dtype=np.float32)
-    _fir_along_lines(src, w, along)
+    over_blocks(_fir_along_lines, src.shape[0], src, w, along)
     out = np.empty(src.shape, dtype=np.float32)
-    _fir_along_columns(along, w, out)
+    over_blocks(_fir_along_columns, src.shape[0], along, w, out)
     ok = np.empty(src.shape, dtype=bool)
-    _valid_after(np.ascontiguousarray(valid), w.size // 2, ok)
+    across = np.empty(src.shape, dtype=bool)
+    over_blocks(_valid_across, src.shape[0], np.ascontiguousarray(valid), w.size // 2, across)
+    over_blocks(_valid_after, src.shape[0], across, w.size // 2, ok)
     return out, ok
 
 
 def stripe_level(image: NDArray[np.floating], valid: NDArray[np.bool_]) -> float:
     """RMS stripe level of an image (counts; module docstring)."""
-    sums, n = _column_sums(np.ascontiguousarray(image), np.ascontiguousarray(valid))
+    sums, n = np.zeros(image.shape[1]), np.zeros(image.shape[1], dtype=np.int64)
+    n_blocks = -(-image.shape[1] // _SUM_BLOCK)
+    over_blocks(
+        _column_sums, n_blocks, np.ascontiguousarray(image), np.ascontiguousarray(valid), sums, n
+    )
     with np.errstate(invalid="ignore", divide="ignore"):
         means = sums / n
     keep = n > 0

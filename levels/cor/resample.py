@@ -1,4 +1,5 @@
-"""COR's geometric resampling into levels 1B and 2A: numba kernels, parallel over lines.
+"""COR's geometric resampling into levels 1B, 2A and 3: numba kernels, on threads over lines
+(:mod:`levels.threads`).
 
 Level 1B (paper ``004_…`` §2.2) offers INPE's two interpolations:
 
@@ -30,6 +31,7 @@ from numpy.typing import NDArray
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
 from levels.geo.level3 import HIDDEN_TOLERANCE_PX, Level3Geometry
+from levels.threads import over_blocks, thread_count
 
 __all__ = [
     "INTERPOLATIONS_1B",
@@ -43,6 +45,9 @@ __all__ = [
 INTERPOLATIONS_1B = ("nearest", "cubic")
 RESAMPLINGS_2A = ("nearest", "bilinear", "cubic")
 _A = -0.5  # Keys' parameter
+#: Pixels of margin when a span's two ends decide for all its pixels (all are linear along
+#: it, up to rounding: far more than enough).
+_MARGIN = 1e-3
 #: Fused multiply-adds and reassociation, but NaN kept: NaN marks pixels that are not valid.
 _FAST = {"contract", "arcp", "nsz", "reassoc"}
 
@@ -78,10 +83,10 @@ def _store(v: float) -> np.uint8:
     return np.uint8(np.floor(v + 0.5))
 
 
-@nb.njit(cache=True, parallel=True, fastmath=_FAST)
-def _kernel_1b(img, valid, f, g, h, row0, col0, cubic, out, ok):
+@nb.njit(cache=True, nogil=True, fastmath=_FAST)
+def _kernel_1b(lo, hi, img, valid, f, g, h, row0, col0, cubic, out, ok):
     n_lines, n_cols = img.shape
-    for r in nb.prange(out.shape[0]):
+    for r in range(lo, hi):
         i = float(row0 + r)
         line = int(np.floor(_poly(f, i) + 0.5))
         skew = _poly(h, i)
@@ -127,7 +132,9 @@ def resample_1b(
     c0, c1, _ = (cols or slice(0, geom.n_cols)).indices(geom.n_cols)
     out = np.empty((r1 - r0, c1 - c0), dtype=np.uint8)
     ok = np.empty(out.shape, dtype=bool)
-    _kernel_1b(
+    over_blocks(
+        _kernel_1b,
+        out.shape[0],
         np.ascontiguousarray(image, dtype=np.float32),
         np.ascontiguousarray(valid),
         geom.f.as_array(),
@@ -199,17 +206,41 @@ def _pixel_2a(img, c, b, v, line_row, seg_of, method):
 
 
 @nb.njit(cache=True, inline="always", fastmath=_FAST)
-def _span_cubic(
-    img, flat, c_b, c_b1, b, o, inv_step, n, line_row, seg_of, out_r, ok_r, scratch, bases
+def _span_outside(c_b, c_b1, b, o, inv_step, n, line_row, shape):
+    """Whether ``n`` consecutive output pixels of one row within one grid cell all fall
+    outside the raw image (:func:`_pixel_2a` would give each NaN): their column, or their
+    line in every segment, beyond the same edge at both ends of the span (all are linear
+    along it)."""
+    n_lines, n_cols = shape
+    v_a = o * inv_step
+    v_z = (o + n - 1) * inv_step
+    c_a = (1.0 - v_a) * c_b + v_a * c_b1
+    c_z = (1.0 - v_z) * c_b + v_z * c_b1
+    if max(c_a, c_z) < -0.5 - _MARGIN or min(c_a, c_z) > n_cols - 0.5 + _MARGIN:
+        return True
+    for s in range(line_row.shape[0]):
+        l_a = (1.0 - v_a) * line_row[s, b] + v_a * line_row[s, b + 1]
+        l_z = (1.0 - v_z) * line_row[s, b] + v_z * line_row[s, b + 1]
+        above = max(l_a, l_z) < -0.5 - _MARGIN
+        below = min(l_a, l_z) > n_lines - 0.5 + _MARGIN
+        if not (above or below):
+            return False
+    return True
+
+
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
+def _span_inside(
+    img, flat, c_b, c_b1, b, o, inv_step, n, line_row, seg_of, method, out, ok, r, k, scratch, bases
 ):
-    """Cubic convolution of ``n`` consecutive output pixels of one row within one grid cell,
-    when every one of them reads 4 × 4 raw pixels inside the image and within one segment;
+    """``n`` consecutive output pixels of one row within one grid cell, when every one of
+    them reads raw pixels inside the image and within one segment (most of a scene);
     False (nothing written) otherwise, for :func:`_pixel_2a` to take them one by one.
 
     ``c`` and the segment's line are linear along the span, so its two ends bound them all
-    (with a pixel of margin against rounding). The weights and addresses of the span come
-    first, in one loop the compiler vectorises; then the 16 loads and products of each
-    pixel; then the stores, branch-free. Same arithmetic, term for term, as pixel by pixel.
+    (with two pixels of margin, whatever the method). The weights and addresses of the
+    span come first, in one loop the compiler vectorises; then the loads and products of
+    each pixel; then the stores, branch-free. The arithmetic is :func:`_pixel_2a`'s, term
+    for term: the same bytes.
     """
     n_lines, n_cols = img.shape
     v_a = o * inv_step
@@ -229,52 +260,84 @@ def _span_cubic(
     l_z = (1.0 - v_z) * l_0 + v_z * l_1
     if not (min(l_a, l_z) >= 2.0 and max(l_a, l_z) < n_lines - 4.0):
         return False
-    for j in range(n):
-        v = (o + j) * inv_step
-        c = (1.0 - v) * c_b + v * c_b1
-        line = (1.0 - v) * l_0 + v * l_1
-        cf = np.floor(c)
-        lf = np.floor(line)
-        scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j] = _keys(c - cf)
-        scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j] = _keys(line - lf)
-        bases[j] = np.uint64((np.int64(lf) - 1) * n_cols + np.int64(cf) - 1)
+    # one loop per method, each with no branch: the compiler vectorises them
+    if method == 2:
+        for j in range(n):
+            v = (o + j) * inv_step
+            c = (1.0 - v) * c_b + v * c_b1
+            line = (1.0 - v) * l_0 + v * l_1
+            cf = np.floor(c)
+            lf = np.floor(line)
+            scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j] = _keys(c - cf)
+            scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j] = _keys(line - lf)
+            bases[j] = np.uint64((np.int64(lf) - 1) * n_cols + np.int64(cf) - 1)
+    elif method == 1:
+        for j in range(n):
+            v = (o + j) * inv_step
+            c = (1.0 - v) * c_b + v * c_b1
+            line = (1.0 - v) * l_0 + v * l_1
+            cf = np.floor(c)
+            lf = np.floor(line)
+            scratch[0, j], scratch[1, j] = 1.0 - (c - cf), c - cf
+            scratch[4, j] = line - lf
+            bases[j] = np.uint64(np.int64(lf) * n_cols + np.int64(cf))
+    else:
+        for j in range(n):
+            v = (o + j) * inv_step
+            c = (1.0 - v) * c_b + v * c_b1
+            line = (1.0 - v) * l_0 + v * l_1
+            bases[j] = np.uint64(
+                np.int64(np.floor(line + 0.5)) * n_cols + np.int64(np.floor(c + 0.5))
+            )
     # unsigned addresses: no negative-index wraparound in the loads
     u1, u2, u3 = np.uint64(1), np.uint64(2), np.uint64(3)
     n1, n2, n3 = np.uint64(n_cols), np.uint64(2 * n_cols), np.uint64(3 * n_cols)
-    for j in range(n):
-        p = bases[j]
-        c0, c1, c2, c3 = scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j]
-        r0, r1, r2, r3 = scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j]
-        scratch[8, j] = (
-            c0 * (r0 * flat[p] + r1 * flat[p + n1] + r2 * flat[p + n2] + r3 * flat[p + n3])
-            + c1
-            * (
-                r0 * flat[p + u1]
-                + r1 * flat[p + n1 + u1]
-                + r2 * flat[p + n2 + u1]
-                + r3 * flat[p + n3 + u1]
+    if method == 0:
+        for j in range(n):
+            scratch[8, j] = flat[bases[j]]
+    elif method == 1:
+        for j in range(n):
+            p = bases[j]
+            t = scratch[4, j]
+            acc = 0.0
+            acc += scratch[0, j] * ((1.0 - t) * flat[p] + t * flat[p + n1])
+            acc += scratch[1, j] * ((1.0 - t) * flat[p + u1] + t * flat[p + n1 + u1])
+            scratch[8, j] = acc
+    else:
+        for j in range(n):
+            p = bases[j]
+            c0, c1, c2, c3 = scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j]
+            r0, r1, r2, r3 = scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j]
+            scratch[8, j] = (
+                c0 * (r0 * flat[p] + r1 * flat[p + n1] + r2 * flat[p + n2] + r3 * flat[p + n3])
+                + c1
+                * (
+                    r0 * flat[p + u1]
+                    + r1 * flat[p + n1 + u1]
+                    + r2 * flat[p + n2 + u1]
+                    + r3 * flat[p + n3 + u1]
+                )
+                + c2
+                * (
+                    r0 * flat[p + u2]
+                    + r1 * flat[p + n1 + u2]
+                    + r2 * flat[p + n2 + u2]
+                    + r3 * flat[p + n3 + u2]
+                )
+                + c3
+                * (
+                    r0 * flat[p + u3]
+                    + r1 * flat[p + n1 + u3]
+                    + r2 * flat[p + n2 + u3]
+                    + r3 * flat[p + n3 + u3]
+                )
             )
-            + c2
-            * (
-                r0 * flat[p + u2]
-                + r1 * flat[p + n1 + u2]
-                + r2 * flat[p + n2 + u2]
-                + r3 * flat[p + n3 + u2]
-            )
-            + c3
-            * (
-                r0 * flat[p + u3]
-                + r1 * flat[p + n1 + u3]
-                + r2 * flat[p + n2 + u3]
-                + r3 * flat[p + n3 + u3]
-            )
-        )
     for j in range(n):
         val = scratch[8, j]
         good = val == val
         x = min(max(val, 0.0), 255.0) if good else 0.0
-        out_r[j] = np.uint8(np.int32(x + 0.5))  # x + 0.5 ≥ 0: truncation is floor (_store)
-        ok_r[j] = good
+        out[r, k + j] = np.uint8(np.int32(x + 0.5))  # x + 0.5 ≥ 0: truncation is floor (_store)
+        ok[r, k + j] = good
     return True
 
 
@@ -284,8 +347,8 @@ _BLOCK_ROWS = 32
 _BLOCK_COLS = 256
 
 
-@nb.njit(cache=True, parallel=True, fastmath=_FAST)
-def _kernel_2a(img, step_i, step_j, inv_line, inv_col, seg_of, row0, col0, method, out, ok):
+@nb.njit(cache=True, nogil=True, fastmath=_FAST)
+def _kernel_2a(lo, hi, img, step_i, step_j, inv_line, inv_col, seg_of, row0, col0, method, out, ok):
     """``img`` is float32 with NaN where not valid; ``inv_line`` (segments, rows, cols) and
     ``inv_col`` on a grid of integer steps from output pixel (0, 0); ``seg_of`` the segment
     of each raw column.
@@ -295,16 +358,15 @@ def _kernel_2a(img, step_i, step_j, inv_line, inv_col, seg_of, row0, col0, metho
     """
     n_seg, na, nb_ = inv_line.shape
     n_out_rows, n_out_cols = out.shape
-    n_blocks = (n_out_rows + _BLOCK_ROWS - 1) // _BLOCK_ROWS
     inv_step_i = 1.0 / step_i
     inv_step_j = 1.0 / step_j
     flat = img.reshape(img.size)
-    for blk in nb.prange(n_blocks):
+    for blk in range(lo, hi):
         r_lo = blk * _BLOCK_ROWS
         r_hi = min(r_lo + _BLOCK_ROWS, n_out_rows)
         # the inverse grid interpolated to each output row of the block, once per row
         col_rows = np.empty((r_hi - r_lo, nb_))
-        # a span's weights, its value (row 8) and its addresses (_span_cubic)
+        # a span's weights, its value (row 8) and its addresses (_span_inside)
         scratch = np.empty((9, max(step_j, _BLOCK_COLS)))
         bases = np.empty(max(step_j, _BLOCK_COLS), dtype=np.uint64)
         line_rows = np.empty((r_hi - r_lo, n_seg, nb_))
@@ -330,7 +392,21 @@ def _kernel_2a(img, step_i, step_j, inv_line, inv_col, seg_of, row0, col0, metho
                     b = min((col0 + k) // step_j, nb_ - 2)
                     k_end = k_hi if b == nb_ - 2 else min(k_hi, (b + 1) * step_j - col0)
                     c_b, c_b1 = col_row[b], col_row[b + 1]
-                    if method == 2 and _span_cubic(
+                    if _span_outside(
+                        c_b,
+                        c_b1,
+                        b,
+                        col0 + k - b * step_j,
+                        inv_step_j,
+                        k_end - k,
+                        line_row,
+                        img.shape,
+                    ):
+                        out[r, k:k_end] = 0
+                        ok[r, k:k_end] = False
+                        k = k_end
+                        continue
+                    if _span_inside(
                         img,
                         flat,
                         c_b,
@@ -341,8 +417,11 @@ def _kernel_2a(img, step_i, step_j, inv_line, inv_col, seg_of, row0, col0, metho
                         k_end - k,
                         line_row,
                         seg_of,
-                        out[r, k:k_end],
-                        ok[r, k:k_end],
+                        method,
+                        out,
+                        ok,
+                        r,
+                        k,
                         scratch,
                         bases,
                     ):
@@ -388,7 +467,9 @@ def resample_2a(
     step_i, step_j = geom.inverse_step
     img = image if valid is None else with_nan(image, valid)
     seg_of = geom.segment_of(np.arange(img.shape[1])).astype(np.int64)
-    _kernel_2a(
+    over_blocks(
+        _kernel_2a,
+        -(-out.shape[0] // _BLOCK_ROWS),
         np.ascontiguousarray(img, dtype=np.float32),
         step_i,
         step_j,
@@ -598,8 +679,10 @@ def _raise_row(zbuf, span, prev, cur, own):
             _raise_segment(zbuf, n, prev[0, k], prev[1, k], prev[2, k], line, c, h)
 
 
-@nb.njit(cache=True, parallel=True, fastmath=_FAST)
+@nb.njit(cache=True, nogil=True, fastmath=_FAST)
 def _zbuffer_3(
+    lo,
+    hi,
     zbufs,
     n_rows,
     step_i,
@@ -624,7 +707,7 @@ def _zbuffer_3(
     n_out_cols = cols.shape[1]
     n_seg, _na, nb_, n_pow = poly_line.shape
     per = (n_rows + n_blocks - 1) // n_blocks
-    for t in nb.prange(n_blocks):
+    for t in range(lo, hi):
         line_row = np.empty((n_seg, nb_, n_pow))
         col_row = np.empty((nb_, n_pow))
         rc_row = np.empty((2, dem_rc.shape[2]))
@@ -724,8 +807,10 @@ def _sample_span(img, seg_of, span, r, k_lo, k_hi, method, zbuf, ztol, out, ok, 
             ok[r, k] = False
 
 
-@nb.njit(cache=True, parallel=True, fastmath=_FAST)
+@nb.njit(cache=True, nogil=True, fastmath=_FAST)
 def _kernel_3(
+    lo,
+    hi,
     img,
     step_i,
     poly_line,
@@ -748,8 +833,7 @@ def _kernel_3(
     pixels a block reads stay in cache); every pixel from its own (row, column) only."""
     n_out_rows, n_out_cols = out.shape
     n_seg, _na, nb_, n_pow = poly_line.shape
-    n_blocks = (n_out_rows + _BLOCK_ROWS - 1) // _BLOCK_ROWS
-    for blk in nb.prange(n_blocks):
+    for blk in range(lo, hi):
         r_lo = blk * _BLOCK_ROWS
         r_hi = min(r_lo + _BLOCK_ROWS, n_out_rows)
         line_rows = np.empty((r_hi - r_lo, n_seg, nb_, n_pow))
@@ -857,8 +941,8 @@ def resample_3(
         inv_hs,
         seg_of,
     )
-    zbufs = np.full((nb.get_num_threads(), *img.shape), -np.inf, dtype=np.float32)
-    _zbuffer_3(zbufs, geom.n_rows, *args)
+    zbufs = np.full((thread_count(), *img.shape), -np.inf, dtype=np.float32)
+    over_blocks(_zbuffer_3, zbufs.shape[0], zbufs, geom.n_rows, *args)
     zbuf = zbufs.max(axis=0)
     del zbufs
     c_per_m = float(np.nanmedian(np.abs(inv_col[-1] - inv_col[0]))) / float(np.ptp(heights))
@@ -866,5 +950,17 @@ def resample_3(
     out = np.empty((geom.n_rows, geom.n_cols), dtype=np.uint8)
     ok = np.empty(out.shape, dtype=bool)
     hidden = np.empty(out.shape, dtype=bool)
-    _kernel_3(img, *args, zbuf, ztol, RESAMPLINGS_2A.index(resampling), out, ok, hidden)
+    n_blocks = -(-geom.n_rows // _BLOCK_ROWS)
+    over_blocks(
+        _kernel_3,
+        n_blocks,
+        img,
+        *args,
+        zbuf,
+        ztol,
+        RESAMPLINGS_2A.index(resampling),
+        out,
+        ok,
+        hidden,
+    )
     return out, ok, hidden

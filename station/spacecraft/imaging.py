@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from levels.geometry.attitude import Attitude
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.frames import apply, ecef_from_orbital, orbital_from_body
+from levels.threads import over_blocks
 from station.spacecraft.instrument import COUNTS_PER_RADIANCE, BandModel, Hrv
 from station.spacecraft.orbit import TruthOrbit
 from station.spacecraft.world import BANDS, World, _reflectance, _surface, _to_xy
@@ -147,12 +148,12 @@ def _intersect(px, py, pz, dx, dy, dz, h_guess, lon0, base, relief, seed, grid, 
     return nan, nan, nan, nan, nan, nan, nan, -1
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True)
 def _trace_grid(
-    pos, rot, look, lon0, base, relief, seed, grid, geo, lat, lon, h, x, y, gx, gy, iters
+    lo, hi, pos, rot, look, lon0, base, relief, seed, grid, geo, lat, lon, h, x, y, gx, gy, iters
 ):
-    n_lines, n_det = lat.shape
-    for li in nb.prange(n_lines):
+    n_det = lat.shape[1]
+    for li in range(lo, hi):
         r = rot[li]
         hg = base
         for d in range(n_det):
@@ -187,12 +188,9 @@ def _trace_grid(
                 hg = out[2]
 
 
-@nb.njit(cache=True, parallel=True)
-def _trace_rays(pos, dirs, lon0, base, relief, seed, grid, geo):
-    n = pos.shape[0]
-    out = np.empty((n, 3))
-    iters = np.empty(n, dtype=np.int64)
-    for k in nb.prange(n):
+@nb.njit(cache=True, nogil=True)
+def _trace_rays(lo, hi, pos, dirs, lon0, base, relief, seed, grid, geo, out, iters):
+    for k in range(lo, hi):
         r = _intersect(
             pos[k, 0],
             pos[k, 1],
@@ -209,15 +207,14 @@ def _trace_rays(pos, dirs, lon0, base, relief, seed, grid, geo):
             geo,
         )
         out[k, 0], out[k, 1], out[k, 2], iters[k] = r[0], r[1], r[2], r[7]
-    return out, iters
 
 
-@nb.njit(cache=True, parallel=True)
-def _radiance(lat, lon, x, y, gx, gy, sun, band, seed, offsets, weights, out):
+@nb.njit(cache=True, nogil=True)
+def _radiance(lo, hi, lat, lon, x, y, gx, gy, sun, band, seed, offsets, weights, out):
     """Radiance of the interior lines 1..L of a traced block (lines 0 and L+1 are halo)."""
-    n_lines, n_det = out.shape
+    n_det = out.shape[1]
     n_s = offsets.size
-    for li in nb.prange(n_lines):
+    for li in range(lo, hi):
         k = li + 1
         for d in range(n_det):
             if np.isnan(x[k, d]):
@@ -275,7 +272,11 @@ def trace_pixels(
     )
     geo = line_geometry(orbit, attitude, t)
     dirs = apply(geo.ecef_from_sensor, band.look_true.directions(col))
-    out, iters = _trace_rays(geo.position_ecef_m, dirs, *world.terrain_args())
+    n = dirs.shape[0]
+    out, iters = np.empty((n, 3)), np.empty(n, dtype=np.int64)
+    over_blocks(
+        _trace_rays, n, geo.position_ecef_m, dirs, *world.terrain_args(), out, iters, grain=256
+    )
     return out, iters >= 0
 
 
@@ -309,7 +310,9 @@ def render_band(
         shape = (t.size, n_det)
         lat, lon, h, x, y, gx, gy = (np.empty(shape) for _ in range(7))
         iters = np.empty(shape, dtype=np.int64)
-        _trace_grid(
+        over_blocks(
+            _trace_grid,
+            t.size,
             geo.position_ecef_m,
             geo.ecef_from_sensor,
             look,
@@ -325,7 +328,9 @@ def render_band(
         )
         newton_max = max(newton_max, int(iters.max()))
         out = np.empty((l1 - l0, n_det))
-        _radiance(
+        over_blocks(
+            _radiance,
+            l1 - l0,
             lat,
             lon,
             x,

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from levels.geometry.ellipsoid import WGS84
+from levels.threads import over_blocks
 
 __all__ = [
     "BANDS",
@@ -185,24 +186,23 @@ def _surface(lat, lon, x, y, base, relief, seed, grid, geo):
     return _terrain(x, y, base, relief, seed)
 
 
-@nb.njit(cache=True, parallel=True)
-def _height_many(lat, lon, lon0, base, relief, seed, grid, geo):
-    out = np.empty(lat.size)
-    gx = np.empty(lat.size)
-    gy = np.empty(lat.size)
-    for k in nb.prange(lat.size):
+@nb.njit(cache=True, nogil=True)
+def _height_many(lo, hi, lat, lon, lon0, base, relief, seed, grid, geo, out, gx, gy):
+    for k in range(lo, hi):
         x, y = _to_xy(lat[k], lon[k], lon0)
         out[k], gx[k], gy[k] = _surface(lat[k], lon[k], x, y, base, relief, seed, grid, geo)
-    return out, gx, gy
 
 
-@nb.njit(cache=True, parallel=True)
-def _reflectance_many(lat, lon, lon0, band, seed):
-    out = np.empty(lat.size)
-    for k in nb.prange(lat.size):
+@nb.njit(cache=True, nogil=True)
+def _reflectance_many(lo, hi, lat, lon, lon0, band, seed, out):
+    for k in range(lo, hi):
         x, y = _to_xy(lat[k], lon[k], lon0)
         out[k] = _reflectance(x, y, band, seed)
-    return out
+
+
+#: Points per chunk at least, below which a call runs in the calling thread (one point
+#: costs a microsecond or so; a chunk on another thread about a hundred).
+_POINTS_PER_CHUNK = 4096
 
 
 @dataclass(frozen=True)
@@ -264,18 +264,34 @@ class World:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Terrain height (m) and its slopes ∂H/∂x (east), ∂H/∂y (north) at (φ, λ)."""
         lat, lon = np.broadcast_arrays(np.asarray(lat_rad, float), np.asarray(lon_rad, float))
-        h, gx, gy = _height_many(lat.ravel(), lon.ravel(), *self.terrain_args())
+        h, gx, gy = (np.empty(lat.size) for _ in range(3))
+        over_blocks(
+            _height_many,
+            lat.size,
+            lat.ravel(),
+            lon.ravel(),
+            *self.terrain_args(),
+            h,
+            gx,
+            gy,
+            grain=_POINTS_PER_CHUNK,
+        )
         return h.reshape(lat.shape), gx.reshape(lat.shape), gy.reshape(lat.shape)
 
     def reflectance(self, lat_rad: ArrayLike, lon_rad: ArrayLike, band: str) -> NDArray:
         """Reflectance of ``band`` (one of :data:`BANDS`) at (φ, λ)."""
         lat, lon = np.broadcast_arrays(np.asarray(lat_rad, float), np.asarray(lon_rad, float))
-        out = _reflectance_many(
+        out = np.empty(lat.size)
+        over_blocks(
+            _reflectance_many,
+            lat.size,
             lat.ravel(),
             lon.ravel(),
             self.lon0_rad,
             np.int64(BANDS.index(band)),
             np.int64(self.seed),
+            out,
+            grain=_POINTS_PER_CHUNK,
         )
         return out.reshape(lat.shape)
 
