@@ -1,9 +1,10 @@
 """Compiling the processing kernels before a first run needs them: ``python -m levels.warmup``.
 
 Numba compiles each kernel on its first call and caches the machine code on disk
-(``cache=True``); on a fresh install the first ``station run`` spends most of its minute
-compiling, about half of that in this package's kernels (calibration, deconvolution, the
-1B and 2A resampling, the inverse grid: 30–45 s of one core). :func:`warm_up` processes a
+(``cache=True``); on a fresh install the first ``station run`` spends most of its time
+compiling (15 s of one core on 2026-11-24, 24 s while the kernels were numba's
+``parallel=True``), about half of that in this package's kernels (calibration,
+deconvolution, the 1B and 2A resampling, the inverse grid). :func:`warm_up` processes a
 tiny L0 archive shipped with the package (``levels/data/warmup.l0.h5``: 240 lines × 200
 detectors of the default scenario's P pass near Cuiabá, 170 kB) through levels 1A, 1B and
 2A into a temporary directory: every kernel of a default run is compiled with the types it
@@ -41,7 +42,7 @@ __all__ = [
 #: The tiny L0 archive :func:`warm_up` processes.
 WARM_UP_ARCHIVE = Path(__file__).resolve().parent / "data" / "warmup.l0.h5"
 #: How long a run waits for the background warm-up before compiling itself (s): it takes
-#: 30–45 s on one core of this project's shared host.
+#: 8–20 s on one core of this project's shared host, whose speed varies twofold.
 WAIT_S = 120.0
 
 
