@@ -34,6 +34,7 @@ import numpy as np
 from isal import isal_zlib
 
 from levels.files import atomic_path
+from levels.threads import thread_count
 
 __all__ = [
     "ATTRS_DIGEST",
@@ -157,7 +158,7 @@ def deflated_dataset(
             part = block
         return _chunk_payload(part, shuffle, level)
 
-    with ThreadPoolExecutor(max(1, nb.get_num_threads())) as pool:
+    with ThreadPoolExecutor(thread_count()) as pool:
         for start, packed in zip(starts, pool.map(payload, starts), strict=True):
             ds.id.write_direct_chunk(start, packed)
     return ds

@@ -9,10 +9,16 @@ and ``NUMBA_NUM_THREADS`` keep their meaning: a Dask worker's one-core task runs
 in its own thread, ``levels.tasks``).
 
 Why not ``parallel=True``: numba compiles a ``prange`` loop into a gufunc of its own, which
-made compiling the default scenario's kernels 70 % longer (23.8 s instead of 14.0 s of one
-core on 2026-11-24, ``benchmarks/bench_first_run.py``'s subject) for the same speed: the
-chunks here are as coarse as numba's. The bytes are the same whatever ``k``: no item reads
-what another writes, and no kernel reduces across items.
+made compiling the default scenario's kernels 55 % longer (23.8 s instead of 15.4 s of one
+core, measured the same minutes on 2026-11-24, ``benchmarks/bench_first_run.py``'s
+subject). The chunks here are as coarse as numba's. The bytes are the same whatever
+``k``: no item reads what another writes, and no kernel reduces across items.
+
+One thing ``parallel=True`` did on the way, and serial kernels must do themselves: its
+pipeline copy-propagates the arrays handed to ``inline="always"`` helpers. Without it each
+such call increfs and decrefs every array it takes (atomic operations): 2A's per-pixel
+helper cost 40 % that way, until its pixels went by spans (``levels.cor.resample``). In a
+hot loop, inline helpers take scalars; arrays are read in the loop itself.
 """
 
 from __future__ import annotations

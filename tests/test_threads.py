@@ -47,6 +47,9 @@ def test_thread_count_follows_numba() -> None:
         nb.set_num_threads(before)
 
 
+@pytest.mark.skipif(
+    nb.config.NUMBA_NUM_THREADS < 2, reason="one thread: nothing to compare it with"
+)
 def test_same_result_on_one_and_all_threads() -> None:
     """The 2A kernel's products do not depend on how its blocks are shared out."""
     from levels.cor.resample import _BLOCK_ROWS, _kernel_2a
