@@ -15,7 +15,10 @@ Figures printed (issue 5's targets in brackets):
    memory-bandwidth limit: one plain copy of the bytes it reads and writes.
 3. **GEO for a pass of 74 scenes** (11 min of P imaging, about a whole Cuiabá pass):
    integration of the rates, scene cutting, centre and corners, 1B polynomials, 2A direct
-   and inverse grids, one core (issue 21: ≤ 1 s), with its largest parts.
+   and inverse grids, one core (issue 21: ≤ 1 s), with its largest parts; then, in the
+   same run, with this machine's other core kept busy by a second process (a shared host),
+   as GEO runs (BLAS on one thread: ``levels.threads.single_blas``) and with OpenBLAS on
+   its own threads, as before 2026-11-25.
 4. **Writing one full P product** (1A, 1B, 2A of figure 1), from the product in memory to
    its file on disk, on every core: at the default ``deflate_level`` (ISA-L's level 2),
    against the same file with its bands through HDF5's own deflate filter (zlib level 1,
@@ -28,6 +31,7 @@ is emulated and received first (about a minute) into a temporary directory. Best
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import tempfile
 import time
@@ -36,6 +40,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
+import levels.threads
 from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
 from levels.cor.resample import resample_2a
 from levels.geo.level1b import level1b_geometry
@@ -182,6 +187,39 @@ def bench_resampling(l0: Path) -> None:
     )
 
 
+def _spin(stop) -> None:  # a second process's work: the other core of a shared host
+    x = 0
+    while not stop.is_set():
+        x += 1
+
+
+@contextlib.contextmanager
+def _other_core_busy():
+    """A process spinning on another core for the block's duration."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("spawn")
+    stop = ctx.Event()
+    proc = ctx.Process(target=_spin, args=(stop,), daemon=True)
+    proc.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        proc.join(10.0)
+
+
+@contextlib.contextmanager
+def _blas_on_its_own_threads():
+    """GEO as it was: its functions' BLAS limit lifted for the block."""
+    saved = levels.threads.single_blas
+    levels.threads.single_blas = contextlib.nullcontext
+    try:
+        yield
+    finally:
+        levels.threads.single_blas = saved
+
+
 def bench_geo() -> None:
     from station.spacecraft.emulator import emulate
 
@@ -214,6 +252,16 @@ def bench_geo() -> None:
     print(
         f"\n3. GEO for a pass of {n} scenes ({n * 6000 * 1.504e-3:.0f} s of imaging), one core: "
         f"{t:.2f} s (target ≤ 1 s); {t / n * 1e3:.1f} ms per scene"
+    )
+    with _other_core_busy():
+        t_busy, _ = best(geo)
+        with _blas_on_its_own_threads():
+            geo()
+            t_own, _ = best(geo)
+    print(
+        f"   the other core busy: {t_busy:.2f} s; with OpenBLAS on its own "
+        f"{levels.threads.blas_threads()} threads (before 2026-11-25) {t_own:.2f} s "
+        f"({t_own / t_busy:.1f}×)"
     )
     import cProfile
     import pstats

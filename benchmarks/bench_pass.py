@@ -76,6 +76,16 @@ def run_pass(l0: Path, out: Path, runner: Runner) -> tuple[float, int]:
 
 
 def _peak_rss_mb() -> float:
+    """This process's peak resident set (MB): Linux's ``VmHWM``, the high-water mark of
+    its own memory map. Not ``ru_maxrss``: Linux keeps it across ``exec``, so a worker
+    spawned by a process that had emulated the pass (5.5 GB) reported the parent's peak."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 

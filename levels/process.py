@@ -59,6 +59,7 @@ from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
 from levels.spot import ORBIT_ALTITUDE_M
 from levels.tasks import InProcess, Runner, TaskFailure, raise_first
+from levels.threads import one_blas_thread
 
 __all__ = [
     "PassPlan",
@@ -205,6 +206,7 @@ def platform_records(
     )
 
 
+@one_blas_thread
 def geo_pass(
     archive: L0Archive,
     options: ProcessingOptions,
@@ -562,6 +564,7 @@ def plan_pass(
     ]
 
 
+@one_blas_thread
 def make_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
     """One scene's task: its products written, their paths and figures returned."""
     clock = time.perf_counter

@@ -19,20 +19,36 @@ pipeline copy-propagates the arrays handed to ``inline="always"`` helpers. Witho
 such call increfs and decrefs every array it takes (atomic operations): 2A's per-pixel
 helper cost 40 % that way, until its pixels went by spans (``levels.cor.resample``). In a
 hot loop, inline helpers take scalars; arrays are read in the loop itself.
+
+BLAS is the other pool on the same cores. numpy and scipy each load an OpenBLAS that starts
+a thread per core, and after every call its threads spin, waiting for the next, on the
+cores the kernels' threads want. The project's dense algebra is small (21 × 21 normal
+equations of the 2A polynomials, 3 × 3 rotations of thousands of points, RPC fits), too
+small to gain from a second thread: :func:`one_blas_thread` runs GEO and the scene tasks
+with BLAS on the calling thread. Measured on this 2-core host with the other core busy
+(2026-11-25): the Cholesky of one 5000 × 21 design 3.5 ms on OpenBLAS's 2 threads, 0.20 ms
+on one; GEO of 20 P scenes 23 → 8.5 ms a scene (``benchmarks/bench_levels.py`` section 3).
 """
 
 from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor, wait
+from contextlib import contextmanager
+from functools import cache, wraps
 from itertools import pairwise
-from typing import Any
+from typing import Any, ParamSpec, TypeVar
 
 import numba
+import scipy.linalg  # noqa: F401  (its OpenBLAS loaded before _blas() looks for them)
+from threadpoolctl import ThreadpoolController
 
-__all__ = ["over_blocks", "thread_count"]
+__all__ = ["blas_threads", "one_blas_thread", "over_blocks", "single_blas", "thread_count"]
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
 #: Chunks per thread: enough for one slow chunk (a shared host's hiccup, a block of
 #: rows with more to do) not to hold the others back, few enough to cost nothing.
@@ -98,3 +114,40 @@ def over_blocks(kernel: Callable[..., Any], n: int, *args: Any, grain: int = 1) 
     wait(futures)
     for f in futures:
         f.result()
+
+
+@cache
+def _blas() -> ThreadpoolController:
+    """The BLAS libraries loaded in this process (found once: 0.7 ms; a limit then costs
+    2 µs)."""
+    return ThreadpoolController()
+
+
+def blas_threads() -> int:
+    """Threads of the BLAS libraries loaded in this process (the largest count)."""
+    return max(
+        (lib.num_threads for lib in _blas().select(user_api="blas").lib_controllers), default=1
+    )
+
+
+@contextmanager
+def single_blas() -> Iterator[None]:
+    """BLAS on one thread inside the block (module docstring), its count restored after.
+
+    The count is the process's, not the calling thread's, and OpenBLAS takes a raise of it
+    only from some threads: blocks are meant for the thread that drives the processing (a
+    run's, or a Dask worker's task, whose BLAS is on one thread already); nested blocks in
+    it are free (2 µs)."""
+    with _blas().limit(limits=1, user_api="blas"):
+        yield
+
+
+def one_blas_thread(fn: Callable[_P, _R]) -> Callable[_P, _R]:
+    """``fn`` run inside :func:`single_blas` (a decorator for GEO's public functions)."""
+
+    @wraps(fn)
+    def wrapped(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with single_blas():
+            return fn(*args, **kwargs)
+
+    return wrapped

@@ -1,5 +1,6 @@
 """levels.threads: kernels over blocks on threads cover every item once, whatever the
-thread count, and give the same bytes; a failing chunk is raised to the caller."""
+thread count, and give the same bytes; a failing chunk is raised to the caller. BLAS runs
+on one thread inside GEO and the scene tasks, and its count comes back after."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import numba as nb
 import numpy as np
 import pytest
 
-from levels.threads import over_blocks, thread_count
+from levels.threads import blas_threads, one_blas_thread, over_blocks, single_blas, thread_count
 
 
 @nb.njit(nogil=True)
@@ -90,3 +91,40 @@ def test_a_failing_chunk_is_raised_after_the_others() -> None:
     assert 13 in missing and np.all(np.diff(missing) == 1)
     if thread_count() > 1:
         assert missing.size < 40
+
+
+def test_single_blas_nests_and_restores() -> None:
+    before = blas_threads()
+    with single_blas():
+        assert blas_threads() == 1
+        with single_blas():
+            assert blas_threads() == 1
+        assert blas_threads() == 1  # the inner block's end leaves the outer's limit
+    assert blas_threads() == before
+
+
+def test_geo_and_scene_tasks_run_blas_on_one_thread() -> None:
+    from levels.geo.level1b import level1b_geometry
+    from levels.geo.level2a import level2a_geometry
+    from levels.geo.level3 import level3_geometry
+    from levels.geo.rpc import fit_rpc
+    from levels.geo.scenes import PassGeometry, pass_geometry
+    from levels.process import geo_pass, make_scene
+
+    for fn in (
+        level1b_geometry,
+        level2a_geometry,
+        level3_geometry,
+        fit_rpc,
+        pass_geometry,
+        PassGeometry.scene,
+        geo_pass,
+        make_scene,
+    ):
+        assert getattr(fn, "__wrapped__", None) is not None, fn.__name__
+
+    @one_blas_thread
+    def probe() -> int:
+        return blas_threads()
+
+    assert probe() == 1

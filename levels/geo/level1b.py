@@ -33,6 +33,7 @@ from levels.geo.polynomial import Poly1D
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
 from levels.quality import raw_error_stats
+from levels.threads import one_blas_thread
 
 __all__ = ["N_BREAKPOINTS", "Level1BGeometry", "TangentPlane", "level1b_geometry", "raw_border"]
 
@@ -238,6 +239,7 @@ class Level1BGeometry:
         return raw_error_stats(dl[ok], dc[ok])
 
 
+@one_blas_thread
 def level1b_geometry(
     scene: SceneGeometry,
     pixel_size_m: float,

@@ -48,6 +48,7 @@ from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
 from levels.geometry.sensor import butting_columns
 from levels.quality import raw_error_stats
+from levels.threads import one_blas_thread
 
 __all__ = [
     "INVERSE_METHODS",
@@ -376,6 +377,7 @@ def _order(method: str) -> int:
     return int(method[-1])
 
 
+@one_blas_thread
 def level2a_geometry(
     scene: SceneGeometry,
     pixel_size_m: float,

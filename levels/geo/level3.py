@@ -49,6 +49,7 @@ from levels.geo.scenes import SceneGeometry
 from levels.geometry.dem import Dem, bilinear_surface, geoid_to_ellipsoid
 from levels.geometry.sensor import butting_columns
 from levels.quality import raw_error_stats
+from levels.threads import one_blas_thread
 
 __all__ = [
     "ANCHOR_TOLERANCE_PX",
@@ -383,6 +384,7 @@ def _dem_spacing_m(dem: Dem, lat_rad: float) -> float:
     return float(min(sx, sy))
 
 
+@one_blas_thread
 def level3_geometry(
     scene: SceneGeometry,
     dem: Dem,

@@ -41,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from levels.errors import GeometryError
 from levels.geo.level1b import Level1BGeometry
 from levels.geometry.model import PushbroomModel
+from levels.threads import one_blas_thread
 
 __all__ = [
     "RPC_CHECK_LATTICE",
@@ -260,6 +261,7 @@ def _solve(
     return x[:20], np.concatenate([[1.0], x[20:]])
 
 
+@one_blas_thread
 def fit_rpc(
     to_ground: Callable[
         [NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],

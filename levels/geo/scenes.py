@@ -33,6 +33,7 @@ from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.model import LineClock, PushbroomModel
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch
+from levels.threads import one_blas_thread
 
 __all__ = ["PassGeometry", "SceneCut", "SceneGeometry", "cut_scenes", "pass_geometry"]
 
@@ -151,6 +152,7 @@ class PassGeometry:
         t0, period = self._clock_fit  # type: ignore[attr-defined]
         return LineClock(t0 + period * first_line, 0.0, period)
 
+    @one_blas_thread
     def scene(
         self,
         cut: SceneCut,
@@ -270,6 +272,7 @@ class PassGeometry:
         return self.n_lines - (cuts[-1].first_line + cuts[-1].n_lines)
 
 
+@one_blas_thread
 def pass_geometry(
     epoch: Epoch,
     line_t_s: NDArray[np.float64],
