@@ -26,6 +26,7 @@ imports it.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import os
 import uuid
 from collections.abc import Callable, Iterable, Iterator
@@ -130,13 +131,14 @@ class InProcess:
 
 class DaskRunner:
     """Tasks as futures of a ``distributed.Client`` (module docstring). Task keys are the
-    task's name and a token of this runner, so that two runs on one cluster never share a
-    result."""
+    task's name, a token of this runner and a serial number, so that neither two runs on
+    one cluster nor one runner's two submissions of a name ever share a result."""
 
     def __init__(self, client: Any, kernel_threads: int = 0) -> None:
         self.client = client
         self.kernel_threads = kernel_threads  # 0: the workers' own NUMBA_NUM_THREADS
         self._token = uuid.uuid4().hex[:8]
+        self._serial = itertools.count()
         self._names: dict[str, str] = {}
 
     @property
@@ -151,7 +153,10 @@ class DaskRunner:
         return self.client.scatter(obj, broadcast=True, hash=False)
 
     def submit(self, name: str, fn: Callable[..., Any], *args: Any) -> Any:
-        key = f"{name}-{self._token}"
+        # a key of its own for every submission: a task submitted again under a key the
+        # scheduler still holds (its release on the way) would not run, its old result
+        # standing for the new one (a pass made twice on one runner lost products so)
+        key = f"{name}-{self._token}-{next(self._serial)}"
         self._names[key] = name
         if self.kernel_threads:
             return self.client.submit(

@@ -229,6 +229,25 @@ def test_a_bug_in_one_scene_is_raised_after_the_others(archives, tmp_path, monke
     assert entry["scenes"] == 3
 
 
+def _stamp() -> int:
+    return time.perf_counter_ns()
+
+
+def test_a_task_submitted_again_runs_again(cluster) -> None:
+    """A runner that makes the same pass twice (a benchmark, a library caller) submits the
+    same task names twice: each submission must run, not stand for the one before (whose
+    release is still on its way to the scheduler when the next is submitted)."""
+    from levels.tasks import DaskRunner
+
+    with distributed.Client(cluster, timeout=START_S) as client:
+        runner = DaskRunner(client)
+        stamps = []
+        for _ in range(5):
+            [(_, stamp)] = runner.completed([runner.submit("pass-s000", _stamp)])
+            stamps.append(stamp)
+    assert len(set(stamps)) == len(stamps), stamps
+
+
 def test_in_process_tasks_run_in_order_and_failures_carry_their_name() -> None:
     runner = InProcess()
     handles = [runner.submit(f"t{k}", lambda k: 10 // k, k) for k in (1, 0, 5)]
