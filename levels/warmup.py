@@ -58,6 +58,7 @@ def _kernels() -> list:
         radiometry._fir_along_columns,
         resample._kernel_1b,
         resample._kernel_2a,
+        resample._kernel_nan,
         inverse_grid.invert_nodes,
         fletcher32,
     ]

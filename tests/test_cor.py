@@ -26,11 +26,18 @@ FLOAT32_COUNTS = 1e-3
 
 
 @pytest.fixture(scope="module")
-def geometry():
+def scene():
+    """A 400 × 400 scene (4 CCDs of 100 detectors) and its pixel size."""
     acq = emulate(
         scenario_from_dict({"instrument": {"n_detectors": 400, "n_lines": 400}}), render=False
     )
     _pg, scene, res = emulated_scene(acq, 400)
+    return scene, res
+
+
+@pytest.fixture(scope="module")
+def geometry(scene):
+    scene, res = scene
     g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad))
     return level1b_geometry(scene, res), g2
 
@@ -119,6 +126,26 @@ def test_2a_tiles_equal_whole(geometry, method) -> None:
         assert np.array_equal(tok, ok[rows, cols])
     # a pixel is valid only if every raw pixel it uses is
     assert ok.mean() < resample_2a(img, np.ones_like(valid), g2, method)[1].mean()
+
+
+@pytest.mark.parametrize("method", ["nearest", "bilinear", "cubic"])
+def test_2a_spans_and_pieces_equal_pixel_by_pixel(scene, method) -> None:
+    """With inverse-grid cells 30 pixels wide (a full scene's), a row's pixels go by spans
+    (one cell's pixels at once), spans across a CCD butting or an image edge by pieces of
+    8, and the rest pixel by pixel: each must give the bytes of its pixel computed alone
+    (a tile one column wide, where every span is one pixel)."""
+    scene, res = scene
+    crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
+    wide = level2a_geometry(scene, res, crs, inverse_step_px=30)
+    assert wide.inverse_step == (30, 30) and wide.segment_first_column.size == 4
+    rng = np.random.default_rng(11)
+    img = (rng.random((400, 400)) * 200).astype(np.float32)
+    img = with_nan(img, rng.random((400, 400)) > 0.002)
+    whole, ok = resample_2a(img, None, wide, method)
+    cols = [resample_2a(img, None, wide, method, cols=slice(j, j + 1)) for j in range(wide.n_cols)]
+    assert np.array_equal(whole, np.hstack([c[0] for c in cols]))
+    assert np.array_equal(ok, np.hstack([c[1] for c in cols]))
+    assert 0.4 < ok.mean() < 0.9
 
 
 @pytest.mark.parametrize("interpolation", ["nearest", "cubic"])

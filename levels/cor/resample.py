@@ -364,6 +364,10 @@ def _span_inside(
 #: reads stay in cache (the raw footprint of a block is about as large as the block).
 _BLOCK_ROWS = 32
 _BLOCK_COLS = 256
+#: Pixels of a piece, when a span across a CCD butting or an image edge is cut so that
+#: most of it still goes by the span path (8: 5 % faster on the default scene; 4: no
+#: faster than whole spans pixel by pixel, 2026-11-25).
+_PIECE = 8
 
 
 @nb.njit(cache=True, nogil=True, fastmath=_FAST)
@@ -445,22 +449,66 @@ def _kernel_2a(lo, hi, img, step_i, step_j, inv_line, inv_col, seg_of, row0, col
                     ):
                         k = k_end
                         continue
-                    for kk in range(k, k_end):
-                        v = (col0 + kk - b * step_j) * inv_step_j
-                        c = (1.0 - v) * c_b + v * c_b1
-                        val = _pixel_2a(img, c, b, v, line_row, seg_of, method)
-                        if val == val:
-                            out[r, kk] = _store(val)
-                            ok[r, kk] = True
-                        else:
-                            out[r, kk] = 0
-                            ok[r, kk] = False
+                    # a span across a butting or an image edge: its pieces that read
+                    # inside the image and one segment still go by the span path, the
+                    # others pixel by pixel (_pixel_2a: each tap column on its own
+                    # segment's line)
+                    for p_lo in range(k, k_end, _PIECE):
+                        p_hi = min(p_lo + _PIECE, k_end)
+                        o_p = o + p_lo - k
+                        n_p = p_hi - p_lo
+                        if _span_inside(
+                            img,
+                            flat,
+                            c_b,
+                            c_b1,
+                            b,
+                            o_p,
+                            inv_step_j,
+                            n_p,
+                            _lerp(c_b, c_b1, o_p * inv_step_j),
+                            _lerp(c_b, c_b1, (o_p + n_p - 1) * inv_step_j),
+                            line_row,
+                            seg_of,
+                            method,
+                            out,
+                            ok,
+                            r,
+                            p_lo,
+                            scratch,
+                            bases,
+                        ):
+                            continue
+                        for kk in range(p_lo, p_hi):
+                            v = (col0 + kk - b * step_j) * inv_step_j
+                            c = (1.0 - v) * c_b + v * c_b1
+                            val = _pixel_2a(img, c, b, v, line_row, seg_of, method)
+                            if val == val:
+                                out[r, kk] = _store(val)
+                                ok[r, kk] = True
+                            else:
+                                out[r, kk] = 0
+                                ok[r, kk] = False
                     k = k_end
 
 
+@nb.njit(cache=True, nogil=True)
+def _kernel_nan(lo, hi, image, valid, out):
+    """Rows ``lo … hi − 1`` of :func:`with_nan`."""
+    nan = np.float32(np.nan)
+    for i in range(lo, hi):
+        for j in range(image.shape[1]):
+            out[i, j] = image[i, j] if valid[i, j] else nan
+
+
 def with_nan(image: NDArray[np.float32], valid: NDArray[np.bool_]) -> NDArray[np.float32]:
-    """The image as the 2A kernel reads it: float32, NaN where not valid."""
-    return np.where(valid, image, np.float32(np.nan)).astype(np.float32, copy=False)
+    """The image as the 2A kernel reads it: float32, NaN where not valid (a full P scene:
+    0.019 s on one thread, ``np.where`` 0.030 s)."""
+    if image.dtype != np.float32 or image.ndim != 2 or valid.shape != image.shape:
+        return np.where(valid, image, np.float32(np.nan)).astype(np.float32, copy=False)
+    out = np.empty(image.shape, dtype=np.float32)
+    over_blocks(_kernel_nan, image.shape[0], image, valid.astype(bool, copy=False), out, grain=64)
+    return out
 
 
 def resample_2a(
