@@ -503,7 +503,7 @@ def _kernel_nan(lo, hi, image, valid, out):
 
 def with_nan(image: NDArray[np.float32], valid: NDArray[np.bool_]) -> NDArray[np.float32]:
     """The image as the 2A kernel reads it: float32, NaN where not valid (a full P scene:
-    0.019 s on one thread, ``np.where`` 0.030 s)."""
+    0.017 s on one thread, ``np.where`` 0.030 s)."""
     if image.dtype != np.float32 or image.ndim != 2 or valid.shape != image.shape:
         return np.where(valid, image, np.float32(np.nan)).astype(np.float32, copy=False)
     out = np.empty(image.shape, dtype=np.float32)
