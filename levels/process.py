@@ -636,13 +636,13 @@ def make_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         t = clock()
         dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
         timings["deconvolution"] = timings.get("deconvolution", 0.0) + clock() - t
+        nan_dec = with_nan(dec, dvalid)  # what every resampling reads
         if g1b is not None:
             t = clock()
             images["1B"][bname] = BandImage(
-                *resample_1b(dec, dvalid, g1b[bname], opt.interpolation_1b)
+                *resample_1b(nan_dec, None, g1b[bname], opt.interpolation_1b)
             )
             timings["1B"] = timings.get("1B", 0.0) + clock() - t
-        nan_dec = with_nan(dec, dvalid) if maps or g3 is not None else None
         for level, grids in maps.items():
             if level in opt.levels:  # 2A's grids may be there for level 2's checkpoints only
                 t = clock()

@@ -149,6 +149,33 @@ def test_2a_spans_and_pieces_equal_pixel_by_pixel(scene, method) -> None:
 
 
 @pytest.mark.parametrize("interpolation", ["nearest", "cubic"])
+def test_1b_pixel_is_valid_when_every_raw_pixel_it_reads_is(geometry, interpolation) -> None:
+    """The mask of 1B, against the raw pixels each output pixel reads by INPE's f, g, h
+    (one raw line, ``f(I)`` rounded; one column, or Keys' four, edge columns replicated);
+    and the same bytes whether the kernel is given the mask or the NaN image."""
+    g1, _g2 = geometry
+    rng = np.random.default_rng(2)
+    img = (rng.random((400, 400)) * 200).astype(np.float32)
+    valid = rng.random((400, 400)) > 0.02
+    out, ok = resample_1b(img, valid, g1, interpolation)
+    i, j = np.mgrid[0 : g1.n_rows, 0 : g1.n_cols]
+    line, col = g1.raw_of(i.ravel(), j.ravel())
+    li = np.floor(line + 0.5).astype(int)
+    inside = (li >= 0) & (li < 400) & (col >= -0.5) & (col <= 399.5)
+    if interpolation == "cubic":
+        first = np.floor(col).astype(int) - 1
+        taps = np.clip(first[:, None] + np.arange(4), 0, 399)
+    else:
+        taps = np.clip(np.floor(col + 0.5).astype(int), 0, 399)[:, None]
+    reads_valid = valid[np.clip(li, 0, 399)[:, None], taps].all(axis=1)
+    expected = (inside & reads_valid).reshape(ok.shape)
+    assert np.array_equal(ok, expected)
+    assert 0.3 < ok.mean() < 0.95 and not out[~ok].any()
+    again = resample_1b(with_nan(img, valid), None, g1, interpolation)
+    assert np.array_equal(again[0], out) and np.array_equal(again[1], ok)
+
+
+@pytest.mark.parametrize("interpolation", ["nearest", "cubic"])
 def test_1b_kernel(geometry, interpolation) -> None:
     g1, _g2 = geometry
     img = _ramp(400, 400)

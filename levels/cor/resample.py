@@ -84,48 +84,61 @@ def _store(v: float) -> np.uint8:
 
 
 @nb.njit(cache=True, nogil=True, fastmath=_FAST)
-def _kernel_1b(lo, hi, img, valid, f, g, h, row0, col0, cubic, out, ok):
+def _kernel_1b(lo, hi, img, f, g, h, row0, col0, cubic, out, ok):
+    """Rows ``lo … hi − 1`` of a 1B image: ``img`` float32 with NaN where not valid (a pixel
+    is valid if every raw pixel it reads is). A row reads one raw line, ``f(I)`` rounded,
+    at columns ``g(J − h(I))``: those come first, in one loop the compiler vectorises;
+    then each pixel's taps (edge columns replicated) and a branch-free store."""
     n_lines, n_cols = img.shape
+    n_out = out.shape[1]
+    flat = img.reshape(img.size)
+    cs = np.empty(n_out)
     for r in range(lo, hi):
         i = float(row0 + r)
         line = int(np.floor(_poly(f, i) + 0.5))
+        if line < 0 or line >= n_lines:
+            for k in range(n_out):
+                out[r, k] = 0
+                ok[r, k] = False
+            continue
         skew = _poly(h, i)
-        for k in range(out.shape[1]):
-            out[r, k] = 0
-            ok[r, k] = False
-            if line < 0 or line >= n_lines:
-                continue
-            c = _poly(g, float(col0 + k) - skew)
-            if c < -0.5 or c > n_cols - 0.5:
-                continue
-            if not cubic:
-                ci = min(max(int(np.floor(c + 0.5)), 0), n_cols - 1)
-                if valid[line, ci]:
-                    out[r, k] = _store(img[line, ci])
-                    ok[r, k] = True
-                continue
-            cf = np.floor(c)
-            w = _keys(c - cf)
-            acc = 0.0
-            good = True
-            for m in range(4):
-                cm = min(max(int(cf) - 1 + m, 0), n_cols - 1)
-                good &= valid[line, cm]
-                acc += w[m] * img[line, cm]
-            if good:
-                out[r, k] = _store(acc)
-                ok[r, k] = True
+        for k in range(n_out):
+            cs[k] = _poly(g, float(col0 + k) - skew)
+        base = line * n_cols
+        for k in range(n_out):
+            c = cs[k]
+            inside = c >= -0.5 and c <= n_cols - 0.5
+            if cubic:
+                cf = np.floor(c)
+                w0, w1, w2, w3 = _keys(c - cf)
+                ic = int(cf) if inside else 0
+                acc = 0.0
+                acc += w0 * flat[base + min(max(ic - 1, 0), n_cols - 1)]
+                acc += w1 * flat[base + min(max(ic, 0), n_cols - 1)]
+                acc += w2 * flat[base + min(max(ic + 1, 0), n_cols - 1)]
+                acc += w3 * flat[base + min(max(ic + 2, 0), n_cols - 1)]
+            else:
+                ci = min(max(int(np.floor(c + 0.5)), 0), n_cols - 1) if inside else 0
+                acc = flat[base + ci]
+            good = inside and acc == acc
+            x = min(max(acc, 0.0), 255.0) if good else 0.0
+            out[r, k] = np.uint8(np.int32(x + 0.5))  # x + 0.5 ≥ 0: truncation is floor (_store)
+            ok[r, k] = good
 
 
 def resample_1b(
     image: NDArray[np.float32],
-    valid: NDArray[np.bool_],
+    valid: NDArray[np.bool_] | None,
     geom: Level1BGeometry,
     interpolation: str = "cubic",
     rows: slice | None = None,
     cols: slice | None = None,
 ) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
-    """Level 1B image (or a tile of it: ``rows``, ``cols`` of the output) and its mask."""
+    """Level 1B image (or a tile of it: ``rows``, ``cols`` of the output) and its mask.
+
+    ``valid=None`` means ``image`` already holds NaN where not valid (:func:`with_nan`), as
+    for :func:`resample_2a`: the scene's 1B and map levels read one such image.
+    """
     if interpolation not in INTERPOLATIONS_1B:
         raise ValueError(f"1B interpolation {interpolation!r}: expected one of {INTERPOLATIONS_1B}")
     r0, r1, _ = (rows or slice(0, geom.n_rows)).indices(geom.n_rows)
@@ -135,8 +148,7 @@ def resample_1b(
     over_blocks(
         _kernel_1b,
         out.shape[0],
-        np.ascontiguousarray(image, dtype=np.float32),
-        np.ascontiguousarray(valid),
+        np.ascontiguousarray(image if valid is None else with_nan(image, valid), dtype=np.float32),
         geom.f.as_array(),
         geom.g.as_array(),
         geom.h.as_array(),
