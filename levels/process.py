@@ -637,6 +637,7 @@ def make_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
         dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
         timings["deconvolution"] = timings.get("deconvolution", 0.0) + clock() - t
         nan_dec = with_nan(dec, dvalid)  # what every resampling reads
+        del cal, dec  # (a full P scene: 144 MB each) not read again
         if g1b is not None:
             t = clock()
             images["1B"][bname] = BandImage(
