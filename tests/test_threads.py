@@ -93,6 +93,9 @@ def test_a_failing_chunk_is_raised_after_the_others() -> None:
         assert missing.size < 40
 
 
+@pytest.mark.skipif(
+    blas_threads() < 2, reason="BLAS on one thread already: a limit to one would show nothing"
+)
 def test_single_blas_nests_and_restores() -> None:
     before = blas_threads()
     with single_blas():

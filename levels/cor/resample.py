@@ -79,12 +79,13 @@ def _poly(p: NDArray[np.float64], x: float) -> float:
 
 
 @nb.njit(cache=True, inline="always", fastmath=_FAST)
-def _store(v: float) -> np.uint8:
-    if v <= 0.0:
-        return np.uint8(0)
-    if v >= 255.0:
-        return np.uint8(255)
-    return np.uint8(np.floor(v + 0.5))
+def _byte(v: float) -> tuple[np.uint8, bool]:
+    """An output pixel's byte and validity from its value: rounded and clipped to 0–255;
+    NaN (a raw pixel read not valid, or outside) gives 0, not valid. Branch-free, so that
+    the loops storing spans vectorise."""
+    good = v == v
+    x = min(max(v, 0.0), 255.0) if good else 0.0
+    return np.uint8(np.int32(x + 0.5)), good  # x + 0.5 ≥ 0: truncation is floor
 
 
 @nb.njit(cache=True, nogil=True, fastmath=_FAST)
@@ -124,10 +125,7 @@ def _kernel_1b(lo, hi, img, f, g, h, row0, col0, cubic, out, ok):
             else:
                 ci = min(max(int(np.floor(c + 0.5)), 0), n_cols - 1) if inside else 0
                 acc = flat[base + ci]
-            good = inside and acc == acc
-            x = min(max(acc, 0.0), 255.0) if good else 0.0
-            out[r, k] = np.uint8(np.int32(x + 0.5))  # x + 0.5 ≥ 0: truncation is floor (_store)
-            ok[r, k] = good
+            out[r, k], ok[r, k] = _byte(acc if inside else np.nan)
 
 
 def resample_1b(
@@ -370,11 +368,7 @@ def _span_inside(
                 )
             )
     for j in range(n):
-        val = scratch[8, j]
-        good = val == val
-        x = min(max(val, 0.0), 255.0) if good else 0.0
-        out[r, k + j] = np.uint8(np.int32(x + 0.5))  # x + 0.5 ≥ 0: truncation is floor (_store)
-        ok[r, k + j] = good
+        out[r, k + j], ok[r, k + j] = _byte(scratch[8, j])
     return True
 
 
@@ -444,38 +438,16 @@ def _kernel_2a(lo, hi, img, step_i, step_j, inv_line, inv_col, seg_of, row0, col
                         ok[r, k:k_end] = False
                         k = k_end
                         continue
-                    if _span_inside(
-                        img,
-                        flat,
-                        c_b,
-                        c_b1,
-                        b,
-                        o,
-                        inv_step_j,
-                        n,
-                        c_a,
-                        c_z,
-                        line_row,
-                        seg_of,
-                        method,
-                        out,
-                        ok,
-                        r,
-                        k,
-                        scratch,
-                        bases,
-                    ):
-                        k = k_end
-                        continue
-                    # a span across a butting or an image edge: its pieces that read
-                    # inside the image and one segment still go by the span path, the
-                    # others pixel by pixel (_pixel_2a: each tap column on its own
+                    # the span whole, and if it reads across a butting or an image edge,
+                    # pieces of it (most still read inside the image and one segment);
+                    # what is left pixel by pixel (_pixel_2a: each tap column on its own
                     # segment's line)
-                    for p_lo in range(k, k_end, _PIECE):
-                        p_hi = min(p_lo + _PIECE, k_end)
+                    size, p_lo = n, k
+                    while p_lo < k_end:
+                        p_hi = min(p_lo + size, k_end)
                         o_p = o + p_lo - k
                         n_p = p_hi - p_lo
-                        if _span_inside(
+                        if not _span_inside(
                             img,
                             flat,
                             c_b,
@@ -496,17 +468,15 @@ def _kernel_2a(lo, hi, img, step_i, step_j, inv_line, inv_col, seg_of, row0, col
                             scratch,
                             bases,
                         ):
-                            continue
-                        for kk in range(p_lo, p_hi):
-                            v = (col0 + kk - b * step_j) * inv_step_j
-                            c = (1.0 - v) * c_b + v * c_b1
-                            val = _pixel_2a(img, c, b, v, line_row, seg_of, method)
-                            if val == val:
-                                out[r, kk] = _store(val)
-                                ok[r, kk] = True
-                            else:
-                                out[r, kk] = 0
-                                ok[r, kk] = False
+                            if size > _PIECE:
+                                size = _PIECE
+                                continue
+                            for kk in range(p_lo, p_hi):
+                                v = (col0 + kk - b * step_j) * inv_step_j
+                                c = (1.0 - v) * c_b + v * c_b1
+                                val = _pixel_2a(img, c, b, v, line_row, seg_of, method)
+                                out[r, kk], ok[r, kk] = _byte(val)
+                        p_lo = p_hi
                     k = k_end
 
 
@@ -878,12 +848,7 @@ def _sample_span(img, seg_of, span, r, k_lo, k_hi, method, zbuf, ztol, out, ok, 
                     acc += wc[m] * _sample_column(img, line, cm, n_lines, cubic)
                 val = acc
         hidden[r, k] = hid
-        if val == val:
-            out[r, k] = _store(val)
-            ok[r, k] = True
-        else:
-            out[r, k] = 0
-            ok[r, k] = False
+        out[r, k], ok[r, k] = _byte(val)
 
 
 @nb.njit(cache=True, nogil=True, fastmath=_FAST)
