@@ -24,7 +24,7 @@ import numpy as np
 
 from levels.adjust import adjust
 from levels.options import ProcessingOptions
-from levels.process import process_l0
+from levels.process import ProcessingRequest, process
 from levels.readers.gcp import read_gcps, write_gcps
 from levels.readers.l0 import read_l0
 from station.scenario import scenario_from_dict
@@ -85,9 +85,10 @@ def bench_scene() -> None:
         for levels in (("2A",), ("2",)):
             best = None
             for _ in range(2):
-                made = process_l0(
+                request = ProcessingRequest.of(
                     archive, ProcessingOptions(levels=levels), Path(tmp) / "p", gcps=gcps
                 )
+                [made] = process(request)
                 t = dict(made.scenes[0].timings_s)
                 t["adjust"] = made.timings_s.get("adjust", 0.0)
                 total = sum(t.values())

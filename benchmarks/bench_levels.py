@@ -47,7 +47,7 @@ from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import level2a_geometry, map_crs
 from levels.geo.scenes import pass_geometry
 from levels.options import ProcessingOptions
-from levels.process import nominal_pixel_size_m, process_l0
+from levels.process import ProcessingRequest, nominal_pixel_size_m, process
 from levels.readers.l0 import read_l0
 from station.scenario import scenario_from_dict
 
@@ -74,7 +74,7 @@ def make_l0(directory: Path) -> Path:
 
 def bench_chain(l0: Path, out: Path) -> None:
     cfg = ProcessingOptions()
-    t_total, result = best(lambda: process_l0(read_l0(l0), cfg, out, name="bench"))
+    t_total, result = best(lambda: process(ProcessingRequest.of(read_l0(l0), cfg, out, "bench"))[0])
     scene = result.scenes[0]
     print(
         f"\n1. L0 → 1A, 1B, 2A, full P scene, {numba.get_num_threads()} threads: "

@@ -102,13 +102,13 @@ def warp_check(l0: Path) -> None:
 
     from levels.export import write_geotiff
     from levels.options import ProcessingOptions
-    from levels.process import process_l0
+    from levels.process import ProcessingRequest, process
     from levels.products import read_product
     from levels.readers.l0 import read_l0
 
     with tempfile.TemporaryDirectory() as tmp:
         opts = dataclasses.replace(ProcessingOptions(), levels=("1A", "2A"))
-        result = process_l0(read_l0(l0), opts, Path(tmp), name="rpcwarp")
+        result = process(ProcessingRequest.of(read_l0(l0), opts, Path(tmp), "rpcwarp"))[0]
         scene = result.scenes[0]
         p1, p2 = (read_product(scene.paths[k]) for k in ("1A", "2A"))
         tif = write_geotiff(p1, Path(tmp) / "1a.tif")

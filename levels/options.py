@@ -17,11 +17,25 @@ from __future__ import annotations
 
 import math
 import typing
+from collections.abc import Callable
 from dataclasses import MISSING, dataclass, field, fields
+from enum import StrEnum
 from typing import Any
 
+from levels.choices import (
+    AdjustmentScope,
+    DemVertical,
+    GridColumns,
+    GridRows,
+    Interpolation1B,
+    InverseMethod,
+    Level,
+    Resampling,
+    RobustLoss,
+)
 from levels.errors import OptionsError
 from levels.hdf5 import DEFLATE_LEVEL
+from levels.registry import level_names
 
 __all__ = [
     "LEVELS",
@@ -32,8 +46,9 @@ __all__ = [
     "option",
 ]
 
-#: Levels the processing centre makes, in processing order.
-LEVELS = ("1A", "1B", "2A", "2", "3")
+#: The built-in levels, in processing order (:class:`levels.choices.Level`; more can be
+#: registered, :mod:`levels.registry`).
+LEVELS = tuple(str(lv) for lv in Level)
 
 _URAD = 1e-6
 
@@ -45,11 +60,13 @@ def option(
     scale: float = 1.0,
     lo: float | None = None,
     hi: float | None = None,
-    choices: tuple[str, ...] | None = None,
+    choices: tuple[str, ...] | Callable[[], tuple[str, ...]] | None = None,
 ) -> Any:
     """Declare a field: TOML ``key`` (unit-suffixed), factor to SI, range, meaning.
 
     ``default`` is given in TOML units (degrees, km, µrad) and converted like a read value.
+    ``choices``: the allowed strings, or a function giving them when a value is checked
+    (the registered levels); a field typed as a :class:`~enum.StrEnum` takes its members.
     """
     meta = {"key": key, "doc": doc, "scale": scale, "lo": lo, "hi": hi, "choices": choices}
     if isinstance(default, list | tuple) and all(isinstance(v, str) for v in default):
@@ -62,12 +79,21 @@ def option(
     return field(default=default, metadata=meta)
 
 
-def describe_value(meta: dict[str, Any], typ: Any) -> str:
+def choices_of(meta: Any, typ: Any = None) -> tuple[str, ...]:
+    """The strings a declared field accepts: its enum's members, or its ``choices``."""
+    if isinstance(typ, type) and issubclass(typ, StrEnum):
+        return tuple(str(m) for m in typ)
+    given = meta["choices"]
+    return tuple(given()) if callable(given) else tuple(given or ())
+
+
+def describe_value(meta: Any, typ: Any) -> str:
     """What a declared field accepts, in words ("a number in [0, 5]", "one of 'P', 'XS'")."""
-    if meta["choices"] and typing.get_args(typ) == (str, Ellipsis):
-        return "a list, without repeats, of " + ", ".join(repr(c) for c in meta["choices"])
-    if meta["choices"]:
-        return "one of " + ", ".join(repr(c) for c in meta["choices"])
+    choices = choices_of(meta, typ)
+    if choices and typing.get_args(typ) == (str, Ellipsis):
+        return "a list, without repeats, of " + ", ".join(repr(c) for c in choices)
+    if choices:
+        return "one of " + ", ".join(repr(c) for c in choices)
     kind = {int: "an integer", float: "a number", str: "a string", bool: "true or false"}.get(
         typ, ""
     )
@@ -101,10 +127,14 @@ def _convert(section: str, f: Any, typ: Any, value: Any, error: type[Exception])
         if not isinstance(value, bool):
             raise bad()
         return value
+    if isinstance(typ, type) and issubclass(typ, StrEnum):
+        if not isinstance(value, str) or value not in choices_of(meta, typ):
+            raise bad()
+        return typ(value)
     if typ is str:
         if not isinstance(value, str):
             raise bad()
-        if meta["choices"] and value not in meta["choices"]:
+        if meta["choices"] and value not in choices_of(meta):
             raise bad()
         return value
     if typ is int:
@@ -119,7 +149,7 @@ def _convert(section: str, f: Any, typ: Any, value: Any, error: type[Exception])
             not isinstance(value, list)
             or not value
             or len(set(value)) != len(value)
-            or any(v not in (meta["choices"] or ()) for v in value)
+            or any(v not in choices_of(meta) for v in value)
         ):
             raise bad()
         return tuple(value)
@@ -169,7 +199,9 @@ def describe_section(section: str, cls: type) -> list[str]:
         if "key" not in meta:
             continue
         default = f.default if f.default is not MISSING else None
-        if isinstance(default, float):
+        if isinstance(default, StrEnum):
+            default = str(default)
+        elif isinstance(default, float):
             default = default / meta["scale"]
         elif isinstance(default, tuple):
             default = [v if isinstance(v, str) else round(v / meta["scale"], 12) for v in default]
@@ -193,7 +225,7 @@ class ProcessingOptions:
         "levels",
         "levels to produce (2: with control points; 3: over a DEM, on level 2's model when 2 "
         "is made too)",
-        choices=LEVELS,
+        choices=level_names,
     )
     scene_lines: int = option(
         0, "scene_lines", "lines per scene (0: as many as detectors)", lo=0, hi=10**6
@@ -212,30 +244,21 @@ class ProcessingOptions:
         0.0,
         10000.0,
     )
-    interpolation_1b: str = option(
-        "cubic", "interpolation_1b", "1B column interpolation", choices=("nearest", "cubic")
+    interpolation_1b: Interpolation1B = option(
+        Interpolation1B.CUBIC, "interpolation_1b", "1B column interpolation"
     )
-    resampling_2a: str = option(
-        "cubic", "resampling_2a", "2A resampling", choices=("nearest", "bilinear", "cubic")
-    )
-    inverse_2a: str = option(
-        "nearest4",
-        "inverse_2a",
-        "2A inverse mapping",
-        choices=("nearest4", "poly3", "poly4", "poly5"),
-    )
-    grid_rows: str = option(
-        "attitude",
+    resampling_2a: Resampling = option(Resampling.CUBIC, "resampling_2a", "2A resampling")
+    inverse_2a: InverseMethod = option(InverseMethod.NEAREST4, "inverse_2a", "2A inverse mapping")
+    grid_rows: GridRows = option(
+        GridRows.ATTITUDE,
         "grid_rows",
         "2A direct-grid rows: at the attitude samples or INPE's regular 61",
-        choices=("attitude", "regular"),
     )
-    grid_columns: str = option(
-        "butting",
+    grid_columns: GridColumns = option(
+        GridColumns.BUTTING,
         "grid_columns",
         "2A direct-grid columns: INPE's 61 plus both sides of each CCD butting, or INPE's "
         "regular 61 only (with grid_rows = 'regular': INPE's exact 61 × 61)",
-        choices=("butting", "regular"),
     )
     crs: str = option("utm", "crs", "2A map: 'utm' (zone of the centre), 'som', or EPSG/WKT")
     deconvolution: bool = option(True, "deconvolution", "deconvolve 1B and 2A")
@@ -259,12 +282,11 @@ class ProcessingOptions:
         1e-4,
         10.0,
     )
-    adjustment: str = option(
-        "pass",
+    adjustment: AdjustmentScope = option(
+        AdjustmentScope.PASS,
         "adjustment",
         "level 2: one adjustment over the whole pass (Westin), each scene alone, or both "
         "HRVs of a twin pass together (one platform: points in one HRV refine the other)",
-        choices=("pass", "scene", "twin"),
     )
     prior_ephemeris_m: tuple[float, float, float] = option(
         [300.0, 150.0, 50.0],
@@ -314,11 +336,10 @@ class ProcessingOptions:
         1e-3,
         100.0,
     )
-    robust_loss: str = option(
-        "soft_l1",
+    robust_loss: RobustLoss = option(
+        RobustLoss.SOFT_L1,
         "robust_loss",
         "level 2: loss of the first fit, before blunders are rejected",
-        choices=("linear", "soft_l1", "huber", "cauchy"),
     )
     blunder_threshold: float = option(
         4.0,
@@ -335,12 +356,11 @@ class ProcessingOptions:
         "scenario or options file; empty: the scenario's [dem] export, or <name>.dem.tif "
         "beside the L0 archive",
     )
-    dem_vertical: str = option(
-        "ellipsoid",
+    dem_vertical: DemVertical = option(
+        DemVertical.ELLIPSOID,
         "dem_vertical",
         "level 3: the DEM's heights are above the WGS84 ellipsoid, or the EGM96 geoid "
         "(SRTM, DTED: needs PROJ's us_nga_egm96_15.tif grid)",
-        choices=("ellipsoid", "egm96"),
     )
     checkpoints_per_side: int = option(
         11, "checkpoints_per_side", "checkpoint lattice of the quality figures", lo=2, hi=101
@@ -362,12 +382,25 @@ class ProcessingOptions:
                     f"crs = {self.crs!r}: not a CRS PROJ knows ({exc}); use 'utm', 'som', an "
                     "EPSG code ('EPSG:32721') or a WKT"
                 ) from None
-        bad = [lv for lv in self.levels if lv not in LEVELS]
+        known = level_names()
+        bad = [lv for lv in self.levels if lv not in known]
         if bad:
             raise OptionsError(
                 f"levels = {list(self.levels)}: {bad[0]!r} is not a level "
-                f"this processing centre makes; expected some of {list(LEVELS)}"
+                f"this processing centre makes; expected some of {list(known)}"
             )
+        # enum fields given as plain strings (in code, not TOML) become their members
+        for f in fields(self):
+            typ = _ENUM_FIELDS.get(f.name)
+            value = getattr(self, f.name)
+            if typ is not None and not isinstance(value, typ):
+                try:
+                    object.__setattr__(self, f.name, typ(value))
+                except ValueError:
+                    raise OptionsError(
+                        f"{f.metadata['key']} = {value!r}: expected one of "
+                        f"{', '.join(repr(str(m)) for m in typ)}"
+                    ) from None
 
     @classmethod
     def from_table(
@@ -375,3 +408,11 @@ class ProcessingOptions:
     ) -> ProcessingOptions:
         """Options from a parsed ``[processing]`` TOML table (module docstring)."""
         return build_section(cls, section, table, error)
+
+
+#: The enum-typed fields of :class:`ProcessingOptions` and their enums.
+_ENUM_FIELDS: dict[str, type[StrEnum]] = {
+    name: typ
+    for name, typ in typing.get_type_hints(ProcessingOptions).items()
+    if isinstance(typ, type) and issubclass(typ, StrEnum)
+}

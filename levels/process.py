@@ -1,16 +1,23 @@
-"""The processing centre's run over one pass: GEO once, COR once per scene and level.
+"""The processing centre's driver: a request → a plan of products → scene tasks.
 
-:func:`process_l0` takes an L0 archive (:func:`levels.readers.l0.read_l0`) and
-:class:`~levels.options.ProcessingOptions`, and writes one product per scene and level
-(:mod:`levels.products`). For each scene, the raw counts are read from the archive once,
-calibrated once (level 1A), deconvolved once, and resampled into 1B and 2A: INPE's "all
-operations executed by COR require the raw image to be read only once" (paper ``004_…``
-§2.2).
+A :class:`ProcessingRequest` says what to process: the L0 archives of one pass (one per
+HRV, :func:`levels.readers.l0.read_l0`), the :class:`~levels.options.ProcessingOptions`,
+where the products go and how they are named, and what the levels need from outside
+(control points, a checkpoint source, a DEM). :func:`plan` turns it into one
+:class:`PassPlan` per archive: GEO's set-up of the pass and its scenes, what the levels
+asked need of the whole pass (level 2's adjustment, level 3's DEM), and the levels to make
+in order (:func:`plan_levels`: those asked and those they require). :func:`run_plans`
+makes every scene as a task of a runner (:mod:`levels.tasks`); :func:`process` is both.
+
+The levels themselves are declared in :mod:`levels.makers` and named in
+:mod:`levels.registry`; the driver knows none of them. For each scene
+(:func:`make_scene`), the raw counts of each band are read from the archive once,
+calibrated once and deconvolved once for every level: INPE's "all operations executed by
+COR require the raw image to be read only once" (paper ``004_…`` §2.2).
 
 Every product carries its quality: the approximation errors of its geometry against the
-rigorous model (always), the stripe level before and after calibration (1A), and, when a
-:class:`~levels.quality.CheckpointSource` is given (the emulator's truth, or surveyed
-points), the checkpoint errors against it.
+rigorous model (always), and, when a :class:`~levels.quality.CheckpointSource` is given
+(the emulator's truth, or surveyed points), the checkpoint errors against it.
 
 XS bands share one output grid, computed on the first band; each band goes through its own
 1B polynomials and 2A grids onto it, so that the bands are registered.
@@ -23,40 +30,30 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from levels import __version__
 from levels.adjust import Adjustment, Strip, adjust, adjust_strips
-from levels.cor.radiometry import (
-    calibrate,
-    deconvolution_taps,
-    deconvolve,
-    fir_response,
-    mtf,
-    stripe_level,
-    to_counts,
-)
-from levels.cor.resample import resample_1b, resample_2a, resample_3, with_nan
-from levels.errors import DemError, GcpError, GeometryError, LevelsError
-from levels.geo.level1b import Level1BGeometry, level1b_geometry
-from levels.geo.level2a import INVERSE_METHODS, Level2AGeometry, level2a_geometry
-from levels.geo.level3 import Level3Geometry, level3_geometry
-from levels.geo.maps import ascending_node_lon_rad, map_crs
-from levels.geo.rpc import RPC_HEIGHT_MARGIN_M, Rpc, rpc_of_1b, rpc_of_model
+from levels.choices import AdjustmentScope
+from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
+from levels.cor.resample import with_nan
+from levels.errors import DemError, GcpError, GeometryError, LevelsError, OptionsError
 from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
 from levels.geometry.sensor import LookAngleTable
+from levels.makers.base import BandPixels, LevelMaker, Need, PassContext, Reads, SceneWork
 from levels.options import ProcessingOptions
-from levels.products import BandImage, MapGrid, Product, product_name, write_product
+from levels.products import Product, product_name, write_product
 from levels.quality import CheckpointSource, scalar_figures
 from levels.readers.dem import Dem, read_dem
 from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
+from levels.registry import level_maker
 from levels.spot import ORBIT_ALTITUDE_M
 from levels.tasks import InProcess, Runner, TaskFailure, raise_first
 from levels.threads import one_blas_thread
@@ -65,6 +62,7 @@ __all__ = [
     "PassPlan",
     "PassProducts",
     "PassSetup",
+    "ProcessingRequest",
     "SceneProducts",
     "ScenesFailed",
     "SkippedScene",
@@ -73,11 +71,10 @@ __all__ = [
     "make_scene",
     "nominal_pixel_size_m",
     "pass_dem",
-    "plan_l0",
-    "plan_pass",
+    "plan",
+    "plan_levels",
     "platform_records",
-    "process_l0",
-    "process_pass",
+    "process",
     "run_plans",
 ]
 
@@ -121,59 +118,6 @@ def nominal_pixel_size_m(look: LookAngleTable) -> float:
     for P, 20 m for XS, and proportionally more for a reduced detector count)."""
     pitch = float(np.median(np.abs(np.diff(look.psi_y_rad))))
     return max(10.0, 10.0 * round(pitch * ORBIT_ALTITUDE_M / 10.0))
-
-
-_G = TypeVar("_G", Level1BGeometry, Level2AGeometry, Level3Geometry)
-
-
-def _rpcs(
-    scene: SceneGeometry,
-    opt: ProcessingOptions,
-    g1b: dict[str, Level1BGeometry] | None,
-    g3: dict[str, Level3Geometry] | None,
-) -> dict[str, dict[str, Rpc]]:
-    """RPCs of the image-geometry levels made (1A, 1B), per band (:mod:`levels.geo.rpc`):
-    over the heights of level 3's DEM under the scene when there is one, else the reference
-    height ± ``RPC_HEIGHT_MARGIN_M``."""
-    if g3 is not None:
-        h = next(iter(g3.values())).heights_m
-        heights = (float(h[0]), float(h[-1]))
-    else:
-        ref = opt.reference_height_m
-        heights = (ref - RPC_HEIGHT_MARGIN_M, ref + RPC_HEIGHT_MARGIN_M)
-    out: dict[str, dict[str, Rpc]] = {}
-    if "1A" in opt.levels:
-        out["1A"] = {b: rpc_of_model(m, heights) for b, m in scene.models.items()}
-    if g1b is not None:
-        out["1B"] = {b: rpc_of_1b(scene.models[b], g1b[b], heights) for b in scene.models}
-    return out
-
-
-def _per_band(scene: SceneGeometry, make: Callable[[str, _G | None], _G]) -> dict[str, _G]:
-    """A geometry per band, every band on the first band's output grid."""
-    first, *others = scene.models
-    out = {first: make(first, None)}
-    for b in others:
-        out[b] = make(b, out[first])
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class _PassContext:
-    """What every scene of a pass shares: the archive, GEO's pass set-up, the options and
-    what follows from them."""
-
-    archive: L0Archive
-    pg: PassGeometry
-    options: ProcessingOptions
-    pixel_size_m: float
-    taps: NDArray[np.float64]
-    out: Path
-    name: str
-    checkpoints: CheckpointSource | None
-    provenance: dict[str, Any]
-    adjustment: Adjustment | None
-    dem: Dem | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -249,96 +193,127 @@ def geo_pass(
     return PassSetup(archive, pg, scenes, skipped, scene_lines, time.perf_counter() - t0)
 
 
+def plan_levels(levels: Sequence[str]) -> tuple[LevelMaker, ...]:
+    """The makers of the ``levels`` asked and of the levels they require
+    (:attr:`LevelMaker.requires`), each after those it requires, otherwise in the order of
+    :func:`levels.registry.level_names`."""
+    from levels.registry import level_names
+
+    order = {name: k for k, name in enumerate(level_names())}
+    wanted: dict[str, LevelMaker] = {}
+    todo = list(levels)
+    while todo:
+        name = todo.pop()
+        if name not in wanted:
+            try:
+                wanted[name] = level_maker(name)
+            except KeyError as exc:
+                raise OptionsError(str(exc).strip("'\"")) from None
+            todo.extend(wanted[name].requires)
+    out: list[LevelMaker] = []
+    pending = sorted(wanted.values(), key=lambda m: order.get(m.name, len(order)))
+    while pending:
+        ready = next(
+            (m for m in pending if all(r in {o.name for o in out} for r in m.requires)), None
+        )
+        if ready is None:
+            raise OptionsError(f"levels {[m.name for m in pending]} require each other")
+        out.append(ready)
+        pending.remove(ready)
+    return tuple(out)
+
+
+def _needs(makers: Sequence[LevelMaker]) -> frozenset[Need]:
+    return frozenset().union(*(m.needs for m in makers))
+
+
 def pass_dem(options: ProcessingOptions) -> Dem | None:
-    """The DEM of level 3 (``options.dem_path``, heights above ``options.dem_vertical``),
-    or None when level 3 is not asked; :class:`DemError` when it is and no DEM is named."""
-    if "3" not in options.levels:
+    """The DEM of the levels asked that need one (``options.dem_path``, heights above
+    ``options.dem_vertical``), or None when none does; :class:`DemError` when one does and
+    no DEM is named."""
+    needing = [m.name for m in plan_levels(options.levels) if Need.DEM in m.needs]
+    if not needing:
         return None
     if not options.dem_path:
         raise DemError(
-            "level 3 needs a DEM: set [processing] dem_path to a DEM file (GeoTIFF, SRTM "
-            ".hgt, DTED) and dem_vertical to its datum, or give the scenario a [dem] section"
+            f"level {needing[0]} needs a DEM: set [processing] dem_path to a DEM file "
+            "(GeoTIFF, SRTM .hgt, DTED) and dem_vertical to its datum, or give the scenario a "
+            "[dem] section"
         )
     return read_dem(options.dem_path, options.dem_vertical)
 
 
-def _need_gcps(options: ProcessingOptions, gcps: Any) -> None:
-    if "2" in options.levels and gcps is None:
-        raise GcpError(
-            "level 2 needs control points: give the pass's control-point file "
-            "(docs/gcp.md), or leave '2' out of the levels"
-        )
+@dataclass(frozen=True, eq=False)
+class ProcessingRequest:
+    """What to process: the archives of one pass and everything the levels asked need.
 
-
-def process_l0(
-    archive: L0Archive,
-    options: ProcessingOptions,
-    out_dir: str | Path,
-    *,
-    name: str = "pass",
-    checkpoints: CheckpointSource | None = None,
-    provenance: dict[str, Any] | None = None,
-    on_scene: Callable[[SceneProducts, int], None] | None = None,
-    gcps: ControlPointSet | None = None,
-    setup: PassSetup | None = None,
-    adjustment: Adjustment | None = None,
-    dem: Dem | None = None,
-    runner: Runner | None = None,
-) -> PassProducts:
-    """GEO and COR over a pass (module docstring); products go to ``out_dir``.
-
-    Parameters
+    Attributes
     ----------
-    archive
-        The pass, as :func:`levels.readers.l0.read_l0` reads it (``lazy=True`` to keep one
-        scene's counts in memory at a time).
+    archives
+        The pass, one archive per HRV, as :func:`levels.readers.l0.read_l0` reads them
+        (``lazy=True`` keeps one scene's counts in memory at a time).
     options
         What to make and how.
-    name
-        Products are named ``<name>_s<scene>_<level>.h5``.
+    out_dir
+        Where the products go.
+    names
+        One per archive: its products are named ``<name>_s<scene>_<level>.h5``.
     checkpoints
-        Where checkpoints truly are, for the ``checkpoints`` quality figures (optional).
+        Where checkpoints truly are, per archive, for the ``checkpoints`` quality figures
+        (the emulator's truth, or surveyed points); empty: none.
+    gcps
+        Control points per archive (``docs/gcp.md``; those of the archive's HRV are used,
+        both HRVs' with ``adjustment = "twin"``): level 2 needs them. Empty: none.
     provenance
         Added to each product's ``provenance`` group, over the archive's own.
-    on_scene
-        Called as ``on_scene(done, n_scenes)`` after each scene (progress reporting).
-    gcps
-        Control points of the pass (``docs/gcp.md``; those of the archive's HRV are used):
-        level 2 needs them (:mod:`levels.adjust`).
-    setup, adjustment
-        GEO's set-up and level 2's adjustment when already made (:func:`process_pass`
-        makes them for both HRVs of a twin pass together).
     dem
-        Level 3's DEM when already read (by default :func:`pass_dem` reads the options').
-        Level 3 is made on level 2's refined model when level 2 is made too, on the system
-        model otherwise.
-    runner
-        Where the scenes are made (:mod:`levels.tasks`; by default one after another in
-        this process). A scene that fails does not stop the others: once they are made,
-        :class:`ScenesFailed` names every failed scene (the error itself when one is a
-        bug).
+        The DEM of level 3 when already read; by default :func:`pass_dem` reads the
+        options'.
     """
-    plan = plan_l0(
-        archive,
-        options,
-        out_dir,
-        name=name,
-        checkpoints=checkpoints,
-        provenance=provenance,
-        gcps=gcps,
-        setup=setup,
-        adjustment=adjustment,
-        dem=dem,
-    )
-    return all_made(run_plans([plan], runner, on_scene))[0]
+
+    archives: tuple[L0Archive, ...]
+    options: ProcessingOptions
+    out_dir: Path
+    names: tuple[str, ...]
+    checkpoints: tuple[CheckpointSource | None, ...] = ()
+    gcps: tuple[ControlPointSet | None, ...] = ()
+    provenance: Mapping[str, Any] = field(default_factory=dict)
+    dem: Dem | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.archives)
+        object.__setattr__(self, "out_dir", Path(self.out_dir))
+        for what in ("archives", "names", "checkpoints", "gcps"):
+            object.__setattr__(self, what, tuple(getattr(self, what)))
+        for what in ("names", "checkpoints", "gcps"):
+            given = len(getattr(self, what))
+            if what != "names" and not given:
+                object.__setattr__(self, what, (None,) * n)
+            elif given != n:
+                raise ValueError(f"{n} archives but {given} {what}")
+        hrvs = [a.hrv for a in self.archives]
+        if len(set(hrvs)) != n:
+            raise GeometryError(f"one archive per HRV of a pass: got HRVs {hrvs}")
+
+    @classmethod
+    def of(
+        cls,
+        archive: L0Archive,
+        options: ProcessingOptions,
+        out_dir: str | Path,
+        name: str = "pass",
+        gcps: ControlPointSet | None = None,
+    ) -> ProcessingRequest:
+        """The request for one archive, without checkpoints (the common case of scripts)."""
+        return cls((archive,), options, Path(out_dir), (name,), gcps=(gcps,))
 
 
 @dataclass(frozen=True, eq=False)
 class PassPlan:
-    """One HRV's pass ready for its scene tasks (:func:`plan_l0`): what every scene
-    shares, the scenes to make, those skipped, GEO's time."""
+    """One HRV's pass ready for its scene tasks (:func:`plan`): what every scene shares,
+    the scenes to make, those skipped, GEO's time."""
 
-    ctx: _PassContext
+    ctx: PassContext
     scenes: list[SceneGeometry]
     skipped: list[SkippedScene]
     tail_lines: int
@@ -359,26 +334,85 @@ class ScenesFailed(LevelsError):
         self.made = made
 
 
-def plan_l0(
-    archive: L0Archive,
-    options: ProcessingOptions,
-    out_dir: str | Path,
-    *,
-    name: str = "pass",
-    checkpoints: CheckpointSource | None = None,
-    provenance: dict[str, Any] | None = None,
-    gcps: ControlPointSet | None = None,
-    setup: PassSetup | None = None,
-    adjustment: Adjustment | None = None,
-    dem: Dem | None = None,
+def process(
+    request: ProcessingRequest,
+    runner: Runner | None = None,
+    on_scene: Callable[[SceneProducts, int], None] | None = None,
+) -> list[PassProducts]:
+    """:func:`plan` and :func:`run_plans`: the products of every archive of the request,
+    or the failures raised once every scene was tried (:func:`all_made`).
+    ``on_scene(done, n_scenes)`` after each scene (progress reporting)."""
+    return all_made(run_plans(plan(request), runner, on_scene))
+
+
+def plan(request: ProcessingRequest) -> list[PassPlan]:
+    """Everything before the scene tasks, one plan per archive: the levels to make, GEO's
+    set-up of each archive, what the levels need of the pass (the DEM, read once; level
+    2's adjustment, made on both HRVs together with ``adjustment = "twin"``: the platform's
+    gyro records of either channel, :func:`platform_records`, and one adjustment,
+    :func:`levels.adjust.adjust_strips`, so that control points in one HRV serve the
+    other), the output directory."""
+    opt, archives = request.options, request.archives
+    makers = plan_levels(opt.levels)
+    needs = _needs(makers)
+    if Need.ADJUSTMENT in needs and any(g is None for g in request.gcps):
+        raise GcpError(
+            "level 2 needs control points: give the pass's control-point file "
+            "(docs/gcp.md), or leave '2' out of the levels"
+        )
+    dem = request.dem
+    if dem is None and Need.DEM in needs:
+        dem = pass_dem(opt)  # read once for every HRV
+    twin = Need.ADJUSTMENT in needs and opt.adjustment == AdjustmentScope.TWIN
+    setups: list[PassSetup | None] = [None] * len(archives)
+    adjustments: list[Adjustment | None] = [None] * len(archives)
+    if twin and len(archives) > 1:
+        records = platform_records(archives)
+        setups = [geo_pass(a, opt, records) for a in archives]
+        adjustments = _twin_adjustment(request, setups)  # type: ignore[arg-type]
+    return [
+        _plan_archive(request, k, makers, setups[k], adjustments[k], dem)
+        for k in range(len(archives))
+    ]
+
+
+def _twin_adjustment(
+    request: ProcessingRequest, setups: list[PassSetup]
+) -> list[Adjustment | None]:
+    """Level 2's adjustment of both HRVs of a twin pass together (:func:`plan`)."""
+    placed = [k for k, s in enumerate(setups) if s.scenes]
+    strips = []
+    for k in placed:
+        archive, points = request.archives[k], request.gcps[k]
+        assert points is not None  # plan() checked
+        strips.append(
+            Strip(
+                setups[k].pg,
+                setups[k].scenes,
+                points.of_hrv(archive.hrv),
+                next(iter(archive.bands)),
+            )
+        )
+    if strips and not any(len(s.gcps) for s in strips):
+        raise GcpError("level 2 of a twin pass: no control point in either HRV's file")
+    out: list[Adjustment | None] = [None] * len(setups)
+    if strips:
+        for k, adj in zip(placed, adjust_strips(strips, request.options), strict=True):
+            out[k] = adj
+    return out
+
+
+def _plan_archive(
+    request: ProcessingRequest,
+    k: int,
+    makers: tuple[LevelMaker, ...],
+    setup: PassSetup | None,
+    adjustment: Adjustment | None,
+    dem: Dem | None,
 ) -> PassPlan:
-    """Everything of :func:`process_l0` before its scenes (same parameters): GEO's set-up,
-    level 2's adjustment, the DEM, the output directory."""
-    if adjustment is None:
-        _need_gcps(options, gcps)
-    if dem is None:
-        dem = pass_dem(options)
-    out = Path(out_dir)
+    """The plan of the request's archive ``k`` (:func:`plan`)."""
+    archive, options, name = request.archives[k], request.options, request.names[k]
+    out = request.out_dir
     out.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter
     t0 = clock()
@@ -396,20 +430,33 @@ def plan_l0(
         "inputs": Path(archive.path).name,
         "processing": json.dumps(asdict(options)),
         **archive.provenance,
-        **(provenance or {}),
+        **request.provenance,
     }
     t_geo = setup.time_s + clock() - t0  # the adjustment is timed apart
-    if "2" in options.levels and scenes and adjustment is None:
-        assert gcps is not None
-        mine = gcps.of_hrv(archive.hrv)
+    if Need.ADJUSTMENT in _needs(makers) and scenes and adjustment is None:
+        points = request.gcps[k]
+        assert points is not None  # plan() checked
+        mine = points.of_hrv(archive.hrv)
         if not len(mine):
             raise GcpError(
                 f"level 2 of HRV{archive.hrv}: no control point of this HRV in the file "
                 "(in a twin pass, adjustment = 'twin' lets the other HRV's points serve)"
             )
         adjustment = adjust(pg, scenes, mine, options, band_names[0])
-    ctx = _PassContext(
-        archive, pg, options, res, taps, out, name, checkpoints, prov, adjustment, dem
+    ctx = PassContext(
+        archive,
+        pg,
+        options,
+        res,
+        taps,
+        out,
+        name,
+        request.checkpoints[k],
+        prov,
+        adjustment,
+        dem,
+        makers,
+        tuple(options.levels),
     )
     timings = {"geo": t_geo, "total": setup.time_s + clock() - t0}
     if adjustment is not None:
@@ -431,10 +478,10 @@ def run_plans(
     clock = time.perf_counter
     t0 = clock()
     handles: dict[Any, tuple[int, SceneGeometry]] = {}
-    for k, plan in enumerate(plans):
-        shared = runner.share(plan.ctx) if plan.scenes else None
-        for scene in plan.scenes:
-            handles[runner.submit(plan.task_name(scene), make_scene, shared, scene)] = (k, scene)
+    for k, p in enumerate(plans):
+        shared = runner.share(p.ctx) if p.scenes else None
+        for scene in p.scenes:
+            handles[runner.submit(p.task_name(scene), make_scene, shared, scene)] = (k, scene)
     made: list[dict[int, SceneProducts]] = [{} for _ in plans]
     failed: list[list[TaskFailure]] = [[] for _ in plans]
     ended = [0.0] * len(plans)
@@ -449,14 +496,14 @@ def run_plans(
         if on_scene is not None:
             on_scene(result, n_scenes)
     out: list[PassProducts | ScenesFailed] = []
-    for k, plan in enumerate(plans):
-        timings = {**plan.timings_s, "total": plan.timings_s["total"] + ended[k]}
+    for k, p in enumerate(plans):
+        timings = {**p.timings_s, "total": p.timings_s["total"] + ended[k]}
         products = PassProducts(
             [made[k][i] for i in sorted(made[k])],
-            plan.tail_lines,
+            p.tail_lines,
             timings,
-            plan.skipped,
-            plan.ctx.adjustment,
+            p.skipped,
+            p.ctx.adjustment,
         )
         out.append(ScenesFailed(failed[k], [products]) if failed[k] else products)
     return out
@@ -475,398 +522,85 @@ def all_made(results: list[PassProducts | ScenesFailed]) -> list[PassProducts]:
     raise ScenesFailed(failures, [r.made[0] if isinstance(r, ScenesFailed) else r for r in results])
 
 
-def process_pass(
-    archives: Sequence[L0Archive],
-    options: ProcessingOptions,
-    out_dir: str | Path,
-    *,
-    names: Sequence[str],
-    checkpoints: Sequence[CheckpointSource | None] | None = None,
-    provenance: dict[str, Any] | None = None,
-    on_scene: Callable[[SceneProducts, int], None] | None = None,
-    gcps: Sequence[ControlPointSet | None] | None = None,
-    runner: Runner | None = None,
-) -> list[PassProducts]:
-    """Every HRV of one pass (one L0 archive each, ``names`` theirs): :func:`process_l0`
-    for each, their scenes as tasks of one ``runner``, except that with ``adjustment =
-    "twin"`` and level 2 both HRVs' GEO use the platform's gyro records of either channel
-    (:func:`platform_records`) and are refined by one adjustment
-    (:func:`levels.adjust.adjust_strips`), so that control points in one HRV serve the
-    other. ``gcps[k]`` are the points of ``archives[k]``'s HRV."""
-    plans = plan_pass(
-        archives,
-        options,
-        out_dir,
-        names=names,
-        checkpoints=checkpoints,
-        provenance=provenance,
-        gcps=gcps,
-    )
-    return all_made(run_plans(plans, runner, on_scene))
-
-
-def plan_pass(
-    archives: Sequence[L0Archive],
-    options: ProcessingOptions,
-    out_dir: str | Path,
-    *,
-    names: Sequence[str],
-    checkpoints: Sequence[CheckpointSource | None] | None = None,
-    provenance: dict[str, Any] | None = None,
-    gcps: Sequence[ControlPointSet | None] | None = None,
-) -> list[PassPlan]:
-    """Everything of :func:`process_pass` before its scenes: one plan per archive."""
-    n = len(archives)
-    if len(names) != n:
-        raise ValueError(f"{n} archives but {len(names)} names")
-    marks = list(checkpoints) if checkpoints is not None else [None] * n
-    points = list(gcps) if gcps is not None else [None] * n
-    hrvs = [a.hrv for a in archives]
-    if len(set(hrvs)) != n:
-        raise GeometryError(f"one archive per HRV of a pass: got HRVs {hrvs}")
-    dem = pass_dem(options)  # read once for both HRVs
-    setups: list[PassSetup | None] = [None] * n
-    adjustments: list[Adjustment | None] = [None] * n
-    if options.adjustment == "twin" and "2" in options.levels and n > 1:
-        for p in points:
-            _need_gcps(options, p)
-        records = platform_records(archives)
-        setups = [geo_pass(a, options, records) for a in archives]
-        placed = [k for k, s in enumerate(setups) if s.scenes]
-        strips = [
-            Strip(
-                setups[k].pg,
-                setups[k].scenes,
-                points[k].of_hrv(archives[k].hrv),  # type: ignore[union-attr]
-                next(iter(archives[k].bands)),
-            )
-            for k in placed
-        ]
-        if strips and not any(len(s.gcps) for s in strips):
-            raise GcpError("level 2 of a twin pass: no control point in either HRV's file")
-        if strips:
-            for k, adj in zip(placed, adjust_strips(strips, options), strict=True):
-                adjustments[k] = adj
-    return [
-        plan_l0(
-            a,
-            options,
-            out_dir,
-            name=names[k],
-            checkpoints=marks[k],
-            provenance=provenance,
-            gcps=points[k],
-            setup=setups[k],
-            adjustment=adjustments[k],
-            dem=dem,
-        )
-        for k, a in enumerate(archives)
-    ]
-
-
 @one_blas_thread
-def make_scene(ctx: _PassContext, scene: SceneGeometry) -> SceneProducts:
-    """One scene's task: its products written, their paths and figures returned."""
-    clock = time.perf_counter
-    opt, res = ctx.options, ctx.pixel_size_m
-    timings: dict[str, float] = {}
-    t = clock()
+def make_scene(ctx: PassContext, scene: SceneGeometry) -> SceneProducts:
+    """One scene's task: every level of the plan made (:mod:`levels.makers.base`: geometry,
+    images band by band, quality), those asked written; their paths and figures returned."""
+    work = SceneWork(ctx, scene)
+    for maker in ctx.makers:
+        if maker.prepare is not None:
+            with work.timed("geometry"):
+                maker.prepare(work)
+    for band in ctx.archive.bands:
+        _band_images(work, band)
+    written = [level_maker_of(ctx, name) for name in ctx.written]
+    quality = {}
+    for maker in written:
+        with work.timed("quality"):
+            quality[maker.name] = maker.quality(work)
+    with work.timed("write"):
+        paths = {m.name: _write(work, m, quality[m.name]) for m in written}
+    cut = scene.cut
+    figures = {lv: scalar_figures(q) for lv, q in quality.items()}
+    return SceneProducts(cut.index, cut.first_line, cut.n_lines, paths, figures, work.timings_s)
+
+
+def level_maker_of(ctx: PassContext, name: str) -> LevelMaker:
+    """The maker of level ``name`` in the pass's plan."""
+    return next(m for m in ctx.makers if m.name == name)
+
+
+def _band_images(work: SceneWork, band_name: str) -> None:
+    """One band's images for every level of the plan: the raw counts read, calibrated and
+    deconvolved once for all of them (module docstring)."""
+    ctx, scene = work.ctx, work.scene
+    band = ctx.archive.bands[band_name]
     rows = slice(scene.cut.first_line, scene.cut.first_line + scene.cut.n_lines)
-    g1b = None
-    maps: dict[str, dict[str, Level2AGeometry]] = {}  # map levels' grids: 2A, 2
-    refined = None
-    if "1B" in opt.levels:
-        g1b = _per_band(scene, lambda b, like: level1b_geometry(scene, res, band=b, like=like))
-
-    node = ascending_node_lon_rad(ctx.pg.ephemeris) if opt.crs == "som" else None
-    crs = map_crs(opt.crs, scene.centre_lat_rad, scene.centre_lon_rad, node)
-
-    grids = {"grid_rows": opt.grid_rows, "grid_columns": opt.grid_columns}
-
-    def map_geometry(sg: SceneGeometry) -> dict[str, Level2AGeometry]:
-        return _per_band(
-            sg,
-            lambda b, like: level2a_geometry(
-                sg, res, crs, opt.inverse_2a, band=b, like=like, **grids
-            ),
-        )
-
-    # level 2's "before" checkpoints are the 2A geometry's: made for them when 2A is not
-    if "2A" in opt.levels or ("2" in opt.levels and ctx.checkpoints is not None):
-        maps["2A"] = map_geometry(scene)
-    if "2" in opt.levels:
-        assert ctx.adjustment is not None
-        refined = ctx.adjustment.refine(ctx.pg, scene)
-        maps["2"] = map_geometry(refined)
-    g2a = maps.get("2A")
-    timings["geometry"] = clock() - t
-    g3 = None
-    scene3 = refined if refined is not None else scene  # level 2's model when it is made
-    if "3" in opt.levels:
-        t = clock()
-        dem = ctx.dem
-        assert dem is not None
-        g3 = _per_band(
-            scene3,
-            lambda b, like: level3_geometry(
-                scene3, dem, res, crs, opt.inverse_2a, band=b, like=like, **grids
-            ),
-        )
-        timings["3_geometry"] = clock() - t
-    t = clock()
-    rpcs = _rpcs(scene, opt, g1b, g3)
-    if rpcs:
-        timings["rpc"] = clock() - t
-    images: dict[str, dict[str, BandImage]] = {lv: {} for lv in opt.levels}
-    stripes: dict[str, dict[str, float]] = {}
-    hidden: dict[str, float] = {}
-    for bname, band in ctx.archive.bands.items():
-        t = clock()
+    with work.timed("calibration"):
         counts, valid = band.counts[rows], band.pixel_valid_rows(rows)
         cal = calibrate(counts, valid, band.gain, band.offset_counts)
-        stripes[bname] = {
-            "raw_counts": stripe_level(counts, valid),
-            "level_1a_counts": stripe_level(cal, valid),
-        }
-        if "1A" in opt.levels:
-            images["1A"][bname] = BandImage(to_counts(cal), valid)
-        timings["1A"] = timings.get("1A", 0.0) + clock() - t
-        if g1b is None and not maps and g3 is None:
-            continue
-        t = clock()
-        dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
-        timings["deconvolution"] = timings.get("deconvolution", 0.0) + clock() - t
-        nan_dec = with_nan(dec, dvalid)  # what every resampling reads
-        del cal, dec  # (a full P scene: 144 MB each) not read again
-        if g1b is not None:
-            t = clock()
-            images["1B"][bname] = BandImage(
-                *resample_1b(nan_dec, None, g1b[bname], opt.interpolation_1b)
-            )
-            timings["1B"] = timings.get("1B", 0.0) + clock() - t
-        for level, grids in maps.items():
-            if level in opt.levels:  # 2A's grids may be there for level 2's checkpoints only
-                t = clock()
-                images[level][bname] = BandImage(
-                    *resample_2a(nan_dec, None, grids[bname], opt.resampling_2a)
+    resampled = [m for m in ctx.makers if m.reads is Reads.DECONVOLVED]
+    for m in ctx.makers:
+        if m.reads is Reads.CALIBRATED:
+            with work.timed(m.name):
+                work.images[m.name][band_name] = m.image(
+                    work, band_name, BandPixels(counts, valid, cal)
                 )
-                timings[level] = timings.get(level, 0.0) + clock() - t
-        if g3 is not None:
-            t = clock()
-            image, ok, hid = resample_3(nan_dec, None, g3[bname], opt.resampling_2a)
-            images["3"][bname] = BandImage(image, ok)
-            # of the pixels the scene covers, the share hidden by the relief
-            hidden[bname] = float(hid.sum() / max(1, int(ok.sum() + hid.sum())))
-            timings["3"] = timings.get("3", 0.0) + clock() - t
-    t = clock()
-    quality = _quality(scene, opt, g1b, g2a, stripes, ctx.taps, ctx.checkpoints)
-    if refined is not None:
-        assert ctx.adjustment is not None
-        quality["2"] = _quality_2(
-            scene,
-            refined,
-            maps["2"],
-            quality["radiometry"],
-            quality.get("2A", {}).get("checkpoints"),
-            ctx.adjustment,
-            opt,
-            ctx.checkpoints,
-        )
-    if g3 is not None:
-        quality["3"] = _quality_3(
-            scene3, g3, hidden, quality["radiometry"], refined is not None, opt, ctx.checkpoints
-        )
-    quality = {lv: quality[lv] for lv in opt.levels}
-    timings["quality"] = clock() - t
-    t = clock()
-    common = ctx.pg.product_tree(scene)
-    paths = {}
-    for level in opt.levels:
-        geometry = dict(common)
-        if level == "1B":
-            geometry["level_1b"] = Level1BGeometry.product_tree(g1b)  # type: ignore[arg-type]
-        if level in rpcs:
-            geometry["rpc"] = {b: rpc.product_tree() for b, rpc in rpcs[level].items()}
-        if level == "2A":
-            geometry["level_2a"] = Level2AGeometry.product_tree(g2a)  # type: ignore[arg-type]
-        if level == "2":
-            assert refined is not None and ctx.adjustment is not None
-            geometry = ctx.pg.product_tree(refined)
-            geometry["level_2a"] = Level2AGeometry.product_tree(maps["2"])
-            geometry["adjustment"] = ctx.adjustment.product_tree(scene.cut.index)
-        if level == "3":
-            assert g3 is not None
-            geometry = ctx.pg.product_tree(scene3)
-            geometry["level_3"] = Level3Geometry.product_tree(g3)
-            if refined is not None:  # made on level 2's model
-                assert ctx.adjustment is not None
-                geometry["adjustment"] = ctx.adjustment.product_tree(scene.cut.index)
-        first = next(iter(images[level].values())).image
-        attrs = {
-            "level": level,
-            "scene_index": scene.cut.index,
-            "name": ctx.name,
-            "hrv": ctx.archive.hrv,
-            "mode": ctx.archive.mode,
-            "mirror_step": ctx.archive.mirror_step,
-            "n_rows": first.shape[0],
-            "n_cols": first.shape[1],
-            "pixel_size_m": res if level != "1A" else 0.0,
-        }
-        grid = None
-        if level in maps or level == "3":
-            g = next(iter((g3 if level == "3" else maps[level]).values()))  # type: ignore[union-attr]
-            grid = MapGrid(g.crs_wkt, g.geotransform)
-        product = Product(
-            attrs, images[level], geometry, quality[level], {**ctx.provenance, "level": level}, grid
-        )
-        paths[level] = write_product(
-            ctx.out / product_name(ctx.name, scene.cut.index, level), product, opt.deflate_level
-        )
-    timings["write"] = clock() - t
-    return SceneProducts(
-        scene.cut.index,
-        scene.cut.first_line,
-        scene.cut.n_lines,
-        paths,
-        {lv: scalar_figures(q) for lv, q in quality.items()},
-        timings,
+    if not resampled:
+        return
+    with work.timed("deconvolution"):
+        dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
+    nan_dec = with_nan(dec, dvalid)  # what every resampling reads
+    del cal, dec  # (a full P scene: 144 MB each) not read again
+    pixels = BandPixels(counts, dvalid, nan_dec)
+    for m in resampled:
+        with work.timed(m.name):
+            work.images[m.name][band_name] = m.image(work, band_name, pixels)
+
+
+def _write(work: SceneWork, maker: LevelMaker, quality: dict[str, Any]) -> Path:
+    """The product of one level of the scene, written whole (:mod:`levels.products`)."""
+    ctx, level = work.ctx, maker.name
+    images = work.images[level]
+    first = next(iter(images.values())).image
+    attrs = {
+        "level": level,
+        "scene_index": work.scene.cut.index,
+        "name": ctx.name,
+        "hrv": ctx.archive.hrv,
+        "mode": ctx.archive.mode,
+        "mirror_step": ctx.archive.mirror_step,
+        "n_rows": first.shape[0],
+        "n_cols": first.shape[1],
+        "pixel_size_m": 0.0 if maker.raw_geometry else ctx.pixel_size_m,
+    }
+    product = Product(
+        attrs,
+        images,
+        maker.geometry_tree(work),
+        quality,
+        {**ctx.provenance, "level": level},
+        maker.map_grid(work),
     )
-
-
-def _radiometry(opt: ProcessingOptions, taps: NDArray[np.float64]) -> dict[str, Any]:
-    """The deconvolution of levels 1B, 2A and 2, and the MTF at Nyquist before and after."""
-    nyquist = np.array([0.5])
-    before = float(mtf(nyquist, opt.psf_fwhm_px)[0])
-    return {
-        "deconvolution_taps": taps,
-        "mtf_at_nyquist_before": before,
-        "mtf_at_nyquist_after": before * abs(float(fir_response(taps, nyquist)[0])),
-    }
-
-
-def _quality(
-    scene: SceneGeometry,
-    opt: ProcessingOptions,
-    g1b: dict[str, Level1BGeometry] | None,
-    g2a: dict[str, Level2AGeometry] | None,
-    stripes: dict[str, dict[str, float]],
-    taps: NDArray[np.float64],
-    checkpoints: CheckpointSource | None,
-) -> dict[str, dict[str, Any]]:
-    radiometry = _radiometry(opt, taps)
-    # the levels' trees, and the radiometry they share (for level 2's)
-    q: dict[str, dict[str, Any]] = {"1A": {"stripe_level": stripes}, "radiometry": radiometry}
-    per_side = opt.checkpoints_per_side
-    bands = list(scene.models)
-    if g1b is not None:
-        # the first band's figures: the others' fits are the same polynomials a few tenths
-        # of a pixel apart, and their checkpoints below measure each band
-        q["1B"] = {
-            "radiometry": radiometry,
-            "polynomials_vs_model": g1b[bands[0]].approximation_error(scene.model),
-        }
-        if checkpoints is not None:
-            q["1B"]["checkpoints"] = {
-                b: checkpoints.level_1b(scene, g1b[b], k, per_side) for k, b in enumerate(bands)
-            }
-    if g2a is not None:  # made for level 2's "before" checkpoints alone when 2A is not asked
-        g = g2a[bands[0]]
-        approx = {
-            m: g.approximation_error(scene.model, scene.reference_height_m, m)
-            for m in (INVERSE_METHODS if "2A" in opt.levels else ())
-        }
-        q["2A"] = {"radiometry": radiometry, "inverse_vs_model": approx, "inverse_method": g.method}
-        if checkpoints is not None:
-            q["2A"]["checkpoints"] = {
-                b: checkpoints.level_2a(scene, g2a[b], k, per_side) for k, b in enumerate(bands)
-            }
-    return q
-
-
-def _quality_3(
-    scene: SceneGeometry,
-    g3: dict[str, Level3Geometry],
-    hidden: dict[str, float],
-    radiometry: dict[str, Any],
-    refined: bool,
-    opt: ProcessingOptions,
-    checkpoints: CheckpointSource | None,
-) -> dict[str, Any]:
-    """Level 3's quality: the anchor grid's error against the rigorous model (every band's),
-    the DEM used, the pixels hidden by the relief or over voids, and with a checkpoint
-    source the errors on the terrain beside those 2A had at the same points."""
-    bands = list(scene.models)
-    g = g3[bands[0]]
-    lo, hi = g.terrain_range_m
-    q: dict[str, Any] = {
-        "radiometry": radiometry,
-        "model": "level 2 (adjusted on control points)" if refined else "system",
-        "anchor_error_px": {b: dict(g3[b].anchor_error_px) for b in bands},
-        "anchor_step_px": int(g.grid.inverse_step[0]),
-        "anchor_heights_m": g.heights_m,
-        "dem": {
-            "source": Path(g.dem.source).name,
-            "vertical": g.dem.vertical,
-            "spacing_m": g.dem_spacing_m,
-            "void_fraction": g.dem.void_fraction,
-            "height_min_m": lo if np.isfinite(lo) else None,
-            "height_max_m": hi if np.isfinite(hi) else None,
-        },
-        "hidden_fraction": hidden,
-    }
-    if checkpoints is not None:
-        q["checkpoints"] = {
-            b: checkpoints.level_3(scene, g3[b], k, opt.checkpoints_per_side)
-            for k, b in enumerate(bands)
-        }
-    return q
-
-
-def _quality_2(
-    scene: SceneGeometry,
-    refined: SceneGeometry,
-    g2: dict[str, Level2AGeometry],
-    radiometry: dict[str, Any],
-    before: dict[str, Any] | None,
-    adjustment: Adjustment,
-    opt: ProcessingOptions,
-    checkpoints: CheckpointSource | None,
-) -> dict[str, Any]:
-    """Level 2's quality: its inverse against the refined model, the control points of the
-    scene after the adjustment, the predicted accuracy and, with a checkpoint source, the
-    checkpoint errors after (the refined model) and ``before`` (the 2A model's)."""
-    bands = list(scene.models)
-    g = g2[bands[0]]
-    k = adjustment.of_scene(scene.cut.index)
-    mine = adjustment.point_scene == scene.cut.index
-    status = np.array(adjustment.point_status)
-    used = mine & (status == "used")
-    after = np.hypot(*adjustment.residual_after_px[used].T)
-    sigma = adjustment.predicted_sigma_m[k]
-    q: dict[str, Any] = {
-        "inverse_vs_model": {
-            g.method: g.approximation_error(refined.model, refined.reference_height_m, g.method)
-        },
-        "inverse_method": g.method,
-        "radiometry": radiometry,
-        "predicted_sigma_m": {
-            "east": float(sigma[0]),
-            "north": float(sigma[1]),
-            "horizontal": float(sigma[2]),
-            "prior_horizontal": float(adjustment.prior_sigma_m[k, 2]),
-        },
-        "control_points": {
-            "used": int(used.sum()),
-            "rejected": int(np.sum(mine & (status == "rejected"))),
-            "residual_rms_px": float(np.sqrt(np.mean(after**2))) if after.size else None,
-        },
-    }
-    per_side = opt.checkpoints_per_side
-    if checkpoints is not None:
-        q["checkpoints"] = {
-            b: checkpoints.level_2a(refined, g2[b], i, per_side) for i, b in enumerate(bands)
-        }
-        if before is not None:
-            q["checkpoints_2a"] = before
-    return q
+    path = ctx.out / product_name(ctx.name, work.scene.cut.index, level)
+    return write_product(path, product, ctx.options.deflate_level)

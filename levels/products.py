@@ -183,7 +183,9 @@ class Product:
 
 
 def _attr(value: Any) -> Any:
-    if isinstance(value, str | bool | int | float | np.integer | np.floating | np.bool_):
+    if isinstance(value, str):
+        return str(value)  # an enum's member (levels.choices) as its plain spelling
+    if isinstance(value, bool | int | float | np.integer | np.floating | np.bool_):
         return value
     if value is None:
         return "null"
@@ -191,7 +193,8 @@ def _attr(value: Any) -> Any:
 
 
 def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
-    for name, value in tree.items():
+    for key, value in tree.items():
+        name = str(key)
         if isinstance(value, dict):
             _write_tree(group.create_group(name), value)
         elif isinstance(value, np.ndarray):

@@ -81,7 +81,7 @@ def scalar_figures(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 class CheckpointSource(Protocol):
     """Where checkpoints of a scene truly are, for the ``checkpoints`` quality figures.
 
-    The processing driver (:func:`levels.process.process_l0`) asks it for the errors of
+    The processing driver (:func:`levels.process.make_scene`) asks it for the errors of
     each band's 1B and 2A geometry; the emulator's truth is one (``station.sipc.truth``),
     surveyed points of a real scene would be another. Each method returns a tree: the
     :func:`error_stats` of the line of sight and of the ground, and the lattice behind them.

@@ -78,12 +78,12 @@ def warm_up() -> None:
     """Process :data:`WARM_UP_ARCHIVE` through levels 1A, 1B and 2A into a temporary
     directory, compiling (and caching) the kernels a default run calls."""
     from levels.options import ProcessingOptions
-    from levels.process import process_l0
+    from levels.process import ProcessingRequest, process
     from levels.readers.l0 import read_l0
 
     options = ProcessingOptions(levels=("1A", "1B", "2A"))
     with tempfile.TemporaryDirectory(prefix="levels-warmup-") as tmp:
-        process_l0(read_l0(WARM_UP_ARCHIVE, lazy=True), options, tmp, name="warmup")
+        process(ProcessingRequest.of(read_l0(WARM_UP_ARCHIVE, lazy=True), options, tmp, "warmup"))
 
 
 def start_warm_up() -> subprocess.Popen | None:

@@ -253,11 +253,11 @@ def _process(
     progress: bool,
     runner: Runner | None,
 ) -> list[Any]:
-    """GEO and COR of every HRV of the pass (``levels.process.process_pass``: a twin pass's
+    """GEO and COR of every HRV of the pass (``levels.process.process``: a twin pass's
     HRVs adjusted together when the scenario asks); adds the wall times to ``timings``."""
     from tqdm import tqdm
 
-    from levels.process import process_pass
+    from levels.process import ProcessingRequest, process
 
     scn = acqs[0].scenario
     stages.set_description("GEO and COR")
@@ -267,17 +267,16 @@ def _process(
         scenes.total = total
         scenes.update()
 
-    passes = process_pass(
-        [r.archive for r in received],
+    request = ProcessingRequest(
+        tuple(r.archive for r in received),
         options,
         received[0].l0.parent,
-        names=tags,
-        checkpoints=[r.truth for r in received],
+        tuple(tags),
+        checkpoints=tuple(r.truth for r in received),
+        gcps=tuple(r.gcps for r in received),
         provenance=scn.provenance(),
-        on_scene=on_scene,
-        gcps=[r.gcps for r in received],
-        runner=runner,
     )
+    passes = process(request, runner, on_scene)
     scenes.close()
     cor = timings.setdefault("cor", {})
     for products in passes:

@@ -31,12 +31,12 @@ def test_levels_alone_processes_an_l0_archive(run_dir: Path, tmp_path: Path) -> 
     code = textwrap.dedent(f"""
         import json, sys
         from levels.options import ProcessingOptions
-        from levels.process import process_l0
+        from levels.process import ProcessingRequest, process
         from levels.products import read_product
         from levels.readers.l0 import read_l0
-        made = process_l0(read_l0({str(run_dir / "small_test.l0.h5")!r}),
+        [made] = process(ProcessingRequest.of(read_l0({str(run_dir / "small_test.l0.h5")!r}),
                           ProcessingOptions(levels=("1A", "2A")), {str(tmp_path)!r},
-                          name="alone")
+                          "alone"))
         paths = [str(p) for s in made.scenes for p in s.paths.values()]
         levels = [read_product(p).level for p in paths]
         print(json.dumps({{"levels": levels,

@@ -10,7 +10,7 @@ import pyproj
 import pytest
 
 from levels.errors import ProductError
-from levels.process import process_l0
+from levels.process import ProcessingRequest, process
 from levels.products import PRODUCT_FORMAT, read_product
 from levels.readers.l0 import read_l0
 from station.scenario import load_scenario
@@ -75,7 +75,7 @@ def test_2a_geometry_redoes_the_map(run) -> None:
 
 def test_reprocessing_gives_identical_products(run, tmp_path) -> None:
     scn, products, l0, _out = run
-    again = process_l0(read_l0(l0), scn.processing, tmp_path, name=scn.name)
+    again = process(ProcessingRequest.of(read_l0(l0), scn.processing, tmp_path, scn.name))[0]
     for level, path in products.scenes[0].paths.items():
         a, b = read_product(path), read_product(again.scenes[0].paths[level])
         assert np.array_equal(a.bands["P"].image, b.bands["P"].image)

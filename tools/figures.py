@@ -383,7 +383,7 @@ def levels_figures() -> Iterator[Row]:
 
     import tempfile
 
-    from levels.process import process_l0
+    from levels.process import ProcessingRequest, process
     from levels.readers.l0 import read_l0
     from station.scenario import load_scenario
     from station.srrs.session import downlink, record
@@ -392,9 +392,8 @@ def levels_figures() -> Iterator[Row]:
     acq = emulate(scn)
     with tempfile.TemporaryDirectory() as tmp:
         l0 = record(acq, downlink(acq), Path(tmp) / "s.l0.h5")
-        made = process_l0(
-            read_l0(l0), dataclasses.replace(scn.processing, levels=("1A",)), tmp, name="s"
-        )
+        options = dataclasses.replace(scn.processing, levels=("1A",))
+        [made] = process(ProcessingRequest.of(read_l0(l0), options, tmp, "s"))
     q = made.scenes[0].quality["1A"]
     yield (
         "stripes raw → 1A (scenarios/small_test.toml, 300 lines)",

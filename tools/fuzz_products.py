@@ -29,7 +29,7 @@ from levels.compare import compare_products
 from levels.errors import LevelsError
 from levels.inspect import product_summary
 from levels.options import ProcessingOptions
-from levels.process import process_l0
+from levels.process import ProcessingRequest, process
 from levels.products import read_product
 from levels.readers.l0 import read_l0
 from station.cli import main as station
@@ -101,7 +101,9 @@ def _trial_l0(path: Path, out: Path, original) -> str:
     )
     if not same:  # read without complaint, yet not what was written: a lie
         raise AssertionError("damaged L0 archive read as valid with different data")
-    made = process_l0(archive, ProcessingOptions(levels=("1A", "2A")), out, name="fuzz")
+    made = process(
+        ProcessingRequest.of(archive, ProcessingOptions(levels=("1A", "2A")), out, "fuzz")
+    )[0]
     return f"read, data equal, processed ({len(made.scenes)} scenes)"
 
 

@@ -28,6 +28,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from levels.choices import Interpolation1B, Resampling
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
 from levels.geo.level3 import HIDDEN_TOLERANCE_PX, Level3Geometry
@@ -42,8 +43,9 @@ __all__ = [
     "with_nan",
 ]
 
-INTERPOLATIONS_1B = ("nearest", "cubic")
-RESAMPLINGS_2A = ("nearest", "bilinear", "cubic")
+#: The choices, from their enums (:mod:`levels.choices`); the kernels take a resampling's index.
+INTERPOLATIONS_1B = tuple(str(m) for m in Interpolation1B)
+RESAMPLINGS_2A = tuple(str(m) for m in Resampling)
 _A = -0.5  # Keys' parameter
 #: Pixels of margin when a span's two ends decide for all its pixels (all are linear along
 #: it, up to rounding: far more than enough).

@@ -33,6 +33,7 @@ import numpy as np
 import pyproj
 from numpy.typing import ArrayLike, NDArray
 
+from levels.choices import InverseMethod
 from levels.errors import GeometryError, ProductError
 from levels.geo.inverse_grid import (
     bilinear_grid,
@@ -59,7 +60,7 @@ __all__ = [
     "map_crs",
 ]
 
-INVERSE_METHODS = ("nearest4", "poly3", "poly4", "poly5")
+INVERSE_METHODS = tuple(str(m) for m in InverseMethod)
 
 
 @dataclass(frozen=True, eq=False)

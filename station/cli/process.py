@@ -80,6 +80,7 @@ def register(sub: Any) -> None:
 
 def _options(args: argparse.Namespace, base: Any) -> Any:
     from levels.options import ProcessingOptions
+    from levels.registry import level_names
     from station.errors import ScenarioError
     from station.scenario import read_toml
 
@@ -93,7 +94,7 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
             )
     if args.levels:
         levels = [lv.strip() for lv in args.levels.split(",") if lv.strip()]
-        known = ProcessingOptions.__dataclass_fields__["levels"].metadata["choices"]
+        known = level_names()
         bad = [lv for lv in levels if lv not in known] or ([] if levels else [args.levels])
         if bad or len(set(levels)) != len(levels):
             raise ScenarioError(

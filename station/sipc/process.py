@@ -2,7 +2,7 @@
 measures them.
 
 :func:`process_scenario` emulates, downlinks and records a scenario's pass, then hands the
-L0 archive to :func:`levels.process.process_l0` with the emulator's truth as the
+L0 archive to :func:`levels.process.process` with the emulator's truth as the
 checkpoint source (:class:`station.sipc.truth.Truth`). :func:`reprocess_l0` processes an
 archive already recorded, with the truth when the scenario that made it is given: the
 products are then those of the run, bit for bit.
@@ -21,10 +21,11 @@ from levels.options import ProcessingOptions
 from levels.process import (
     PassPlan,
     PassProducts,
+    ProcessingRequest,
     all_made,
     nominal_pixel_size_m,
-    plan_pass,
-    process_l0,
+    plan,
+    process,
     run_plans,
 )
 from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
@@ -192,7 +193,7 @@ def reprocess_pass(
     runner: Runner | None = None,
 ) -> list[PassProducts]:
     """:func:`reprocess_l0` of the archives of one pass, one per HRV, together
-    (:func:`levels.process.process_pass`: with ``adjustment = "twin"``, level 2 adjusts
+    (:func:`levels.process.plan`: with ``adjustment = "twin"``, level 2 adjusts
     both HRVs at once). ``names`` and ``gcps``, when given, one per archive; the scenes
     are tasks of ``runner`` (:mod:`levels.tasks`, in this process by default)."""
     plans = plan_reprocess(
@@ -231,14 +232,15 @@ def plan_reprocess(
         points = [
             read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)
         ]
-    return plan_pass(
-        archives,
+    request = ProcessingRequest(
+        tuple(archives),
         opts,
-        out_dir,
-        names=names or [l0_stem(p) for p in paths],
-        checkpoints=truths,
-        gcps=points,
+        Path(out_dir),
+        tuple(names or [l0_stem(p) for p in paths]),
+        checkpoints=tuple(truths),
+        gcps=tuple(points or ()),
     )
+    return plan(request)
 
 
 def with_exported_dem(scn: Scenario, acqs: list[Acquisition], out: Path) -> ProcessingOptions:
@@ -299,14 +301,14 @@ def process_scenario(
     truth, gcps = measured_control_points(
         acq, archive, Path(l0).with_name(f"{l0_stem(l0)}.gcp.csv")
     )
-    products = process_l0(
-        archive,
+    request = ProcessingRequest(
+        (archive,),
         with_exported_dem(scn, [acq], out),
         out,
-        name=scn.name,
-        checkpoints=truth,
+        (scn.name,),
+        checkpoints=(truth,),
+        gcps=(gcps,),
         provenance=scn.provenance(),
-        gcps=gcps,
-        runner=runner,
     )
+    [products] = process(request, runner)
     return products, l0

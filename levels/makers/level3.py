@@ -1,0 +1,89 @@
+"""Level 3: the ortho-image, relief displacement removed over a DEM (:mod:`levels.geo.level3`:
+anchor grids at heights spanning the DEM under the scene), on level 2's refined model when
+level 2 is made too, on the system model otherwise.
+
+Its quality: the anchor grids' error against the rigorous model (every band's), the DEM
+used, the share of the scene's pixels hidden by the relief and, with a checkpoint source,
+the checkpoint errors on the terrain.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from levels.choices import Level
+from levels.cor.resample import resample_3
+from levels.geo.level3 import Level3Geometry
+from levels.makers.base import BandPixels, LevelMaker, Need, SceneWork
+from levels.makers.steps import first_map_grid, geometry_3, radiometry, scene_3
+from levels.products import BandImage, MapGrid
+
+__all__ = ["MAKER"]
+
+
+def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
+    image, ok, hidden = resample_3(
+        px.values, None, geometry_3(work)[band], work.options.resampling_2a
+    )
+    # of the pixels the scene covers, the share hidden by the relief
+    work.figures.setdefault("hidden_fraction", {})[band] = float(
+        hidden.sum() / max(1, int(ok.sum() + hidden.sum()))
+    )
+    return BandImage(image, ok)
+
+
+def _quality(work: SceneWork) -> dict[str, Any]:
+    g3, bands = geometry_3(work), work.bands
+    g = g3[bands[0]]
+    lo, hi = g.terrain_range_m
+    q: dict[str, Any] = {
+        "radiometry": radiometry(work),
+        "model": "level 2 (adjusted on control points)" if work.makes(Level.L2) else "system",
+        "anchor_error_px": {b: dict(g3[b].anchor_error_px) for b in bands},
+        "anchor_step_px": int(g.grid.inverse_step[0]),
+        "anchor_heights_m": g.heights_m,
+        "dem": {
+            "source": Path(g.dem.source).name,
+            "vertical": g.dem.vertical,
+            "spacing_m": g.dem_spacing_m,
+            "void_fraction": g.dem.void_fraction,
+            "height_min_m": lo if np.isfinite(lo) else None,
+            "height_max_m": hi if np.isfinite(hi) else None,
+        },
+        "hidden_fraction": work.figures["hidden_fraction"],
+    }
+    cp, per_side = work.ctx.checkpoints, work.options.checkpoints_per_side
+    if cp is not None:
+        sg = scene_3(work)
+        q["checkpoints"] = {b: cp.level_3(sg, g3[b], k, per_side) for k, b in enumerate(bands)}
+    return q
+
+
+def _geometry_tree(work: SceneWork) -> dict[str, Any]:
+    tree = {
+        **work.ctx.pg.product_tree(scene_3(work)),
+        "level_3": Level3Geometry.product_tree(geometry_3(work)),
+    }
+    if work.makes(Level.L2):  # made on level 2's model
+        assert work.ctx.adjustment is not None
+        tree["adjustment"] = work.ctx.adjustment.product_tree(work.scene.cut.index)
+    return tree
+
+
+def _map_grid(work: SceneWork) -> MapGrid:
+    return first_map_grid(geometry_3(work))
+
+
+MAKER = LevelMaker(
+    name=Level.L3,
+    doc="the ortho-image over a DEM",
+    image=_image,
+    quality=_quality,
+    geometry_tree=_geometry_tree,
+    prepare=geometry_3,
+    map_grid=_map_grid,
+    needs=frozenset({Need.DEM}),
+)
