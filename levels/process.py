@@ -29,6 +29,7 @@ This module needs nothing of the emulator: a user with L0 archives runs it alone
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -57,6 +58,8 @@ from levels.registry import level_maker
 from levels.spot import ORBIT_ALTITUDE_M
 from levels.tasks import InProcess, Runner, TaskFailure, raise_first
 from levels.threads import one_blas_thread
+
+_log = logging.getLogger(__name__)
 
 __all__ = [
     "PassPlan",
@@ -462,6 +465,14 @@ def _plan_archive(
     if adjustment is not None:
         timings["adjust"] = adjustment.timings_s["adjust"]
     tail = pg.tail_lines(setup.scene_lines, options.overlap_lines)
+    _log.info(
+        "GEO of %s: %d scene(s) to make (%s), %d skipped; %.2f s",
+        name,
+        len(scenes),
+        ", ".join(m.name for m in makers),
+        len(setup.skipped),
+        t_geo,
+    )
     return PassPlan(ctx, list(scenes), list(setup.skipped), tail, timings)
 
 
@@ -490,9 +501,16 @@ def run_plans(
         k, scene = handles[handle]
         ended[k] = clock() - t0
         if isinstance(result, TaskFailure):
+            _log.warning("%s", result.line())
             failed[k].append(result)
             continue
         made[k][scene.cut.index] = result
+        _log.info("%s: %d product(s)", plans[k].task_name(scene), len(result.paths))
+        _log.debug(
+            "%s timings: %s",
+            plans[k].task_name(scene),
+            ", ".join(f"{s} {t:.3f} s" for s, t in result.timings_s.items()),
+        )
         if on_scene is not None:
             on_scene(result, n_scenes)
     out: list[PassProducts | ScenesFailed] = []

@@ -46,7 +46,8 @@ def level_maker(name: str) -> LevelMaker:
         return _registered[name]
     if name not in BUILT_IN:
         raise KeyError(f"no level {name!r}; known: {', '.join(level_names())}")
-    return importlib.import_module(BUILT_IN[name]).MAKER  # type: ignore[no-any-return]
+    maker: LevelMaker = importlib.import_module(BUILT_IN[name]).MAKER
+    return maker
 
 
 def register_level(maker: LevelMaker) -> None:

@@ -27,6 +27,7 @@ with the same scenario and seed give identical products and the same report
 from __future__ import annotations
 
 import json
+import logging
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -47,6 +48,8 @@ __all__ = [
     "run_scenario",
     "summary_table",
 ]
+
+_log = logging.getLogger(__name__)
 
 REPORT_FORMAT = "spot-station-run"
 REPORT_VERSION = 2  # 2: one section per HRV ("hrvs"), products tagged by HRV
@@ -92,8 +95,10 @@ def run_scenario(
     )
     try:  # a failed or interrupted run ends the warm-up it started
         t = clock()
+        _log.info("emulating %s: %d HRV(s)", scn.name, n_hrv)
         acqs = emulate_pass(scn)
         timings["emulate"] = clock() - t
+        _log.info("emulated in %.1f s", timings["emulate"])
         stages.update()
         t = clock()
         options = with_exported_dem(scn, acqs, out)
@@ -142,6 +147,7 @@ def run_scenario(
             rows.append(row)
     if quicklooks:
         timings["quicklooks"] = clock() - t
+        _log.info("quicklooks drawn in %.1f s", timings["quicklooks"])
         stages.update()
     stages.set_description("report")
     timings["total"] = clock() - t_start
@@ -229,6 +235,7 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
 
     clock = time.perf_counter
     stages.set_description(f"downlink HRV{acq.hrv.number}")
+    _log.info("HRV%d: downlink through the channel, then the receiver", acq.hrv.number)
     result = downlink(acq)
     for k, v in result.timings_s.items():
         timings[k] = timings.get(k, 0.0) + v
@@ -236,6 +243,7 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
     l0 = record(acq, result, out / f"{tag}.l0.h5")
     timings["record"] = timings.get("record", 0.0) + clock() - t
     decode = downlink_report(acq, result)
+    _log.info("HRV%d: L0 archive %s recorded", acq.hrv.number, l0.name)
     stages.update()
     archive = read_l0(l0, lazy=True)  # each scene task reads its own rows
     gcps_path = out / f"{tag}.gcp.csv"

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from station.cli import main
 
 
@@ -100,3 +102,22 @@ def test_process_writes_products_and_reports(tmp_path: Path, capsys) -> None:
     assert all(Path(r["path"]).is_file() for r in rep["products"])
     assert levels["2A"]["checkpoints/P/line_of_sight/rms_m"] > 0
     assert main(["process", str(tmp_path / "missing.toml")]) == 2
+
+
+def test_verbose_says_each_stage_and_quiet_says_nothing(
+    run_dir: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """``-v`` (before or after the command) logs GEO and each scene on stderr; ``-q`` leaves
+    stderr empty; by default neither is said."""
+    l0 = str(run_dir / "small_test.l0.h5")
+    args = ["process", l0, "--levels", "1A", "--out"]
+    assert main(["-v", *args, str(tmp_path / "a")]) == 0
+    err = capfd.readouterr().err
+    assert "station: GEO of small_test: 1 scene(s) to make (1A)" in err
+    assert "station: small_test-s000: 1 product(s)" in err
+    assert main([*args, str(tmp_path / "b"), "-vv"]) == 0
+    assert "small_test-s000 timings: " in capfd.readouterr().err
+    assert main([*args, str(tmp_path / "c")]) == 0
+    assert "GEO of" not in capfd.readouterr().err
+    assert main(["-q", *args, str(tmp_path / "d")]) == 0
+    assert capfd.readouterr().err == ""

@@ -4,6 +4,7 @@
     python tools/figures.py --full          # also the full P scene's downlink figures
     python tools/figures.py --bench         # also the speed figures (benchmarks/, ~5 min)
     python tools/figures.py --section levels
+    python tools/figures.py --bench --write docs   # docs/accuracy.md and docs/performance.md
 
 Each row gives the figure, what this run measured and what the README says; a figure the
 run cannot measure says which tool does (the fuzzer's 130 000 streams are a long campaign:
@@ -561,6 +562,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--full", action="store_true", help="full-size receiver figures too")
     p.add_argument("--bench", action="store_true", help="run the benchmarks too")
+    p.add_argument(
+        "--write",
+        metavar="DIR",
+        help="also write DIR/accuracy.md (the sections) and, with --bench, DIR/performance.md",
+    )
     args = p.parse_args(argv)
     sections: dict[str, Callable[[], Iterator[Row]]] = {
         "geometry": geometry,
@@ -570,20 +576,61 @@ def main(argv: list[str] | None = None) -> int:
         "capacity": capacity,
     }
     chosen = args.section or list(sections)
-    print(_header())
+    header = _header()
+    print(header)
+    measured: dict[str, list[Row]] = {}
     for name in chosen:
         t0 = time.perf_counter()
         print(f"\n## {name}")
-        for figure, measured, readme in sections[name]():
+        measured[name] = []
+        for row in sections[name]():
+            figure, value, readme = row
+            measured[name].append(row)
             print(
-                f"- {figure}: {measured}" + (f"   [README: {readme}]" if readme else ""), flush=True
+                f"- {figure}: {value}" + (f"   [expected: {readme}]" if readme else ""), flush=True
             )
         print(f"  ({time.perf_counter() - t0:.0f} s)")
+    speeds: list[Row] = []
     if args.bench:
         print("\n## speed (benchmarks/)")
-        for figure, measured, _ in bench():
-            print(f"- {figure}: {measured}", flush=True)
+        for row in bench():
+            speeds.append(row)
+            print(f"- {row[0]}: {row[1]}", flush=True)
+    if args.write:
+        out = Path(args.write)
+        _write_doc(out / "accuracy.md", "Accuracy, regenerated", header, measured)
+        if speeds:
+            _write_doc(out / "performance.md", "Speed, regenerated", header, {"benchmarks": speeds})
     return 0
+
+
+_TITLES = {
+    "geometry": "Real scenes located from their metadata",
+    "emulator": "How truthful the emulator is",
+    "receiver": "The station's receiver",
+    "levels": "The processing centre's levels",
+    "capacity": "The capacity model",
+    "benchmarks": "Each benchmark's figures and its peer, measured in the same run",
+}
+
+
+def _write_doc(path: Path, title: str, header: str, sections: dict[str, list[Row]]) -> None:
+    """A markdown page of the figures measured: one table per section."""
+    lines = [
+        f"# {title}",
+        "",
+        "Written by `python tools/figures.py --bench --write docs`; do not edit by hand.",
+        f"Measured at {header}. `docs/levels.md` says how each figure is made.",
+    ]
+    for name, rows in sections.items():
+        lines += ["", f"## {_TITLES.get(name, name)}", ""]
+        if name == "benchmarks":
+            lines += ["| benchmark | printed |", "|---|---|"]
+            lines += [f"| `{f}` | {m.replace('|', '/')} |" for f, m, _ in rows]
+        else:
+            lines += ["| figure | measured | expected |", "|---|---|---|"]
+            lines += [f"| {f} | {m} | {e} |" for f, m, e in rows]
+    path.write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

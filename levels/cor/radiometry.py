@@ -215,7 +215,9 @@ def deconvolve(
     return out, ok
 
 
-def stripe_level(image: NDArray[np.floating], valid: NDArray[np.bool_]) -> float:
+def stripe_level(
+    image: NDArray[np.floating] | NDArray[np.uint8], valid: NDArray[np.bool_]
+) -> float:
     """RMS stripe level of an image (counts; module docstring)."""
     sums, n = np.zeros(image.shape[1]), np.zeros(image.shape[1], dtype=np.int64)
     n_blocks = -(-image.shape[1] // _SUM_BLOCK)

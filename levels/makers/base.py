@@ -150,7 +150,8 @@ class SceneWork:
         if fn not in self._steps:
             with self.timed(fn.__name__):
                 self._steps[fn] = fn(self)
-        return self._steps[fn]  # type: ignore[no-any-return]
+        value: T = self._steps[fn]
+        return value
 
 
 def scene_step(fn: Callable[[SceneWork], T]) -> Callable[[SceneWork], T]:

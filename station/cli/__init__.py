@@ -16,10 +16,12 @@ Exit codes, the same for every command (``docs/compare.md``):
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 import traceback
 from collections.abc import Sequence
+from typing import Any
 
 from levels.errors import LevelsError
 from station import __version__
@@ -41,6 +43,35 @@ EXIT_OK, EXIT_DIFFERENT, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1,
 _FAMILIES = (run, process, products, spacecraft, locate, capacity)
 
 
+def _add_verbosity(parser: argparse.ArgumentParser, default: object) -> None:
+    parser.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=default,
+        help="say each stage as it runs (-vv: and each scene's timings)",
+    )
+    parser.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        default=default if default is argparse.SUPPRESS else False,
+        help="no progress bars, nothing but errors on stderr",
+    )
+
+
+class _Commands:
+    """The subparsers, each given ``-v`` and ``-q`` (after the command as before it)."""
+
+    def __init__(self, sub: Any) -> None:
+        self._sub = sub
+
+    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser:
+        parser: argparse.ArgumentParser = self._sub.add_parser(name, **kwargs)
+        _add_verbosity(parser, argparse.SUPPRESS)  # the top level's value stands if absent
+        return parser
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="station",
@@ -48,10 +79,28 @@ def _parser() -> argparse.ArgumentParser:
         "a command, runs the default scenario end to end (station run).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_verbosity(parser, 0)
+    sub = _Commands(parser.add_subparsers(dest="command", metavar="COMMAND"))
     for family in _FAMILIES:
         family.register(sub)
     return parser
+
+
+def _configure_logging(verbose: int, quiet: bool) -> None:
+    """The library's messages (``levels``, ``station``) on stderr: warnings by default,
+    stages with ``-v``, timings with ``-vv``, errors only with ``-q``."""
+    level = (
+        logging.ERROR
+        if quiet
+        else {0: logging.WARNING, 1: logging.INFO}.get(verbose, logging.DEBUG)
+    )
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("station: %(message)s"))
+    for name in ("levels", "station"):
+        log = logging.getLogger(name)
+        log.handlers[:] = [handler]
+        log.setLevel(level)
+        log.propagate = False
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -59,7 +108,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:  # `station` alone runs the default scenario
-        args = parser.parse_args(["run"])
+        given = list(argv) if argv is not None else sys.argv[1:]
+        args = parser.parse_args([*given, "run"])
+    _configure_logging(args.verbose, args.quiet)
     try:
         return args.func(args)
     except (LevelsError, StationError, OSError) as exc:

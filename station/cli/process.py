@@ -72,7 +72,6 @@ def register(sub: Any) -> None:
     )
     c.add_argument("--levels", help="comma-separated levels to make; overrides the options'")
     c.add_argument("--out", required=True, help="directory of the campaign's products")
-    c.add_argument("--quiet", action="store_true", help="no progress bar")
     add_runner(c, "scenes of every archive")
     add_json(c, "the campaign report as JSON instead of the summary")
     c.set_defaults(func=_campaign)

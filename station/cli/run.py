@@ -31,7 +31,6 @@ def register(sub: Any) -> None:
     add_out(p, "run directory (default: runs/<scenario name>)")
     add_json(p, "the report instead of a table")
     p.add_argument("--no-quicklooks", action="store_true", help="skip the quicklook PNGs")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
     add_runner(p)
     p.set_defaults(func=_run)
 
@@ -50,7 +49,7 @@ def _run(args: argparse.Namespace) -> int:
         )
     scn = load_scenario(path)
     out = Path(args.out) if args.out else Path("runs") / scn.name
-    if not args.json:
+    if not args.json and not args.quiet:
         print(f"running {path} into {out}/ ...", file=sys.stderr)
     with runner_of(args) as runner:
         report = run_scenario(
