@@ -654,7 +654,7 @@ def _scene_of_points(
     n = np.array([s.cut.n_lines for s in scenes], dtype=np.float64)
     inside = (line[:, None] >= first - 0.5) & (line[:, None] <= first + n - 0.5)
     dist = np.where(inside, np.abs(line[:, None] - (first + 0.5 * (n - 1))), np.inf)
-    return np.argmin(dist, axis=1), inside.any(axis=1)
+    return np.argmin(dist, axis=1), np.asarray(inside.any(axis=1))
 
 
 @dataclass(frozen=True)
@@ -772,7 +772,7 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
         for k in range(len(strips)):
             before[k][ids[k]] = f[cut[k] : cut[k + 1]]
         rows = prob.prior_rows
-        prior_cov = np.linalg.inv(rows.T @ rows)
+        prior_cov = np.linalg.inv(rows.T @ rows).astype(np.float64, copy=False)
         x, active, wr, cov, chi2_group = _fit(prob, cut[-1], prior_cov, options)
         chi2, dof = chi2 + chi2_group, dof + 2 * int(active.sum())
         f = prob.condition(x)

@@ -421,13 +421,13 @@ def _geometry(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
             out.append(Finding("geometry", what, d, tol["grid_px"], d <= tol["grid_px"]))
     if "level_1b" in a.geometry and "level_1b" in b.geometry:
         for band in bands:
-            ga = Level1BGeometry.from_tree(a.geometry["level_1b"], band)
-            gb = Level1BGeometry.from_tree(b.geometry["level_1b"], band)
-            rows = np.linspace(0.0, ga.n_rows - 1.0, 101)
-            cols = np.linspace(0.0, ga.n_cols - 1.0, 101)
+            pa = Level1BGeometry.from_tree(a.geometry["level_1b"], band)
+            pb = Level1BGeometry.from_tree(b.geometry["level_1b"], band)
+            rows = np.linspace(0.0, pa.n_rows - 1.0, 101)
+            cols = np.linspace(0.0, pa.n_cols - 1.0, 101)
             d = max(
-                float(np.abs(pa(x) - pb(x)).max())
-                for pa, pb, x in ((ga.f, gb.f, rows), (ga.g, gb.g, cols), (ga.h, gb.h, rows))
+                float(np.abs(fa(x) - fb(x)).max())
+                for fa, fb, x in ((pa.f, pb.f, rows), (pa.g, pb.g, cols), (pa.h, pb.h, rows))
             )
             out.append(
                 Finding(

@@ -371,8 +371,9 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
     adjustments: list[Adjustment | None] = [None] * len(archives)
     if twin and len(archives) > 1:
         records = platform_records(archives)
-        setups = [geo_pass(a, opt, records) for a in archives]
-        adjustments = _twin_adjustment(request, setups)  # type: ignore[arg-type]
+        placed = [geo_pass(a, opt, records) for a in archives]
+        setups = list(placed)
+        adjustments = _twin_adjustment(request, placed)
     return [
         _plan_archive(request, k, makers, setups[k], adjustments[k], dem)
         for k in range(len(archives))
@@ -533,7 +534,7 @@ def all_made(results: list[PassProducts | ScenesFailed]) -> list[PassProducts]:
     note), bad input as :class:`ScenesFailed`."""
     failures = [f for r in results if isinstance(r, ScenesFailed) for f in r.failures]
     if not failures:
-        return results  # type: ignore[return-value]
+        return [r for r in results if isinstance(r, PassProducts)]
     bug = next((f for f in failures if not f.bad_input), None)
     if bug is not None:
         raise_first(failures, first=bug)

@@ -149,11 +149,15 @@ class MapGrid:
 
     def x_m(self, n_cols: int) -> NDArray[np.float64]:
         """Easting of the centres of ``n_cols`` columns."""
-        return self.geotransform[0] + (np.arange(n_cols) + 0.5) * self.geotransform[1]
+        return np.asarray(
+            self.geotransform[0] + (np.arange(n_cols) + 0.5) * self.geotransform[1], np.float64
+        )
 
     def y_m(self, n_rows: int) -> NDArray[np.float64]:
         """Northing of the centres of ``n_rows`` rows."""
-        return self.geotransform[3] + (np.arange(n_rows) + 0.5) * self.geotransform[5]
+        return np.asarray(
+            self.geotransform[3] + (np.arange(n_rows) + 0.5) * self.geotransform[5], np.float64
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -335,7 +339,7 @@ def write_product(path: str | Path, product: Product, deflate_level: int = DEFLA
 def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> None:
     """Version 1 trees lacked the grid sizes that version 2 keeps beside the grids."""
     scene = geometry.get("scene", {})
-    look = next(iter(geometry.get("look_angles", {}).values()), {})
+    look: dict[str, Any] = next(iter(geometry.get("look_angles", {}).values()), {})
     sizes = {
         "n_rows": attrs.get("n_rows"),
         "n_cols": attrs.get("n_cols"),

@@ -56,6 +56,7 @@ def browse_image(product: Product, max_side: int = 1024) -> tuple[NDArray[np.flo
         channels.append(mean)
         ok = v if ok is None else ok & v
     rgb = np.stack(channels * (3 if len(channels) == 1 else 1), axis=-1)
+    assert ok is not None  # a product has a band
     rgb[~ok] = _NO_DATA_RGB
     return rgb, k
 

@@ -188,7 +188,9 @@ def _with_kernel_threads(n: int, fn: Callable[..., Any], *args: Any) -> Any:
     environment is set (the parent's main module imports it again)."""
     import numba
 
-    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    from levels.threads import max_threads
+
+    numba.set_num_threads(max(1, min(n, max_threads())))
     return fn(*args)
 
 

@@ -45,7 +45,14 @@ import numba
 import scipy.linalg  # noqa: F401  (its OpenBLAS loaded before _blas() looks for them)
 from threadpoolctl import ThreadpoolController
 
-__all__ = ["blas_threads", "one_blas_thread", "over_blocks", "single_blas", "thread_count"]
+__all__ = [
+    "blas_threads",
+    "max_threads",
+    "one_blas_thread",
+    "over_blocks",
+    "single_blas",
+    "thread_count",
+]
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
@@ -56,6 +63,13 @@ CHUNKS_PER_THREAD = 4
 
 _pool: ThreadPoolExecutor | None = None
 _pool_lock = threading.Lock()
+
+
+def max_threads() -> int:
+    """The most threads numba's kernels may use in this process (``NUMBA_NUM_THREADS``, by
+    default the cores)."""
+    config: Any = numba.config  # its settings are made at import, unseen by type checkers
+    return int(config.NUMBA_NUM_THREADS)
 
 
 def _forget_pool() -> None:  # a forked child has the pool object but not its threads
@@ -70,9 +84,7 @@ def _executor() -> ThreadPoolExecutor:
     global _pool
     with _pool_lock:
         if _pool is None:
-            _pool = ThreadPoolExecutor(
-                max(1, numba.config.NUMBA_NUM_THREADS), thread_name_prefix="kernels"
-            )
+            _pool = ThreadPoolExecutor(max(1, max_threads()), thread_name_prefix="kernels")
         return _pool
 
 

@@ -92,7 +92,7 @@ def deconvolution_taps(
     if n_taps < 1 or n_taps % 2 == 0:
         raise ValueError(f"n_taps={n_taps}: need an odd number of taps")
     n_fft = 1024
-    nu = np.fft.rfftfreq(n_fft)
+    nu = np.fft.rfftfreq(n_fft).astype(np.float64, copy=False)
     h = mtf(nu, psf_fwhm_px)
     r = h / (h * h + noise_to_signal)
     kernel = np.fft.fftshift(np.fft.irfft(r, n_fft))

@@ -205,12 +205,12 @@ class Level2AGeometry:
         first of the next: no detector sees there, and the model's answer is only the linear
         interpolation of the look-angle table across the gap.
         """
-        i, j = np.meshgrid(
+        lattice_i, lattice_j = np.meshgrid(
             np.linspace(0, self.n_rows - 1, per_side),
             np.linspace(0, self.n_cols - 1, per_side),
             indexing="ij",
         )
-        i, j = i.ravel(), j.ravel()
+        i, j = lattice_i.ravel(), lattice_j.ravel()
         if through_grid:
             grid = self if method in (None, self.method) else self.with_inverse(method)
             la, ca = grid.raw_of(i, j)

@@ -167,7 +167,7 @@ class Level3Geometry:
             pyproj.CRS.from_wkt(str(d["crs_wkt"]))
             dem = Dem(
                 np.asarray(d["height_m"], dtype=np.float64),
-                gt,  # type: ignore[arg-type]
+                gt,
                 str(d["crs_wkt"]),
                 str(d["vertical"]),
                 str(d["source"]),
@@ -341,7 +341,8 @@ def _dem_coordinates(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray
     to_dem = pyproj.Transformer.from_crs(
         pyproj.CRS.from_wkt(grid.crs_wkt), pyproj.CRS.from_wkt(dem.crs_wkt), always_xy=True
     )
-    x, y = to_dem.transform(*(v.ravel() for v in grid.map_of(a, b)))
+    east, north = grid.map_of(a, b)
+    x, y = to_dem.transform(east.ravel(), north.ravel())
     row, col = dem.pixel_of(np.asarray(x), np.asarray(y))
     return np.stack([row.reshape(na, nb), col.reshape(na, nb)])
 

@@ -49,13 +49,14 @@ class Poly1D:
 
     def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
         u = (np.asarray(x, dtype=np.float64) - self.centre) / self.scale
-        return np.polynomial.polynomial.polyval(u, self.coef)
+        return np.asarray(np.polynomial.polynomial.polyval(u, self.coef), dtype=np.float64)
 
     def derivative(self, x: ArrayLike) -> NDArray[np.float64]:
         u = (np.asarray(x, dtype=np.float64) - self.centre) / self.scale
-        return (
+        return np.asarray(
             np.polynomial.polynomial.polyval(u, np.polynomial.polynomial.polyder(self.coef))
-            / self.scale
+            / self.scale,
+            dtype=np.float64,
         )
 
     def solve(self, y: ArrayLike, x0: ArrayLike, iterations: int = 6) -> NDArray[np.float64]:
@@ -88,7 +89,9 @@ def _triangular_factor(
     solution of ``A c ≈ z`` is ``R c = Qᵀz``, and that of the leading columns of ``A`` the
     leading block of both."""
     try:
-        lower = np.linalg.cholesky(design.T @ design)
+        lower: NDArray[np.float64] = np.linalg.cholesky(design.T @ design).astype(
+            np.float64, copy=False
+        )
         d = np.abs(np.diagonal(lower))
         # the ratio of R's diagonal bounds the design's condition number from below
         if d.min() * _NORMAL_EQUATIONS_MAX_COND > d.max():
@@ -97,7 +100,7 @@ def _triangular_factor(
         pass  # not positive definite in floating point: QR below
     # R of [A | z] holds R of A and, in its last column, Qᵀz: Q is never formed
     n = design.shape[1]
-    r_aug = np.linalg.qr(np.column_stack([design, z]), mode="r")
+    r_aug: NDArray[np.float64] = np.asarray(np.linalg.qr(np.column_stack([design, z]), mode="r"))
     return r_aug[:n, :n], r_aug[:n, n]
 
 

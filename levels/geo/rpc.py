@@ -234,11 +234,10 @@ class Rpc:
 
     @classmethod
     def from_tree(cls, tree: dict[str, Any]) -> Rpc:
-        return cls(
-            **{k: float(tree[k]) for k in _SCALARS},
-            **{k: np.asarray(tree[k], dtype=np.float64) for k in _COEFFS},
-            fit_error_px={k: float(v) for k, v in tree.get("fit_error_px", {}).items()},
-        )
+        fields: dict[str, Any] = {k: float(tree[k]) for k in _SCALARS}
+        fields.update({k: np.asarray(tree[k], dtype=np.float64) for k in _COEFFS})
+        errors = {k: float(v) for k, v in tree.get("fit_error_px", {}).items()}
+        return cls(**fields, fit_error_px=errors)
 
 
 def _solve(
@@ -247,8 +246,9 @@ def _solve(
     """Numerator and denominator (constant term 1) with ``target ≈ Num / Den`` at the
     points whose terms are ``t`` (20 × N): linearised, then reweighted by the denominator,
     with a Tikhonov term of weight ``ridge``; ``None``: a cubic polynomial (``Den = 1``)."""
+    x: NDArray[np.float64]
     if ridge is None:
-        x, *_ = np.linalg.lstsq(t.T, target, rcond=None)
+        x = np.linalg.lstsq(t.T, target, rcond=None)[0].astype(np.float64, copy=False)
         return x, np.concatenate([[1.0], np.zeros(19)])
     a = np.concatenate([t.T, -target[:, None] * t[1:].T], axis=1)  # N × 39
     damp = np.sqrt(ridge * a.shape[0]) * np.eye(a.shape[1])
@@ -256,7 +256,7 @@ def _solve(
     for _ in range(3):
         aw = np.concatenate([a * w[:, None], damp])
         bw = np.concatenate([target * w, np.zeros(a.shape[1])])
-        x, *_ = np.linalg.lstsq(aw, bw, rcond=None)
+        x = np.linalg.lstsq(aw, bw, rcond=None)[0].astype(np.float64, copy=False)
         w = 1.0 / np.abs(1.0 + x[20:] @ t[1:])
     return x[:20], np.concatenate([[1.0], x[20:]])
 
@@ -344,7 +344,8 @@ def fit_rpc(
                 best = (worst, num, den)
         assert best is not None
         fitted[f"{axis}_num"], fitted[f"{axis}_den"] = best[1], best[2]
-    rpc = Rpc(**offsets, **scales, **fitted, fit_error_px={})
+    parts: dict[str, Any] = {**offsets, **scales, **fitted}
+    rpc = Rpc(**parts, fit_error_px={})
     # the error, half a cell off the fitting lattice in every axis
     cl, cc, ch = lattice(RPC_CHECK_LATTICE, RPC_HEIGHT_LEVELS - 1, 0.5)
     clat, clon, cok = to_ground(cl, cc, ch)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -30,7 +31,7 @@ J2000_UTC = np.datetime64("2000-01-01T12:00:00", "ns")
 _NS_PER_S = 1_000_000_000
 
 
-def parse_utc(iso: str | Sequence[str] | NDArray) -> NDArray[np.datetime64]:
+def parse_utc(iso: str | Sequence[str] | NDArray) -> Any:
     """UTC instants from ISO 8601 strings (``YYYY-MM-DDTHH:MM:SS[.ffffff][Z]``).
 
     Returns ``datetime64[ns]`` (a 0-d array for one string). A trailing ``Z`` is accepted;
@@ -71,7 +72,7 @@ class Epoch:
     name: str = "epoch"
 
     def __post_init__(self) -> None:
-        t0 = self.t0_utc
+        t0: Any = self.t0_utc  # a string, a datetime64 or a 0-d array of one
         t0 = parse_utc(t0) if isinstance(t0, str) else np.datetime64(t0, "ns")
         if np.isnat(t0):
             raise GeometryError("epoch t0_utc is NaT; give a UTC instant")

@@ -125,6 +125,7 @@ class DimapScene:
             return self._need(self.aocs_attitude, "Raw_Attitudes/Aocs_Attitude/Angles_List", choice)
         rates = self._need(self.angular_speeds_rad_per_s, "Angular_Speeds_List", choice)
         t = self.angular_speeds_t_s
+        assert t is not None  # read with the rates
         if choice == "integrated":
             aocs = self._need(self.aocs_attitude, "Raw_Attitudes/Aocs_Attitude/Angles_List", choice)
             return integrate_rates(
@@ -162,6 +163,7 @@ class DimapScene:
                 f"{self.path}: band {band} has no look angles; bands: {sorted(self.look_angles)}"
             )
         assert self.epoch is not None and self.ephemeris is not None
+        assert self.scene_center_line is not None and self.line_period_s is not None
         clock = LineClock(0.0, self.scene_center_line - 1.0, self.line_period_s)
         return PushbroomModel(
             epoch=self.epoch,

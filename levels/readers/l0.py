@@ -108,7 +108,7 @@ class L0Band:
     @property
     def line_valid(self) -> NDArray[np.bool_]:
         """Lines whose every segment arrived."""
-        return self.valid.all(axis=1)
+        return np.asarray(self.valid.all(axis=1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -261,7 +261,7 @@ def _read_l0(where: Path, lazy: bool) -> L0Archive:
         n_lines, n_det = int(attrs["n_lines"]), int(attrs["n_detectors"])
         seg = d["bands/segment_first_detector"].astype(np.int64)
         _need(
-            seg.size >= 1 and seg[0] == 0 and np.all(np.diff(seg) > 0) and seg[-1] < n_det,
+            bool(seg.size >= 1 and seg[0] == 0 and np.all(np.diff(seg) > 0) and seg[-1] < n_det),
             where,
             "segment_first_detector is not increasing from 0",
         )
