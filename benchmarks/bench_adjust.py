@@ -70,8 +70,8 @@ def bench_scene() -> None:
             "downlink": {"bit_rate_mbps": 25.0},
         }
     )
+    from station.chain.session import downlink, record
     from station.sipc.truth import Truth
-    from station.srrs.session import downlink, record
 
     acq = emulate(scn)
     with tempfile.TemporaryDirectory() as tmp:

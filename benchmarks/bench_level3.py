@@ -48,9 +48,9 @@ REFERENCE_HEIGHT_M = 700.0
 
 def make_inputs(directory: Path) -> tuple[Path, Path]:
     """The full P scene's L0 archive and its 1" DEM (emulated once, kept in ``directory``)."""
+    from station.chain.session import downlink, record
     from station.spacecraft.dem import export_dem
     from station.spacecraft.emulator import emulate
-    from station.srrs.session import downlink, record
 
     l0, dem = directory / "bench3.l0.h5", directory / "bench3.dem.tif"
     if l0.is_file() and dem.is_file():

@@ -64,8 +64,8 @@ def best(f, repeats: int = REPEATS) -> tuple[float, object]:
 
 
 def make_l0(directory: Path) -> Path:
+    from station.chain.session import downlink, record
     from station.spacecraft.emulator import emulate
-    from station.srrs.session import downlink, record
 
     print("emulating and receiving the default P scene …", flush=True)
     acq = emulate(scenario_from_dict({"name": "bench"}))

@@ -49,8 +49,8 @@ SCENE_LINES = 6000
 
 def make_pass(directory: Path, n_scenes: int) -> Path:
     """The L0 archive of a pass of ``n_scenes`` full P scenes (emulated once, kept)."""
+    from station.chain.session import downlink, record
     from station.spacecraft.emulator import emulate
-    from station.srrs.session import downlink, record
 
     l0 = directory / f"pass{n_scenes}.l0.h5"
     if l0.is_file():

@@ -18,12 +18,12 @@ import sys
 import tempfile
 from pathlib import Path
 
+from station.chain.report import comparable, downlink_report
+from station.chain.session import downlink
 from station.run import comparable_report, run_scenario
 from station.scenario import load_scenario
 from station.spacecraft.emulator import emulate_pass
 from station.spacecraft.summary import summarize
-from station.srrs.report import comparable, downlink_report
-from station.srrs.session import downlink
 
 HERE = Path(__file__).resolve().parent
 #: Reduced scenes: rendered, sent through the downlink and run end to end in the tests.

@@ -229,9 +229,9 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
     """One HRV's channel, its L0 archive and its control-point file; adds the wall times
     to ``timings``."""
     from levels.readers.l0 import read_l0
+    from station.chain.report import downlink_report
+    from station.chain.session import downlink, record
     from station.sipc.process import measured_control_points
-    from station.srrs.report import downlink_report
-    from station.srrs.session import downlink, record
 
     clock = time.perf_counter
     stages.set_description(f"downlink HRV{acq.hrv.number}")

@@ -66,3 +66,11 @@ def test_geo_and_cor_are_numerical(path: Path) -> None:
         n for n in _imports(path) if any(n == f or n.startswith(f + ".") for f in forbidden)
     )
     assert not bad, f"{path.relative_to(ROOT)} imports {bad}: GEO and COR do no I/O"
+
+
+@pytest.mark.parametrize("path", _modules("station/srrs"), ids=lambda p: str(p.relative_to(ROOT)))
+def test_the_receiving_station_never_imports_the_emulator(path: Path) -> None:
+    """The SRRS sees bytes, as a real station does: the chain that feeds it the emulator's
+    passes lives in ``station.chain``."""
+    bad = sorted(n for n in _imports(path) if n.startswith("station.spacecraft"))
+    assert not bad, f"{path.relative_to(ROOT)} imports {bad}: the station sees bytes only"

@@ -11,11 +11,11 @@ from types import ModuleType
 import numpy as np
 import pytest
 
+from station.chain.report import comparable, downlink_report
+from station.chain.session import downlink
 from station.scenario import load_scenario
 from station.spacecraft.emulator import emulate_pass
 from station.spacecraft.summary import summarize
-from station.srrs.report import comparable, downlink_report
-from station.srrs.session import downlink
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = sorted((ROOT / "scenarios").glob("*.toml"))

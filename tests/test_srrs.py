@@ -17,15 +17,15 @@ from hypothesis import strategies as st
 
 from levels.errors import L0Error
 from levels.readers.l0 import read_l0
+from station.chain.fuzzing import frames_of, mutate
+from station.chain.report import expected_valid, lost_data_frames
+from station.chain.session import downlink, record
 from station.scenario import scenario_from_dict
 from station.spacecraft.channel import impair
 from station.spacecraft.downlink import transmit
 from station.spacecraft.emulator import emulate
 from station.srrs.frames import find_cadus
-from station.srrs.fuzzing import frames_of, mutate
 from station.srrs.receiver import ReceiverError, receive
-from station.srrs.report import expected_valid, lost_data_frames
-from station.srrs.session import downlink, record
 from station.telemetry import dpcm
 from station.telemetry import format as tf
 

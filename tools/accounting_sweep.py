@@ -17,12 +17,12 @@ import sys
 
 import numpy as np
 
+from station.chain.report import expected_valid, lost_data_frames
 from station.scenario import scenario_from_dict
 from station.spacecraft.channel import impair
 from station.spacecraft.downlink import transmit
 from station.spacecraft.emulator import emulate
 from station.srrs.receiver import receive
-from station.srrs.report import expected_valid, lost_data_frames
 
 HARSH = dict(
     burst_rate_per_s=20.0,

@@ -202,10 +202,10 @@ def receiver(full: bool) -> Iterator[Row]:
         yield ("clean channel, full P scene; line clock", "with --full", "")
         yield ("accounting, BER 1e-7 … 1e-3", "with --full (tools/accounting_sweep.py)", "")
         return
+    from station.chain.report import downlink_report
+    from station.chain.session import downlink
     from station.scenario import scenario_from_dict
     from station.spacecraft.emulator import emulate
-    from station.srrs.report import downlink_report
-    from station.srrs.session import downlink
 
     clean = {"ber": 0.0, "burst_rate_per_s": 0.0}
     for mode, readme in (
@@ -386,8 +386,8 @@ def levels_figures() -> Iterator[Row]:
 
     from levels.process import ProcessingRequest, process
     from levels.readers.l0 import read_l0
+    from station.chain.session import downlink, record
     from station.scenario import load_scenario
-    from station.srrs.session import downlink, record
 
     scn = load_scenario(ROOT / "scenarios" / "small_test.toml")
     acq = emulate(scn)

@@ -17,10 +17,10 @@ from collections import Counter
 
 import numpy as np
 
+from station.chain.fuzzing import frames_of, mutate
 from station.scenario import scenario_from_dict
 from station.spacecraft.downlink import transmit
 from station.spacecraft.emulator import emulate
-from station.srrs.fuzzing import frames_of, mutate
 from station.srrs.receiver import ReceiverError, receive
 
 _DOWN = {"bit_rate_mbps": 0.25, "preamble_s": 0.02, "postamble_s": 0.02}

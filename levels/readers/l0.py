@@ -26,10 +26,13 @@ from levels.geometry.times import Epoch
 from levels.hdf5 import ATTRS_DIGEST, check_attrs_digest, damage_as, hdf5_damage
 
 __all__ = [
+    "L0_BAND_DATASETS",
+    "L0_DATASETS",
     "L0_FORMAT",
     "L0_VERSION",
     "L0Archive",
     "L0Band",
+    "L0Field",
     "L0Rows",
     "pixel_mask",
     "read_l0",
@@ -159,26 +162,57 @@ class L0Archive:
         return int(next(iter(self.bands.values())).counts.shape[1])
 
 
-_REQUIRED = {
-    "bands/segment_first_detector": 1,
-    "lines/line_counter": 1,
-    "lines/t_s": 1,
-    "aux/t_s": 1,
-    "aux/line_counter": 1,
-    "aux/gyro_rates_rad_per_s": 2,
-    "ephemeris/t_s": 1,
-    "ephemeris/r_ecef_m": 2,
-    "ephemeris/v_ecef_m_per_s": 2,
+@dataclass(frozen=True)
+class L0Field:
+    """One dataset of the L0 archive: its rank, CF units and meaning, and whether a reader
+    needs it (the others are the receiver's records, for people and ``station inspect``)."""
+
+    ndim: int
+    units: str
+    long_name: str
+    required: bool = True
+
+
+#: Every dataset of an L0 archive but the bands' (``docs/l0.md``): written by the station's
+#: recorder through this table, checked by :func:`read_l0` against it.
+L0_DATASETS: dict[str, L0Field] = {
+    "bands/segment_first_detector": L0Field(
+        1, "1", "first detector of each image segment (one packet per band, line, segment)"
+    ),
+    "lines/line_counter": L0Field(1, "1", "instrument line counter"),
+    "lines/t_s": L0Field(1, "s", "line time, s since epoch_utc (fitted)"),
+    "aux/time_ms": L0Field(
+        1, "ms", "time code of the gyro sample, ms since 1950-01-01 (CNES day 0)", False
+    ),
+    "aux/t_s": L0Field(1, "s", "time code, s since epoch_utc"),
+    "aux/line_counter": L0Field(1, "1", "first line starting at or after the time code"),
+    "aux/line_time_ms": L0Field(
+        1, "ms", "time code latched at that line's start, ms since 1950-01-01", False
+    ),
+    "aux/gyro_rates_rad_per_s": L0Field(2, "rad s-1", "gyro rates about roll, pitch, yaw"),
+    "aux/mirror_step": L0Field(1, "1", "mirror step", False),
+    "aux/status": L0Field(1, "1", "bit 0 imaging, bit 1 twin configuration", False),
+    "ephemeris/t_s": L0Field(1, "s", "bulletin time, s since epoch_utc"),
+    "ephemeris/r_ecef_m": L0Field(2, "m", "position, ECEF"),
+    "ephemeris/v_ecef_m_per_s": L0Field(2, "m s-1", "velocity, ECEF"),
+    "decode/frames/bit_offset": L0Field(1, "bit", "start of the CADU in the recording", False),
+    "decode/frames/status": L0Field(1, "1", "index into status_names", False),
+    "decode/frames/vc": L0Field(1, "1", "virtual channel (−1: unknown)", False),
+    "decode/frames/count": L0Field(1, "1", "unwrapped frame count (−1: unknown)", False),
+    "decode/frames/symbols_corrected": L0Field(1, "1", "Reed–Solomon symbols corrected", False),
 }
-_BAND = {
-    "counts": 2,
-    "valid": 2,
-    "look_angles/column": 1,
-    "look_angles/psi_x_rad": 1,
-    "look_angles/psi_y_rad": 1,
-    "calibration/gain": 1,
-    "calibration/offset_counts": 1,
+#: The datasets of each band, under ``bands/<band>/`` (``{band}`` in a meaning is its name).
+L0_BAND_DATASETS: dict[str, L0Field] = {
+    "counts": L0Field(2, "1", "raw counts of band {band}"),
+    "valid": L0Field(2, "1", "segment received complete (per line, segment)"),
+    "look_angles/column": L0Field(1, "1", "detector column of each entry"),
+    "look_angles/psi_x_rad": L0Field(1, "rad", "nominal along-track angle"),
+    "look_angles/psi_y_rad": L0Field(1, "rad", "nominal across-track angle"),
+    "calibration/gain": L0Field(1, "1", "relative gain of each detector (table)"),
+    "calibration/offset_counts": L0Field(1, "1", "dark offset of each detector (table), counts"),
 }
+_REQUIRED = {name: f.ndim for name, f in L0_DATASETS.items() if f.required}
+_BAND = {name: f.ndim for name, f in L0_BAND_DATASETS.items() if f.required}
 
 
 def _dataset(f: h5py.File, name: str, where: Path) -> h5py.Dataset:

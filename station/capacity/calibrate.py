@@ -58,9 +58,9 @@ def _measure(
 ) -> dict[str, float]:
     from levels.process import ProcessingRequest, process
     from levels.readers.l0 import read_l0
+    from station.chain.session import downlink, record
     from station.scenario import scenario_from_dict
     from station.spacecraft.emulator import emulate
-    from station.srrs.session import downlink, record
 
     scn = scenario_from_dict(
         {

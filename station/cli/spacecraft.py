@@ -94,10 +94,10 @@ def _emulate_text(summary: dict[str, Any]) -> str:
 
 
 def _downlink(args: argparse.Namespace) -> int:
+    from station.chain.report import downlink_report
+    from station.chain.session import downlink, record
     from station.scenario import load_scenario
     from station.spacecraft.emulator import emulate
-    from station.srrs.report import downlink_report
-    from station.srrs.session import downlink, record
 
     start = time.perf_counter()
     scn = load_scenario(args.scenario)

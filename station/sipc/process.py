@@ -290,7 +290,7 @@ def process_scenario(
 ) -> tuple[PassProducts, Path]:
     """Emulate, downlink, record and process a scenario; products measured against truth,
     the scenes as tasks of ``runner`` (:mod:`levels.tasks`)."""
-    from station.srrs.session import downlink, record
+    from station.chain.session import downlink, record
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

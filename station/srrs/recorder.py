@@ -10,8 +10,9 @@ Nothing depends on the clock: the same pass gives the same bytes of data.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -20,7 +21,7 @@ from numpy.typing import NDArray
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.sensor import LookAngleTable
 from levels.hdf5 import checksummed, deflated_dataset, new_hdf5
-from levels.readers.l0 import L0_FORMAT, L0_VERSION
+from levels.readers.l0 import L0_BAND_DATASETS, L0_DATASETS, L0_FORMAT, L0_VERSION, L0Field
 from station import __version__
 from station.srrs.receiver import STATUS_NAMES, DecodedPass
 
@@ -46,11 +47,21 @@ def _described(ds: h5py.Dataset, units: str, long_name: str) -> h5py.Dataset:
     return ds
 
 
-def _dataset(
-    group: h5py.Group, name: str, data: np.ndarray, units: str, long_name: str, **kwargs
-) -> h5py.Dataset:
+def _field(group: h5py.Group, name: str) -> L0Field:
+    """The L0 format's entry for dataset ``name`` of ``group`` (the reader's table)."""
+    path = f"{group.name.strip('/')}/{name}"
+    if path in L0_DATASETS:
+        return L0_DATASETS[path]
+    _, band, rest = path.split("/", 2)  # bands/<band>/<dataset>
+    entry = L0_BAND_DATASETS[rest]
+    return replace(entry, long_name=entry.long_name.format(band=band))
+
+
+def _dataset(group: h5py.Group, name: str, data: np.ndarray, **kwargs: Any) -> h5py.Dataset:
+    """Dataset ``name`` of ``group``, checksummed, described as the L0 format's table says."""
+    entry = _field(group, name)
     ds = group.create_dataset(name, data=data, **{**checksummed(data), **kwargs})
-    return _described(ds, units, long_name)
+    return _described(ds, entry.units, entry.long_name)
 
 
 def write_l0(
@@ -113,91 +124,48 @@ def _write(
     a["provenance"] = json.dumps(provenance, sort_keys=True)
 
     bands = f.create_group("bands")
-    _dataset(
-        bands,
-        "segment_first_detector",
-        d.segment_first_detector,
-        "1",
-        "first detector of each image segment (one packet per band, line, segment)",
-    )
+    _dataset(bands, "segment_first_detector", d.segment_first_detector)
     chunks = (min(_CHUNK_LINES, n_lines), n_det)
     for anc, img, ok in zip(ancillary, d.images, d.valid, strict=True):
         g = bands.create_group(anc.name)
         # deflated by ISA-L on every core, as the products are: a full P scene in 0.2 s,
         # not h5py's 1.2 s through zlib on one (5 % larger)
         counts = deflated_dataset(g, "counts", img, chunks, shuffle=True)
-        _described(counts, "1", f"raw counts of band {anc.name}")
-        _dataset(
-            g, "valid", ok, "1", "segment received complete (per line, segment)", compression="gzip"
-        )
+        entry = _field(g, "counts")
+        _described(counts, entry.units, entry.long_name)
+        _dataset(g, "valid", ok, compression="gzip")
         look = g.create_group("look_angles")
         look.attrs["n_columns"] = anc.look.n_columns
-        _dataset(look, "column", anc.look.column, "1", "detector column of each entry")
-        _dataset(look, "psi_x_rad", anc.look.psi_x_rad, "rad", "nominal along-track angle")
-        _dataset(look, "psi_y_rad", anc.look.psi_y_rad, "rad", "nominal across-track angle")
+        _dataset(look, "column", anc.look.column)
+        _dataset(look, "psi_x_rad", anc.look.psi_x_rad)
+        _dataset(look, "psi_y_rad", anc.look.psi_y_rad)
         cal = g.create_group("calibration")
-        _dataset(cal, "gain", anc.gain, "1", "relative gain of each detector (table)")
-        _dataset(
-            cal,
-            "offset_counts",
-            anc.offset_counts,
-            "1",
-            "dark offset of each detector (table), counts",
-        )
+        _dataset(cal, "gain", anc.gain)
+        _dataset(cal, "offset_counts", anc.offset_counts)
 
     lines = f.create_group("lines")
-    _dataset(lines, "line_counter", d.line_counter, "1", "instrument line counter")
-    t = _dataset(lines, "t_s", d.line_t_s, "s", "line time, s since epoch_utc (fitted)")
+    _dataset(lines, "line_counter", d.line_counter)
+    t = _dataset(lines, "t_s", d.line_t_s)
     t.attrs["line_period_s"] = d.line_period_s
     t.attrs["uncertainty_s"] = d.line_clock_uncertainty_s
     t.attrs["fit_records"] = int(d.aux.size)
 
     aux = f.create_group("aux")
-    _dataset(
-        aux,
-        "time_ms",
-        d.aux["time_ms"].astype(np.int64),
-        "ms",
-        "time code of the gyro sample, ms since 1950-01-01 (CNES day 0)",
-    )
-    _dataset(aux, "t_s", d.aux_t_s, "s", "time code, s since epoch_utc")
-    _dataset(
-        aux,
-        "line_counter",
-        d.aux["line"].astype(np.int64),
-        "1",
-        "first line starting at or after the time code",
-    )
-    _dataset(
-        aux,
-        "line_time_ms",
-        d.aux["line_time_ms"].astype(np.int64),
-        "ms",
-        "time code latched at that line's start, ms since 1950-01-01",
-    )
-    _dataset(
-        aux,
-        "gyro_rates_rad_per_s",
-        d.gyro_rates_rad_per_s,
-        "rad s-1",
-        "gyro rates about roll, pitch, yaw",
-    )
-    _dataset(aux, "mirror_step", d.aux["mirror_step"].astype(np.int64), "1", "mirror step")
-    _dataset(
-        aux,
-        "status",
-        d.aux["status"].astype(np.int64),
-        "1",
-        "bit 0 imaging, bit 1 twin configuration",
-    )
+    _dataset(aux, "time_ms", d.aux["time_ms"].astype(np.int64))
+    _dataset(aux, "t_s", d.aux_t_s)
+    _dataset(aux, "line_counter", d.aux["line"].astype(np.int64))
+    _dataset(aux, "line_time_ms", d.aux["line_time_ms"].astype(np.int64))
+    _dataset(aux, "gyro_rates_rad_per_s", d.gyro_rates_rad_per_s)
+    _dataset(aux, "mirror_step", d.aux["mirror_step"].astype(np.int64))
+    _dataset(aux, "status", d.aux["status"].astype(np.int64))
 
     eph = f.create_group("ephemeris")
     if bulletins.reference_velocity:
         eph.attrs["reference_velocity"] = bulletins.reference_velocity
     eph.attrs["source"] = "ephemeris bulletins handed to the station"
-    _dataset(eph, "t_s", bulletins.t_s + shift_s, "s", "bulletin time, s since epoch_utc")
-    _dataset(eph, "r_ecef_m", bulletins.r_ecef_m, "m", "position, ECEF")
-    _dataset(eph, "v_ecef_m_per_s", bulletins.v_ecef_m_per_s, "m s-1", "velocity, ECEF")
+    _dataset(eph, "t_s", bulletins.t_s + shift_s)
+    _dataset(eph, "r_ecef_m", bulletins.r_ecef_m)
+    _dataset(eph, "v_ecef_m_per_s", bulletins.v_ecef_m_per_s)
 
     dec = f.create_group("decode")
     dec.attrs["status_names"] = json.dumps(list(STATUS_NAMES))
@@ -207,17 +175,11 @@ def _write(
     dec.attrs["packets"] = json.dumps(d.packets, sort_keys=True)
     dec.attrs["status_counts"] = json.dumps(d.status_counts)
     fr = dec.create_group("frames")
-    _dataset(fr, "bit_offset", d.frame_bit_offset, "bit", "start of the CADU in the recording")
-    _dataset(fr, "status", d.frame_status.astype(np.int8), "1", "index into status_names")
-    _dataset(fr, "vc", d.frame_vc.astype(np.int8), "1", "virtual channel (−1: unknown)")
-    _dataset(fr, "count", d.frame_count, "1", "unwrapped frame count (−1: unknown)")
-    _dataset(
-        fr,
-        "symbols_corrected",
-        d.frame_symbols_corrected.astype(np.int16),
-        "1",
-        "Reed–Solomon symbols corrected",
-    )
+    _dataset(fr, "bit_offset", d.frame_bit_offset)
+    _dataset(fr, "status", d.frame_status.astype(np.int8))
+    _dataset(fr, "vc", d.frame_vc.astype(np.int8))
+    _dataset(fr, "count", d.frame_count)
+    _dataset(fr, "symbols_corrected", d.frame_symbols_corrected.astype(np.int16))
     ch = dec.create_group("channels")
     for vc, acc in sorted(d.accounts.items()):
         g = ch.create_group(f"vc{vc:02d}")

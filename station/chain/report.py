@@ -1,6 +1,6 @@
 """The downlink report: what the station received, and how it compares with the truth.
 
-A plain dict (JSON-ready) built from a :class:`~station.srrs.session.DownlinkResult`; the
+A plain dict (JSON-ready) built from a :class:`~station.chain.session.DownlinkResult`; the
 comparison with the truth is possible only because the pass was emulated.
 """
 
@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from station.chain.session import DownlinkResult
 from station.spacecraft.downlink import Transmission
 from station.spacecraft.emulator import Acquisition
 from station.srrs.receiver import CORRECTED, OK, OUT_OF_ORDER, DecodedPass
-from station.srrs.session import DownlinkResult
 
 __all__ = [
     "STATION_RATE_BIT_PER_S",
