@@ -719,6 +719,54 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
     t0 = time.perf_counter()
     if not strips or not any(s.scenes for s in strips):
         raise GeometryError("no scene to adjust")
+    _check_one_platform(strips)
+    pg0 = strips[0].pg
+    t_ref = float(0.5 * (pg0.line_t_s[0] + pg0.line_t_s[-1]))
+    nodes = _nodes(strips)
+    n_nodes = nodes.t_node.size
+    groups = (
+        [[j] for j in range(n_nodes)] if options.adjustment == "scene" else [list(range(n_nodes))]
+    )
+    sol = _Solution.empty(strips, n_nodes, nodes.has)
+    for group in groups:
+        _solve_group(strips, nodes, group, t_ref, options, sol)
+    sigma0 = float(np.sqrt(sol.chi2 / sol.dof)) if sol.dof else float("nan")
+    if options.adjustment == "scene":
+        mode = "scene"
+    else:
+        mode = "twin" if len(strips) > 1 else "pass"
+    elapsed = {"adjust": time.perf_counter() - t0}
+    out = []
+    for k, s in enumerate(strips):
+        sn = nodes.scene_node[k]
+        out.append(
+            Adjustment(
+                mode,
+                t_ref,
+                nodes.index[k],
+                nodes.t_node[sn],
+                sol.node_pass[sn],
+                sol.node_scene[sn],
+                sol.node_cov[sn],
+                sol.predicted[k],
+                sol.prior[k],
+                sol.node_inc[sn],
+                sol.node_lost[sn],
+                tuple(s.gcps.id),
+                nodes.point_scene[k],
+                tuple(str(v) for v in sol.status[k]),
+                sol.before[k],
+                sol.after[k],
+                sol.wres[k],
+                sigma0,
+                elapsed,
+            )
+        )
+    return tuple(out)
+
+
+def _check_one_platform(strips: list[Strip]) -> None:
+    """The strips' GEO share one platform attitude, or :class:`GeometryError`."""
     att = strips[0].pg.attitude
     for s in strips[1:]:
         if not (
@@ -729,10 +777,25 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
                 "the HRVs of a joint adjustment must share one platform attitude: "
                 "make their GEO from the same gyro records"
             )
-    pg0 = strips[0].pg
-    t_ref = float(0.5 * (pg0.line_t_s[0] + pg0.line_t_s[-1]))
+
+
+@dataclass(frozen=True, eq=False)
+class _Nodes:
+    """The nodes of a joint adjustment (:func:`adjust_strips`): their instants, each
+    strip's scenes' node and index, and each strip's points' node, whether a scene holds
+    them, and that scene's index (−1: none)."""
+
+    t_node: NDArray[np.float64]
+    scene_node: list[NDArray[np.int64]]
+    index: list[NDArray[np.int64]]
+    point_node: list[NDArray[np.int64]]
+    has: list[NDArray[np.bool_]]
+    point_scene: list[NDArray[np.int64]]
+
+
+def _nodes(strips: list[Strip]) -> _Nodes:
+    """Every scene's centre a node, those of several HRVs at one instant merged."""
     t_scene = [np.array([sc.t_centre_s for sc in s.scenes]) for s in strips]
-    # the nodes: every scene's centre, those of several HRVs at one instant merged
     t_all = np.concatenate(t_scene)
     order = np.argsort(t_all, kind="stable")
     first = np.r_[True, np.diff(t_all[order]) > NODE_TOLERANCE_S]
@@ -747,86 +810,88 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
         point_node.append(sn[pos] if sn.size else pos)
         has.append(inside)
         point_scene.append(np.where(inside, idx[pos] if idx.size else -1, -1))
-    n_nodes = t_node.size
-    groups = (
-        [[j] for j in range(n_nodes)] if options.adjustment == "scene" else [list(range(n_nodes))]
-    )
-    node_pass, node_scene = np.zeros((n_nodes, _NP)), np.zeros((n_nodes, _NS))
-    node_cov = np.zeros((n_nodes, _NP + _NS, _NP + _NS))
-    node_inc, node_lost = np.full((n_nodes, 3), np.inf), np.zeros(n_nodes)
-    predicted = [np.zeros((len(s.scenes), 3)) for s in strips]
-    prior = [np.zeros((len(s.scenes), 3)) for s in strips]
-    before = [np.full((len(s.gcps), 2), np.nan) for s in strips]
-    after = [np.full((len(s.gcps), 2), np.nan) for s in strips]
-    wres = [np.full(len(s.gcps), np.nan) for s in strips]
-    status = [np.where(h, "used", "outside").astype(object) for h in has]
-    chi2, dof = 0.0, 0
-    for group in groups:
-        uses = [h & np.isin(pn, group) for h, pn in zip(has, point_node, strict=True)]
-        local = [np.searchsorted(group, pn) for pn in point_node]  # node within the group
-        prob, lost = _problem(strips, uses, local, t_node[group], t_ref, options)
-        ids = [np.flatnonzero(u) for u in uses]
-        # the problem's points, strip after strip: where each strip's begin
-        cut = np.cumsum([0] + [i.size for i in ids])
-        f = prob.condition(np.zeros(prob.n_params))
-        for k in range(len(strips)):
-            before[k][ids[k]] = f[cut[k] : cut[k + 1]]
-        rows = prob.prior_rows
-        prior_cov = np.linalg.inv(rows.T @ rows).astype(np.float64, copy=False)
-        x, active, wr, cov, chi2_group = _fit(prob, cut[-1], prior_cov, options)
-        chi2, dof = chi2 + chi2_group, dof + 2 * int(active.sum())
-        f = prob.condition(x)
-        for k in range(len(strips)):
-            span = slice(cut[k], cut[k + 1])
-            after[k][ids[k]] = f[span]
-            wres[k][ids[k]] = wr[span]
-            status[k][ids[k][~active[span]]] = "rejected"
-        pas, sce = prob.split(x)
-        scale = np.r_[prob.sigma_pass, prob.sigma_scene]
-        for jl, j in enumerate(group):
-            node_pass[j], node_scene[j] = pas, sce[jl]
-            sel = np.r_[np.arange(_NP), _NP + _NS * jl + np.arange(_NS)]
-            node_cov[j] = cov[np.ix_(sel, sel)] * np.outer(scale, scale)
-        for k, s in enumerate(strips):
-            mine = np.isin(scene_node[k], group)
-            if mine.any():
-                sub = Strip(
-                    s.pg, [sc for sc, m in zip(s.scenes, mine, strict=True) if m], s.gcps, s.band
-                )
-                predicted[k][mine], prior[k][mine] = _predicted(
-                    prob, sub, np.searchsorted(group, scene_node[k][mine]), x, [cov, prior_cov]
-                )
-        node_inc[group], node_lost[group] = prob.increment_sigma, lost
-    sigma0 = float(np.sqrt(chi2 / dof)) if dof else float("nan")
-    if options.adjustment == "scene":
-        mode = "scene"
-    else:
-        mode = "twin" if len(strips) > 1 else "pass"
-    elapsed = {"adjust": time.perf_counter() - t0}
-    out = []
-    for k, s in enumerate(strips):
-        sn = scene_node[k]
-        out.append(
-            Adjustment(
-                mode,
-                t_ref,
-                index[k],
-                t_node[sn],
-                node_pass[sn],
-                node_scene[sn],
-                node_cov[sn],
-                predicted[k],
-                prior[k],
-                node_inc[sn],
-                node_lost[sn],
-                tuple(s.gcps.id),
-                point_scene[k],
-                tuple(str(v) for v in status[k]),
-                before[k],
-                after[k],
-                wres[k],
-                sigma0,
-                elapsed,
-            )
+    return _Nodes(t_node, scene_node, index, point_node, has, point_scene)
+
+
+@dataclass(eq=False)
+class _Solution:
+    """What the groups of a joint adjustment solve, filled group after group: per node its
+    parameters, covariance, increments' σ and lost time; per strip its scenes' predicted
+    and prior σ, its points' residuals before and after, normalised residuals and status;
+    the χ² and degrees of freedom summed over the groups."""
+
+    node_pass: NDArray[np.float64]
+    node_scene: NDArray[np.float64]
+    node_cov: NDArray[np.float64]
+    node_inc: NDArray[np.float64]
+    node_lost: NDArray[np.float64]
+    predicted: list[NDArray[np.float64]]
+    prior: list[NDArray[np.float64]]
+    before: list[NDArray[np.float64]]
+    after: list[NDArray[np.float64]]
+    wres: list[NDArray[np.float64]]
+    status: list[NDArray[np.object_]]
+    chi2: float = 0.0
+    dof: int = 0
+
+    @classmethod
+    def empty(cls, strips: list[Strip], n_nodes: int, has: list[NDArray[np.bool_]]) -> _Solution:
+        return cls(
+            np.zeros((n_nodes, _NP)),
+            np.zeros((n_nodes, _NS)),
+            np.zeros((n_nodes, _NP + _NS, _NP + _NS)),
+            np.full((n_nodes, 3), np.inf),
+            np.zeros(n_nodes),
+            [np.zeros((len(s.scenes), 3)) for s in strips],
+            [np.zeros((len(s.scenes), 3)) for s in strips],
+            [np.full((len(s.gcps), 2), np.nan) for s in strips],
+            [np.full((len(s.gcps), 2), np.nan) for s in strips],
+            [np.full(len(s.gcps), np.nan) for s in strips],
+            [np.where(h, "used", "outside").astype(object) for h in has],
         )
-    return tuple(out)
+
+
+def _solve_group(
+    strips: list[Strip],
+    nodes: _Nodes,
+    group: list[int],
+    t_ref: float,
+    options: ProcessingOptions,
+    sol: _Solution,
+) -> None:
+    """Adjust the nodes of ``group`` together, their results into ``sol``."""
+    uses = [h & np.isin(pn, group) for h, pn in zip(nodes.has, nodes.point_node, strict=True)]
+    local = [np.searchsorted(group, pn) for pn in nodes.point_node]  # node within the group
+    prob, lost = _problem(strips, uses, local, nodes.t_node[group], t_ref, options)
+    ids = [np.flatnonzero(u) for u in uses]
+    # the problem's points, strip after strip: where each strip's begin
+    cut = np.cumsum([0] + [i.size for i in ids])
+    f = prob.condition(np.zeros(prob.n_params))
+    for k in range(len(strips)):
+        sol.before[k][ids[k]] = f[cut[k] : cut[k + 1]]
+    rows = prob.prior_rows
+    prior_cov = np.linalg.inv(rows.T @ rows).astype(np.float64, copy=False)
+    x, active, wr, cov, chi2_group = _fit(prob, cut[-1], prior_cov, options)
+    sol.chi2, sol.dof = sol.chi2 + chi2_group, sol.dof + 2 * int(active.sum())
+    f = prob.condition(x)
+    for k in range(len(strips)):
+        span = slice(cut[k], cut[k + 1])
+        sol.after[k][ids[k]] = f[span]
+        sol.wres[k][ids[k]] = wr[span]
+        sol.status[k][ids[k][~active[span]]] = "rejected"
+    pas, sce = prob.split(x)
+    scale = np.r_[prob.sigma_pass, prob.sigma_scene]
+    for jl, j in enumerate(group):
+        sol.node_pass[j], sol.node_scene[j] = pas, sce[jl]
+        sel = np.r_[np.arange(_NP), _NP + _NS * jl + np.arange(_NS)]
+        sol.node_cov[j] = cov[np.ix_(sel, sel)] * np.outer(scale, scale)
+    for k, s in enumerate(strips):
+        mine = np.isin(nodes.scene_node[k], group)
+        if mine.any():
+            sub = Strip(
+                s.pg, [sc for sc, m in zip(s.scenes, mine, strict=True) if m], s.gcps, s.band
+            )
+            sol.predicted[k][mine], sol.prior[k][mine] = _predicted(
+                prob, sub, np.searchsorted(group, nodes.scene_node[k][mine]), x, [cov, prior_cov]
+            )
+    sol.node_inc[group], sol.node_lost[group] = prob.increment_sigma, lost

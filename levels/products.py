@@ -266,74 +266,94 @@ def write_product(path: str | Path, product: Product, deflate_level: int = DEFLA
         for k, v in product.attrs.items():
             f.attrs[k] = _attr(v)
         rows, cols = next(iter(product.bands.values())).image.shape
-        grid = product.map_grid
-        if grid is not None:
-            dims = (
-                _dimension(
-                    f,
-                    "y",
-                    grid.y_m(rows),
-                    {
-                        "standard_name": "projection_y_coordinate",
-                        "axis": "Y",
-                        "units": "m",
-                        "long_name": "northing of the pixel centre",
-                    },
-                ),
-                _dimension(
-                    f,
-                    "x",
-                    grid.x_m(cols),
-                    {
-                        "standard_name": "projection_x_coordinate",
-                        "axis": "X",
-                        "units": "m",
-                        "long_name": "easting of the pixel centre",
-                    },
-                ),
-            )
-            _grid_mapping(f, grid)
-        else:
-            dims = (
-                _dimension(
-                    f,
-                    "row",
-                    np.arange(rows, dtype=np.int32),
-                    {"units": "1", "long_name": "image row (line)"},
-                ),
-                _dimension(
-                    f,
-                    "column",
-                    np.arange(cols, dtype=np.int32),
-                    {"units": "1", "long_name": "image column"},
-                ),
-            )
+        dims = _dimensions(f, product.map_grid, rows, cols)
         chunks = (min(_CHUNK, rows), min(_CHUNK, cols))
         for name, band in product.bands.items():
-            for var, data, long_name in (
-                (name, band.image, f"level {product.level} counts of band {name}"),
-                (
-                    f"{name}_valid",
-                    band.valid.view(np.uint8),
-                    f"pixel of band {name} is valid (every raw pixel it uses arrived)",
-                ),
-            ):
-                level = deflate_level if var == name else DEFLATE_LEVEL
-                ds = deflated_dataset(f, var, data, chunks, level=level)
-                for axis, dim in enumerate(dims):
-                    ds.dims[axis].attach_scale(dim)
-                ds.attrs["units"] = "1"
-                ds.attrs["long_name"] = long_name
-                if grid is not None:
-                    ds.attrs["grid_mapping"] = "crs"
-                if var == name:
-                    ds.attrs["ancillary_variables"] = f"{name}_valid"
-                else:
-                    ds.attrs["flag_values"] = np.array([0, 1], np.uint8)
-                    ds.attrs["flag_meanings"] = "invalid valid"
+            _write_band(f, product, name, band, dims, chunks, deflate_level)
         for name in ("geometry", "quality", "provenance"):
             _write_tree(f.create_group(name), getattr(product, name))
     return target
+
+
+def _dimensions(
+    f: h5py.File, grid: MapGrid | None, rows: int, cols: int
+) -> tuple[h5py.Dataset, h5py.Dataset]:
+    """The images' dimension scales: map coordinates (and the grid mapping) for a map
+    level, row and column numbers for an image-geometry level."""
+    if grid is None:
+        return (
+            _dimension(
+                f,
+                "row",
+                np.arange(rows, dtype=np.int32),
+                {"units": "1", "long_name": "image row (line)"},
+            ),
+            _dimension(
+                f,
+                "column",
+                np.arange(cols, dtype=np.int32),
+                {"units": "1", "long_name": "image column"},
+            ),
+        )
+    dims = (
+        _dimension(
+            f,
+            "y",
+            grid.y_m(rows),
+            {
+                "standard_name": "projection_y_coordinate",
+                "axis": "Y",
+                "units": "m",
+                "long_name": "northing of the pixel centre",
+            },
+        ),
+        _dimension(
+            f,
+            "x",
+            grid.x_m(cols),
+            {
+                "standard_name": "projection_x_coordinate",
+                "axis": "X",
+                "units": "m",
+                "long_name": "easting of the pixel centre",
+            },
+        ),
+    )
+    _grid_mapping(f, grid)
+    return dims
+
+
+def _write_band(
+    f: h5py.File,
+    product: Product,
+    name: str,
+    band: BandImage,
+    dims: tuple[h5py.Dataset, h5py.Dataset],
+    chunks: tuple[int, int],
+    deflate_level: int,
+) -> None:
+    """One band's image and validity mask, on the dimension scales, CF-described."""
+    for var, data, long_name in (
+        (name, band.image, f"level {product.level} counts of band {name}"),
+        (
+            f"{name}_valid",
+            band.valid.view(np.uint8),
+            f"pixel of band {name} is valid (every raw pixel it uses arrived)",
+        ),
+    ):
+        level = deflate_level if var == name else DEFLATE_LEVEL
+        ds = deflated_dataset(f, var, data, chunks, level=level)
+        for axis, dim in enumerate(dims):
+            ds.dims[axis].attach_scale(dim)
+        ds.attrs["units"] = "1"
+        ds.attrs["long_name"] = long_name
+        if product.map_grid is not None:
+            ds.attrs["grid_mapping"] = "crs"
+        if var == name:
+            ds.attrs["ancillary_variables"] = f"{name}_valid"
+        else:
+            ds.attrs["flag_values"] = np.array([0, 1], np.uint8)
+            ds.attrs["flag_meanings"] = "invalid valid"
 
 
 def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> None:

@@ -33,7 +33,7 @@ import numpy as np
 import pyproj
 from numpy.typing import ArrayLike, NDArray
 
-from levels.choices import InverseMethod
+from levels.choices import GridColumns, GridRows, InverseMethod
 from levels.errors import GeometryError, ProductError
 from levels.geo.inverse_grid import (
     bilinear_grid,
@@ -418,58 +418,21 @@ def level2a_geometry(
         ``grid_rows = "regular"`` this is INPE's exact 61 × 61 configuration, whose bilinear
         cells smear the along-track jump at each butting.
     """
-    if method not in INVERSE_METHODS:
-        raise GeometryError(f"inverse method {method!r}: expected one of {INVERSE_METHODS}")
-    if grid_rows not in ("attitude", "regular"):
-        raise GeometryError(f"grid_rows {grid_rows!r}: expected 'attitude' or 'regular'")
-    if grid_columns not in ("butting", "regular"):
-        raise GeometryError(f"grid_columns {grid_columns!r}: expected 'butting' or 'regular'")
+    _check_choices(method, grid_rows, grid_columns)
     model = scene.models[band] if band is not None else scene.model
     nl, nc = scene.cut.n_lines, model.n_columns
-    gl = (
-        scene.attitude_lines()
-        if grid_rows == "attitude"
-        else np.linspace(0.0, nl - 1.0, n_breakpoints)
-    )
-    butting = butting_columns(model.look_angles) if grid_columns == "butting" else np.zeros(0)
-    gc = np.union1d(np.linspace(0.0, nc - 1.0, n_breakpoints), butting)
+    gl, gc, butting = _grid_lines_columns(scene, model, n_breakpoints, grid_rows, grid_columns)
     ll, cc = np.meshgrid(gl, gc, indexing="ij")
-    g = model.image_to_ground(ll.ravel(), cc.ravel(), scene.reference_height_m)
-    if not np.all(g.ok):
-        raise GeometryError(
-            f"level 2A: {np.count_nonzero(~g.ok)} direct-grid breakpoints of "
-            f"scene {scene.cut.index} not located"
-        )
-    if like is not None:
-        if like.pixel_size_m != float(pixel_size_m) or not pyproj.CRS.from_wkt(like.crs_wkt).equals(
-            crs
-        ):
-            raise GeometryError("level 2A: a shared map grid must have the same CRS and pixel size")
-        crs = pyproj.CRS.from_wkt(like.crs_wkt)
-    to_map = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
-    e, n = to_map.transform(np.degrees(g.lon_rad), np.degrees(g.lat_rad))
-    e, n = np.asarray(e).reshape(ll.shape), np.asarray(n).reshape(ll.shape)
+    crs = _shared_crs(crs, pixel_size_m, like)
+    e, n = _direct_grid_on_map(scene, model, ll, cc, crs)
     res = float(pixel_size_m)
-    if like is None:
-        x_min = float(np.floor(e.min() / res) * res)
-        y_max = float(np.ceil(n.max() / res) * res)
-        n_cols = int(np.ceil((e.max() - x_min) / res))
-        n_rows = int(np.ceil((y_max - n.min()) / res))
-        step = inverse_step_px or max(1, round(max(n_rows, n_cols) / (n_breakpoints - 1) / 4))
-        rows = np.arange(0.0, n_rows - 1 + step, step)
-        cols = np.arange(0.0, n_cols - 1 + step, step)
-    else:
-        x_min, y_max, n_rows, n_cols = like.x_min_m, like.y_max_m, like.n_rows, like.n_cols
-        rows, cols = like.inverse_rows, like.inverse_cols
+    x_min, y_max, n_rows, n_cols, rows, cols = _map_extent(
+        e, n, res, like, inverse_step_px, n_breakpoints
+    )
     gi = (y_max - n) / res - 0.5
     gj = (e - x_min) / res - 0.5
     seg_first = np.concatenate([[0.0], butting[1::2]])
-    # each segment's own grid columns, its first detector to its last
-    segments = [slice(f, last + 1) for f, last in zip(*segment_cells(gc, seg_first), strict=True)]
-    orders = (3, 4, 5)
-    line_fits = [Poly2D.fit_orders(gi[:, k], gj[:, k], ll[:, k], orders) for k in segments]
-    col_fits = Poly2D.fit_orders(gi, gj, cc, orders)
-    polys = {o: (tuple(f[o] for f in line_fits), col_fits[o]) for o in orders}
+    polys = _inverse_polynomials(gi, gj, ll, cc, gc, seg_first)
     geom = Level2AGeometry(
         crs_wkt=crs.to_wkt(),
         pixel_size_m=res,
@@ -492,3 +455,106 @@ def level2a_geometry(
         n_raw_columns=nc,
     )
     return geom.with_inverse(method)
+
+
+def _check_choices(method: str, grid_rows: str, grid_columns: str) -> None:
+    """:class:`GeometryError` naming a choice this module does not know."""
+    if method not in INVERSE_METHODS:
+        raise GeometryError(f"inverse method {method!r}: expected one of {INVERSE_METHODS}")
+    if grid_rows not in tuple(GridRows):
+        raise GeometryError(f"grid_rows {grid_rows!r}: expected 'attitude' or 'regular'")
+    if grid_columns not in tuple(GridColumns):
+        raise GeometryError(f"grid_columns {grid_columns!r}: expected 'butting' or 'regular'")
+
+
+def _inverse_polynomials(
+    gi: NDArray[np.float64],
+    gj: NDArray[np.float64],
+    ll: NDArray[np.float64],
+    cc: NDArray[np.float64],
+    gc: NDArray[np.float64],
+    seg_first: NDArray[np.float64],
+) -> dict[int, tuple[tuple[Poly2D, ...], Poly2D]]:
+    """The inverse polynomials of orders 3 to 5 through the direct grid's output pixels
+    ``gi``, ``gj``: the raw line per butting segment (each on its own grid columns, its
+    first detector to its last), the raw column over the whole line."""
+    segments = [slice(f, last + 1) for f, last in zip(*segment_cells(gc, seg_first), strict=True)]
+    orders = (3, 4, 5)
+    line_fits = [Poly2D.fit_orders(gi[:, k], gj[:, k], ll[:, k], orders) for k in segments]
+    col_fits = Poly2D.fit_orders(gi, gj, cc, orders)
+    return {o: (tuple(f[o] for f in line_fits), col_fits[o]) for o in orders}
+
+
+def _grid_lines_columns(
+    scene: SceneGeometry,
+    model: PushbroomModel,
+    n_breakpoints: int,
+    grid_rows: str,
+    grid_columns: str,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The direct grid's raw lines and columns, and the butting columns among these."""
+    nl, nc = scene.cut.n_lines, model.n_columns
+    gl = (
+        scene.attitude_lines()
+        if grid_rows == "attitude"
+        else np.linspace(0.0, nl - 1.0, n_breakpoints)
+    )
+    butting = butting_columns(model.look_angles) if grid_columns == "butting" else np.zeros(0)
+    gc = np.union1d(np.linspace(0.0, nc - 1.0, n_breakpoints), butting)
+    return gl, gc, butting
+
+
+def _direct_grid_on_map(
+    scene: SceneGeometry,
+    model: PushbroomModel,
+    ll: NDArray[np.float64],
+    cc: NDArray[np.float64],
+    crs: pyproj.CRS,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The direct grid's raw pixels ``ll``, ``cc`` located at the reference height and
+    projected: their map coordinates (E, N), in the grid's shape."""
+    g = model.image_to_ground(ll.ravel(), cc.ravel(), scene.reference_height_m)
+    if not np.all(g.ok):
+        raise GeometryError(
+            f"level 2A: {np.count_nonzero(~g.ok)} direct-grid breakpoints of "
+            f"scene {scene.cut.index} not located"
+        )
+    to_map = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+    e, n = to_map.transform(np.degrees(g.lon_rad), np.degrees(g.lat_rad))
+    return np.asarray(e).reshape(ll.shape), np.asarray(n).reshape(ll.shape)
+
+
+def _shared_crs(crs: pyproj.CRS, pixel_size_m: float, like: Level2AGeometry | None) -> pyproj.CRS:
+    """The map CRS: ``like``'s when a band shares another's grid (which must then have the
+    same CRS and pixel size)."""
+    if like is None:
+        return crs
+    if like.pixel_size_m != float(pixel_size_m) or not pyproj.CRS.from_wkt(like.crs_wkt).equals(
+        crs
+    ):
+        raise GeometryError("level 2A: a shared map grid must have the same CRS and pixel size")
+    return pyproj.CRS.from_wkt(like.crs_wkt)
+
+
+def _map_extent(
+    e: NDArray[np.float64],
+    n: NDArray[np.float64],
+    res: float,
+    like: Level2AGeometry | None,
+    inverse_step_px: int,
+    n_breakpoints: int,
+) -> tuple[float, float, int, int, NDArray[np.float64], NDArray[np.float64]]:
+    """The output grid over the direct grid's map points ``e``, ``n`` (its upper-left
+    corner on whole pixels, its size) and the inverse grid's rows and columns; ``like``'s
+    when the grid is shared."""
+    if like is not None:
+        x_min, y_max, n_rows, n_cols = like.x_min_m, like.y_max_m, like.n_rows, like.n_cols
+        return x_min, y_max, n_rows, n_cols, like.inverse_rows, like.inverse_cols
+    x_min = float(np.floor(e.min() / res) * res)
+    y_max = float(np.ceil(n.max() / res) * res)
+    n_cols = int(np.ceil((e.max() - x_min) / res))
+    n_rows = int(np.ceil((y_max - n.min()) / res))
+    step = inverse_step_px or max(1, round(max(n_rows, n_cols) / (n_breakpoints - 1) / 4))
+    rows = np.arange(0.0, n_rows - 1 + step, step)
+    cols = np.arange(0.0, n_cols - 1 + step, step)
+    return x_min, y_max, n_rows, n_cols, rows, cols

@@ -426,24 +426,7 @@ def level3_geometry(
             )
             for s in (at[0], at[-1])
         ]
-        res = ends[0].pixel_size_m
-        x_min = min(g.x_min_m for g in ends)
-        y_max = max(g.y_max_m for g in ends)
-        x_max = max(g.x_min_m + g.n_cols * res for g in ends)
-        y_min = min(g.y_max_m - g.n_rows * res for g in ends)
-        n_rows = round((y_max - y_min) / res)
-        n_cols = round((x_max - x_min) / res)
-        s_i, s_j = ends[0].inverse_step
-        step_ij = inverse_step_px or max(s_i, s_j)
-        template = replace(
-            ends[0],
-            x_min_m=x_min,
-            y_max_m=y_max,
-            n_rows=n_rows,
-            n_cols=n_cols,
-            inverse_rows=np.arange(0.0, n_rows - 1 + step_ij, step_ij),
-            inverse_cols=np.arange(0.0, n_cols - 1 + step_ij, step_ij),
-        )
+        template = _union_grid(ends, inverse_step_px)
     window = _dem_window(dem, template)
     ellipsoidal = _ellipsoidal(window)
     coordinates = _dem_coordinates(window, template, DEM_COORD_STEP)
@@ -474,6 +457,29 @@ def level3_geometry(
             inverse_rows=np.arange(0.0, template.n_rows - 1 + half, half),
             inverse_cols=np.arange(0.0, template.n_cols - 1 + half, half),
         )
+
+
+def _union_grid(ends: list[Level2AGeometry], inverse_step_px: int) -> Level2AGeometry:
+    """The map grid of level 3: the union of the 2A grids of the footprints at the lowest
+    and highest heights, its inverse grid at ``inverse_step_px`` (by default 2A's)."""
+    res = ends[0].pixel_size_m
+    x_min = min(g.x_min_m for g in ends)
+    y_max = max(g.y_max_m for g in ends)
+    x_max = max(g.x_min_m + g.n_cols * res for g in ends)
+    y_min = min(g.y_max_m - g.n_rows * res for g in ends)
+    n_rows = round((y_max - y_min) / res)
+    n_cols = round((x_max - x_min) / res)
+    s_i, s_j = ends[0].inverse_step
+    step_ij = inverse_step_px or max(s_i, s_j)
+    return replace(
+        ends[0],
+        x_min_m=x_min,
+        y_max_m=y_max,
+        n_rows=n_rows,
+        n_cols=n_cols,
+        inverse_rows=np.arange(0.0, n_rows - 1 + step_ij, step_ij),
+        inverse_cols=np.arange(0.0, n_cols - 1 + step_ij, step_ij),
+    )
 
 
 def on_terrain(

@@ -279,18 +279,8 @@ def fit_rpc(
         raise GeometryError(f"RPC fit: height range {heights_m} is not a range")
     if h_hi - h_lo < 1.0:  # a flat scene: the height terms still need a span
         h_lo, h_hi = h_lo - 50.0, h_hi + 50.0
-
-    def lattice(n: int, n_h: int, offset: float) -> tuple[NDArray, NDArray, NDArray]:
-        f = (np.arange(n) + offset) / (n - 1 + 2 * offset) if offset else np.linspace(0, 1, n)
-        fh = (
-            (np.arange(n_h) + offset) / (n_h - 1 + 2 * offset) if offset else np.linspace(0, 1, n_h)
-        )
-        ll, cc, hh = np.meshgrid(
-            f * (n_lines - 1), f * (n_columns - 1), h_lo + fh * (h_hi - h_lo), indexing="ij"
-        )
-        return ll.ravel(), cc.ravel(), hh.ravel()
-
-    line, col, h = lattice(RPC_FIT_LATTICE, RPC_HEIGHT_LEVELS, 0.0)
+    box = (n_lines, n_columns, h_lo, h_hi)
+    line, col, h = _lattice(RPC_FIT_LATTICE, RPC_HEIGHT_LEVELS, 0.0, box)
     lat, lon, ok = to_ground(line, col, h)
     if ok.sum() < 100:
         raise GeometryError(f"RPC fit: only {int(ok.sum())} lattice points reach the ground")
@@ -319,7 +309,7 @@ def fit_rpc(
         )
 
     t = normalised(lat, lon, h)
-    sl, sc, sh = lattice(_CHOICE_LATTICE, RPC_HEIGHT_LEVELS - 1, 1.0 / 3.0)
+    sl, sc, sh = _lattice(_CHOICE_LATTICE, RPC_HEIGHT_LEVELS - 1, 1.0 / 3.0, box)
     slat, slon, sok = to_ground(sl, sc, sh)
     st = normalised(slat[sok], slon[sok], sh[sok])
     fitted = {}
@@ -327,40 +317,79 @@ def fit_rpc(
         ("line", (line - offsets["line_off"]) / scales["line_scale"], sl[sok]),
         ("samp", (col - offsets["samp_off"]) / scales["samp_scale"], sc[sok]),
     ):
-        best = None
-        for ridge in _RIDGES:
-            num, den = _solve(t, target, ridge)
-            d = den @ st
-            worst = (
-                np.inf
-                if np.min(np.abs(d)) < 0.1 or np.any(np.sign(d) != np.sign(d[0]))
-                else np.max(
-                    np.abs(
-                        offsets[f"{axis}_off"] + scales[f"{axis}_scale"] * (num @ st) / d - choice
-                    )
-                )
-            )
-            if best is None or worst < best[0]:
-                best = (worst, num, den)
-        assert best is not None
-        fitted[f"{axis}_num"], fitted[f"{axis}_den"] = best[1], best[2]
+        off, scale = offsets[f"{axis}_off"], scales[f"{axis}_scale"]
+        fitted[f"{axis}_num"], fitted[f"{axis}_den"] = _best_ratio(
+            t, target, st, off, scale, choice
+        )
     parts: dict[str, Any] = {**offsets, **scales, **fitted}
     rpc = Rpc(**parts, fit_error_px={})
-    # the error, half a cell off the fitting lattice in every axis
-    cl, cc, ch = lattice(RPC_CHECK_LATTICE, RPC_HEIGHT_LEVELS - 1, 0.5)
+    return replace(rpc, fit_error_px=_fit_error(rpc, to_ground, box))
+
+
+def _lattice(
+    n: int, n_h: int, offset: float, box: tuple[int, int, float, float]
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Lines, columns and heights of an ``n × n × n_h`` lattice over the image and the
+    height range ``box = (n_lines, n_columns, h_lo, h_hi)``: its ends on the box's edges
+    (``offset`` 0), or ``offset`` of a cell inside them."""
+    n_lines, n_columns, h_lo, h_hi = box
+    f = (np.arange(n) + offset) / (n - 1 + 2 * offset) if offset else np.linspace(0, 1, n)
+    fh = (np.arange(n_h) + offset) / (n_h - 1 + 2 * offset) if offset else np.linspace(0, 1, n_h)
+    ll, cc, hh = np.meshgrid(
+        f * (n_lines - 1), f * (n_columns - 1), h_lo + fh * (h_hi - h_lo), indexing="ij"
+    )
+    return ll.ravel(), cc.ravel(), hh.ravel()
+
+
+def _best_ratio(
+    t: NDArray[np.float64],
+    target: NDArray[np.float64],
+    st: NDArray[np.float64],
+    off: float,
+    scale: float,
+    choice: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Numerator and denominator of one image axis: of the fits over :data:`_RIDGES`, the
+    one whose worst error on the choice lattice (terms ``st``, true coordinate ``choice``)
+    is least; a denominator near zero or changing sign there rules a fit out."""
+    best = None
+    for ridge in _RIDGES:
+        num, den = _solve(t, target, ridge)
+        d = den @ st
+        worst = (
+            np.inf
+            if np.min(np.abs(d)) < 0.1 or np.any(np.sign(d) != np.sign(d[0]))
+            else np.max(np.abs(off + scale * (num @ st) / d - choice))
+        )
+        if best is None or worst < best[0]:
+            best = (worst, num, den)
+    assert best is not None
+    return best[1], best[2]
+
+
+def _fit_error(
+    rpc: Rpc,
+    to_ground: Callable[
+        [NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+        tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]],
+    ],
+    box: tuple[int, int, float, float],
+) -> dict[str, float]:
+    """The RPCs' error against the rigorous model, half a cell off the fitting lattice in
+    every axis."""
+    cl, cc, ch = _lattice(RPC_CHECK_LATTICE, RPC_HEIGHT_LEVELS - 1, 0.5, box)
     clat, clon, cok = to_ground(cl, cc, ch)
     pl, pc = rpc.image_of(clat[cok], clon[cok], ch[cok])
     e = np.hypot(pl - cl[cok], pc - cc[cok])
-    error = {
+    return {
         "rms_px": float(np.sqrt(np.mean(e**2))),
         "max_px": float(np.max(e)),
         "line_max_px": float(np.max(np.abs(pl - cl[cok]))),
         "sample_max_px": float(np.max(np.abs(pc - cc[cok]))),
         "n_points": int(cok.sum()),
-        "height_min_m": h_lo,
-        "height_max_m": h_hi,
+        "height_min_m": box[2],
+        "height_max_m": box[3],
     }
-    return replace(rpc, fit_error_px=error)
 
 
 def _ground_of(

@@ -263,72 +263,15 @@ def read_dimap(path: str | Path) -> DimapScene:
     frame = np.array([_frame_point(v, f"Vertex[{i + 1}]", source) for i, v in enumerate(vertices)])
     center = _frame_point(_find(root, "Dataset_Frame/Scene_Center", source), "Scene_Center", source)
 
-    epoch = line_period = center_line = center_col = None
-    if root.find(_TIME_STAMP) is not None:
-        ts = _find(root, _TIME_STAMP, source)
-        try:
-            epoch = Epoch(
-                parse_utc(_text(ts, "SCENE_CENTER_TIME", source)), name="SCENE_CENTER_TIME"
-            )
-        except GeometryError as exc:
-            raise DimapError(f"{source}: SCENE_CENTER_TIME: {exc}") from None
-        line_period = _number(ts, "LINE_PERIOD", source)
-        center_line = _number(ts, "SCENE_CENTER_LINE", source)
-        center_col = _number(ts, "SCENE_CENTER_COL", source)
-        if not line_period > 0:
-            raise DimapError(f"{source}: LINE_PERIOD = {line_period}: must be > 0 (seconds)")
-
-    ephemeris = None
-    points = root.findall(_EPHEMERIS_POINTS)
-    if points:
-        if epoch is None:
-            raise DimapError(f"{source}: ephemeris present but no Time_Stamp to date the lines")
-        t = _times(points, "TIME", epoch, "Ephemeris", source)
-        pos = np.array([[_number(p, f"Location/{k}", source) for k in "XYZ"] for p in points])
-        vel = np.array([[_number(p, f"Velocity/{k}", source) for k in "XYZ"] for p in points])
-        try:
-            ephemeris = Ephemeris(t, pos, vel)
-        except GeometryError as exc:
-            raise DimapError(f"{source}: Ephemeris: {exc}") from None
-
+    epoch, line_period, center_line, center_col = _time_stamp(root, source)
+    ephemeris = _ephemeris(root, epoch, source)
     aocs = speeds_t = speeds = corrected = None
     if epoch is not None:
-        aocs_angles = root.findall(f"{_AOCS}/Angles_List/Angles")
-        if len(aocs_angles) >= 2:
-            aocs = _sampled(aocs_angles, epoch, "Aocs_Attitude/Angles_List", source)
-        speed_elems = root.findall(f"{_AOCS}/Angular_Speeds_List/Angular_Speeds")
-        if speed_elems:
-            speeds_t = _times(speed_elems, "TIME", epoch, "Angular_Speeds_List", source)
-            speeds = _angles(speed_elems, source)
-            if np.any(np.diff(speeds_t) <= 0):
-                raise DimapError(f"{source}: Angular_Speeds_List times do not increase strictly")
-        corrected_elems = root.findall(_CORRECTED)
-        if corrected_elems:
-            corrected = _sampled(corrected_elems, epoch, "Corrected_Attitudes", source)
-
+        aocs, speeds_t, speeds, corrected = _attitudes(root, epoch, source)
     look_angles = {}
     for block in root.findall(_LOOK_ANGLES):
         band = _number(block, "BAND_INDEX", source, int)
-        entries = block.findall("Look_Angles_List/Look_Angles")
-        det = np.array([_number(e, "DETECTOR_ID", source, int) for e in entries])
-        psi_x = np.array([_number(e, "PSI_X", source) for e in entries])
-        psi_y = np.array([_number(e, "PSI_Y", source) for e in entries])
-        if det.size < 2:
-            raise DimapError(f"{source}: band {band} has {det.size} look angles, need at least 2")
-        if det.min() < 1 or det.max() > n_cols:
-            raise DimapError(
-                f"{source}: band {band} look angles for detectors {det.min()}..{det.max()}, "
-                f"but NCOLS = {n_cols}"
-            )
-        if det.size > 2 and det.size != n_cols:
-            raise DimapError(
-                f"{source}: band {band} has {det.size} look angles: expected 2 (first and last "
-                f"detector) or one per detector ({n_cols})"
-            )
-        try:
-            look_angles[band] = LookAngleTable(det - 1.0, psi_x, psi_y, n_cols)
-        except GeometryError as exc:
-            raise DimapError(f"{source}: band {band} look angles: {exc}") from None
+        look_angles[band] = _look_angles(block, band, n_cols, source)
 
     return DimapScene(
         path=source,
@@ -359,6 +302,93 @@ def read_dimap(path: str | Path) -> DimapScene:
         look_angles=look_angles,
         mirror_step=_optional(root, _MIRROR, int),
     )
+
+
+def _time_stamp(
+    root: ET.Element, source: Path
+) -> tuple[Epoch | None, float | None, float | None, float | None]:
+    """The scene's dating (``Time_Stamp``): its centre instant as the epoch, the line
+    period, the centre line and column; all None when the document has none."""
+    if root.find(_TIME_STAMP) is None:
+        return None, None, None, None
+    ts = _find(root, _TIME_STAMP, source)
+    try:
+        epoch = Epoch(parse_utc(_text(ts, "SCENE_CENTER_TIME", source)), name="SCENE_CENTER_TIME")
+    except GeometryError as exc:
+        raise DimapError(f"{source}: SCENE_CENTER_TIME: {exc}") from None
+    line_period = _number(ts, "LINE_PERIOD", source)
+    center_line = _number(ts, "SCENE_CENTER_LINE", source)
+    center_col = _number(ts, "SCENE_CENTER_COL", source)
+    if not line_period > 0:
+        raise DimapError(f"{source}: LINE_PERIOD = {line_period}: must be > 0 (seconds)")
+    return epoch, line_period, center_line, center_col
+
+
+def _ephemeris(root: ET.Element, epoch: Epoch | None, source: Path) -> Ephemeris | None:
+    """The ephemeris points, dated on the scene's epoch; None without any."""
+    points = root.findall(_EPHEMERIS_POINTS)
+    if not points:
+        return None
+    if epoch is None:
+        raise DimapError(f"{source}: ephemeris present but no Time_Stamp to date the lines")
+    t = _times(points, "TIME", epoch, "Ephemeris", source)
+    pos = np.array([[_number(p, f"Location/{k}", source) for k in "XYZ"] for p in points])
+    vel = np.array([[_number(p, f"Velocity/{k}", source) for k in "XYZ"] for p in points])
+    try:
+        return Ephemeris(t, pos, vel)
+    except GeometryError as exc:
+        raise DimapError(f"{source}: Ephemeris: {exc}") from None
+
+
+def _attitudes(
+    root: ET.Element, epoch: Epoch, source: Path
+) -> tuple[
+    SampledAttitude | None,
+    NDArray[np.float64] | None,
+    NDArray[np.float64] | None,
+    SampledAttitude | None,
+]:
+    """The AOCS attitude angles, the angular speeds (their times and values) and the
+    corrected attitudes, each None when the document lacks it."""
+    aocs = speeds_t = speeds = corrected = None
+    aocs_angles = root.findall(f"{_AOCS}/Angles_List/Angles")
+    if len(aocs_angles) >= 2:
+        aocs = _sampled(aocs_angles, epoch, "Aocs_Attitude/Angles_List", source)
+    speed_elems = root.findall(f"{_AOCS}/Angular_Speeds_List/Angular_Speeds")
+    if speed_elems:
+        speeds_t = _times(speed_elems, "TIME", epoch, "Angular_Speeds_List", source)
+        speeds = _angles(speed_elems, source)
+        if np.any(np.diff(speeds_t) <= 0):
+            raise DimapError(f"{source}: Angular_Speeds_List times do not increase strictly")
+    corrected_elems = root.findall(_CORRECTED)
+    if corrected_elems:
+        corrected = _sampled(corrected_elems, epoch, "Corrected_Attitudes", source)
+    return aocs, speeds_t, speeds, corrected
+
+
+def _look_angles(block: ET.Element, band: int, n_cols: int, source: Path) -> LookAngleTable:
+    """One band's look-angle table: two entries (first and last detector) or one per
+    detector."""
+    entries = block.findall("Look_Angles_List/Look_Angles")
+    det = np.array([_number(e, "DETECTOR_ID", source, int) for e in entries])
+    psi_x = np.array([_number(e, "PSI_X", source) for e in entries])
+    psi_y = np.array([_number(e, "PSI_Y", source) for e in entries])
+    if det.size < 2:
+        raise DimapError(f"{source}: band {band} has {det.size} look angles, need at least 2")
+    if det.min() < 1 or det.max() > n_cols:
+        raise DimapError(
+            f"{source}: band {band} look angles for detectors {det.min()}..{det.max()}, "
+            f"but NCOLS = {n_cols}"
+        )
+    if det.size > 2 and det.size != n_cols:
+        raise DimapError(
+            f"{source}: band {band} has {det.size} look angles: expected 2 (first and last "
+            f"detector) or one per detector ({n_cols})"
+        )
+    try:
+        return LookAngleTable(det - 1.0, psi_x, psi_y, n_cols)
+    except GeometryError as exc:
+        raise DimapError(f"{source}: band {band} look angles: {exc}") from None
 
 
 def _sampled(elems: list[ET.Element], epoch: Epoch, where: str, source: Path) -> SampledAttitude:

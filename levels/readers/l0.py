@@ -270,108 +270,17 @@ def _read_l0(where: Path, lazy: bool) -> L0Archive:
     with f:
         attrs = dict(f.attrs)
         attrs.pop(ATTRS_DIGEST, None)
-        if attrs.get("format") != L0_FORMAT:
-            raise L0Error(
-                f"{where}: format attribute is {attrs.get('format')!r}, "
-                f"expected {L0_FORMAT!r}; not an L0 archive"
-            )
-        if int(attrs.get("format_version", -1)) != L0_VERSION:
-            raise L0Error(
-                f"{where}: L0 format version {attrs.get('format_version')!r}; "
-                f"this reader knows version {L0_VERSION}"
-            )
-        for key in (
-            "epoch_utc",
-            "hrv",
-            "mode",
-            "mirror_step",
-            "twin",
-            "n_lines",
-            "n_detectors",
-            "band_names",
-        ):
-            _need(key in attrs, where, f"root attribute '{key}' is missing")
+        _check_header(attrs, where)
         d = {name: _get(f, name, ndim, where) for name, ndim in _REQUIRED.items()}
         n_lines, n_det = int(attrs["n_lines"]), int(attrs["n_detectors"])
         seg = d["bands/segment_first_detector"].astype(np.int64)
-        _need(
-            bool(seg.size >= 1 and seg[0] == 0 and np.all(np.diff(seg) > 0) and seg[-1] < n_det),
-            where,
-            "segment_first_detector is not increasing from 0",
-        )
-        _need(
-            d["lines/line_counter"].shape == (n_lines,),
-            where,
-            f"lines/line_counter has {d['lines/line_counter'].shape[0]} entries, "
-            f"n_lines = {n_lines}",
-        )
-        _need(d["lines/t_s"].shape == (n_lines,), where, "lines/t_s does not match n_lines")
-        _need(
-            d["aux/gyro_rates_rad_per_s"].shape == (d["aux/t_s"].size, 3),
-            where,
-            "aux/gyro_rates_rad_per_s is not (records, 3)",
-        )
-        n_eph = d["ephemeris/t_s"].size
-        _need(
-            d["ephemeris/r_ecef_m"].shape == (n_eph, 3)
-            and d["ephemeris/v_ecef_m_per_s"].shape == (n_eph, 3),
-            where,
-            "ephemeris arrays are not (points, 3) with one time each",
-        )
+        _check_pass_datasets(d, seg, n_lines, n_det, where)
         try:
             names = json.loads(attrs["band_names"])
         except (TypeError, ValueError):
             raise L0Error(f"{where}: band_names is not a JSON list") from None
-        bands = {}
-        for name in names:
-            b: dict[str, Any] = {
-                k: _get(f, f"bands/{name}/{k}", nd, where)
-                for k, nd in _BAND.items()
-                if k != "counts"
-            }
-            b["counts"] = _counts(f, f"bands/{name}/counts", where, lazy)
-            _need(
-                b["counts"].shape == (n_lines, n_det),
-                where,
-                f"bands/{name}/counts is {b['counts'].shape}, expected {(n_lines, n_det)}",
-            )
-            _need(
-                b["valid"].shape == (n_lines, seg.size),
-                where,
-                f"bands/{name}/valid is {b['valid'].shape}, expected {(n_lines, seg.size)}",
-            )
-            look = LookAngleTable(
-                b["look_angles/column"],
-                b["look_angles/psi_x_rad"],
-                b["look_angles/psi_y_rad"],
-                int(f[f"bands/{name}/look_angles"].attrs["n_columns"]),
-            )
-            _need(
-                b["calibration/gain"].shape == (n_det,),
-                where,
-                f"bands/{name}/calibration/gain does not have {n_det} entries",
-            )
-            bands[name] = L0Band(
-                name,
-                b["counts"],
-                b["valid"].astype(bool),
-                look,
-                b["calibration/gain"],
-                b["calibration/offset_counts"],
-                seg,
-            )
-        decode = {}
-        if "decode" in f:
-            dec = f["decode"]
-            decode = {
-                k: (json.loads(v) if k in ("packets", "status_counts", "status_names") else v)
-                for k, v in dec.attrs.items()
-            }
-            if "channels" in dec:
-                decode["channels"] = {
-                    k: {a: v.item() if hasattr(v, "item") else v for a, v in g.attrs.items()}
-                    for k, g in dec["channels"].items()
-                }
+        bands = {name: _read_band(f, name, where, lazy, seg, n_lines, n_det) for name in names}
+        decode = _read_decode(f)
         t_attrs = dict(f["lines/t_s"].attrs)
         ref_v = str(f["ephemeris"].attrs.get("reference_velocity", "earth_fixed"))
         _need(
@@ -383,6 +292,131 @@ def _read_l0(where: Path, lazy: bool) -> L0Archive:
             check_attrs_digest(f, required=False)
         except ValueError as exc:
             raise L0Error(f"{where}: {exc}") from None
+    return _archive(where, attrs, d, bands, decode, t_attrs, ref_v)
+
+
+def _check_header(attrs: dict[str, Any], where: Path) -> None:
+    """The root attributes: an L0 archive of the version this reader knows, complete."""
+    if attrs.get("format") != L0_FORMAT:
+        raise L0Error(
+            f"{where}: format attribute is {attrs.get('format')!r}, "
+            f"expected {L0_FORMAT!r}; not an L0 archive"
+        )
+    if int(attrs.get("format_version", -1)) != L0_VERSION:
+        raise L0Error(
+            f"{where}: L0 format version {attrs.get('format_version')!r}; "
+            f"this reader knows version {L0_VERSION}"
+        )
+    for key in (
+        "epoch_utc",
+        "hrv",
+        "mode",
+        "mirror_step",
+        "twin",
+        "n_lines",
+        "n_detectors",
+        "band_names",
+    ):
+        _need(key in attrs, where, f"root attribute '{key}' is missing")
+
+
+def _check_pass_datasets(
+    d: dict[str, np.ndarray], seg: np.ndarray, n_lines: int, n_det: int, where: Path
+) -> None:
+    """The pass's datasets agree with each other and with the root attributes."""
+    _need(
+        bool(seg.size >= 1 and seg[0] == 0 and np.all(np.diff(seg) > 0) and seg[-1] < n_det),
+        where,
+        "segment_first_detector is not increasing from 0",
+    )
+    _need(
+        d["lines/line_counter"].shape == (n_lines,),
+        where,
+        f"lines/line_counter has {d['lines/line_counter'].shape[0]} entries, n_lines = {n_lines}",
+    )
+    _need(d["lines/t_s"].shape == (n_lines,), where, "lines/t_s does not match n_lines")
+    _need(
+        d["aux/gyro_rates_rad_per_s"].shape == (d["aux/t_s"].size, 3),
+        where,
+        "aux/gyro_rates_rad_per_s is not (records, 3)",
+    )
+    n_eph = d["ephemeris/t_s"].size
+    _need(
+        d["ephemeris/r_ecef_m"].shape == (n_eph, 3)
+        and d["ephemeris/v_ecef_m_per_s"].shape == (n_eph, 3),
+        where,
+        "ephemeris arrays are not (points, 3) with one time each",
+    )
+
+
+def _read_band(
+    f: h5py.File, name: str, where: Path, lazy: bool, seg: np.ndarray, n_lines: int, n_det: int
+) -> L0Band:
+    """One band: its counts (read by rows when ``lazy``), segment mask, look angles and
+    calibration, checked against the pass's size."""
+    b: dict[str, Any] = {
+        k: _get(f, f"bands/{name}/{k}", nd, where) for k, nd in _BAND.items() if k != "counts"
+    }
+    b["counts"] = _counts(f, f"bands/{name}/counts", where, lazy)
+    _need(
+        b["counts"].shape == (n_lines, n_det),
+        where,
+        f"bands/{name}/counts is {b['counts'].shape}, expected {(n_lines, n_det)}",
+    )
+    _need(
+        b["valid"].shape == (n_lines, seg.size),
+        where,
+        f"bands/{name}/valid is {b['valid'].shape}, expected {(n_lines, seg.size)}",
+    )
+    look = LookAngleTable(
+        b["look_angles/column"],
+        b["look_angles/psi_x_rad"],
+        b["look_angles/psi_y_rad"],
+        int(f[f"bands/{name}/look_angles"].attrs["n_columns"]),
+    )
+    _need(
+        b["calibration/gain"].shape == (n_det,),
+        where,
+        f"bands/{name}/calibration/gain does not have {n_det} entries",
+    )
+    return L0Band(
+        name,
+        b["counts"],
+        b["valid"].astype(bool),
+        look,
+        b["calibration/gain"],
+        b["calibration/offset_counts"],
+        seg,
+    )
+
+
+def _read_decode(f: h5py.File) -> dict[str, Any]:
+    """The receiver's decoding statistics, as recorded (none in an archive without)."""
+    if "decode" not in f:
+        return {}
+    dec = f["decode"]
+    decode = {
+        k: (json.loads(v) if k in ("packets", "status_counts", "status_names") else v)
+        for k, v in dec.attrs.items()
+    }
+    if "channels" in dec:
+        decode["channels"] = {
+            k: {a: v.item() if hasattr(v, "item") else v for a, v in g.attrs.items()}
+            for k, g in dec["channels"].items()
+        }
+    return decode
+
+
+def _archive(
+    where: Path,
+    attrs: dict[str, Any],
+    d: dict[str, np.ndarray],
+    bands: dict[str, L0Band],
+    decode: dict[str, Any],
+    t_attrs: dict[str, Any],
+    ref_v: str,
+) -> L0Archive:
+    """The archive from what was read and checked."""
     try:
         epoch = Epoch(np.datetime64(str(attrs["epoch_utc"]), "ns"), name="00:00 UTC, pass day")
         ephemeris = Ephemeris(
