@@ -140,7 +140,7 @@ def bench_gdal(l0: Path, dem_path: Path) -> None:
     lon_deg = np.where(hit, np.degrees(lon), -999.0).reshape(ll.shape)
     lat_deg = np.where(hit, np.degrees(lat), -999.0).reshape(ll.shape)
     src = np.nan_to_num(img, nan=0.0).astype(np.float32)
-    dst = np.zeros((geom.n_rows, geom.n_cols), dtype=np.float32)
+    dst = np.zeros((geom.map_grid.n_rows, geom.map_grid.n_cols), dtype=np.float32)
     with tempfile.TemporaryDirectory() as tmp:
         geo_tif = Path(tmp) / "geoloc.tif"
         with rasterio.open(
@@ -178,7 +178,7 @@ def bench_gdal(l0: Path, dem_path: Path) -> None:
                 rasterio.warp.reproject(
                     rasterio.band(ds, 1),
                     dst,
-                    dst_transform=Affine.from_gdal(*geom.geotransform),
+                    dst_transform=Affine.from_gdal(*geom.map_grid.geotransform),
                     dst_crs=crs,
                     resampling=Resampling.cubic,
                     num_threads=threads,
@@ -189,9 +189,10 @@ def bench_gdal(l0: Path, dem_path: Path) -> None:
 
         t_gdal1, _ = best(lambda: gdal(1), REPEATS)
         t_gdal, _ = best(lambda: gdal(n_threads), REPEATS)
-    mpx = geom.n_rows * geom.n_cols / 1e6
+    mpx = geom.map_grid.n_rows * geom.map_grid.n_cols / 1e6
     print(
-        f"\n2. level 3 cubic resampling, {geom.n_rows} × {geom.n_cols} output ({mpx:.1f} Mpx) "
+        f"\n2. level 3 cubic resampling, {geom.map_grid.n_rows} × {geom.map_grid.n_cols} "
+        f"output ({mpx:.1f} Mpx) "
         f"from {nl} × {nc}:"
     )
     print(

@@ -126,13 +126,13 @@ def bench_resampling(l0: Path) -> None:
     t_all, _ = best(lambda: resample_2a(img, ok, g, "cubic"))
     # GDAL: the affine (in map coordinates) that best fits the direct grid, pixel corners
     ll, cc = np.meshgrid(g.grid_line, g.grid_column, indexing="ij")
-    e, n = g.map_of(g.grid_i, g.grid_j)
+    e, n = g.map_grid.map_of(g.grid_i, g.grid_j)
     design = np.stack([np.ones(ll.size), cc.ravel() + 0.5, ll.ravel() + 0.5], 1)
     ce, *_ = np.linalg.lstsq(design, e.ravel(), rcond=None)
     cn, *_ = np.linalg.lstsq(design, n.ravel(), rcond=None)
     src_transform = Affine(ce[1], ce[2], ce[0], cn[1], cn[2], cn[0])
-    dst_transform = Affine.from_gdal(*g.geotransform)
-    dst = np.zeros((g.n_rows, g.n_cols), dtype=np.float32)
+    dst_transform = Affine.from_gdal(*g.map_grid.geotransform)
+    dst = np.zeros((g.map_grid.n_rows, g.map_grid.n_cols), dtype=np.float32)
 
     def gdal() -> np.ndarray:
         rasterio.warp.reproject(
@@ -160,9 +160,10 @@ def bench_resampling(l0: Path) -> None:
         np.copyto(ok_copy, ours)
 
     t_copy, _ = best(copy)
-    mpx = g.n_rows * g.n_cols / 1e6
+    mpx = g.map_grid.n_rows * g.map_grid.n_cols / 1e6
     print(
-        f"\n2. 2A cubic resampling, {g.n_rows} × {g.n_cols} output ({mpx:.1f} Mpx) from "
+        f"\n2. 2A cubic resampling, {g.map_grid.n_rows} × {g.map_grid.n_cols} output "
+        f"({mpx:.1f} Mpx) from "
         f"{img.shape[0]} × {img.shape[1]}:"
     )
     print(

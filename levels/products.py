@@ -34,7 +34,8 @@ import numpy as np
 import pyproj
 from numpy.typing import NDArray
 
-from levels.errors import ProductError
+from levels.errors import GeometryError, ProductError
+from levels.geo.maps import MapGrid
 from levels.hdf5 import (
     ATTRS_DIGEST,
     DEFLATE_LEVEL,
@@ -121,45 +122,6 @@ class BandImage:
             )
 
 
-@dataclass(frozen=True)
-class MapGrid:
-    """The north-up map grid of a map-projected product: its CRS (WKT) and GDAL geotransform
-    ``(x_min, res, 0, y_max, 0, −res)``; pixel ``(I, J)`` has its centre at
-    ``x = x_min + (J + ½)·res``, ``y = y_max − (I + ½)·res``."""
-
-    crs_wkt: str
-    geotransform: tuple[float, float, float, float, float, float]
-
-    def __post_init__(self) -> None:
-        gt = tuple(float(v) for v in self.geotransform)
-        if len(gt) != 6 or gt[2] != 0.0 or gt[4] != 0.0 or not gt[1] > 0 or gt[5] != -gt[1]:
-            raise ProductError(
-                f"map grid geotransform {gt}: expected a north-up grid "
-                "(x_min, res, 0, y_max, 0, -res)"
-            )
-        try:
-            pyproj.CRS.from_wkt(self.crs_wkt)
-        except pyproj.exceptions.CRSError as exc:
-            raise ProductError(f"map grid CRS is not a valid WKT ({exc})") from None
-        object.__setattr__(self, "geotransform", gt)
-
-    @property
-    def pixel_size_m(self) -> float:
-        return self.geotransform[1]
-
-    def x_m(self, n_cols: int) -> NDArray[np.float64]:
-        """Easting of the centres of ``n_cols`` columns."""
-        return np.asarray(
-            self.geotransform[0] + (np.arange(n_cols) + 0.5) * self.geotransform[1], np.float64
-        )
-
-    def y_m(self, n_rows: int) -> NDArray[np.float64]:
-        """Northing of the centres of ``n_rows`` rows."""
-        return np.asarray(
-            self.geotransform[3] + (np.arange(n_rows) + 0.5) * self.geotransform[5], np.float64
-        )
-
-
 @dataclass(frozen=True, eq=False)
 class Product:
     """A scene at a level (module docstring). ``attrs`` must hold ``level``; ``map_grid``
@@ -176,6 +138,11 @@ class Product:
         shapes = {b.image.shape for b in self.bands.values()}
         if len(shapes) > 1:
             raise ProductError(f"the bands of a product share one grid, got shapes {shapes}")
+        if self.map_grid is not None and shapes != {self.map_grid.shape}:
+            raise ProductError(
+                f"bands of shape {shapes} on a map grid of {self.map_grid.shape}: the grid's "
+                "shape is its images'"
+            )
         reserved = {"x", "y", "row", "column", "crs"}
         bad = [n for n in self.bands if n in reserved or n.endswith("_valid") or "/" in n]
         if bad:
@@ -299,7 +266,7 @@ def _dimensions(
         _dimension(
             f,
             "y",
-            grid.y_m(rows),
+            grid.y_m(),
             {
                 "standard_name": "projection_y_coordinate",
                 "axis": "Y",
@@ -310,7 +277,7 @@ def _dimensions(
         _dimension(
             f,
             "x",
-            grid.x_m(cols),
+            grid.x_m(),
             {
                 "standard_name": "projection_x_coordinate",
                 "axis": "X",
@@ -420,17 +387,25 @@ def _read_bands(f: h5py.File, names: list[str], version: int, images: bool) -> d
     return bands
 
 
-def _read_map_grid(f: h5py.File, version: int, geometry: dict[str, Any]) -> MapGrid | None:
-    if version == 1:
-        g = geometry.get("level_2a")
-        if not g:
+def _read_map_grid(
+    f: h5py.File, version: int, geometry: dict[str, Any], shape: tuple[int, int]
+) -> MapGrid | None:
+    """The product's map grid (its ``crs`` variable; version 1: its 2A tree) over its
+    images' ``shape``; :class:`ProductError` when it is damaged."""
+    try:
+        if version == 1:
+            g = geometry.get("level_2a")
+            if not g:
+                return None
+            gt = tuple(np.asarray(g["geotransform"], float))
+            return MapGrid(str(g["crs_wkt"]), gt, *shape).check_crs()
+        if "crs" not in f:
             return None
-        return MapGrid(str(g["crs_wkt"]), tuple(np.asarray(g["geotransform"], float)))
-    if "crs" not in f:
-        return None
-    a = f["crs"].attrs
-    gt = tuple(float(v) for v in str(a["GeoTransform"]).split())
-    return MapGrid(str(a["crs_wkt"]), gt)  # type: ignore[arg-type]
+        a = f["crs"].attrs
+        gt = tuple(float(v) for v in str(a["GeoTransform"]).split())
+        return MapGrid(str(a["crs_wkt"]), gt, *shape).check_crs()
+    except GeometryError as exc:
+        raise ProductError(str(exc)) from None
 
 
 def read_product(path: str | Path, images: bool = True) -> Product:
@@ -492,7 +467,8 @@ def _read_product(where: Path, images: bool) -> Product:
             names = json.loads(attrs.pop("band_names"))
             _check_geometry_trees(trees["geometry"], names)
             bands = _read_bands(f, names, version, images)
-            grid = _read_map_grid(f, version, trees["geometry"])
+            shape = next(iter(bands.values())).valid.shape if bands else (0, 0)
+            grid = _read_map_grid(f, version, trees["geometry"], shape)
             try:  # last: a missing part is named above, an edited value here
                 check_attrs_digest(f, required=version >= 2)
             except ValueError as exc:

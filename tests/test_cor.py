@@ -142,7 +142,10 @@ def test_2a_spans_and_pieces_equal_pixel_by_pixel(scene, method) -> None:
     img = (rng.random((400, 400)) * 200).astype(np.float32)
     img = with_nan(img, rng.random((400, 400)) > 0.002)
     whole, ok = resample_2a(img, None, wide, method)
-    cols = [resample_2a(img, None, wide, method, cols=slice(j, j + 1)) for j in range(wide.n_cols)]
+    cols = [
+        resample_2a(img, None, wide, method, cols=slice(j, j + 1))
+        for j in range(wide.map_grid.n_cols)
+    ]
     assert np.array_equal(whole, np.hstack([c[0] for c in cols]))
     assert np.array_equal(ok, np.hstack([c[1] for c in cols]))
     assert 0.4 < ok.mean() < 0.9

@@ -162,7 +162,9 @@ def test_direct_grid_holds_both_sides_of_each_butting(nadir) -> None:
 def test_2a_grid_and_kernel_arithmetic_agree(nadir) -> None:
     _acq, scene, res = nadir
     g = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad))
-    i, j = np.meshgrid(np.arange(0, g.n_rows, 997.0), np.arange(0, g.n_cols, 991.0))
+    i, j = np.meshgrid(
+        np.arange(0, g.map_grid.n_rows, 997.0), np.arange(0, g.map_grid.n_cols, 991.0)
+    )
     line, col = g.raw_of(i.ravel(), j.ravel())
     ii, jj = g.output_of(line, col, (i.ravel() + 3.0, j.ravel() - 2.0))
     assert ii == pytest.approx(i.ravel(), abs=1e-6)
@@ -237,10 +239,10 @@ def test_xs_bands_registered_each_through_its_own_geometry() -> None:
     truth = Truth(acq, 0)
     shared_first = []
     for k, b in enumerate(looks):
-        assert (g2[b].geotransform, g2[b].n_rows, g2[b].n_cols) == (
-            g2[first].geotransform,
-            g2[first].n_rows,
-            g2[first].n_cols,
+        assert (g2[b].map_grid.geotransform, g2[b].map_grid.n_rows, g2[b].map_grid.n_cols) == (
+            g2[first].map_grid.geotransform,
+            g2[first].map_grid.n_rows,
+            g2[first].map_grid.n_cols,
         )
         assert (g1[b].i_origin, g1[b].n_cols) == (g1[first].i_origin, g1[first].n_cols)
         assert g2[b].approximation_error(scene.models[b], H_REF_M)["max_px"] <= MAX_INVERSE_PX

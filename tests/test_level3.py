@@ -123,7 +123,7 @@ def test_level_3_resampling_follows_its_geometry(rugged, rugged_level3) -> None:
     rng = np.random.default_rng(3)
     img = rng.uniform(0, 255, (scene.cut.n_lines, scene.model.n_columns)).astype(np.float32)
     out, ok, hidden = resample_3(img, np.ones(img.shape, dtype=bool), geom, "nearest")
-    assert out.shape == (geom.n_rows, geom.n_cols) and 0.5 < ok.mean() < 1.0
+    assert out.shape == (geom.map_grid.n_rows, geom.map_grid.n_cols) and 0.5 < ok.mean() < 1.0
     assert not np.any(ok & hidden)  # a hidden pixel is never given a value
     r, k = np.nonzero(ok)
     pick = rng.choice(r.size, 3000, replace=False)
@@ -168,7 +168,7 @@ def test_terrain_behind_a_wall_is_hidden(wall) -> None:
     assert hidden.any() and not np.any(ok & hidden)
     # the hidden ground lies on one side of the wall, within h·tan θ ≈ 1500 m × 0.6 of it
     r, k = np.nonzero(hidden)
-    e, _n = wall["geom"].map_of(r, k)
+    e, _n = wall["geom"].map_grid.map_of(r, k)
     side = np.sign(np.median(e - wall["e_wall"]))
     assert np.mean(np.sign(e - wall["e_wall"]) == side) > 0.95
     assert np.percentile(np.abs(e - wall["e_wall"]), 95) < 1500.0 * 0.7 + 200.0
@@ -188,7 +188,7 @@ def test_the_whole_shadow_of_a_wall_is_hidden(rugged, wall) -> None:
     geom, hidden = wall["geom"], wall["hidden"]
     # tan θ at the scene centre: how far the ground point of a raw pixel moves per metre
     line, col = np.array([scene.cut.n_lines / 2]), np.array([scene.model.n_columns / 2])
-    to_map = pyproj.Transformer.from_crs("EPSG:4326", geom.crs_wkt, always_xy=True)
+    to_map = pyproj.Transformer.from_crs("EPSG:4326", geom.map_grid.crs_wkt, always_xy=True)
     low, high = (
         np.array(to_map.transform(np.degrees(g.lon_rad), np.degrees(g.lat_rad)))[:, 0]
         for g in (scene.model.image_to_ground(line, col, h) for h in (0.0, 1000.0))
@@ -201,7 +201,7 @@ def test_the_whole_shadow_of_a_wall_is_hidden(rugged, wall) -> None:
     assert np.median(per_row[rows]) == pytest.approx(shadow_px, abs=SHADOW_EDGE_TOLERANCE_PX)
     # its far edge: the top's back edge (half the plateau, one DEM cell) plus H·tan θ
     r, k = np.nonzero(hidden)
-    far = np.abs(geom.map_of(r, k)[0] - wall["e_wall"]).max()
+    far = np.abs(geom.map_grid.map_of(r, k)[0] - wall["e_wall"]).max()
     plateau_half_m = np.radians(WALL_CELL_DEG) * 6_378_137.0 * np.cos(scene.centre_lat_rad)
     assert far == pytest.approx(
         plateau_half_m + WALL_HEIGHT_M * tan_theta, abs=SHADOW_EDGE_TOLERANCE_PX * res
@@ -264,7 +264,7 @@ def test_level_3_product_carries_its_dem_and_exports(dem_errors_run, tmp_path) -
     assert p.level == "3" and p.map_grid is not None
     geom = Level3Geometry.from_tree(p.geometry["level_3"], "P")
     assert geom.anchor_error_px["max_px"] <= ANCHOR_TOLERANCE_PX
-    assert (geom.n_rows, geom.n_cols) == p.bands["P"].image.shape
+    assert (geom.map_grid.n_rows, geom.map_grid.n_cols) == p.bands["P"].image.shape
     # 3" of longitude at the scene's latitude
     lat0 = np.radians(float(p.geometry["scene"]["centre_lat_deg"]))
     spacing = np.radians(3 / 3600) * 6371e3 * np.cos(lat0)

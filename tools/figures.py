@@ -410,8 +410,8 @@ def _row_skew(g: Level2AGeometry) -> tuple[float, float, float]:
 
     lines, cols = g.raw_line_span()
     azimuth = float(np.degrees(np.arctan2(lines, cols)))
-    e, n = g.map_of(g.n_rows / 2, g.n_cols / 2)
-    crs = pyproj.CRS.from_wkt(g.crs_wkt)
+    e, n = g.map_grid.map_of(g.map_grid.n_rows / 2, g.map_grid.n_cols / 2)
+    crs = pyproj.CRS.from_wkt(g.map_grid.crs_wkt)
     lon, lat = pyproj.Transformer.from_crs(crs, "EPSG:4326", always_xy=True).transform(e, n)
     gamma = float(pyproj.Proj(crs).get_factors(lon, lat).meridian_convergence)
     return lines, azimuth, abs(gamma)

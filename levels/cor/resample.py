@@ -516,8 +516,8 @@ def resample_2a(
     """
     if resampling not in RESAMPLINGS_2A:
         raise ValueError(f"2A resampling {resampling!r}: expected one of {RESAMPLINGS_2A}")
-    r0, r1, _ = (rows or slice(0, geom.n_rows)).indices(geom.n_rows)
-    c0, c1, _ = (cols or slice(0, geom.n_cols)).indices(geom.n_cols)
+    r0, r1, _ = (rows or slice(0, geom.map_grid.n_rows)).indices(geom.map_grid.n_rows)
+    c0, c1, _ = (cols or slice(0, geom.map_grid.n_cols)).indices(geom.map_grid.n_cols)
     out = np.empty((r1 - r0, c1 - c0), dtype=np.uint8)
     ok = np.empty(out.shape, dtype=bool)
     step_i, step_j = geom.inverse_step
@@ -953,7 +953,7 @@ def resample_3(
     """
     if resampling not in RESAMPLINGS_2A:
         raise ValueError(f"level 3 resampling {resampling!r}: expected one of {RESAMPLINGS_2A}")
-    g = geom.grid
+    g = geom.template
     step_i, step_j = g.inverse_step
     img = image if valid is None else with_nan(image, valid)
     img = np.ascontiguousarray(img, dtype=np.float32)
@@ -968,7 +968,7 @@ def resample_3(
     dem_rc = np.ascontiguousarray(geom.dem_rc, dtype=np.float64)
     # per output column: the inverse grid's cell and fraction, the DEM nodes' cell and
     # fraction (shared by every row: no division in the kernels)
-    k = np.arange(geom.n_cols, dtype=np.float64)
+    k = np.arange(geom.map_grid.n_cols, dtype=np.float64)
     cell = np.minimum(k // step_j, poly_col.shape[1] - 2)
     y = k / geom.dem_step_px
     dem_cell = np.clip(np.floor(y), 0, dem_rc.shape[2] - 2)
@@ -988,15 +988,15 @@ def resample_3(
         seg_of,
     )
     zbufs = np.full((thread_count(), *img.shape), -np.inf, dtype=np.float32)
-    over_blocks(_zbuffer_3, zbufs.shape[0], zbufs, geom.n_rows, *args)
+    over_blocks(_zbuffer_3, zbufs.shape[0], zbufs, geom.map_grid.n_rows, *args)
     zbuf = zbufs.max(axis=0)
     del zbufs
     c_per_m = float(np.nanmedian(np.abs(inv_col[-1] - inv_col[0]))) / float(np.ptp(heights))
     ztol = HIDDEN_TOLERANCE_PX / max(c_per_m, 1e-9)
-    out = np.empty((geom.n_rows, geom.n_cols), dtype=np.uint8)
+    out = np.empty((geom.map_grid.n_rows, geom.map_grid.n_cols), dtype=np.uint8)
     ok = np.empty(out.shape, dtype=bool)
     hidden = np.empty(out.shape, dtype=bool)
-    n_blocks = -(-geom.n_rows // _BLOCK_ROWS)
+    n_blocks = -(-geom.map_grid.n_rows // _BLOCK_ROWS)
     over_blocks(
         _kernel_3,
         n_blocks,

@@ -43,7 +43,7 @@ from levels.geo.inverse_grid import (
     segment_cells,
 )
 from levels.geo.level1b import N_BREAKPOINTS
-from levels.geo.maps import map_crs
+from levels.geo.maps import MapGrid, map_crs
 from levels.geo.polynomial import Poly2D
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
@@ -71,15 +71,11 @@ class Level2AGeometry:
     one segment without butting): the raw line seen at a map point jumps across a butting,
     so the inverse grid holds one line field per segment (``inverse_line``, shape
     ``(segments, rows, cols)``), each smooth, and one column field (``inverse_column``).
-    A pixel takes its line from the segment of the raw column it samples.
+    A pixel takes its line from the segment of the raw column it samples. The output grid
+    (CRS, geotransform, shape) is ``map_grid``.
     """
 
-    crs_wkt: str
-    pixel_size_m: float
-    x_min_m: float
-    y_max_m: float
-    n_rows: int
-    n_cols: int
+    map_grid: MapGrid
     grid_line: NDArray[np.float64]
     grid_column: NDArray[np.float64]
     grid_i: NDArray[np.float64]
@@ -102,27 +98,6 @@ class Level2AGeometry:
         if self.inverse_rows[0] != 0 or self.inverse_cols[0] != 0 or si != int(si) or sj != int(sj):
             raise GeometryError("the inverse grid must start at 0 with integer steps")
         return int(si), int(sj)
-
-    @property
-    def geotransform(self) -> tuple[float, float, float, float, float, float]:
-        """GDAL geotransform of the output grid (upper-left corner of the first pixel)."""
-        return (self.x_min_m, self.pixel_size_m, 0.0, self.y_max_m, 0.0, -self.pixel_size_m)
-
-    def map_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Map coordinates (E, N) of output pixel coordinates."""
-        return (
-            self.x_min_m + (np.asarray(j, dtype=np.float64) + 0.5) * self.pixel_size_m,
-            self.y_max_m - (np.asarray(i, dtype=np.float64) + 0.5) * self.pixel_size_m,
-        )
-
-    def ij_of_map(
-        self, e_m: ArrayLike, n_m: ArrayLike
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Output pixel coordinates of map coordinates."""
-        return (
-            (self.y_max_m - np.asarray(n_m, dtype=np.float64)) / self.pixel_size_m - 0.5,
-            (np.asarray(e_m, dtype=np.float64) - self.x_min_m) / self.pixel_size_m - 0.5,
-        )
 
     def segment_of(self, column: ArrayLike) -> NDArray[np.int64]:
         """Segment of (fractional) raw columns: a column belongs to the segment of its
@@ -206,22 +181,22 @@ class Level2AGeometry:
         interpolation of the look-angle table across the gap.
         """
         lattice_i, lattice_j = np.meshgrid(
-            np.linspace(0, self.n_rows - 1, per_side),
-            np.linspace(0, self.n_cols - 1, per_side),
+            np.linspace(0, self.map_grid.n_rows - 1, per_side),
+            np.linspace(0, self.map_grid.n_cols - 1, per_side),
             indexing="ij",
         )
         i, j = lattice_i.ravel(), lattice_j.ravel()
         if through_grid:
-            grid = self if method in (None, self.method) else self.with_inverse(method)
-            la, ca = grid.raw_of(i, j)
+            geom = self if method in (None, self.method) else self.with_inverse(method)
+            la, ca = geom.raw_of(i, j)
         else:
             la, ca = self.inverse_at(i, j, method)
         inside = (
             (la >= 0) & (la <= self.n_raw_lines - 1) & (ca >= 0) & (ca <= self.n_raw_columns - 1)
         )
-        e, n = self.map_of(i[inside], j[inside])
+        e, n = self.map_grid.map_of(i[inside], j[inside])
         to_geo = pyproj.Transformer.from_crs(
-            pyproj.CRS.from_wkt(self.crs_wkt), "EPSG:4326", always_xy=True
+            pyproj.CRS.from_wkt(self.map_grid.crs_wkt), "EPSG:4326", always_xy=True
         )
         lon, lat = to_geo.transform(e, n)
         exact = model.ground_to_image(
@@ -238,8 +213,8 @@ class Level2AGeometry:
         over the pixels that fall inside the raw image: the window of raw lines COR's
         north-up resampling must hold (INPE: 950 in P, 475 in XS at Cuiabá, paper
         ``004_…``); their ratio is the tangent of the raw lines' azimuth on the map grid."""
-        j = np.arange(0.0, self.n_cols)
-        i = np.full(j.size, self.n_rows / 2 if row is None else float(row))
+        j = np.arange(0.0, self.map_grid.n_cols)
+        i = np.full(j.size, self.map_grid.n_rows / 2 if row is None else float(row))
         line, col = self.raw_of(i, j)
         inside = (
             (col >= 0)
@@ -257,12 +232,12 @@ class Level2AGeometry:
         (they share the first band's map grid; ``docs/products.md``)."""
         g = next(iter(bands.values()))
         return {
-            "crs_wkt": g.crs_wkt,
-            "geotransform": np.asarray(g.geotransform),
-            "pixel_size_m": g.pixel_size_m,
+            "crs_wkt": g.map_grid.crs_wkt,
+            "geotransform": np.asarray(g.map_grid.geotransform),
+            "pixel_size_m": g.map_grid.pixel_size_m,
             "inverse_method": g.method,
-            "n_rows": g.n_rows,
-            "n_cols": g.n_cols,
+            "n_rows": g.map_grid.n_rows,
+            "n_cols": g.map_grid.n_cols,
             "n_raw_lines": g.n_raw_lines,
             "n_raw_columns": g.n_raw_columns,
             "bands": {b: band._band_tree() for b, band in bands.items()},
@@ -309,13 +284,16 @@ class Level2AGeometry:
                 lines = tuple(Poly2D.from_array(a) for a in np.atleast_2d(p["line"]))
                 polys[int(name.removeprefix("poly"))] = (lines, Poly2D.from_array(p["column"]))
             d, inv = b["direct_grid"], b["inverse_grid"]
+            grid = MapGrid.north_up(
+                str(tree["crs_wkt"]),
+                gt[0],
+                gt[3],
+                float(tree["pixel_size_m"]),
+                int(tree["n_rows"]),
+                int(tree["n_cols"]),
+            )
             return cls(
-                crs_wkt=str(tree["crs_wkt"]),
-                pixel_size_m=float(tree["pixel_size_m"]),
-                x_min_m=gt[0],
-                y_max_m=gt[3],
-                n_rows=int(tree["n_rows"]),
-                n_cols=int(tree["n_cols"]),
+                map_grid=grid,
                 grid_line=d["line"],
                 grid_column=d["column"],
                 grid_i=d["i"],
@@ -330,7 +308,14 @@ class Level2AGeometry:
                 n_raw_lines=int(tree["n_raw_lines"]),
                 n_raw_columns=int(tree["n_raw_columns"]),
             )
-        except (KeyError, TypeError, ValueError, StopIteration, pyproj.exceptions.CRSError) as exc:
+        except (
+            KeyError,
+            TypeError,
+            ValueError,
+            StopIteration,
+            GeometryError,
+            pyproj.exceptions.CRSError,
+        ) as exc:
             if isinstance(exc, ProductError):
                 raise
             raise ProductError(
@@ -434,12 +419,7 @@ def level2a_geometry(
     seg_first = np.concatenate([[0.0], butting[1::2]])
     polys = _inverse_polynomials(gi, gj, ll, cc, gc, seg_first)
     geom = Level2AGeometry(
-        crs_wkt=crs.to_wkt(),
-        pixel_size_m=res,
-        x_min_m=x_min,
-        y_max_m=y_max,
-        n_rows=n_rows,
-        n_cols=n_cols,
+        map_grid=MapGrid.north_up(crs.to_wkt(), x_min, y_max, res, n_rows, n_cols),
         grid_line=gl,
         grid_column=gc,
         grid_i=gi,
@@ -529,11 +509,10 @@ def _shared_crs(crs: pyproj.CRS, pixel_size_m: float, like: Level2AGeometry | No
     same CRS and pixel size)."""
     if like is None:
         return crs
-    if like.pixel_size_m != float(pixel_size_m) or not pyproj.CRS.from_wkt(like.crs_wkt).equals(
-        crs
-    ):
+    shared = pyproj.CRS.from_wkt(like.map_grid.crs_wkt)
+    if like.map_grid.pixel_size_m != float(pixel_size_m) or not shared.equals(crs):
         raise GeometryError("level 2A: a shared map grid must have the same CRS and pixel size")
-    return pyproj.CRS.from_wkt(like.crs_wkt)
+    return shared
 
 
 def _map_extent(
@@ -548,8 +527,8 @@ def _map_extent(
     corner on whole pixels, its size) and the inverse grid's rows and columns; ``like``'s
     when the grid is shared."""
     if like is not None:
-        x_min, y_max, n_rows, n_cols = like.x_min_m, like.y_max_m, like.n_rows, like.n_cols
-        return x_min, y_max, n_rows, n_cols, like.inverse_rows, like.inverse_cols
+        g = like.map_grid
+        return g.x_min_m, g.y_max_m, g.n_rows, g.n_cols, like.inverse_rows, like.inverse_cols
     x_min = float(np.floor(e.min() / res) * res)
     y_max = float(np.ceil(n.max() / res) * res)
     n_cols = int(np.ceil((e.max() - x_min) / res))

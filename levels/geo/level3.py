@@ -45,6 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 from levels.errors import DemError, GeometryError, ProductError
 from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
 from levels.geo.level2a import Level2AGeometry, level2a_geometry
+from levels.geo.maps import MapGrid
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.dem import Dem, bilinear_surface, geoid_to_ellipsoid
 from levels.geometry.sensor import butting_columns
@@ -140,7 +141,7 @@ class Level3Geometry:
             heights,
             dem,
             _ellipsoidal(dem),
-            _dem_coordinates(dem, levels[0], step),
+            _dem_coordinates(dem, levels[0].map_grid, step),
             step,
             spacing,
             err,
@@ -199,46 +200,16 @@ class Level3Geometry:
                 f"level 3 geometry tree is incomplete or damaged ({type(exc).__name__}: {exc})"
             ) from None
 
-    # the map grid: every level's
     @property
-    def grid(self) -> Level2AGeometry:
+    def template(self) -> Level2AGeometry:
+        """The first anchor level's 2A geometry: its map grid and inverse-grid nodes are
+        every level's."""
         return self.levels[0]
 
     @property
-    def crs_wkt(self) -> str:
-        return self.grid.crs_wkt
-
-    @property
-    def pixel_size_m(self) -> float:
-        return self.grid.pixel_size_m
-
-    @property
-    def n_rows(self) -> int:
-        return self.grid.n_rows
-
-    @property
-    def n_cols(self) -> int:
-        return self.grid.n_cols
-
-    @property
-    def n_raw_lines(self) -> int:
-        return self.grid.n_raw_lines
-
-    @property
-    def n_raw_columns(self) -> int:
-        return self.grid.n_raw_columns
-
-    @property
-    def geotransform(self) -> tuple[float, float, float, float, float, float]:
-        return self.grid.geotransform
-
-    def map_of(self, i: ArrayLike, j: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return self.grid.map_of(i, j)
-
-    def ij_of_map(
-        self, e_m: ArrayLike, n_m: ArrayLike
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return self.grid.ij_of_map(e_m, n_m)
+    def map_grid(self) -> MapGrid:
+        """The output grid (every anchor level's)."""
+        return self.levels[0].map_grid
 
     def height_at(self, i: ArrayLike, j: ArrayLike) -> NDArray[np.float64]:
         """The DEM's ellipsoidal height under output pixels (NaN over voids)."""
@@ -270,7 +241,7 @@ class Level3Geometry:
         )
         h = self.height_at(i_a, j_a) if h_m is None else np.broadcast_to(h_m, i_a.shape)
         w = lagrange_weights(self.heights_m, h)
-        g = self.grid
+        g = self.template
         rows, cols = g.inverse_rows, g.inverse_cols
         col = sum(
             w[k] * bilinear_grid(rows, cols, lv.inverse_column, i_a, j_a)
@@ -303,8 +274,8 @@ class Level3Geometry:
         i, j = (
             a.ravel()
             for a in np.meshgrid(
-                np.linspace(0, self.n_rows - 1, n),
-                np.linspace(0, self.n_cols - 1, n),
+                np.linspace(0, self.map_grid.n_rows - 1, n),
+                np.linspace(0, self.map_grid.n_cols - 1, n),
                 indexing="ij",
             )
         )
@@ -313,13 +284,13 @@ class Level3Geometry:
         inside = (
             np.isfinite(h)
             & (la >= 0)
-            & (la <= self.n_raw_lines - 1)
+            & (la <= self.template.n_raw_lines - 1)
             & (ca >= 0)
-            & (ca <= self.n_raw_columns - 1)
+            & (ca <= self.template.n_raw_columns - 1)
         )
-        e, nn = self.map_of(i[inside], j[inside])
+        e, nn = self.map_grid.map_of(i[inside], j[inside])
         to_geo = pyproj.Transformer.from_crs(
-            pyproj.CRS.from_wkt(self.crs_wkt), "EPSG:4326", always_xy=True
+            pyproj.CRS.from_wkt(self.map_grid.crs_wkt), "EPSG:4326", always_xy=True
         )
         lon, lat = to_geo.transform(e, nn)
         exact = model.ground_to_image(
@@ -332,7 +303,7 @@ class Level3Geometry:
         return raw_error_stats((la[inside] - exact.line)[ok], (ca[inside] - exact.column)[ok])
 
 
-def _dem_coordinates(dem: Dem, grid: Level2AGeometry, step_px: float) -> NDArray[np.float64]:
+def _dem_coordinates(dem: Dem, grid: MapGrid, step_px: float) -> NDArray[np.float64]:
     """The DEM's fractional (row, column) at output pixels ``(a·step, b·step)`` covering
     the grid, shape ``(2, na, nb)``."""
     na = int(np.ceil((grid.n_rows - 1) / step_px)) + 2
@@ -362,7 +333,7 @@ def _ellipsoidal(dem: Dem) -> NDArray[np.float64]:
     return h.reshape(dem.height_m.shape)
 
 
-def _dem_window(dem: Dem, grid: Level2AGeometry) -> Dem:
+def _dem_window(dem: Dem, grid: MapGrid) -> Dem:
     """The part of the DEM under the grid, two nodes of margin: what a product stores."""
     row, col = _dem_coordinates(dem, grid, DEM_COORD_STEP)
     nr, nc = dem.height_m.shape
@@ -407,7 +378,7 @@ def level3_geometry(
     )
     spacing = _dem_spacing_m(dem, scene.centre_lat_rad)
     # the heights' range over the footprint (a bilinear surface peaks at its nodes)
-    probe_dem = _ellipsoidal(_dem_window(dem, probe))
+    probe_dem = _ellipsoidal(_dem_window(dem, probe.map_grid))
     if not np.isfinite(probe_dem).any():
         raise GeometryError(
             f"level 3: the DEM {dem.source or ''} has only voids under scene {scene.cut.index}"
@@ -418,7 +389,7 @@ def level3_geometry(
     # one map grid for every level: the union of the footprints at the lowest and highest
     at = [replace(scene, reference_height_m=float(h)) for h in heights]
     if like is not None:
-        template = like.grid
+        template = like.template
     else:
         ends = [
             level2a_geometry(
@@ -427,9 +398,9 @@ def level3_geometry(
             for s in (at[0], at[-1])
         ]
         template = _union_grid(ends, inverse_step_px)
-    window = _dem_window(dem, template)
+    window = _dem_window(dem, template.map_grid)
     ellipsoidal = _ellipsoidal(window)
-    coordinates = _dem_coordinates(window, template, DEM_COORD_STEP)
+    coordinates = _dem_coordinates(window, template.map_grid, DEM_COORD_STEP)
     while True:
         levels = tuple(
             level2a_geometry(
@@ -454,29 +425,27 @@ def level3_geometry(
         half = max(1, current // 2)
         template = replace(
             template,
-            inverse_rows=np.arange(0.0, template.n_rows - 1 + half, half),
-            inverse_cols=np.arange(0.0, template.n_cols - 1 + half, half),
+            inverse_rows=np.arange(0.0, template.map_grid.n_rows - 1 + half, half),
+            inverse_cols=np.arange(0.0, template.map_grid.n_cols - 1 + half, half),
         )
 
 
 def _union_grid(ends: list[Level2AGeometry], inverse_step_px: int) -> Level2AGeometry:
     """The map grid of level 3: the union of the 2A grids of the footprints at the lowest
     and highest heights, its inverse grid at ``inverse_step_px`` (by default 2A's)."""
-    res = ends[0].pixel_size_m
-    x_min = min(g.x_min_m for g in ends)
-    y_max = max(g.y_max_m for g in ends)
-    x_max = max(g.x_min_m + g.n_cols * res for g in ends)
-    y_min = min(g.y_max_m - g.n_rows * res for g in ends)
+    grids = [g.map_grid for g in ends]
+    res = grids[0].pixel_size_m
+    x_min = min(g.x_min_m for g in grids)
+    y_max = max(g.y_max_m for g in grids)
+    x_max = max(g.x_min_m + g.n_cols * res for g in grids)
+    y_min = min(g.y_max_m - g.n_rows * res for g in grids)
     n_rows = round((y_max - y_min) / res)
     n_cols = round((x_max - x_min) / res)
     s_i, s_j = ends[0].inverse_step
     step_ij = inverse_step_px or max(s_i, s_j)
     return replace(
         ends[0],
-        x_min_m=x_min,
-        y_max_m=y_max,
-        n_rows=n_rows,
-        n_cols=n_cols,
+        map_grid=MapGrid.north_up(grids[0].crs_wkt, x_min, y_max, res, n_rows, n_cols),
         inverse_rows=np.arange(0.0, n_rows - 1 + step_ij, step_ij),
         inverse_cols=np.arange(0.0, n_cols - 1 + step_ij, step_ij),
     )
@@ -512,12 +481,12 @@ def direct_method_error(
     pixels (the indirect grid's :meth:`Level3Geometry.anchor_error` is in raw pixels: both
     are about the pixel size apart)."""
     model = scene.models[band] if band is not None else scene.model
-    step = float(geom.grid.inverse_step[0])
+    step = float(geom.template.inverse_step[0])
     nl, nc = scene.cut.n_lines, model.n_columns
     al = np.arange(0.0, nl - 1 + step, step)
     ac = np.arange(0.0, nc - 1 + step, step)
     to_map = pyproj.Transformer.from_crs(
-        "EPSG:4326", pyproj.CRS.from_wkt(geom.crs_wkt), always_xy=True
+        "EPSG:4326", pyproj.CRS.from_wkt(geom.map_grid.crs_wkt), always_xy=True
     )
     h0 = float(np.mean(geom.heights_m))
 
@@ -536,7 +505,10 @@ def direct_method_error(
     e, n, ok = located(line, col)
     e_d = bilinear_grid(al, ac, e_a, line, col)
     n_d = bilinear_grid(al, ac, n_a, line, col)
-    d = np.hypot(e_d - e, n_d - n)[ok & np.isfinite(e_d) & np.isfinite(n_d)] / geom.pixel_size_m
+    d = (
+        np.hypot(e_d - e, n_d - n)[ok & np.isfinite(e_d) & np.isfinite(n_d)]
+        / geom.map_grid.pixel_size_m
+    )
     return {
         "n_points": int(d.size),
         "rms_px": float(np.sqrt(np.mean(d**2))) if d.size else float("nan"),

@@ -43,7 +43,7 @@ def _quality(work: SceneWork) -> dict[str, Any]:
         "radiometry": radiometry(work),
         "model": "level 2 (adjusted on control points)" if work.makes(Level.L2) else "system",
         "anchor_error_px": {b: dict(g3[b].anchor_error_px) for b in bands},
-        "anchor_step_px": int(g.grid.inverse_step[0]),
+        "anchor_step_px": int(g.template.inverse_step[0]),
         "anchor_heights_m": g.heights_m,
         "dem": {
             "source": Path(g.dem.source).name,

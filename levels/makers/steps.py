@@ -11,6 +11,7 @@ scene for whichever level asks first.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -21,11 +22,10 @@ from levels.cor.radiometry import fir_response, mtf
 from levels.geo.level1b import Level1BGeometry, level1b_geometry
 from levels.geo.level2a import Level2AGeometry, level2a_geometry
 from levels.geo.level3 import Level3Geometry, level3_geometry
-from levels.geo.maps import ascending_node_lon_rad, map_crs
+from levels.geo.maps import MapGrid, ascending_node_lon_rad, map_crs
 from levels.geo.rpc import RPC_HEIGHT_MARGIN_M, Rpc, rpc_of_1b, rpc_of_model
 from levels.geo.scenes import SceneGeometry
 from levels.makers.base import SceneWork, per_band, scene_step
-from levels.products import MapGrid
 
 __all__ = [
     "checkpoints_2a",
@@ -183,7 +183,7 @@ def rpc_1b(work: SceneWork) -> dict[str, Rpc]:
     return {b: rpc_of_1b(models[b], g1b[b], heights) for b in models}
 
 
-def first_map_grid(bands: dict[str, Any]) -> MapGrid:
+def first_map_grid(bands: Mapping[str, Level2AGeometry | Level3Geometry]) -> MapGrid:
     """The output grid of a map level: the first band's (the others share it)."""
-    g = next(iter(bands.values()))
-    return MapGrid(g.crs_wkt, g.geotransform)
+    first: Level2AGeometry | Level3Geometry = next(iter(bands.values()))
+    return first.map_grid

@@ -160,19 +160,19 @@ def checkpoints_2a(
     """Checkpoint errors of a 2A product in its map (easting, northing)."""
     line, col = truth.lattice(scene, per_side)
     h_ref = scene.reference_height_m
-    en = _to_map(geom.crs_wkt)
+    en = _to_map(geom.map_grid.crs_wkt)
     model = scene.models[list(scene.models)[band]]
     p = model.image_to_ground(line, col, h_ref)
-    i0, j0 = geom.ij_of_map(*en(p.lat_rad, p.lon_rad))
+    i0, j0 = geom.map_grid.ij_of_map(*en(p.lat_rad, p.lon_rad))
     i, j = geom.output_of(line, col, (i0, j0))
-    e, n = geom.map_of(i, j)
+    e, n = geom.map_grid.map_of(i, j)
     tl = truth.truth_lines(scene, line)
     t = truth.model(band).image_to_ground(tl, col, h_ref)
     et, nt = en(t.lat_rad, t.lon_rad)
     g = truth.ground(band, tl, col)
     lat, lon, _h = truth.model(band).ellipsoid.to_geodetic(g)
     eg, ng = en(lat, lon)
-    res = geom.pixel_size_m
+    res = geom.map_grid.pixel_size_m
     return {
         "axes": "1: easting, 2: northing of the map",
         "line_of_sight": error_stats(e - et, n - nt, res),
@@ -200,11 +200,11 @@ def checkpoints_3(
     g = truth.ground(band, tl, col)
     ok = np.all(np.isfinite(g), axis=1)
     lat, lon, h_true = truth.model(band).ellipsoid.to_geodetic(g[ok])
-    en = _to_map(geom.crs_wkt)
+    en = _to_map(geom.map_grid.crs_wkt)
     eg, ng = en(lat, lon)
-    ij_true = geom.ij_of_map(eg, ng)
+    ij_true = geom.map_grid.ij_of_map(eg, ng)
     i, j = geom.output_of(line[ok], col[ok], ij_true)
-    e, n = geom.map_of(i, j)
+    e, n = geom.map_grid.map_of(i, j)
     fine = np.isfinite(e) & np.isfinite(n)
     model = scene.models[list(scene.models)[band]]
     flat = model.image_to_ground(line[ok], col[ok], scene.reference_height_m)
@@ -215,7 +215,7 @@ def checkpoints_3(
     up = model.image_to_ground(line[ok], col[ok], scene.reference_height_m + 1.0)
     e3, n3 = en(up.lat_rad, up.lon_rad)
     k = np.hypot(e3 - e2, n3 - n2)[fine]
-    res = geom.pixel_size_m
+    res = geom.map_grid.pixel_size_m
     some = bool(fine.any())
     return {
         "axes": "1: easting, 2: northing of the map",
