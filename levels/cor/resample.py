@@ -24,6 +24,8 @@ and inside the raw image.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
@@ -553,11 +555,30 @@ def _quadratic(a0, a1, a2, b0, b1, b2, gv, t):
     return (_lerp(a2, b2, gv) * t + _lerp(a1, b1, gv)) * t + _lerp(a0, b0, gv)
 
 
+class Terrain3(NamedTuple):
+    """What level 3's kernels read of the terrain and the anchor grids, one object for all
+    of them (numba takes a named tuple of arrays and numbers as it takes its fields)."""
+
+    step_i: int  # rows of the inverse grid's step
+    poly_line: NDArray[np.float64]  # (segments, rows, cols, powers): the line in height
+    poly_col: NDArray[np.float64]  # (rows, cols, powers): the column in height
+    dem_rc: NDArray[np.float64]  # (2, na, nb): the DEM's (row, column) at output nodes
+    inv_dem_step: float  # 1 / the output pixels between those nodes
+    cols: NDArray[np.float64]  # (4, output cols): grid cell and fraction, DEM cell and fraction
+    dem: NDArray[np.float64]  # the DEM's heights above the ellipsoid
+    h0: float  # the height polynomials' centre (m)
+    inv_hs: float  # 1 / their half-range (m⁻¹)
+    seg_of: NDArray[np.int64]  # the butting segment of each raw column
+
+
 @nb.njit(cache=True, inline="always", fastmath=_FAST)
-def _row_3(r, step_i, poly_line, poly_col, dem_rc, inv_dem_step, line_row, col_row, rc_row):
-    """Level 3's tables of output row ``r``: the height polynomials' coefficients along the
-    row at the inverse grid's columns (per segment for the lines), and the DEM (row,
-    column) at the DEM nodes' columns; linear between grid rows."""
+def _row_3(r, t, line_row, col_row, rc_row):
+    """Level 3's tables of output row ``r`` (``t``: :class:`Terrain3`): the height
+    polynomials' coefficients along the row at the inverse grid's columns (per segment for
+    the lines), and the DEM (row, column) at the DEM nodes' columns; linear between grid
+    rows."""
+    step_i, poly_line, poly_col, dem_rc = t.step_i, t.poly_line, t.poly_col, t.dem_rc
+    inv_dem_step = t.inv_dem_step
     n_seg, na, nb_, n_pow = poly_line.shape
     a = min(r // step_i, na - 2)
     u = (r - a * step_i) / step_i
@@ -576,29 +597,43 @@ def _row_3(r, step_i, poly_line, poly_col, dem_rc, inv_dem_step, line_row, col_r
             rc_row[m, q] = (1.0 - w) * dem_rc[m, a0, q] + w * dem_rc[m, a0 + 1, q]
 
 
+#: The rows of a level 3 span (:func:`_coords_span`): one quantity of its pixels each.
+_S_COLUMN = 0  # raw column
+_S_HEIGHT = 1  # terrain height (NaN over a void or outside the DEM or the grid)
+_S_SEGMENT = 2  # the first segment a cubic kernel around the column reads
+_S_LINE = 3  # that segment's raw line
+_S_LINE_NEXT = 4  # the next segment's line (the same unless at a butting)
+_S_LINE_NEAREST = 5  # the line at the nearest column
+_S_DEM_ROW = _S_LINE  # while the heights are found: the DEM's row, then its column
+_S_DEM_COL = _S_LINE_NEXT
+_SPAN_ROWS = 6
+
+
 @nb.njit(cache=True, fastmath=_FAST)
-def _coords_span(k_lo, k_hi, line_row, col_row, rc_row, cols, dem, h0, inv_hs, seg_of, span):
-    """Output pixels ``k_lo … k_hi − 1`` of the row whose tables are given (:func:`_row_3`),
-    on the terrain, into ``span[:, : k_hi − k_lo]`` (6 × n): raw column, terrain height
-    (NaN over a void or outside the DEM or the grid), the first segment a cubic kernel
-    around the column reads, its line, the line of the next segment (the same line unless
-    at a butting), and the line at the nearest column.
+def _coords_span(k_lo, k_hi, line_row, col_row, rc_row, t, span):
+    """Output pixels ``k_lo … k_hi − 1`` of the row whose tables are given (:func:`_row_3`;
+    ``t``: :class:`Terrain3`),
+    on the terrain, into ``span[:, : k_hi − k_lo]`` (:data:`_SPAN_ROWS` × n, its rows named
+    ``_S_…``): raw column, terrain height (NaN over a void or outside the DEM or the grid),
+    the first segment a cubic kernel around the column reads, its line, the line of the
+    next segment (the same line unless at a butting), and the line at the nearest column.
 
     ``cols`` holds, per output column, the inverse grid's cell and fraction and the DEM
     nodes' cell and fraction. The pixels go by spans, not one call each (a call with arrays
     per pixel costs their reference counts), and each quantity in a loop of its own over
     the span (independent iterations: 35 % faster than one loop with each pixel's chain
     DEM → height → column → segment → line)."""
+    cols, dem, h0, inv_hs, seg_of = t.cols, t.dem, t.h0, t.inv_hs, t.seg_of
     nr, nc = dem.shape
     n_cols = seg_of.size
-    for k in range(k_lo, k_hi):  # the DEM (row, column), kept in rows 3 and 4 for now
+    for k in range(k_lo, k_hi):  # the DEM (row, column), in the line rows for now
         b0 = int(cols[2, k])
         v = cols[3, k]
-        span[3, k - k_lo] = _lerp(rc_row[0, b0], rc_row[0, b0 + 1], v)
-        span[4, k - k_lo] = _lerp(rc_row[1, b0], rc_row[1, b0 + 1], v)
+        span[_S_DEM_ROW, k - k_lo] = _lerp(rc_row[0, b0], rc_row[0, b0 + 1], v)
+        span[_S_DEM_COL, k - k_lo] = _lerp(rc_row[1, b0], rc_row[1, b0 + 1], v)
     for j in range(k_hi - k_lo):  # the terrain height: the DEM's bilinear surface
-        rr = span[3, j]
-        cc = span[4, j]
+        rr = span[_S_DEM_ROW, j]
+        cc = span[_S_DEM_COL, j]
         h = np.nan
         if 0.0 <= rr <= nr - 1 and 0.0 <= cc <= nc - 1:
             p0 = min(int(rr), nr - 2)
@@ -609,10 +644,10 @@ def _coords_span(k_lo, k_hi, line_row, col_row, rc_row, cols, dem, h0, inv_hs, s
                 _lerp(dem[p0 + 1, q0], dem[p0 + 1, q0 + 1], dt),
                 ds,
             )
-        span[1, j] = h
+        span[_S_HEIGHT, j] = h
     for k in range(k_lo, k_hi):  # the raw column
         b = int(cols[0, k])
-        span[0, k - k_lo] = _quadratic(
+        span[_S_COLUMN, k - k_lo] = _quadratic(
             col_row[b, 0],
             col_row[b, 1],
             col_row[b, 2],
@@ -620,18 +655,18 @@ def _coords_span(k_lo, k_hi, line_row, col_row, rc_row, cols, dem, h0, inv_hs, s
             col_row[b + 1, 1],
             col_row[b + 1, 2],
             cols[1, k],
-            (span[1, k - k_lo] - h0) * inv_hs,
+            (span[_S_HEIGHT, k - k_lo] - h0) * inv_hs,
         )
     for k in range(k_lo, k_hi):  # the segments read and their lines
         j = k - k_lo
-        c = span[0, j]
+        c = span[_S_COLUMN, j]
         s0 = 0
         l0 = np.nan
         l1 = np.nan
         if c == c:
             b = int(cols[0, k])
             gv = cols[1, k]
-            t = (span[1, j] - h0) * inv_hs
+            t = (span[_S_HEIGHT, j] - h0) * inv_hs
             # only the segments of the columns a cubic kernel around c reads (one, or
             # two at a butting): the others' lines are never read
             cf = int(np.floor(c))
@@ -659,11 +694,11 @@ def _coords_span(k_lo, k_hi, line_row, col_row, rc_row, cols, dem, h0, inv_hs, s
                     gv,
                     t,
                 )
-        span[2, j] = s0
-        span[3, j] = l0
-        span[4, j] = l1
+        span[_S_SEGMENT, j] = s0
+        span[_S_LINE, j] = l0
+        span[_S_LINE_NEXT, j] = l1
         ci = min(max(int(np.floor(c + 0.5)), 0), n_cols - 1) if c == c else 0
-        span[5, j] = l0 if seg_of[ci] == s0 else l1
+        span[_S_LINE_NEAREST, j] = l0 if seg_of[ci] == s0 else l1
 
 
 @nb.njit(cache=True, inline="always", fastmath=_FAST)
@@ -708,9 +743,9 @@ def _raise_row(zbuf, span, prev, cur, own):
     receives this row's; ``own=False`` for the row above a block (its neighbours only)."""
     n_lines, n_cols = zbuf.shape
     for k in range(span.shape[1]):
-        c = span[0, k]
-        h = span[1, k]
-        line = span[5, k]
+        c = span[_S_COLUMN, k]
+        h = span[_S_HEIGHT, k]
+        line = span[_S_LINE_NEAREST, k]
         li, ci = _nearest_raw(line, c, n_lines, n_cols)
         if li < 0:
             c = line = h = np.nan
@@ -731,46 +766,29 @@ def _raise_row(zbuf, span, prev, cur, own):
 
 
 @nb.njit(cache=True, nogil=True, fastmath=_FAST)
-def _zbuffer_3(
-    lo,
-    hi,
-    zbufs,
-    n_rows,
-    step_i,
-    poly_line,
-    poly_col,
-    dem_rc,
-    inv_dem_step,
-    cols,
-    dem,
-    h0,
-    inv_hs,
-    seg_of,
-):
+def _zbuffer_3(lo, hi, zbufs, n_rows, terrain):
     """The highest terrain seen in each raw pixel (every line of sight descends, so the
     highest ground point in a raw pixel is the one it sees), one z-buffer per block of
     output rows (``zbufs``: blocks × raw lines × raw columns, −inf): blocks run in
     parallel without racing, and their maximum is the same whatever the blocks.
 
     The faces between output pixels count (:func:`_raise_row`): a vertical face has no
-    output pixel of its own, but it hides the ground behind it."""
+    output pixel of its own, but it hides the ground behind it. ``terrain``: :class:`Terrain3`."""
     n_blocks = zbufs.shape[0]
-    n_out_cols = cols.shape[1]
-    n_seg, _na, nb_, n_pow = poly_line.shape
+    n_out_cols = terrain.cols.shape[1]
+    n_seg, _na, nb_, n_pow = terrain.poly_line.shape
     per = (n_rows + n_blocks - 1) // n_blocks
     for t in range(lo, hi):
         line_row = np.empty((n_seg, nb_, n_pow))
         col_row = np.empty((nb_, n_pow))
-        rc_row = np.empty((2, dem_rc.shape[2]))
-        span = np.empty((6, n_out_cols))
+        rc_row = np.empty((2, terrain.dem_rc.shape[2]))
+        span = np.empty((_SPAN_ROWS, n_out_cols))
         prev = np.full((3, n_out_cols), np.nan)  # (line, column, height) of the row above
         cur = np.full((3, n_out_cols), np.nan)
         r_lo, r_hi = t * per, min((t + 1) * per, n_rows)
         for r in range(max(r_lo - 1, 0), r_hi):
-            _row_3(r, step_i, poly_line, poly_col, dem_rc, inv_dem_step, line_row, col_row, rc_row)
-            _coords_span(
-                0, n_out_cols, line_row, col_row, rc_row, cols, dem, h0, inv_hs, seg_of, span
-            )
+            _row_3(r, terrain, line_row, col_row, rc_row)
+            _coords_span(0, n_out_cols, line_row, col_row, rc_row, terrain, span)
             _raise_row(zbufs[t], span, prev, cur, r >= r_lo)
             prev, cur = cur, prev
 
@@ -785,13 +803,13 @@ def _sample_span(img, seg_of, span, r, k_lo, k_hi, method, zbuf, ztol, out, ok, 
     n_lines, n_cols = img.shape
     for k in range(k_lo, k_hi):
         j = k - k_lo
-        c = span[0, j]
-        h = span[1, j]
-        s0 = int(span[2, j])
-        l0 = span[3, j]
-        l1 = span[4, j]
+        c = span[_S_COLUMN, j]
+        h = span[_S_HEIGHT, j]
+        s0 = int(span[_S_SEGMENT, j])
+        l0 = span[_S_LINE, j]
+        l1 = span[_S_LINE_NEXT, j]
         val = np.nan
-        li, ci = _nearest_raw(span[5, j], c, n_lines, n_cols)
+        li, ci = _nearest_raw(span[_S_LINE_NEAREST, j], c, n_lines, n_cols)
         hid = li >= 0 and h < zbuf[li, ci] - ztol
         if hid or not (c >= -0.5 and c <= n_cols - 0.5):
             pass
@@ -854,68 +872,29 @@ def _sample_span(img, seg_of, span, r, k_lo, k_hi, method, zbuf, ztol, out, ok, 
 
 
 @nb.njit(cache=True, nogil=True, fastmath=_FAST)
-def _kernel_3(
-    lo,
-    hi,
-    img,
-    step_i,
-    poly_line,
-    poly_col,
-    dem_rc,
-    inv_dem_step,
-    cols,
-    dem,
-    h0,
-    inv_hs,
-    seg_of,
-    zbuf,
-    ztol,
-    method,
-    out,
-    ok,
-    hidden,
-):
-    """Level 3's resampling, in blocks of output rows × columns as 2A's kernel (the raw
-    pixels a block reads stay in cache); every pixel from its own (row, column) only."""
+def _kernel_3(lo, hi, img, t, zbuf, ztol, method, out, ok, hidden):
+    """Level 3's resampling (``t``: :class:`Terrain3`), in blocks of output rows × columns
+    as 2A's kernel (the raw pixels a block reads stay in cache); every pixel from its own
+    (row, column) only."""
     n_out_rows, n_out_cols = out.shape
-    n_seg, _na, nb_, n_pow = poly_line.shape
+    n_seg, _na, nb_, n_pow = t.poly_line.shape
     for blk in range(lo, hi):
         r_lo = blk * _BLOCK_ROWS
         r_hi = min(r_lo + _BLOCK_ROWS, n_out_rows)
         line_rows = np.empty((r_hi - r_lo, n_seg, nb_, n_pow))
         col_rows = np.empty((r_hi - r_lo, nb_, n_pow))
-        rc_rows = np.empty((r_hi - r_lo, 2, dem_rc.shape[2]))
-        span = np.empty((6, _BLOCK_COLS))
+        rc_rows = np.empty((r_hi - r_lo, 2, t.dem_rc.shape[2]))
+        span = np.empty((_SPAN_ROWS, _BLOCK_COLS))
         for r in range(r_lo, r_hi):
-            _row_3(
-                r,
-                step_i,
-                poly_line,
-                poly_col,
-                dem_rc,
-                inv_dem_step,
-                line_rows[r - r_lo],
-                col_rows[r - r_lo],
-                rc_rows[r - r_lo],
-            )
+            _row_3(r, t, line_rows[r - r_lo], col_rows[r - r_lo], rc_rows[r - r_lo])
         for k_lo in range(0, n_out_cols, _BLOCK_COLS):
             k_hi = min(k_lo + _BLOCK_COLS, n_out_cols)
             for r in range(r_lo, r_hi):
                 i = r - r_lo
-                _coords_span(
-                    k_lo,
-                    k_hi,
-                    line_rows[i],
-                    col_rows[i],
-                    rc_rows[i],
-                    cols,
-                    dem,
-                    h0,
-                    inv_hs,
-                    seg_of,
-                    span,
+                _coords_span(k_lo, k_hi, line_rows[i], col_rows[i], rc_rows[i], t, span)
+                _sample_span(
+                    img, t.seg_of, span, r, k_lo, k_hi, method, zbuf, ztol, out, ok, hidden
                 )
-                _sample_span(img, seg_of, span, r, k_lo, k_hi, method, zbuf, ztol, out, ok, hidden)
 
 
 def _height_polynomials(
@@ -975,20 +954,11 @@ def resample_3(
     cols = np.ascontiguousarray(
         np.stack([cell, (k - cell * step_j) / step_j, dem_cell, y - dem_cell])
     )
-    args = (
-        step_i,
-        poly_line,
-        poly_col,
-        dem_rc,
-        1.0 / geom.dem_step_px,
-        cols,
-        dem,
-        h0,
-        inv_hs,
-        seg_of,
+    terrain = Terrain3(
+        step_i, poly_line, poly_col, dem_rc, 1.0 / geom.dem_step_px, cols, dem, h0, inv_hs, seg_of
     )
     zbufs = np.full((thread_count(), *img.shape), -np.inf, dtype=np.float32)
-    over_blocks(_zbuffer_3, zbufs.shape[0], zbufs, geom.map_grid.n_rows, *args)
+    over_blocks(_zbuffer_3, zbufs.shape[0], zbufs, geom.map_grid.n_rows, terrain)
     zbuf = zbufs.max(axis=0)
     del zbufs
     c_per_m = float(np.nanmedian(np.abs(inv_col[-1] - inv_col[0]))) / float(np.ptp(heights))
@@ -1001,7 +971,7 @@ def resample_3(
         _kernel_3,
         n_blocks,
         img,
-        *args,
+        terrain,
         zbuf,
         ztol,
         RESAMPLINGS_2A.index(resampling),
