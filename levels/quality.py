@@ -7,6 +7,8 @@ computed on a real scene from surveyed checkpoints.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -15,6 +17,7 @@ from scipy import ndimage
 
 __all__ = [
     "CheckpointSource",
+    "Headline",
     "error_stats",
     "image_shift_px",
     "raw_error_stats",
@@ -76,6 +79,77 @@ def scalar_figures(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
         else:
             out[key] = v.item() if isinstance(v, np.ndarray | np.generic) else v
     return out
+
+
+@dataclass(frozen=True)
+class Headline:
+    """A product's headline figures, read back from its flattened quality
+    (:func:`scalar_figures`) by the module that flattens it: what the tables of ``station
+    run`` and ``station process`` show. None where the product has no such figure.
+
+    Attributes
+    ----------
+    band
+        The band the figures are of (the first with checkpoints or stripes; else None).
+    los_rms_m, los_max_m, los_max_px
+        Checkpoint errors along the line of sight (RMS and max, m; max, px).
+    ground_rms_m
+        Checkpoint errors on the ground (RMS, m).
+    approx_max_px
+        The product's geometry against the rigorous model: its 1B polynomials', its 2A
+        inverse's (the method it was made with), or its level 3 anchor grid's (the worst
+        band); None for 1A.
+    stripes_counts
+        The stripe level before and after 1A's calibration (1A only).
+    """
+
+    band: str | None
+    los_rms_m: float | None
+    los_max_m: float | None
+    los_max_px: float | None
+    ground_rms_m: float | None
+    approx_max_px: float | None
+    stripes_counts: tuple[float, float] | None
+
+    @classmethod
+    def of(cls, figures: Mapping[str, Any], band: str | None = None) -> Headline:
+        """The headline of ``figures`` (a product's :func:`scalar_figures`), of ``band``
+        (by default the first band that has checkpoints or stripes)."""
+        band = band or _first_band(figures)
+        cp = f"checkpoints/{band}"
+        raw, cal = (
+            figures.get(f"stripe_level/{band}/{k}") for k in ("raw_counts", "level_1a_counts")
+        )
+        return cls(
+            band,
+            figures.get(f"{cp}/line_of_sight/rms_m"),
+            figures.get(f"{cp}/line_of_sight/max_m"),
+            figures.get(f"{cp}/line_of_sight/max_px"),
+            figures.get(f"{cp}/ground/rms_m"),
+            _approximation_max_px(figures),
+            (raw, cal) if raw is not None and cal is not None else None,
+        )
+
+
+def _first_band(figures: Mapping[str, Any]) -> str | None:
+    for key in figures:
+        parts = key.split("/")
+        if parts[0] in ("stripe_level", "checkpoints") and len(parts) > 2:
+            return parts[1]
+    return None
+
+
+def _approximation_max_px(figures: Mapping[str, Any]) -> float | None:
+    anchors = [
+        v for k, v in figures.items() if k.startswith("anchor_error_px/") and k.endswith("/max_px")
+    ]
+    if anchors:
+        return float(max(anchors))
+    value = figures.get(
+        "polynomials_vs_model/max_px",
+        figures.get(f"inverse_vs_model/{figures.get('inverse_method', '')}/max_px"),
+    )
+    return None if value is None else float(value)
 
 
 class CheckpointSource(Protocol):

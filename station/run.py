@@ -35,6 +35,7 @@ from typing import Any
 
 from levels.files import json_default, remove_partials, writable_dir, write_json
 from levels.products import read_product
+from levels.quality import Headline
 from levels.tasks import Runner
 from station import __version__
 from station.errors import StationError
@@ -42,7 +43,6 @@ from station.scenario import Scenario
 
 __all__ = [
     "REPORT_FORMAT",
-    "approximation_max_px",
     "comparable_report",
     "prepare_run_dir",
     "run_scenario",
@@ -377,21 +377,6 @@ def _fmt(x: Any, spec: str) -> str:
     return "—".rjust(int(spec.split(".")[0])) if x is None else format(x, spec)
 
 
-def approximation_max_px(quality: dict[str, Any]) -> float | None:
-    """A product's headline approximation figure: its 1B polynomials', its 2A inverse's
-    (the method it was made with), or its level 3 anchor grid's (the worst band), against
-    the rigorous model; None for 1A."""
-    anchors = [
-        v for k, v in quality.items() if k.startswith("anchor_error_px/") and k.endswith("/max_px")
-    ]
-    if anchors:
-        return max(anchors)
-    return quality.get(
-        "polynomials_vs_model/max_px",
-        quality.get(f"inverse_vs_model/{quality.get('inverse_method', '')}/max_px"),
-    )
-
-
 def _downlink_line(dec: dict[str, Any]) -> str:
     """One HRV's decoding in a line: frames, errors, lines, and the check against the truth."""
     link, cadus, tc = dec["link"], dec["cadus"], dec["truth_check"]
@@ -433,34 +418,25 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
         f"{'approx max px':>14}  product"
     )
     for r in report["products"]:
-        q = r["quality"]
         band = r["bands"][0]
-        los = q.get(f"checkpoints/{band}/line_of_sight/rms_m")
-        los_max = q.get(f"checkpoints/{band}/line_of_sight/max_m")
-        ground = q.get(f"checkpoints/{band}/ground/rms_m")
-        approx = approximation_max_px(q)
+        h = Headline.of(r["quality"], band)
         valid = r["valid_fraction"].get(band)
         hrv = f"{r['hrv']:3d} " if several else ""
         lines.append(
             f"{hrv}{r['scene']:5d} {r['level']:>5} {r['n_rows']:>5}×{r['n_cols']:<5} "
-            f"{_fmt(valid, '6.3f')} {_fmt(los, '10.1f')} {_fmt(los_max, '10.1f')} "
-            f"{_fmt(ground, '13.1f')} {_fmt(approx, '14.4f')}  {r['file']}"
+            f"{_fmt(valid, '6.3f')} {_fmt(h.los_rms_m, '10.1f')} {_fmt(h.los_max_m, '10.1f')} "
+            f"{_fmt(h.ground_rms_m, '13.1f')} {_fmt(h.approx_max_px, '14.4f')}  {r['file']}"
         )
     for h in report["hrvs"]:
         for k in h["processing"]["skipped"]:
             hrv = f"{h['hrv']:3d} " if several else ""
             lines.append(f"{hrv}{k['scene']:5d}  skipped: {k['reason']}")
     stripes = [
-        (
-            f"HRV{r['hrv']} " if several else "",
-            r["scene"],
-            b,
-            r["quality"].get(f"stripe_level/{b}/raw_counts"),
-            r["quality"].get(f"stripe_level/{b}/level_1a_counts"),
-        )
+        (f"HRV{r['hrv']} " if several else "", r["scene"], h.band, *h.stripes_counts)
         for r in report["products"]
         if r["level"] == "1A"
-        for b in r["bands"][:1]
+        for h in [Headline.of(r["quality"], r["bands"][0])]
+        if h.stripes_counts is not None
     ]
     if stripes:
         lines.append(

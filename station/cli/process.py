@@ -235,18 +235,10 @@ def _archive_data(l0: Path, out: Path, products: Any) -> dict[str, Any]:
     }
 
 
-def _first_band(row: dict[str, Any]) -> str | None:
-    for key in row:
-        parts = key.split("/")
-        if parts[0] in ("stripe_level", "checkpoints") and len(parts) > 2:
-            return parts[1]
-    return None
-
-
 def _text(data: dict[str, Any]) -> str:
     if "archives" in data:
         return "\n".join(_text(d) for d in data["archives"])
-    from station.run import approximation_max_px
+    from levels.quality import Headline
 
     t = data["timings_s"]
     lines = [
@@ -255,22 +247,19 @@ def _text(data: dict[str, Any]) -> str:
         f"{'scene':>5} {'level':>5} {'LOS rms m':>10} {'max px':>7} {'ground rms m':>13} "
         f"{'approx max px':>14}  stripes raw → 1A",
     ]
-    nan = float("nan")
+
+    def number(x: float | None) -> float:
+        return float("nan") if x is None else x
+
     for r in data["products"]:
-        band = _first_band(r)
-        los = r.get(f"checkpoints/{band}/line_of_sight/rms_m", nan)
-        los_px = r.get(f"checkpoints/{band}/line_of_sight/max_px", nan)
-        ground = r.get(f"checkpoints/{band}/ground/rms_m", nan)
-        approx = approximation_max_px(r)
+        h = Headline.of(r)
         stripes = (
-            f"{r[f'stripe_level/{band}/raw_counts']:.2f} → "
-            f"{r[f'stripe_level/{band}/level_1a_counts']:.2f}"
-            if r["level"] == "1A"
-            else ""
+            f"{h.stripes_counts[0]:.2f} → {h.stripes_counts[1]:.2f}" if h.stripes_counts else ""
         )
         lines.append(
-            f"{r['scene']:5d} {r['level']:>5} {los:10.1f} {los_px:7.2f} "
-            f"{ground:13.1f} {nan if approx is None else approx:14.4f}  {stripes}"
+            f"{r['scene']:5d} {r['level']:>5} {number(h.los_rms_m):10.1f} "
+            f"{number(h.los_max_px):7.2f} {number(h.ground_rms_m):13.1f} "
+            f"{number(h.approx_max_px):14.4f}  {stripes}"
         )
         lines.append(f"{'':11}{r['path']}")
     for k in data["skipped"]:

@@ -12,6 +12,7 @@ import pytest
 from levels.options import ProcessingOptions
 from levels.process import ProcessingRequest, process
 from levels.products import read_product
+from levels.quality import Headline
 from levels.readers.l0 import read_l0
 from levels.warmup import WARM_UP_ARCHIVE
 
@@ -48,6 +49,15 @@ def test_the_shipped_archive_makes_every_image_level(tmp_path: Path) -> None:
     assert q["2A"]["inverse_vs_model/nearest4/max_px"] < INVERSE_MAX_PX
     assert q["1B"]["polynomials_vs_model/max_px"] < POLYNOMIALS_MAX_PX
     assert "checkpoints" not in two_a.quality  # no checkpoint source, no checkpoints
+    # the headline figures, read back by the module that flattened them
+    h2, h1, ha = (Headline.of(q[lv]) for lv in ("2A", "1B", "1A"))
+    assert h2.approx_max_px == q["2A"]["inverse_vs_model/nearest4/max_px"]
+    assert h1.approx_max_px == q["1B"]["polynomials_vs_model/max_px"]
+    assert h2.los_rms_m is None and ha.approx_max_px is None
+    assert ha.band == "P" and ha.stripes_counts == (
+        q["1A"]["stripe_level/P/raw_counts"],
+        q["1A"]["stripe_level/P/level_1a_counts"],
+    )
     # the same request again gives the same images, bit for bit
     [again] = process(ProcessingRequest.of(read_l0(WARM_UP_ARCHIVE), options, tmp_path / "b", "w"))
     for level, path in paths.items():
