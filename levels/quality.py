@@ -9,11 +9,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
+
+if TYPE_CHECKING:  # the geometries import this module's statistics
+    from levels.geo.level1b import Level1BGeometry
+    from levels.geo.level2a import Level2AGeometry
+    from levels.geo.level3 import Level3Geometry
+    from levels.geo.scenes import SceneGeometry
 
 __all__ = [
     "CheckpointSource",
@@ -162,15 +168,15 @@ class CheckpointSource(Protocol):
     """
 
     def level_1b(
-        self, scene: Any, geometry: Any, band_index: int, per_side: int
+        self, scene: SceneGeometry, geometry: Level1BGeometry, band_index: int, per_side: int
     ) -> dict[str, Any]: ...
 
     def level_2a(
-        self, scene: Any, geometry: Any, band_index: int, per_side: int
+        self, scene: SceneGeometry, geometry: Level2AGeometry, band_index: int, per_side: int
     ) -> dict[str, Any]: ...
 
     def level_3(
-        self, scene: Any, geometry: Any, band_index: int, per_side: int
+        self, scene: SceneGeometry, geometry: Level3Geometry, band_index: int, per_side: int
     ) -> dict[str, Any]: ...
 
 
