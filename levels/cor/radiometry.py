@@ -68,8 +68,11 @@ def calibrate(
 
 
 def to_counts(image: NDArray[np.floating]) -> NDArray[np.uint8]:
-    """8-bit product counts: rounded to the nearest integer and clipped to 0..255."""
-    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    """8-bit product counts: rounded to the nearest integer and clipped to 0..255 (in one
+    temporary: each fresh 144 MB array of a full P scene costs its page faults)."""
+    work = np.rint(image)
+    np.clip(work, 0, 255, out=work)
+    return work.astype(np.uint8)
 
 
 def mtf(nu: NDArray[np.float64], psf_fwhm_px: float) -> NDArray[np.float64]:
