@@ -460,7 +460,6 @@ def _plan_archive(
         adjustment,
         dem,
         makers,
-        tuple(options.levels),
     )
     timings = {"geo": t_geo, "total": setup.time_s + clock() - t0}
     if adjustment is not None:
@@ -552,7 +551,7 @@ def make_scene(ctx: PassContext, scene: SceneGeometry) -> SceneProducts:
                 maker.prepare(work)
     for band in ctx.archive.bands:
         _band_images(work, band)
-    written = [level_maker_of(ctx, name) for name in ctx.written]
+    written = [_maker_of(ctx, name) for name in ctx.options.levels]
     quality = {}
     for maker in written:
         with work.timed("quality"):
@@ -564,7 +563,7 @@ def make_scene(ctx: PassContext, scene: SceneGeometry) -> SceneProducts:
     return SceneProducts(cut.index, cut.first_line, cut.n_lines, paths, figures, work.timings_s)
 
 
-def level_maker_of(ctx: PassContext, name: str) -> LevelMaker:
+def _maker_of(ctx: PassContext, name: str) -> LevelMaker:
     """The maker of level ``name`` in the pass's plan."""
     return next(m for m in ctx.makers if m.name == name)
 

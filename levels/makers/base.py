@@ -74,8 +74,8 @@ class Reads(StrEnum):
 @dataclass(frozen=True, eq=False)
 class PassContext:
     """What every scene of a pass shares: the archive, GEO's pass set-up, the options and
-    what follows from them, and the levels to make (``makers``, in processing order) of
-    which those ``written`` (the levels asked; the others are made for them)."""
+    what follows from them, and the levels to make (``makers``, in processing order): those
+    the options ask for are written, the others are made for them."""
 
     archive: L0Archive
     pg: PassGeometry
@@ -89,7 +89,6 @@ class PassContext:
     adjustment: Adjustment | None
     dem: Dem | None
     makers: tuple[LevelMaker, ...]
-    written: tuple[str, ...]
 
 
 @dataclass(frozen=True, eq=False)

@@ -81,6 +81,12 @@ def geometry_1b(work: SceneWork) -> dict[str, Level1BGeometry]:
     return per_band(scene, lambda b, like: level1b_geometry(scene, res, band=b, like=like))
 
 
+def _grid_choices(work: SceneWork) -> dict[str, Any]:
+    """How the direct grids of the map levels are laid (``[processing] grid_rows``,
+    ``grid_columns``)."""
+    return {"grid_rows": work.options.grid_rows, "grid_columns": work.options.grid_columns}
+
+
 def _map_geometry(work: SceneWork, sg: SceneGeometry) -> dict[str, Level2AGeometry]:
     opt, res, crs = work.options, work.ctx.pixel_size_m, scene_crs(work)
     return per_band(
@@ -92,8 +98,7 @@ def _map_geometry(work: SceneWork, sg: SceneGeometry) -> dict[str, Level2AGeomet
             opt.inverse_2a,
             band=b,
             like=like,
-            grid_rows=opt.grid_rows,
-            grid_columns=opt.grid_columns,
+            **_grid_choices(work),
         ),
     )
 
@@ -153,8 +158,7 @@ def geometry_3(work: SceneWork) -> dict[str, Level3Geometry]:
             opt.inverse_2a,
             band=b,
             like=like,
-            grid_rows=opt.grid_rows,
-            grid_columns=opt.grid_columns,
+            **_grid_choices(work),
         ),
     )
 
