@@ -230,11 +230,12 @@ def _needs(makers: Sequence[LevelMaker]) -> frozenset[Need]:
     return frozenset().union(*(m.needs for m in makers))
 
 
-def pass_dem(options: ProcessingOptions) -> Dem | None:
+def pass_dem(options: ProcessingOptions, makers: Sequence[LevelMaker] | None = None) -> Dem | None:
     """The DEM of the levels asked that need one (``options.dem_path``, heights above
     ``options.dem_vertical``), or None when none does; :class:`DemError` when one does and
-    no DEM is named."""
-    needing = [m.name for m in plan_levels(options.levels) if Need.DEM in m.needs]
+    no DEM is named. ``makers``: the levels planned, when they are (:func:`plan_levels`)."""
+    planned = plan_levels(options.levels) if makers is None else makers
+    needing = [m.name for m in planned if Need.DEM in m.needs]
     if not needing:
         return None
     if not options.dem_path:
@@ -285,15 +286,18 @@ class ProcessingRequest:
 
     def __post_init__(self) -> None:
         n = len(self.archives)
-        object.__setattr__(self, "out_dir", Path(self.out_dir))
-        for what in ("archives", "names", "checkpoints", "gcps"):
-            object.__setattr__(self, what, tuple(getattr(self, what)))
+        normal = {
+            "out_dir": Path(self.out_dir),
+            "archives": tuple(self.archives),
+            "names": tuple(self.names),
+            "checkpoints": tuple(self.checkpoints) or (None,) * n,  # none given: none each
+            "gcps": tuple(self.gcps) or (None,) * n,
+        }
+        for what, value in normal.items():
+            object.__setattr__(self, what, value)
         for what in ("names", "checkpoints", "gcps"):
-            given = len(getattr(self, what))
-            if what != "names" and not given:
-                object.__setattr__(self, what, (None,) * n)
-            elif given != n:
-                raise ValueError(f"{n} archives but {given} {what}")
+            if len(getattr(self, what)) != n:
+                raise ValueError(f"{n} archives but {len(getattr(self, what))} {what}")
         hrvs = [a.hrv for a in self.archives]
         if len(set(hrvs)) != n:
             raise GeometryError(f"one archive per HRV of a pass: got HRVs {hrvs}")
@@ -365,7 +369,7 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
         )
     dem = request.dem
     if dem is None and Need.DEM in needs:
-        dem = pass_dem(opt)  # read once for every HRV
+        dem = pass_dem(opt, makers)  # read once for every HRV
     twin = Need.ADJUSTMENT in needs and opt.adjustment == AdjustmentScope.TWIN
     setups: list[PassSetup | None] = [None] * len(archives)
     adjustments: list[Adjustment | None] = [None] * len(archives)
