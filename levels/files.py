@@ -6,14 +6,20 @@ target (same directory, so the same file system) and renamed into place by ``os.
 atomic on POSIX, only once complete. A reader never sees half a file; a failure (a full
 disk, an exception, Ctrl-C) removes the temporary file and leaves any older target as it
 was.
+
+A directory of outputs (a run, a reprocessing, a campaign) is published the same way, whole:
+:func:`staged_dir` builds it in a hidden directory beside its target and renames it into
+place only when complete; until then the previous directory stays exactly as it was.
 """
 
 from __future__ import annotations
 
 import contextlib
+import glob
 import json
 import math
 import os
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -25,6 +31,7 @@ __all__ = [
     "json_default",
     "plain",
     "remove_partials",
+    "staged_dir",
     "writable_dir",
     "write_json",
     "write_text",
@@ -125,3 +132,64 @@ def _alive(pid: int) -> bool:
     except PermissionError:
         return True
     return True
+
+
+@contextlib.contextmanager
+def staged_dir(target: str | Path) -> Iterator[Path]:
+    """A new empty directory beside ``target`` to build it in, published as ``target`` when
+    the block succeeds.
+
+    The staging directory, ``.<name>.<pid>.staging`` in ``target``'s parent (the same file
+    system), is renamed onto ``target`` once complete: the previous ``target`` is renamed
+    aside (``.<name>.<pid>.previous``), the new one into place, then the previous one
+    removed. A failure or an interruption in the block removes the staging directory and
+    leaves ``target`` exactly as it was; the exception then carries a note saying so. A
+    process killed between the two renames leaves the previous directory aside: the next
+    call puts it back (:func:`_recover`). Raises ``OSError`` naming the parent when it
+    cannot be written.
+    """
+    target = Path(target)
+    parent = target.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        _recover(target)
+        stage = parent / f".{target.name}.{os.getpid()}.staging"
+        shutil.rmtree(stage, ignore_errors=True)
+        stage.mkdir()
+    except OSError as exc:
+        raise OSError(f"cannot write in {parent}: {exc.strerror or exc}") from None
+    try:
+        yield stage
+        aside = parent / f".{target.name}.{os.getpid()}.previous"
+        if target.exists():
+            os.rename(target, aside)
+            try:
+                os.rename(stage, target)
+            except BaseException:
+                os.rename(aside, target)
+                raise
+            shutil.rmtree(aside, ignore_errors=True)
+        else:
+            os.rename(stage, target)
+    except BaseException as exc:
+        shutil.rmtree(stage, ignore_errors=True)
+        exc.add_note(
+            f"{target} left as it was" if target.exists() else f"nothing written to {target}"
+        )
+        raise
+
+
+def _recover(target: Path) -> None:
+    """What killed :func:`staged_dir` calls left beside ``target``: their staging
+    directories removed, and a previous directory renamed aside put back if ``target`` is
+    missing (else removed)."""
+    for p in target.parent.glob(f".{glob.escape(target.name)}.*"):
+        stem, pid, kind = p.name.rsplit(".", 2)
+        if stem != f".{target.name}" or kind not in ("staging", "previous"):
+            continue
+        if not pid.isdigit() or _alive(int(pid)):
+            continue
+        if kind == "previous" and not target.exists():
+            os.rename(p, target)
+        else:
+            shutil.rmtree(p, ignore_errors=True)

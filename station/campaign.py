@@ -27,11 +27,12 @@ from pathlib import Path
 from typing import Any
 
 from levels.errors import LevelsError
-from levels.files import writable_dir, write_json
+from levels.files import staged_dir, write_json
 from levels.options import ProcessingOptions
 from levels.tasks import Runner
 from station import __version__
 from station.errors import StationError
+from station.outdir import replaceable_dir
 
 __all__ = ["CAMPAIGN_FORMAT", "campaign_archives", "run_campaign"]
 
@@ -81,16 +82,39 @@ def run_campaign(
     counts scenes (``total``: those of the archives planned so far): called while
     planning, after each scene, and at the end.
     """
-    from levels.process import run_plans
-    from station.sipc.process import l0_stem, plan_reprocess
+    from station.sipc.process import l0_stem
 
-    target = writable_dir(out)  # an unwritable output fails before any work
     names = [l0_stem(a) for a in archives]
     clashes = sorted({n for n in names if names.count(n) > 1})
     if clashes:
         raise StationError(
             f"archives with the same name would share a directory: {', '.join(clashes)}"
         )
+    target = replaceable_dir(
+        out,
+        "campaign.json",
+        lambda r: r["format"] == CAMPAIGN_FORMAT or None,
+        True,
+        "a campaign",
+        [*archives, *([options.dem_path] if options.dem_path else [])],
+    )
+    with staged_dir(target) as stage:  # the previous campaign stays whole until this one is
+        return _run(archives, names, target, stage, options, progress, runner)
+
+
+def _run(
+    archives: list[Path],
+    names: list[str],
+    target: Path,
+    stage: Path,
+    options: ProcessingOptions,
+    progress: Callable[[int, int, str], None] | None,
+    runner: Runner | None,
+) -> dict[str, Any]:
+    """:func:`run_campaign` into ``stage``, the report naming the paths in ``target``."""
+    from levels.process import run_plans
+    from station.sipc.process import plan_reprocess
+
     clock = time.perf_counter
     t0 = clock()
     # archives go in batches: a year of passes is never planned, nor held, all at once
@@ -116,7 +140,7 @@ def run_campaign(
             entry: dict[str, Any] = {"l0": str(archive), "name": name, "out": str(target / name)}
             t = clock()
             try:
-                [plan] = plan_reprocess([archive], target / name, options=options, names=[name])
+                [plan] = plan_reprocess([archive], stage / name, options=options, names=[name])
             except Exception as exc:  # reported by name; the other archives go on
                 entry.update(_failure(exc, traceback.format_exc()))
             else:
@@ -134,7 +158,7 @@ def run_campaign(
             progress(done, total, what)
         results = run_plans([plan for _, plan in plans], runner, on_scene)
         for (entry, _), result in zip(plans, results, strict=True):
-            _record(entry, result)
+            _record(entry, result, target / entry["name"])
     if progress is not None:
         progress(total, total, "")
     failed = [e for e in entries if e["status"] != "ok"]
@@ -154,11 +178,11 @@ def run_campaign(
             "time_s": clock() - t0,
         },
     }
-    write_json(target / "campaign.json", report)
+    write_json(stage / "campaign.json", report)
     return report
 
 
-def _record(entry: dict[str, Any], result: Any) -> None:
+def _record(entry: dict[str, Any], result: Any, out: Path) -> None:
     """An archive's entry from what :func:`levels.process.run_plans` made of it."""
     from levels.process import PassProducts
 
@@ -168,7 +192,7 @@ def _record(entry: dict[str, Any], result: Any) -> None:
         scenes=len(made.scenes),
         skipped=[dataclasses.asdict(s) for s in made.skipped],
         products=[
-            {"scene": s.index, "level": lv, "path": str(p)}
+            {"scene": s.index, "level": lv, "path": str(out / p.name)}
             for s in made.scenes
             for lv, p in s.paths.items()
         ],

@@ -33,12 +33,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from levels.files import json_default, remove_partials, writable_dir, write_json
+from levels.files import json_default, staged_dir, write_json
 from levels.products import read_product
 from levels.quality import Headline
 from levels.tasks import Runner
 from station import __version__
-from station.errors import StationError
+from station.outdir import replaceable_dir
 from station.scenario import Scenario
 
 __all__ = [
@@ -72,7 +72,25 @@ def run_scenario(
     of ``runner`` (:mod:`levels.tasks`; in this process by default). ``warm_up``: if the
     processing kernels are not compiled yet, compile them in a background process while
     the pass is emulated and received (:mod:`levels.warmup`; what ``station run`` does).
+
+    The run is built in a staging directory beside ``out_dir`` and replaces it whole only
+    when complete (:func:`levels.files.staged_dir`): a failure leaves the previous run as
+    it was.
     """
+    out = prepare_run_dir(out_dir, scn.name, scn.inputs())
+    with staged_dir(out) as stage:  # the previous run stays whole until this one is
+        return _run(scn, stage, quicklooks, progress, runner, warm_up)
+
+
+def _run(
+    scn: Scenario,
+    out: Path,
+    quicklooks: bool,
+    progress: bool,
+    runner: Runner | None,
+    warm_up: bool,
+) -> dict[str, Any]:
+    """:func:`run_scenario` into ``out`` (its staging directory)."""
     from tqdm import tqdm
 
     from levels.quicklook import write_quicklook
@@ -80,7 +98,6 @@ def run_scenario(
     from station.sipc.process import with_exported_dem
     from station.spacecraft.emulator import emulate_pass
 
-    out = prepare_run_dir(out_dir, scn.name)
     warming = start_warm_up() if warm_up else None
     clock = time.perf_counter
     timings: dict[str, Any] = {}
@@ -175,41 +192,18 @@ def run_scenario(
     return report
 
 
-def prepare_run_dir(out_dir: str | Path, name: str) -> Path:
-    """The run directory, ready before any work: writable (checked now, not after minutes),
-    not another scenario's run (its ``report.json`` names it: refused), and without what an
-    earlier run of this scenario left (its report first, so that the directory never says a
-    run finished that did not; then its L0 archives, products and quicklooks), nor the
-    temporary files of a killed writer. Other files are left alone."""
-    out = writable_dir(out_dir)
-    report = out / "report.json"
-    if report.is_file():
-        try:
-            previous = json.loads(report.read_text(encoding="utf-8"))["scenario"]["name"]
-        except (ValueError, KeyError, TypeError, UnicodeDecodeError):
-            previous = None
-        if previous != name:
-            raise StationError(
-                f"{out} holds a run of scenario {previous!r}, not {name!r}: give another --out"
-                " (or remove that run)"
-            )
-        report.unlink()
-    stale = [
-        *out.glob(f"{name}.l0.h5"),
-        *out.glob(f"{name}_hrv[12].l0.h5"),
-        *out.glob(f"{name}.gcp.csv"),
-        *out.glob(f"{name}_hrv[12].gcp.csv"),
-        *out.glob(f"{name}.dem.tif"),
-        *out.glob(f"{name}_s[0-9][0-9][0-9]_*.h5"),
-        *out.glob(f"{name}_hrv[12]_s[0-9][0-9][0-9]_*.h5"),
-        *(out / "quicklooks").glob(f"{name}_*.png"),
-    ]
-    for p in stale:
-        p.unlink()
-    remove_partials(out)
-    if (out / "quicklooks").is_dir():
-        remove_partials(out / "quicklooks")
-    return out
+def prepare_run_dir(out_dir: str | Path, name: str, inputs: list[Path] | None = None) -> Path:
+    """The run directory, checked before any work: absent, empty or an earlier run of this
+    scenario (its ``report.json`` names it), since the run replaces it whole
+    (:mod:`station.outdir`); another scenario's run or other files there are refused."""
+    return replaceable_dir(
+        out_dir,
+        "report.json",
+        lambda r: r["scenario"]["name"],
+        name,
+        f"a run of scenario {name!r}",
+        inputs or [],
+    )
 
 
 @dataclass(frozen=True, eq=False)

@@ -562,6 +562,11 @@ class Scenario:
             "seed": self.seed,
         }
 
+    def inputs(self) -> list[Path]:
+        """The files the scenario reads: itself, its TLE, its world's and its level 3 DEM."""
+        given = [self.orbit.tle_path, self.world.dem_path, self.processing.dem_path]
+        return [Path(self.source)] * bool(self.source) + [self.path(p) for p in given if p]
+
     def path(self, relative: str) -> Path:
         """A path of the scenario, resolved from the scenario file's directory."""
         p = Path(relative)

@@ -124,6 +124,79 @@ def test_a_reused_run_directory(run_dir, tmp_path, capsys) -> None:
     _one_line(capsys, code, EXIT_BAD_INPUT, "holds a run of scenario 'small_test'")
 
 
+def _tree(d: Path) -> dict[str, bytes]:
+    """Every file under ``d`` and its bytes."""
+    return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def test_a_full_disk_in_a_rerun_leaves_the_previous_run_whole(
+    run_dir, tmp_path, monkeypatch, capsys
+) -> None:
+    """The rerun builds beside the run and replaces it only when complete: the disk filling
+    mid-rerun leaves the earlier run byte for byte, and the line says so."""
+    out = tmp_path / "run"
+    shutil.copytree(run_dir, out)
+    before = _tree(out)
+    real = Path.write_bytes
+
+    def full(self: Path, data) -> int:
+        if self.name.endswith(".partial") and "_s000_2A" in self.name:
+            raise OSError(28, "No space left on device")
+        return real(self, data)
+
+    monkeypatch.setattr(Path, "write_bytes", full)
+    code = main(["run", str(SMALL), "--out", str(out), "--quiet", "--no-quicklooks"])
+    _one_line(capsys, code, EXIT_BAD_INPUT, "No space left on device", f"{out} left as it was")
+    assert _tree(out) == before
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no staging directory left
+
+
+def test_a_sigint_in_a_rerun_leaves_the_previous_run_whole(run_dir, tmp_path) -> None:
+    """Ctrl-C (a real SIGINT to a ``station run`` process) once the rerun has recorded its
+    L0 archive in its staging directory: exit 130, the earlier run byte for byte."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "run"
+    shutil.copytree(run_dir, out)
+    before = _tree(out)
+    cmd = [sys.executable, "-m", "station.cli", "run", str(SMALL), "--out", str(out), "-q"]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(tmp_path.glob(".run.*.staging/small_test.gcp.csv")):
+            assert proc.poll() is None and time.monotonic() < deadline, "never got to record"
+            time.sleep(0.05)
+        os.kill(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == EXIT_INTERRUPTED, err
+    assert f"{out} left as it was" in err and "Traceback" not in err, err
+    assert _tree(out) == before
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]
+
+
+def test_an_output_directory_is_replaced_only_if_it_is_ours(run_dir, tmp_path, capsys) -> None:
+    """The run replaces its directory whole: the user's own files there, the current
+    directory, or a directory holding the inputs are refused before any work."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "thesis.tex").write_text("years of work")
+    code = main(["run", str(SMALL), "--out", str(mine), "--quiet"])
+    _one_line(capsys, code, EXIT_BAD_INPUT, "not a run of scenario 'small_test'", "thesis.tex")
+    assert (mine / "thesis.tex").read_text() == "years of work"
+    code = main(["process", str(run_dir / "small_test.l0.h5"), "--out", str(run_dir), "-q"])
+    _one_line(capsys, code, EXIT_BAD_INPUT, "holds the input")
+    code = main(["campaign", str(run_dir), "--out", str(run_dir.parent), "-q"])
+    _one_line(capsys, code, EXIT_BAD_INPUT, "holds the input")
+
+
 def _damage(kind: str, src: Path, dst: Path) -> None:
     shutil.copy(src, dst)
     if kind == "truncated":

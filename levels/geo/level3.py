@@ -36,6 +36,7 @@ but it hides the ground behind it. Voids of the DEM leave their pixels invalid.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -119,7 +120,7 @@ class Level3Geometry:
                 "geotransform": np.asarray(dem.geotransform),
                 "crs_wkt": dem.crs_wkt,
                 "vertical": dem.vertical,
-                "source": dem.source,
+                "source": Path(dem.source).name if dem.source else "",  # its name: not where
                 "spacing_m": g.dem_spacing_m,
             },
             **{

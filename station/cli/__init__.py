@@ -116,8 +116,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (LevelsError, StationError, OSError) as exc:
         print(f"station: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("station: interrupted; files being written were discarded", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        notes = "; ".join(getattr(exc, "__notes__", ())) or "files being written were discarded"
+        print(f"station: interrupted; {notes}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as exc:  # a bug: said as such, with its traceback on request
         if os.environ.get("STATION_DEBUG"):
@@ -131,4 +132,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
+    """The error and its notes (``BaseException.add_note``: what was left as it was)."""
+    said = " ".join(str(exc).split()) or type(exc).__name__
+    return "; ".join([said, *getattr(exc, "__notes__", ())])

@@ -12,7 +12,10 @@ from typing import Any
 from station.cli._options import add_json, add_out, add_runner, emit, runner_of
 from station.errors import StationError
 
-__all__ = ["register"]
+__all__ = ["PROCESS_REPORT", "register"]
+
+#: The report ``station process`` writes into its output directory (what it made).
+PROCESS_REPORT = "process.json"
 
 
 def register(sub: Any) -> None:
@@ -105,13 +108,18 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
 
 
 def _process(args: argparse.Namespace) -> int:
+    from levels.files import staged_dir, write_json
     from levels.options import ProcessingOptions
-    from station.scenario import load_scenario
+    from station.outdir import replaceable_dir
+    from station.scenario import check_name, load_scenario
     from station.sipc.process import l0_stem, process_scenario, reprocess_pass
 
     sources = [Path(s) for s in args.source]
     scenario = load_scenario(args.scenario) if args.scenario else None
-    if any(s.suffix == ".toml" for s in sources):
+    if args.name:
+        check_name(args.name, "--name")
+    from_scenario = any(s.suffix == ".toml" for s in sources)
+    if from_scenario:
         if len(sources) > 1:
             raise StationError("give one scenario (.toml), or L0 archives (.h5), not both")
         if scenario is not None:
@@ -126,10 +134,7 @@ def _process(args: argparse.Namespace) -> int:
         scn = dataclasses.replace(
             scn, processing=_options(args, scn.processing), name=args.name or scn.name
         )
-        out = Path(args.out) if args.out else Path(f"{scn.name}_products")
-        with runner_of(args) as runner:
-            products, l0 = process_scenario(scn, out, runner=runner)
-        made = [(l0, products)]
+        names, inputs = [scn.name], scn.inputs()
     else:
         if args.name and len(sources) > 1:
             raise StationError(
@@ -141,22 +146,48 @@ def _process(args: argparse.Namespace) -> int:
                 "once per archive, or not at all"
             )
         base = scenario.processing if scenario is not None else ProcessingOptions()
+        options = _options(args, base)
         names = [args.name] if args.name else [l0_stem(s) for s in sources]
-        out = Path(args.out) if args.out else Path(f"{names[0]}_products")
-        with runner_of(args) as runner:
+        inputs = [*sources, *(args.gcps or []), *([options.dem_path] if options.dem_path else [])]
+    out = Path(args.out) if args.out else Path(f"{names[0]}_products")
+    replaceable_dir(
+        out, PROCESS_REPORT, lambda r: r["names"], names, f"products of {names}", inputs
+    )
+    with staged_dir(out) as stage, runner_of(args) as runner:
+        if from_scenario:
+            products, l0 = process_scenario(scn, stage, runner=runner)
+            made = [(out / l0.name, products)]
+        else:
             passes = reprocess_pass(
                 sources,
-                out,
-                options=_options(args, base),
+                stage,
+                options=options,
                 scenario=scenario,
                 names=names,
                 gcps=args.gcps,
                 runner=runner,
             )
-        made = list(zip(sources, passes, strict=True))
-    data = [_archive_data(l0, out, products) for l0, products in made]
-    emit(args, data[0] if len(data) == 1 else {"archives": data}, _text)
-    return 0
+            made = list(zip(sources, passes, strict=True))
+        data = [_archive_data(l0, out, products) for l0, products in made]
+        report = data[0] if len(data) == 1 else {"archives": data}
+        write_json(
+            stage / PROCESS_REPORT,
+            {"format": "spot-station-process", "format_version": 1, "names": names, **report},
+        )
+    emit(args, report, _text)
+    return _exit_made(sum(len(d["products"]) for d in data), "station process")
+
+
+def _exit_made(n_products: int, what: str) -> int:
+    """0 when products were made; 2 with one line when none were (every scene skipped)."""
+    import sys
+
+    if n_products:
+        return 0
+    print(
+        f"station: error: {what} made no product (every scene skipped: see above)", file=sys.stderr
+    )
+    return 2
 
 
 def _campaign(args: argparse.Namespace) -> int:
@@ -188,7 +219,7 @@ def _campaign(args: argparse.Namespace) -> int:
     emit(args, report, _campaign_text)
     failed = [a for a in report["archives"] if a["status"] != "ok"]
     if not failed:
-        return 0
+        return _exit_made(report["summary"]["products"], "the campaign")
     print(
         f"station: error: {len(failed)} of {len(archives)} archive(s) failed: "
         + "; ".join(f"{a['name']}: {a['reason']}" for a in failed),
@@ -218,7 +249,7 @@ def _archive_data(l0: Path, out: Path, products: Any) -> dict[str, Any]:
         {
             "scene": s.index,
             "level": lv,
-            "path": str(s.paths[lv]),
+            "path": str(out / s.paths[lv].name),
             **s.quality[lv],
             "timings_s": s.timings_s,
         }
