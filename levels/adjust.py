@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 from scipy import sparse
 from scipy.linalg import cho_factor, cho_solve
 
-from levels.errors import GeometryError
+from levels.errors import AdjustmentError, GeometryError
 from levels.geo.scenes import PassGeometry, SceneGeometry
 from levels.geometry.attitude import SampledAttitude, attitude_gaps, westin_variogram_rad2
 from levels.geometry.ellipsoid import WGS84
@@ -100,6 +100,12 @@ _STEP_X, _STEP_PX, _STEP_M = 1e-3, 0.05, 1.0
 ROBUST_SCALE = 3.0
 #: At most this many snooping rounds (each rejects every point beyond the threshold).
 MAX_SNOOPING_ROUNDS = 10
+#: A point whose residual before the fit is beyond this many σ of what the a priori
+#: covariance allows there (parameters' and point's together) is out of the model's
+#: reach: no error the budget admits brings it in (another scene's point, a wrong datum).
+#: 10σ of a Gaussian budget happens once in 10²³; a budget wrong by a factor 3 still
+#: keeps every honest point.
+REACH_SIGMAS = 10.0
 
 
 def _orbital(along_across_radial: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -553,6 +559,20 @@ def _normalised(
     return w.reshape(n, 2).max(axis=1), cov, float(np.sum(r**2))
 
 
+def _within_reach(
+    prob: _Problem, prior_cov: NDArray[np.float64], n_points: int
+) -> NDArray[np.bool_]:
+    """The points whose residual before the fit is within ``REACH_SIGMAS`` of its a priori
+    σ: the whitened condition ``f`` has unit variance from the point, and ``J P Jᵀ`` from
+    the parameters' a priori covariance ``P`` (scaled), so ``f / √(1 + diag J P Jᵀ)``."""
+    use = np.ones(n_points, dtype=bool)
+    x = np.zeros(prob.n_params)
+    jo = prob.jacobian(x, use)[: 2 * n_points].toarray()
+    r = prob.residuals(x, use)[: 2 * n_points]
+    z = np.abs(r) / np.sqrt(1.0 + np.sum((jo @ prior_cov) * jo, axis=1))
+    return np.all(z.reshape(n_points, 2) <= REACH_SIGMAS, axis=1)
+
+
 def _fit(
     prob: _Problem, n_points: int, prior_cov: NDArray[np.float64], options: ProcessingOptions
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray, float]:
@@ -560,9 +580,11 @@ def _fit(
     the threshold: the solution, the points kept, each point's last normalised residual,
     the scaled covariance and χ². Without points, the priors alone."""
     x = np.zeros(prob.n_params)
-    active = np.ones(n_points, dtype=bool)
     wr = np.full(n_points, np.nan)
     if not n_points:
+        return x, np.ones(0, dtype=bool), wr, prior_cov, 0.0
+    active = _within_reach(prob, prior_cov, n_points)
+    if not active.any():
         return x, active, wr, prior_cov, 0.0
     # the robust fit is tested first; every later test is of a plain fit
     x, robust = _solve(prob, active, x, options.robust_loss), True
@@ -731,6 +753,7 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
     for group in groups:
         _solve_group(strips, nodes, group, t_ref, options, sol)
     sigma0 = float(np.sqrt(sol.chi2 / sol.dof)) if sol.dof else float("nan")
+    _judge(strips, sol, options.fit_confidence)
     if options.adjustment == "scene":
         mode = "scene"
     else:
@@ -763,6 +786,43 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
             )
         )
     return tuple(out)
+
+
+def _judge(strips: list[Strip], sol: _Solution, confidence: float) -> None:
+    """The fit judged before anything is made of it: :class:`AdjustmentError` naming the
+    points when every point is out of the model's reach (``REACH_SIGMAS``), or when its χ²
+    fails the global test, ``χ² > χ²_dof(confidence)`` (the unit-weight σ0 beyond what the
+    a priori σ of the points and of the budget allow: the points, or the model, wrong)."""
+    from scipy.stats import chi2 as chi2_law
+
+    ids = [i for s in strips for i in s.gcps.id]
+    status = np.concatenate([np.asarray(st, dtype=object) for st in sol.status])
+    inside = status != "outside"
+    if inside.any() and not sol.dof:
+        before = np.concatenate(sol.before)
+        miss = np.hypot(before[:, 0], before[:, 1])
+        worst = np.flatnonzero(inside)[np.argsort(-miss[inside])][:3]
+        raise AdjustmentError(
+            f"level 2: none of the {int(inside.sum())} control points is within reach of the "
+            f"model ({REACH_SIGMAS:g}σ of its a priori accuracy): "
+            + ", ".join(f"{ids[k]} misses by {miss[k]:.0f} px" for k in worst)
+            + "; are they this pass's points, in its lines and columns?"
+        )
+    if not sol.dof:
+        return
+    limit = float(chi2_law.ppf(confidence, sol.dof))
+    if sol.chi2 <= limit:
+        return
+    wres = np.concatenate(sol.wres)
+    used = np.flatnonzero(status == "used")
+    worst = used[np.argsort(-np.nan_to_num(wres[used]))][:3]
+    raise AdjustmentError(
+        f"level 2: the fit fails its χ² test: σ0 {np.sqrt(sol.chi2 / sol.dof):.2f} beyond "
+        f"{np.sqrt(limit / sol.dof):.2f} ({confidence:.1%} for {sol.dof} degrees of "
+        "freedom); the points do not fit the model within their σ: worst "
+        + ", ".join(f"{ids[k]} ({wres[k]:.1f}σ)" for k in worst)
+        + "; check the points and their σ (or [processing] fit_confidence)"
+    )
 
 
 def _check_one_platform(strips: list[Strip]) -> None:

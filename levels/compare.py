@@ -10,6 +10,11 @@ tolerance):
 - **geometry**: the shift of the scene centre and corners on the ellipsoid (m); for 2A the
   shift of the map grid's origin (m) and, per band, the difference of the inverse grids
   (raw pixels); for 1B the difference of the polynomials f, g, h over the image (pixels);
+  and every other number of the geometry tree (ephemeris, attitude, look angles, DEM…)
+  within ``rel`` of its dataset's largest magnitude;
+- **as stored**: every variable and attribute outside the trees, as GDAL, xarray and CF
+  tools read them: the ``x`` and ``y`` coordinates (within ``corner_shift_m``), the grid
+  mapping (``crs``: its WKT and ``GeoTransform``), the attributes of every band variable;
 - **quality**: every scalar figure of the ``quality`` group, within ``abs + rel·|a|``;
 - **provenance**: reported, never a failure (a new software version is why one compares),
   with the processing parameters that differ named one by one;
@@ -49,6 +54,7 @@ __all__ = [
     "compare_directories",
     "compare_paths",
     "compare_products",
+    "compare_stored",
     "load_tolerances",
 ]
 
@@ -59,7 +65,7 @@ DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
         "fraction_changed": 1e-4,
         "mask_fraction_changed": 0.0,
     },
-    "geometry": {"corner_shift_m": 0.01, "grid_px": 1e-4},
+    "geometry": {"corner_shift_m": 0.01, "grid_px": 1e-4, "rel": 1e-9},
     "quality": {"abs": 1e-6, "rel": 1e-4},
 }
 
@@ -176,8 +182,8 @@ def load_tolerances(path: str | Path | None) -> dict[str, dict[str, float]]:
                     f"{p}: unknown key {key!r} in [{section}]; expected one of "
                     f"{', '.join(tol[section])}"
                 )
-            if isinstance(v, bool) or not isinstance(v, int | float) or v < 0:
-                raise CompareError(f"{p}: [{section}] {key} = {v!r}: expected a number >= 0")
+            if isinstance(v, bool) or not isinstance(v, int | float) or not 0 <= v < math.inf:
+                raise CompareError(f"{p}: [{section}] {key} = {v!r}: expected a finite number >= 0")
             tol[section][key] = float(v)
     return tol
 
@@ -196,6 +202,7 @@ def compare_paths(
     if not pa.is_dir():
         out = Comparison(str(pa), str(pb))
         out.findings[""] = compare_products(read_product(pa), read_product(pb), tol)
+        out.findings[""] += compare_stored(pa, pb, tol)
         return out
     return compare_directories(pa, pb, tol)
 
@@ -223,6 +230,7 @@ def compare_directories(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> C
     ]
     for name in sorted(set(pa) & set(pb)):
         out.findings[name] = compare_products(read_product(pa[name]), read_product(pb[name]), tol)
+        out.findings[name] += compare_stored(pa[name], pb[name], tol)
     return out
 
 
@@ -235,6 +243,7 @@ def compare_products(
     out += _schema(a, b)
     out += _pixels(a, b, tol["pixels"])
     out += _geometry(a, b, tol["geometry"])
+    out += _geometry_leaves(a, b, tol["geometry"])
     out += _quality(a, b, tol["quality"])
     out += _provenance(a, b)
     return out
@@ -438,6 +447,131 @@ def _geometry(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
                     d <= tol["grid_px"],
                 )
             )
+    return out
+
+
+#: The trees' groups, compared as trees (``compare_products``), and the attributes HDF5
+#: dimension scales keep as object references (their targets are compared instead).
+_TREES = ("geometry", "quality", "provenance", "bands")
+_REFERENCE_ATTRS = ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")
+
+
+def compare_stored(
+    a: str | Path, b: str | Path, tol: dict[str, dict[str, float]] | None = None
+) -> list[Finding]:
+    """Two product files as stored, outside their trees: every root variable and its
+    attributes (coordinates, grid mapping, bands' and masks' attributes), and their values
+    but the images' (``_pixels``): the coordinates within ``corner_shift_m``, numbers of the
+    grid mapping (``GeoTransform``) within it too, everything else exactly. Products of
+    two format versions store differently: noted, not compared."""
+    import h5py
+
+    limit = (tol or load_tolerances(None))["geometry"]["corner_shift_m"]
+    out: list[Finding] = []
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        va, vb = (int(f.attrs.get("format_version", 0)) for f in (fa, fb))
+        if va != vb:  # two layouts: what they hold is compared above, not how they keep it
+            return [Finding("provenance", "stored layout: format_version", a=va, b=vb)]
+        names = sorted((set(fa) | set(fb)) - set(_TREES))
+        images = {n for n in names if f"{n}_valid" in names}
+        for n in names:
+            if n not in fa or n not in fb:
+                out.append(
+                    Finding(
+                        "schema",
+                        n,
+                        ok=False,
+                        a="present" if n in fa else "missing",
+                        b="present" if n in fb else "missing",
+                    )
+                )
+                continue
+            out += _stored_attrs(n, fa[n].attrs, fb[n].attrs, limit)
+            if n in images or n.endswith("_valid") or not isinstance(fa[n], h5py.Dataset):
+                continue
+            va, vb = np.asarray(fa[n][()]), np.asarray(fb[n][()])
+            if va.shape != vb.shape:
+                out.append(Finding("stored", f"{n} shape", ok=False, a=va.shape, b=vb.shape))
+            elif va.dtype.kind == "f" and vb.dtype.kind == "f":
+                d = float(np.max(np.abs(va - vb))) if va.size else 0.0
+                out.append(Finding("stored", f"{n} (m)", d, limit, d <= limit))
+            elif not np.array_equal(va, vb):
+                out.append(Finding("stored", n, ok=False, a="…", b="values differ"))
+    if not any(not f.ok for f in out):
+        out.append(Finding("stored", "variables and attributes", value="identical"))
+    return out
+
+
+def _stored_attrs(name: str, a: Any, b: Any, limit: float) -> list[Finding]:
+    """The attributes of one variable: present in both and equal; ``GeoTransform``'s
+    numbers within ``limit``."""
+    out = []
+    for k in sorted((set(a) | set(b)) - set(_REFERENCE_ATTRS)):
+        what = f"{name}@{k}"
+        if k not in a or k not in b:
+            out.append(
+                Finding(
+                    "schema",
+                    what,
+                    ok=False,
+                    a="present" if k in a else "missing",
+                    b="present" if k in b else "missing",
+                )
+            )
+            continue
+        va, vb = a[k], b[k]
+        if k == "GeoTransform":
+            try:
+                ga = np.array(str(va).split(), dtype=np.float64)
+                gb = np.array(str(vb).split(), dtype=np.float64)
+                d = float(np.max(np.abs(ga - gb))) if ga.shape == gb.shape else math.inf
+            except ValueError:
+                d = math.inf
+            out.append(Finding("stored", what, d, limit, d <= limit))
+        elif _differs(va, vb):
+            out.append(Finding("stored", what, ok=False, a=_plain(va), b=_plain(vb)))
+    return out
+
+
+def _tree_numbers(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Every leaf of a tree by its path."""
+    out: dict[str, Any] = {}
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            out.update(_tree_numbers(v, f"{prefix}{k}/"))
+        else:
+            out[prefix + k] = v
+    return out
+
+
+def _geometry_leaves(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
+    """Every number of the two geometry trees: image coordinates (inverse grids,
+    polynomials: ``inverse_`` or ``level_1b/`` in the path) within ``grid_px``, the scene's
+    corners by ``_geometry`` (skipped), every other within ``rel`` of its dataset's largest
+    magnitude; every other leaf equal (paths present in one only: ``_schema``)."""
+    la, lb = _tree_numbers(a.geometry), _tree_numbers(b.geometry)
+    out = []
+    for k in sorted(set(la) & set(lb)):
+        if k.startswith("scene/"):
+            continue
+        in_pixels = "inverse_" in k or k.startswith("level_1b/")
+        va, vb = la[k], lb[k]
+        xa, xb = np.asarray(va), np.asarray(vb)
+        if xa.dtype.kind in "fiu" and xb.dtype.kind in "fiu":
+            if xa.shape != xb.shape:
+                out.append(Finding("geometry", f"geometry/{k}", ok=False, a=xa.shape, b=xb.shape))
+                continue
+            scale = float(np.nanmax(np.abs(xa))) if xa.size and np.isfinite(xa).any() else 0.0
+            same_nan = np.array_equal(np.isnan(xa.astype(float)), np.isnan(xb.astype(float)))
+            d = float(np.nanmax(np.abs(xa - xb))) if xa.size and not np.isnan(xa).all() else 0.0
+            bound = tol["grid_px"] if in_pixels else tol["rel"] * scale
+            if not same_nan or not d <= bound:
+                out.append(Finding("geometry", f"geometry/{k}", d, bound, ok=False))
+        elif _differs(va, vb):
+            out.append(Finding("geometry", f"geometry/{k}", ok=False, a=_plain(va), b=_plain(vb)))
+    n = len(set(la) & set(lb))
+    if not out:
+        out.append(Finding("geometry", f"geometry ({n} values)", value="within tolerance"))
     return out
 
 

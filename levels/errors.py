@@ -5,6 +5,7 @@ expect (the rasterio habit), so ``except ValueError`` still works.
 """
 
 __all__ = [
+    "AdjustmentError",
     "DemError",
     "DimapError",
     "GcpError",
@@ -22,6 +23,11 @@ class LevelsError(Exception):
 
 class GeometryError(LevelsError, ValueError):
     """A geometric model was built from inconsistent or out-of-range inputs."""
+
+
+class AdjustmentError(GeometryError):
+    """Level 2's fit cannot be trusted: its control points are out of the model's reach or
+    fail the χ² test of the fit (``levels.adjust``); no product is made of it."""
 
 
 class DimapError(LevelsError, ValueError):

@@ -233,6 +233,15 @@ class ProcessingOptions:
     overlap_lines: int = option(
         0, "overlap_lines", "lines shared by consecutive scenes", lo=0, hi=10**6
     )
+    min_valid_share: float = option(
+        0.5,
+        "min_valid_share",
+        "a scene is made when at least this share of its lines (of a whole scene's, for the "
+        "pass's last, partial scene) arrived; else skipped, with the reason in the report",
+        1.0,
+        0.0,
+        1.0,
+    )
     reference_height_m: float = option(
         450.0, "reference_height_m", "mean scene altitude of levels 1B and 2A", 1.0, -500.0, 9000.0
     )
@@ -348,6 +357,15 @@ class ProcessingOptions:
         1.0,
         2.0,
         100.0,
+    )
+    fit_confidence: float = option(
+        0.999,
+        "fit_confidence",
+        "level 2: confidence of the χ² test of the fit (σ0 against its a priori 1): a fit "
+        "beyond it is refused, not made into products",
+        1.0,
+        0.5,
+        0.999999,
     )
     dem_path: str = option(
         "",

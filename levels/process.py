@@ -45,7 +45,7 @@ from levels.choices import AdjustmentScope
 from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
 from levels.cor.resample import with_nan
 from levels.errors import DemError, GcpError, GeometryError, LevelsError, OptionsError
-from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
+from levels.geo.scenes import PassGeometry, SceneCut, SceneGeometry, cut_scenes, pass_geometry
 from levels.geometry.sensor import LookAngleTable
 from levels.makers.base import BandPixels, LevelMaker, Need, PassContext, Reads, SceneWork
 from levels.options import ProcessingOptions
@@ -175,17 +175,14 @@ def geo_pass(
     )
     n_det = archive.bands[band_names[0]].counts.shape[1]
     scene_lines = options.scene_lines or n_det
-    cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines)
+    cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines, partial=True)
     # a row is seen when one of its segments arrived (every segment has detectors)
     rows_seen = np.logical_or.reduce([archive.bands[b].valid.any(axis=1) for b in band_names])
     scenes, skipped = [], []
     for c in cuts:
-        if not rows_seen[c.first_line : c.first_line + c.n_lines].any():
-            skipped.append(
-                SkippedScene(
-                    c.index, c.first_line, c.n_lines, "no valid line: lost in the downlink"
-                )
-            )
+        reason = _too_few_lines(c, rows_seen, min(scene_lines, archive.n_lines), options)
+        if reason:
+            skipped.append(SkippedScene(c.index, c.first_line, c.n_lines, reason))
             continue
         try:
             scenes.append(pg.scene(c, options.reference_height_m))
@@ -194,6 +191,29 @@ def geo_pass(
                 SkippedScene(c.index, c.first_line, c.n_lines, f"GEO could not place it: {exc}")
             )
     return PassSetup(archive, pg, scenes, skipped, scene_lines, time.perf_counter() - t0)
+
+
+def _too_few_lines(
+    cut: SceneCut, rows_seen: NDArray[np.bool_], whole: int, options: ProcessingOptions
+) -> str:
+    """Why scene ``cut`` is not made, or "": no line of it arrived, or fewer than
+    ``options.min_valid_share`` of a ``whole`` scene's lines (a partial last scene's
+    missing lines count as not arrived)."""
+    seen = int(np.count_nonzero(rows_seen[cut.first_line : cut.first_line + cut.n_lines]))
+    if not seen:
+        return "no valid line: lost in the downlink"
+    share = seen / whole
+    if share >= options.min_valid_share:
+        return ""
+    what = (
+        f"a partial last scene of {cut.n_lines} lines, {seen} valid"
+        if cut.n_lines < whole
+        else f"{seen} valid lines of {cut.n_lines}"
+    )
+    return (
+        f"{what}: {share:.1%} of a scene's {whole} lines, below [processing] "
+        f"min_valid_share = {options.min_valid_share:g}"
+    )
 
 
 def plan_levels(levels: Sequence[str]) -> tuple[LevelMaker, ...]:

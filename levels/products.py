@@ -408,6 +408,34 @@ def _read_map_grid(
         raise ProductError(str(exc)) from None
 
 
+#: How far a product's ``x`` and ``y`` coordinates may lie from its ``GeoTransform``'s
+#: pixel centres, in pixels: both are written from one grid (float64), so only storage
+#: round-off; GDAL georeferences from the one, xarray from the other.
+COORDINATE_TOLERANCE_PX = 1e-6
+
+
+def _check_coordinates(f: h5py.File, grid: MapGrid) -> None:
+    """The ``x`` and ``y`` coordinate variables are the grid's pixel centres, or
+    :class:`ProductError` (two georeferencings of one image that disagree)."""
+    for name, want, step in (
+        ("x", grid.x_m(), grid.geotransform[1]),
+        ("y", grid.y_m(), grid.geotransform[5]),
+    ):
+        if name not in f:
+            raise ProductError(f"coordinate variable {name!r} missing; damaged or incomplete")
+        got = np.asarray(f[name][()], dtype=np.float64)
+        if got.shape != want.shape:
+            raise ProductError(
+                f"coordinate {name!r} of {got.shape[0]} values for {want.size} pixels"
+            )
+        off = float(np.max(np.abs(got - want))) if got.size else 0.0
+        if not off <= COORDINATE_TOLERANCE_PX * abs(step):
+            raise ProductError(
+                f"coordinate {name!r} lies {off:.6g} m from the GeoTransform's pixel centres "
+                "(the two georeferencings disagree); damaged or edited"
+            )
+
+
 def read_product(path: str | Path, images: bool = True) -> Product:
     """Read and check a product; ``images=False`` reads only its metadata (masks too)."""
     where = Path(path)
@@ -469,6 +497,8 @@ def _read_product(where: Path, images: bool) -> Product:
             bands = _read_bands(f, names, version, images)
             shape = next(iter(bands.values())).valid.shape if bands else (0, 0)
             grid = _read_map_grid(f, version, trees["geometry"], shape)
+            if grid is not None and version >= 2:
+                _check_coordinates(f, grid)
             try:  # last: a missing part is named above, an edited value here
                 check_attrs_digest(f, required=version >= 2)
             except ValueError as exc:

@@ -236,6 +236,12 @@ def dask_runner(
     :class:`InProcess`. :class:`LevelsError` when Dask is needed and not installed, or the
     scheduler does not answer."""
     address = scheduler_address(address)
+    cores = os.cpu_count() or 1
+    if workers > cores:  # more would only queue behind each other, and hold memory each
+        raise LevelsError(
+            f"{workers} workers on a machine of {cores} cores: give at most {cores} "
+            "(each worker runs one task at a time, its kernels on the cores it is given)"
+        )
     if not address and workers <= 0:
         yield InProcess()
         return
@@ -248,12 +254,12 @@ def dask_runner(
     if address:
         try:
             client = Client(address, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
             raise LevelsError(f"no Dask scheduler answers at {address}: {exc}") from None
         with client:
             yield DaskRunner(client)
         return
-    cores = cores_per_worker or max(1, (os.cpu_count() or 1) // workers)
+    cores = cores_per_worker or max(1, cores // workers)
     threads = {"NUMBA_NUM_THREADS": str(cores), "OMP_NUM_THREADS": "1"}
     threads["OPENBLAS_NUM_THREADS"] = "1"
     # The nanny sets ``env`` once the worker runs, after the spawned process has imported

@@ -28,6 +28,7 @@ from station.spacecraft.summary import summarize
 HERE = Path(__file__).resolve().parent
 #: Reduced scenes: rendered, sent through the downlink and run end to end in the tests.
 RENDERED = {
+    "antimeridian",
     "quickstart",
     "small_test",
     "noisy_channel",

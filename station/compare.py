@@ -26,15 +26,93 @@ from levels.readers.l0 import read_l0
 __all__ = ["compare_inputs", "compare_runs"]
 
 
+#: The report naming what wrote a directory: a run, a reprocessing, a campaign.
+_REPORTS = {"report.json": "run", "process.json": "process", "campaign.json": "campaign"}
+
+
+def _kind(d: Path) -> str:
+    """What wrote directory ``d``: ``run``, ``process``, ``campaign``, or ``products`` (no
+    report: a directory of products)."""
+    return next((kind for name, kind in _REPORTS.items() if (d / name).is_file()), "products")
+
+
 def compare_inputs(
     a: str | Path, b: str | Path, tolerances: dict[str, dict[str, float]] | None = None
 ) -> Comparison:
-    """Two products (:func:`levels.compare.compare_paths`) or two run directories
-    (:func:`compare_runs`)."""
+    """Two products (:func:`levels.compare.compare_paths`), or two directories of the same
+    kind: run directories (:func:`compare_runs`), ``station process`` directories, campaign
+    directories (:func:`compare_campaigns`), or directories of products."""
     pa, pb = Path(a), Path(b)
-    if pa.is_dir() and pb.is_dir():
-        return compare_runs(pa, pb, tolerances)
-    return compare_paths(pa, pb, tolerances)
+    if not (pa.is_dir() and pb.is_dir()):
+        return compare_paths(pa, pb, tolerances)
+    ka, kb = _kind(pa), _kind(pb)
+    if ka != kb:
+        out = Comparison(str(pa), str(pb), {"": []})
+        out.findings[""].append(Finding("files", "what wrote the directory", ok=False, a=ka, b=kb))
+        return out
+    if ka == "campaign":
+        return compare_campaigns(pa, pb, tolerances)
+    if ka == "process":
+        out = compare_directories(pa, pb, tolerances or load_tolerances(None))
+        out.findings[""] += _compare_made(
+            _read_report(pa / "process.json"), _read_report(pb / "process.json")
+        )
+        if list(pa.glob("*.l0.h5")) or list(pb.glob("*.l0.h5")):  # a scenario's pass
+            out.findings[""] += _compare_l0s(pa, pb)
+        return out
+    if ka == "products":
+        return compare_directories(pa, pb, tolerances or load_tolerances(None))
+    return compare_runs(pa, pb, tolerances)
+
+
+def compare_campaigns(
+    a: str | Path, b: str | Path, tolerances: dict[str, dict[str, float]] | None = None
+) -> Comparison:
+    """Two campaign directories: the same archives, each with the same status, and each
+    archive's products compared (findings keyed ``<archive>/<product>``)."""
+    pa, pb = Path(a), Path(b)
+    tol = tolerances or load_tolerances(None)
+    ra, rb = _read_report(pa / "campaign.json"), _read_report(pb / "campaign.json")
+    ea = {e.get("name"): e for e in ra.get("archives", [])}
+    eb = {e.get("name"): e for e in rb.get("archives", [])}
+    out = Comparison(str(pa), str(pb), {"": []})
+    for name in sorted(set(ea) | set(eb), key=str):
+        sa, sb = (
+            ea.get(name, {}).get("status", "missing"),
+            eb.get(name, {}).get("status", "missing"),
+        )
+        if sa != sb:
+            out.findings[""].append(Finding("files", f"archive {name}", ok=False, a=sa, b=sb))
+        elif sa == "ok":
+            sub = compare_directories(pa / str(name), pb / str(name), tol)
+            for key, found in sub.findings.items():
+                out.findings[f"{name}/{key}" if key else str(name)] = found
+    if not ea and not eb:
+        out.findings[""].append(Finding("files", "archives", ok=False, a="none", b="none"))
+    return out
+
+
+def _compare_made(a: dict[str, Any], b: dict[str, Any]) -> list[Finding]:
+    """What two ``process.json`` say was made: per archive its products (scene, level,
+    file), the scenes skipped and why, the tail of lines left; not where, nor how long."""
+
+    def made(report: dict[str, Any]) -> list[Any]:
+        return [
+            {
+                "products": sorted(
+                    (p.get("scene"), p.get("level"), Path(str(p.get("path"))).name)
+                    for p in d.get("products", [])
+                ),
+                "skipped": d.get("skipped"),
+                "tail_lines": d.get("tail_lines"),
+            }
+            for d in report.get("archives", [report])
+        ]
+
+    ma, mb = made(a), made(b)
+    if ma != mb:
+        return [Finding("files", "process.json: what was made", ok=False, a=ma, b=mb)]
+    return [Finding("files", "process.json", value="the same products, skips and tails")]
 
 
 def compare_runs(

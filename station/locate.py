@@ -109,8 +109,19 @@ class GcpCheck:
     def image_miss_px(self) -> np.ndarray:
         return np.hypot(self.line - self.predicted_line, self.column - self.predicted_column)
 
+    @property
+    def within_reach(self) -> np.ndarray:
+        """Points the model could miss by what it missed them (finite, within
+        ``REACH_SIGMAS`` of ``DIMAP_MODEL_SIGMA_M``): the others are not of this scene."""
+        return (
+            np.isfinite(self.ground_miss_m)
+            & (self.ground_miss_m <= REACH_SIGMAS * DIMAP_MODEL_SIGMA_M)
+            & np.isfinite(self.image_miss_px)
+        )
+
     def as_dict(self) -> dict:
         d_px = self.image_miss_px
+        ok = self.within_reach
         return {
             "scene": self.scene,
             "attitude": self.attitude,
@@ -123,8 +134,9 @@ class GcpCheck:
                     "predicted_column": float(d),
                     "miss_px": float(e),
                     "ground_miss_m": float(f),
+                    "within_reach": bool(g),
                 }
-                for i, a, b, c, d, e, f in zip(
+                for i, a, b, c, d, e, f, g in zip(
                     self.id,
                     self.line,
                     self.column,
@@ -132,17 +144,28 @@ class GcpCheck:
                     self.predicted_column,
                     d_px,
                     self.ground_miss_m,
+                    ok,
                     strict=True,
                 )
             ],
-            "rms_px": float(np.sqrt(np.mean(d_px**2))),
-            "rms_ground_m": float(np.sqrt(np.mean(self.ground_miss_m**2))),
-            "max_ground_m": float(np.max(self.ground_miss_m)),
+            "points_within_reach": int(ok.sum()),
+            "rms_px": float(np.sqrt(np.mean(d_px[ok] ** 2))),
+            "rms_ground_m": float(np.sqrt(np.mean(self.ground_miss_m[ok] ** 2))),
+            "max_ground_m": float(np.max(self.ground_miss_m[ok])),
             "model": self.model,
             "rpc_fit_error_px": self.rpc_fit_error_px,
             "rpc_vs_rigorous_px": self.rpc_vs_rigorous_px,
         }
 
+
+#: A priori 1σ of a SPOT 1–5 level-1A DIMAP model's location, per axis (m): SPOT 1–4
+#: systems were specified to 350 m rms, SPOT 5 to 50 m; the larger holds for every
+#: generation this reads.
+DIMAP_MODEL_SIGMA_M = 350.0
+#: Misses beyond this many a priori σ are out of the model's reach (``levels.adjust``).
+REACH_SIGMAS = 10.0
+#: Confidence of the χ² test of the misses against their a priori σ.
+GCP_TEST_CONFIDENCE = 0.999
 
 #: Height margin of the RPCs fitted for ``check_gcps(..., model="rpc")`` beyond the
 #: control points' own heights (m).
@@ -185,9 +208,40 @@ def check_gcps(
     ground = rigorous.image_to_ground(g.line, g.column, g.h_m)
     plat, plon = np.degrees(ground.lat_rad), np.degrees(ground.lon_rad)
     _, _, dist = _GEOD.inv(np.degrees(g.lon_rad), np.degrees(g.lat_rad), plon, plat)
-    return GcpCheck(
+    check = GcpCheck(
         scene.name, attitude, g.id, g.line, g.column, line, column, np.asarray(dist), model, **extra
     )
+    _judge(check, g.sigma_ground_m)
+    return check
+
+
+def _judge(check: GcpCheck, sigma_ground_m: np.ndarray) -> None:
+    """:class:`GcpError` when no point is within the model's reach (another scene's
+    points), or when the misses fail the χ² test against their a priori σ: per axis the
+    model's and the point's, ``Σ miss² / σ² > χ²_2n(GCP_TEST_CONFIDENCE)``."""
+    from scipy.stats import chi2
+
+    from levels.errors import GcpError
+
+    ok = check.within_reach
+    miss = np.nan_to_num(check.ground_miss_m, nan=np.inf)
+    worst = np.argsort(-miss)[:3]
+    named = ", ".join(f"{check.id[k]} {miss[k]:.0f} m" for k in worst)
+    if not ok.any():
+        raise GcpError(
+            f"none of the {len(check.id)} control points is within reach of the model of "
+            f"{check.scene} ({REACH_SIGMAS:g} × {DIMAP_MODEL_SIGMA_M:g} m): {named}; are they "
+            "this scene's points, in its 0-based lines and columns?"
+        )
+    var = DIMAP_MODEL_SIGMA_M**2 + sigma_ground_m[ok] ** 2
+    stat, dof = float(np.sum(miss[ok] ** 2 / var)), 2 * int(ok.sum())
+    limit = float(chi2.ppf(GCP_TEST_CONFIDENCE, dof))
+    if stat > limit:
+        raise GcpError(
+            f"the model of {check.scene} misses its control points beyond their a priori σ "
+            f"(χ² {stat:.0f} > {limit:.0f}, {GCP_TEST_CONFIDENCE:.1%}, {dof} degrees of "
+            f"freedom): worst {named}"
+        )
 
 
 def write_rpc(

@@ -156,13 +156,15 @@ class Rpc:
     def image_of(
         self, lat_deg: ArrayLike, lon_deg: ArrayLike, height_m: ArrayLike
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Image (line, sample) of ground points (degrees, metres above the ellipsoid)."""
+        """Image (line, sample) of ground points (degrees, metres above the ellipsoid); a
+        longitude is taken within 180° of ``lon_off`` whichever turn it is given in
+        (179.99° E is −180.01°: a scene across the antimeridian), as GDAL does."""
         lat, lon, h = np.broadcast_arrays(
             *(np.asarray(x, dtype=np.float64) for x in (lat_deg, lon_deg, height_m))
         )
         t = rpc_terms(
             (lat - self.lat_off) / self.lat_scale,
-            (lon - self.lon_off) / self.lon_scale,
+            wrap_degrees(lon - self.lon_off) / self.lon_scale,
             (h - self.height_off) / self.height_scale,
         )
         line = np.tensordot(self.line_num, t, 1) / np.tensordot(self.line_den, t, 1)
@@ -240,6 +242,11 @@ class Rpc:
         return cls(**fields, fit_error_px=errors)
 
 
+def wrap_degrees(angle: ArrayLike) -> Any:
+    """An angle in degrees within [-180°, 180°)."""
+    return (np.asarray(angle, dtype=np.float64) + 180.0) % 360.0 - 180.0
+
+
 def _solve(
     t: NDArray[np.float64], target: NDArray[np.float64], ridge: float | None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -285,7 +292,11 @@ def fit_rpc(
     if ok.sum() < 100:
         raise GeometryError(f"RPC fit: only {int(ok.sum())} lattice points reach the ground")
     line, col, h, lat, lon = (x[ok] for x in (line, col, h, lat, lon))
-    lat_off, lon_off = float(np.mean(lat)), float(np.mean(lon))
+    # longitudes unwrapped around the first point (a scene across the antimeridian has
+    # them on both sides of ±180°), the offset then back within [-180°, 180°)
+    lon = lon[0] + wrap_degrees(lon - lon[0])
+    lat_off, lon_off = float(np.mean(lat)), float(wrap_degrees(np.mean(lon)))
+    lon = lon_off + wrap_degrees(lon - lon_off)
     scales = {
         "lat_scale": float(np.max(np.abs(lat - lat_off))),
         "lon_scale": float(np.max(np.abs(lon - lon_off))),
@@ -304,7 +315,7 @@ def fit_rpc(
     def normalised(lat: NDArray, lon: NDArray, h: NDArray) -> Any:
         return rpc_terms(
             (lat - lat_off) / scales["lat_scale"],
-            (lon - lon_off) / scales["lon_scale"],
+            wrap_degrees(lon - lon_off) / scales["lon_scale"],
             (h - offsets["height_off"]) / scales["height_scale"],
         )
 

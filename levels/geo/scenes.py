@@ -52,8 +52,12 @@ class SceneCut:
         return 0.5 * (self.n_lines - 1)
 
 
-def cut_scenes(n_lines: int, scene_lines: int, overlap_lines: int = 0) -> list[SceneCut]:
-    """Scenes of ``scene_lines`` lines every ``scene_lines − overlap_lines`` along a pass.
+def cut_scenes(
+    n_lines: int, scene_lines: int, overlap_lines: int = 0, partial: bool = False
+) -> list[SceneCut]:
+    """Scenes of ``scene_lines`` lines every ``scene_lines − overlap_lines`` along a pass;
+    with ``partial``, the lines after the last whole scene as a last, shorter scene (from
+    where the next scene would start), so that no line is left out.
 
     A pass shorter than one scene gives one scene of the whole pass.
     """
@@ -68,7 +72,13 @@ def cut_scenes(n_lines: int, scene_lines: int, overlap_lines: int = 0) -> list[S
         return [SceneCut(0, 0, n_lines)]
     step = scene_lines - overlap_lines
     starts = np.arange(0, n_lines - scene_lines + 1, step)
-    return [SceneCut(k, int(s), scene_lines) for k, s in enumerate(starts)]
+    cuts = [SceneCut(k, int(s), scene_lines) for k, s in enumerate(starts)]
+    end = int(starts[-1]) + scene_lines
+    if partial and end < n_lines:
+        first = int(starts[-1]) + step
+        if n_lines - first >= 2:
+            cuts.append(SceneCut(len(cuts), first, n_lines - first))
+    return cuts
 
 
 @dataclass(frozen=True, eq=False)
@@ -267,7 +277,7 @@ class PassGeometry:
         ]
 
     def tail_lines(self, scene_lines: int, overlap_lines: int = 0) -> int:
-        """Rows after the last whole scene (not processed)."""
+        """Rows after the last whole scene (made as a partial scene, or skipped and said)."""
         cuts = cut_scenes(self.n_lines, scene_lines, overlap_lines)
         return self.n_lines - (cuts[-1].first_line + cuts[-1].n_lines)
 

@@ -15,6 +15,7 @@ from levels.errors import DemError
 from levels.geometry.dem import VERTICAL_DATUMS, Dem, egm96_grid_installed, geoid_to_ellipsoid
 
 __all__ = [
+    "EARTH_HEIGHTS_M",
     "VERTICAL_DATUMS",
     "Dem",
     "DemError",
@@ -22,6 +23,12 @@ __all__ = [
     "geoid_to_ellipsoid",
     "read_dem",
 ]
+
+
+#: Heights on Earth, metres above the ellipsoid: below the Dead Sea's shore (−430 m, the
+#: geoid there about +20 m) to above Everest (8849 m), with margin. A DEM's heights outside
+#: are not metres of this planet (feet, centimetres, a no-data value not declared).
+EARTH_HEIGHTS_M = (-600.0, 9500.0)
 
 
 def read_dem(path: str | Path, vertical: str) -> Dem:

@@ -116,6 +116,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (LevelsError, StationError, OSError) as exc:
         print(f"station: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except MemoryError as exc:  # what was asked does not fit this machine: not a bug
+        print(
+            f"station: error: out of memory ({_one_line(exc)}): the run is too large for "
+            "this machine; reduce its sizes (lines, detectors, scene_lines) or its --workers",
+            file=sys.stderr,
+        )
+        return EXIT_BAD_INPUT
+    except BrokenPipeError:  # `station compare … | head`: the reader had enough
+        _quiet_broken_pipe()
+        return EXIT_OK
     except KeyboardInterrupt as exc:
         notes = "; ".join(getattr(exc, "__notes__", ())) or "files being written were discarded"
         print(f"station: interrupted; {notes}", file=sys.stderr)
@@ -129,6 +139,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERNAL
+
+
+def _quiet_broken_pipe() -> None:
+    """Stdout's reader is gone: point stdout at /dev/null so that the interpreter's final
+    flush does not fail again (the ``signal.SIG_DFL`` alternative kills with 141)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
 
 
 def _one_line(exc: BaseException) -> str:

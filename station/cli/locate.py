@@ -63,10 +63,7 @@ def _locate(args: argparse.Namespace) -> int:
     from station.locate import check_frame, check_gcps, write_rpc
 
     if args.rpc:
-        try:
-            lo, hi = (float(x) for x in args.heights.split(","))
-        except ValueError:
-            raise StationError(f"--heights {args.heights!r}: expected LO,HI in metres") from None
+        lo, hi = _heights(args.heights)
         emit(args, write_rpc(args.metadata, args.rpc, (lo, hi), args.attitude), _rpc_text)
         return 0
     if args.metadata.lower().endswith(".geom"):
@@ -81,6 +78,23 @@ def _locate(args: argparse.Namespace) -> int:
     check = check_frame(args.metadata, attitude=args.attitude)
     emit(args, check.as_dict() if args.json else check, _text)
     return 0
+
+
+def _heights(text: str) -> tuple[float, float]:
+    """``--heights LO,HI``: finite, LO < HI, both on Earth (``EARTH_HEIGHTS_M``)."""
+    from levels.readers.dem import EARTH_HEIGHTS_M
+
+    try:
+        lo, hi = (float(x) for x in text.split(","))
+    except ValueError:
+        raise StationError(f"--heights {text!r}: expected LO,HI in metres") from None
+    a, b = EARTH_HEIGHTS_M
+    if not (a <= lo < hi <= b):
+        raise StationError(
+            f"--heights {text!r}: expected LO < HI within {a:g}–{b:g} m (heights on Earth, "
+            "in metres above the ellipsoid)"
+        )
+    return lo, hi
 
 
 def _rpc_text(d: dict) -> str:
@@ -106,10 +120,11 @@ def _gcp_text(d: dict) -> str:
             f"{p['id']:>12} {p['line']:10.2f} {p['column']:10.2f} "
             f"{p['predicted_line']:10.2f} {p['predicted_column']:10.2f} "
             f"{p['miss_px']:8.2f} {p['ground_miss_m']:9.2f}"
+            + ("" if p["within_reach"] else "  out of the model's reach: not counted")
         )
     lines.append(
         f"RMS {d['rms_px']:.2f} px, {d['rms_ground_m']:.2f} m on the ground; max "
-        f"{d['max_ground_m']:.2f} m"
+        f"{d['max_ground_m']:.2f} m (over {d['points_within_reach']} point(s))"
     )
     if d["model"] == "rpc":
         e = d["rpc_fit_error_px"]

@@ -61,6 +61,8 @@ def read_tle(path: str | Path) -> list[Tle]:
         lines = [ln.rstrip() for ln in p.read_text().splitlines() if ln.strip()]
     except FileNotFoundError:
         raise OrbitError(f"TLE file {p} not found") from None
+    except (UnicodeDecodeError, IsADirectoryError):
+        raise OrbitError(f"{p}: not a TLE file (text of 2- or 3-line records)") from None
     out = []
     name = ""
     k = 0
