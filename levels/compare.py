@@ -469,9 +469,9 @@ def compare_stored(
     limit = (tol or load_tolerances(None))["geometry"]["corner_shift_m"]
     out: list[Finding] = []
     with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
-        va, vb = (int(f.attrs.get("format_version", 0)) for f in (fa, fb))
-        if va != vb:  # two layouts: what they hold is compared above, not how they keep it
-            return [Finding("provenance", "stored layout: format_version", a=va, b=vb)]
+        fv = [int(f.attrs.get("format_version", 0)) for f in (fa, fb)]
+        if fv[0] != fv[1]:  # two layouts: what they hold is compared above, not how kept
+            return [Finding("provenance", "stored layout: format_version", a=fv[0], b=fv[1])]
         names = sorted((set(fa) | set(fb)) - set(_TREES))
         images = {n for n in names if f"{n}_valid" in names}
         for n in names:
