@@ -106,6 +106,9 @@ MAX_SNOOPING_ROUNDS = 10
 #: 10σ of a Gaussian budget happens once in 10²³; a budget wrong by a factor 3 still
 #: keeps every honest point.
 REACH_SIGMAS = 10.0
+#: Data snooping finds a few blunders among good points (Baarda); when it rejects more
+#: than this share of the points, the points' σ or the model are wrong, not the points.
+MAX_REJECTED_SHARE = 0.5
 
 
 def _orbital(along_across_radial: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -790,7 +793,8 @@ def adjust_strips(strips: list[Strip], options: ProcessingOptions) -> tuple[Adju
 
 def _judge(strips: list[Strip], sol: _Solution, confidence: float) -> None:
     """The fit judged before anything is made of it: :class:`AdjustmentError` naming the
-    points when every point is out of the model's reach (``REACH_SIGMAS``), or when its χ²
+    points when every point is out of the model's reach (``REACH_SIGMAS``), when more than
+    ``MAX_REJECTED_SHARE`` of them are rejected, or when its χ²
     fails the global test, ``χ² > χ²_dof(confidence)`` (the unit-weight σ0 beyond what the
     a priori σ of the points and of the budget allow: the points, or the model, wrong)."""
     from scipy.stats import chi2 as chi2_law
@@ -807,6 +811,15 @@ def _judge(strips: list[Strip], sol: _Solution, confidence: float) -> None:
             f"model ({REACH_SIGMAS:g}σ of its a priori accuracy): "
             + ", ".join(f"{ids[k]} misses by {miss[k]:.0f} px" for k in worst)
             + "; are they this pass's points, in its lines and columns?"
+        )
+    rejected = np.flatnonzero(status == "rejected")
+    if rejected.size > MAX_REJECTED_SHARE * inside.sum():
+        raise AdjustmentError(
+            f"level 2: {rejected.size} of the {int(inside.sum())} control points rejected "
+            f"(more than {MAX_REJECTED_SHARE:.0%}): "
+            + ", ".join(ids[k] for k in rejected[:5])
+            + ("…" if rejected.size > 5 else "")
+            + "; the points' σ or the model are wrong, not a few points: check them"
         )
     if not sol.dof:
         return

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -38,11 +39,13 @@ from levels.products import read_product
 from levels.quality import Headline
 from levels.tasks import Runner
 from station import __version__
+from station.errors import StationError
 from station.outdir import replaceable_dir
 from station.scenario import Scenario
 
 __all__ = [
     "REPORT_FORMAT",
+    "check_run",
     "comparable_report",
     "prepare_run_dir",
     "run_scenario",
@@ -78,6 +81,7 @@ def run_scenario(
     it was.
     """
     out = prepare_run_dir(out_dir, scn.name, scn.inputs())
+    check_run(scn, out)
     with staged_dir(out) as stage:  # the previous run stays whole until this one is
         return _run(scn, stage, quicklooks, progress, runner, warm_up)
 
@@ -204,6 +208,22 @@ def prepare_run_dir(out_dir: str | Path, name: str, inputs: list[Path] | None = 
         f"a run of scenario {name!r}",
         inputs or [],
     )
+
+
+def check_run(scn: Scenario, out: Path) -> dict[str, Any]:
+    """Everything the run of ``scn`` into ``out`` needs, checked before any work
+    (:mod:`station.preflight`): the files the scenario names, a DEM for the levels that
+    need one, a writable place for ``out``, and the memory and disk the run will take.
+    Returns what was checked; :class:`StationError` (or the library's error) on the
+    first failure."""
+    from station.preflight import check_needs, check_scenario, run_needs
+
+    files = check_scenario(scn)
+    parent = next((p for p in (out, *out.absolute().parents) if p.exists()), Path("."))
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise StationError(f"cannot write in {parent}")
+    needs = run_needs(scn)
+    return {"files": files, "pixels": needs.pixels, **check_needs(needs, out)}
 
 
 @dataclass(frozen=True, eq=False)

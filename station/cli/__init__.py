@@ -3,10 +3,12 @@ model): each registers its subcommands, parses, calls one function and prints.
 
 Exit codes, the same for every command (``docs/compare.md``):
 
-- 0: done (``compare``: within the tolerances);
+- 0: done: the products asked for were made (``compare``: within the tolerances);
 - 1: ``compare`` only: differences found, each named;
-- 2: bad input or environment (a missing or damaged file, a bad scenario, a full disk, an
-  unwritable directory): one line on stderr, never a traceback;
+- 2: bad input or environment (a missing or damaged file, a bad scenario, absurd control
+  points, a DEM without a CRS, a run too large for the machine's memory or disk, a full
+  disk, an unwritable directory), or a run that made no product (every scene skipped):
+  one line on stderr, never a traceback; a closed stdout (``| head``) is not an error;
 - 3: an internal error (a bug): one line naming it, and the traceback with
   ``STATION_DEBUG=1``; never disguised as 1;
 - 130: interrupted (Ctrl-C): one line, nothing half-written left (every file is written
@@ -113,6 +115,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     _configure_logging(args.verbose, args.quiet)
     try:
         return args.func(args)
+    except BrokenPipeError:  # `station compare … | head`: the reader had enough
+        _quiet_broken_pipe()
+        return EXIT_OK
     except (LevelsError, StationError, OSError) as exc:
         print(f"station: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -123,9 +128,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_BAD_INPUT
-    except BrokenPipeError:  # `station compare … | head`: the reader had enough
-        _quiet_broken_pipe()
-        return EXIT_OK
     except KeyboardInterrupt as exc:
         notes = "; ".join(getattr(exc, "__notes__", ())) or "files being written were discarded"
         print(f"station: interrupted; {notes}", file=sys.stderr)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 from pathlib import Path
 from typing import Any
 
@@ -55,6 +56,12 @@ def register(sub: Any) -> None:
         "<name>.gcp.csv beside the L0 archive); once per archive, in their order",
     )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="check everything the processing needs (archives, control points, DEM, --out, "
+        "memory, disk) and stop: nothing is written",
+    )
     add_out(p, "directory of the products (default: <name>_products)")
     add_runner(p)
     add_json(p)
@@ -153,6 +160,15 @@ def _process(args: argparse.Namespace) -> int:
     replaceable_dir(
         out, PROCESS_REPORT, lambda r: r["names"], names, f"products of {names}", inputs
     )
+    if from_scenario:
+        from station.run import check_run
+
+        found = check_run(scn, out)
+    else:
+        found = _check_archives(sources, options, args)
+    if args.check:
+        emit(args, found, lambda f: f"checks passed: {json.dumps(f, default=str)}")
+        return 0
     with staged_dir(out) as stage, runner_of(args) as runner:
         if from_scenario:
             products, l0 = process_scenario(scn, stage, runner=runner)
@@ -176,6 +192,33 @@ def _process(args: argparse.Namespace) -> int:
         )
     emit(args, report, _text)
     return _exit_made(sum(len(d["products"]) for d in data), "station process")
+
+
+def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace) -> dict:
+    """What reprocessing ``sources`` needs, before any work: the archives readable (their
+    headers), their control points when level 2 is asked, the DEM when a level needs
+    one, and the memory and disk their scenes take (``station.preflight``)."""
+    from levels.makers.base import Need
+    from levels.process import pass_dem, plan_levels
+    from levels.readers.gcp import read_gcps
+    from levels.readers.l0 import read_l0
+    from station.preflight import check_needs, scene_needs
+    from station.sipc.process import l0_stem, run_dem
+
+    archives = [read_l0(s, lazy=True) for s in sources]
+    makers = plan_levels(options.levels)
+    if "2" in {m.name for m in makers}:
+        where = args.gcps or [s.with_name(f"{l0_stem(s)}.gcp.csv") for s in sources]
+        for w, a in zip(where, archives, strict=True):
+            read_gcps(w, a.n_lines, a.n_columns)
+    if not options.dem_path and any(Need.DEM in m.needs for m in makers):
+        options = dataclasses.replace(options, dem_path=str(run_dem(sources[0], archives[0])))
+    pass_dem(options, makers)
+    a = archives[0]
+    lines = min(options.scene_lines or a.n_columns, a.n_lines)
+    n_scenes = sum(-(-x.n_lines // lines) for x in archives)
+    needs = scene_needs(lines, a.n_columns, len(a.bands), len(makers), n_scenes, args.workers)
+    return {"archives": [str(s) for s in sources], **check_needs(needs, Path(args.out or "."))}
 
 
 def _exit_made(n_products: int, what: str) -> int:

@@ -31,6 +31,12 @@ def register(sub: Any) -> None:
     add_out(p, "run directory (default: runs/<scenario name>)")
     add_json(p, "the report instead of a table")
     p.add_argument("--no-quicklooks", action="store_true", help="skip the quicklook PNGs")
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="check everything the run needs (scenario, the files it names, --out, memory, "
+        "disk) and stop: nothing is written",
+    )
     add_runner(p)
     p.set_defaults(func=_run)
 
@@ -49,6 +55,8 @@ def _run(args: argparse.Namespace) -> int:
         )
     scn = load_scenario(path)
     out = Path(args.out) if args.out else Path("runs") / scn.name
+    if args.check:
+        return _check(scn, out, args)
     if not args.json and not args.quiet:
         print(f"running {path} into {out}/ ...", file=sys.stderr)
     with runner_of(args) as runner:
@@ -61,4 +69,30 @@ def _run(args: argparse.Namespace) -> int:
             warm_up=True,
         )
     print(json.dumps(report, indent=2) if args.json else summary_table(report, out))
+    from station.cli.process import _exit_made
+
+    return _exit_made(len(report["products"]), "the run")
+
+
+def _check(scn: Any, out: Path, args: argparse.Namespace) -> int:
+    """``--check``: the run's checks (``station.run.check_run``) and what they found."""
+    import json
+
+    from station.run import check_run, prepare_run_dir
+
+    prepare_run_dir(out, scn.name, scn.inputs())
+    found = check_run(scn, out)
+    if args.json:
+        print(json.dumps(found, indent=2))
+        return 0
+    mem = found["memory_available_bytes"]
+    print(
+        f"{scn.name}: checks passed; {found['pixels'] / 1e6:.1f} Mpx, about "
+        f"{found['memory_bytes'] / 2**30:.2f} GiB of memory"
+        + (f" of {mem / 2**30:.1f} available" if mem else "")
+        + f", up to {found['disk_bytes'] / 2**30:.2f} GiB on disk of "
+        f"{found['disk_free_bytes'] / 2**30:.1f} free"
+        + (f"; read {', '.join(found['files'])}" if found["files"] else "")
+        + f"; into {out}/"
+    )
     return 0

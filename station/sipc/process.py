@@ -46,6 +46,7 @@ __all__ = [
     "process_scenario",
     "reprocess_l0",
     "reprocess_pass",
+    "run_dem",
     "truth_for",
     "with_exported_dem",
 ]
@@ -221,7 +222,7 @@ def plan_reprocess(
     opts = options or (scenario.processing if scenario is not None else ProcessingOptions())
     truths = [truth_for(scenario, a) if scenario is not None else None for a in archives]
     if "3" in opts.levels and not opts.dem_path:
-        opts = dataclasses.replace(opts, dem_path=str(_run_dem(paths[0], archives[0])))
+        opts = dataclasses.replace(opts, dem_path=str(run_dem(paths[0], archives[0])))
     points = None
     if "2" in opts.levels:
         where = (
@@ -257,7 +258,7 @@ def with_exported_dem(scn: Scenario, acqs: list[Acquisition], out: Path) -> Proc
     return options
 
 
-def _run_dem(l0_path: Path, archive: L0Archive) -> Path:
+def run_dem(l0_path: Path, archive: L0Archive) -> Path:
     """The DEM a run exported beside its L0 archive (``<scenario>.dem.tif``), for level 3
     when no ``dem_path`` is given; :class:`DemError` naming both when there is none."""
     from levels.errors import DemError

@@ -38,6 +38,8 @@ class DemError(StationError, ValueError):
 def read_hgt(path: str | Path) -> DemGrid:
     """An SRTM tile as a :class:`DemGrid` (latitude increasing with the row)."""
     p = Path(path)
+    if not p.is_file():
+        raise DemError(f"DEM file {p} not found")
     m = _NAME.match(p.name)
     if not m:
         raise DemError(f"{p.name}: an SRTM tile is named like N00E010.hgt")

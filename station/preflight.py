@@ -1,0 +1,164 @@
+"""Everything a run or a reprocessing needs, checked before any work starts.
+
+A run that would fail on its input after minutes of emulation fails here, in a second,
+with one line: the files the scenario names (its TLE, its world's SRTM tile, the DEM level 3
+is given: readable, with a CRS, heights of this planet), what the levels asked need (level
+3 a DEM), and the memory and disk the run will take against what the machine has.
+
+The figures are measured, not guessed (``docs/reliability.md``): a full P pass of 6000
+detectors × 6000 lines peaks at 1.63 GB resident (300 MB of interpreter, libraries and
+compiled kernels, then about 37 bytes per pixel of the pass: the rendered radiances, the
+counts, the frames, the L0 archive read back); a pass of 3000 × 12 000 at 1.59 GB. On disk,
+an L0 archive takes under 1 byte per pixel and a product under 2 (its uint8 image and mask,
+compressed): the bounds below.
+"""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+from station.errors import StationError
+from station.scenario import Scenario
+
+__all__ = [
+    "DISK_L0_BYTES_PER_PIXEL",
+    "DISK_PRODUCT_BYTES_PER_PIXEL",
+    "MEMORY_BASE_BYTES",
+    "MEMORY_BYTES_PER_PIXEL",
+    "Needs",
+    "available_memory_bytes",
+    "check_needs",
+    "check_scenario",
+    "run_needs",
+    "scene_needs",
+]
+
+#: Resident memory before any pixel: interpreter, numpy, scipy, numba's kernels (bytes).
+MEMORY_BASE_BYTES = 300e6
+#: Peak resident memory per pixel of a pass (all bands): 37 measured, with margin.
+MEMORY_BYTES_PER_PIXEL = 40.0
+#: Disk per pixel: an L0 archive's counts and masks; a product's uint8 image and mask.
+DISK_L0_BYTES_PER_PIXEL = 1.0
+DISK_PRODUCT_BYTES_PER_PIXEL = 2.0
+
+
+@dataclass(frozen=True)
+class Needs:
+    """What a job will take: ``pixels`` of the pass (every band), peak ``memory_bytes``
+    and ``disk_bytes`` written; ``what`` says it in words for a message."""
+
+    pixels: float
+    memory_bytes: float
+    disk_bytes: float
+    what: str
+
+
+def run_needs(scn: Scenario) -> Needs:
+    """A scenario's run: every HRV's pass rendered at once, its L0 archive and products."""
+    from levels.spot import MODES
+
+    pixels = 0.0
+    parts = []
+    for ins in scn.instruments:
+        n = ins.n_detectors or MODES[ins.mode].detectors
+        n_det = ins.detector_count or (n - ins.first_detector)
+        n_lines = ins.n_lines or n  # build_hrv: one square scene
+        bands = len(MODES[ins.mode].bands)
+        pixels += float(n_lines) * n_det * bands
+        parts.append(f"{n_lines} lines × {n_det} detectors × {bands} band(s)")
+    n_levels = len(scn.processing.levels)
+    return Needs(
+        pixels,
+        MEMORY_BASE_BYTES + MEMORY_BYTES_PER_PIXEL * pixels,
+        pixels * (DISK_L0_BYTES_PER_PIXEL + DISK_PRODUCT_BYTES_PER_PIXEL * n_levels),
+        " + ".join(parts),
+    )
+
+
+def scene_needs(
+    n_lines: int, n_columns: int, n_bands: int, n_levels: int, n_scenes: int, workers: int
+) -> Needs:
+    """A reprocessing: ``workers`` scenes of ``n_lines × n_columns × n_bands`` at once in
+    memory, ``n_scenes`` scenes of ``n_levels`` products on disk."""
+    per_scene = float(n_lines) * n_columns * n_bands
+    return Needs(
+        per_scene * n_scenes,
+        MEMORY_BASE_BYTES + MEMORY_BYTES_PER_PIXEL * per_scene * max(1, workers),
+        per_scene * n_scenes * n_levels * DISK_PRODUCT_BYTES_PER_PIXEL,
+        f"{max(1, workers)} scene(s) of {n_lines} lines × {n_columns} columns × "
+        f"{n_bands} band(s) at once",
+    )
+
+
+def available_memory_bytes() -> float | None:
+    """Memory this machine can give a new job now (Linux's ``MemAvailable``), or None
+    where it is not known."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    return None
+
+
+def check_needs(needs: Needs, out: Path) -> dict[str, float | None]:
+    """:class:`StationError` when the job will not fit the machine's available memory or
+    the free disk beside ``out`` (a staged output and the previous one coexist until the
+    swap); returns the figures checked."""
+    memory = available_memory_bytes()
+    if memory is not None and needs.memory_bytes > memory:
+        raise StationError(
+            f"this needs about {needs.memory_bytes / 2**30:.1f} GiB of memory ({needs.what}, "
+            f"{MEMORY_BYTES_PER_PIXEL:g} bytes per pixel as measured) and the machine has "
+            f"{memory / 2**30:.1f} GiB available: make the pass smaller (n_lines, "
+            "detector_count) or use fewer --workers"
+        )
+    parent = next((p for p in (out, *out.absolute().parents) if p.exists()), Path("."))
+    free = float(shutil.disk_usage(parent).free)
+    if needs.disk_bytes > free:
+        raise StationError(
+            f"this writes up to {needs.disk_bytes / 2**30:.1f} GiB ({needs.what}) and "
+            f"{parent} has {free / 2**30:.1f} GiB free: free some space or give another --out"
+        )
+    return {
+        "memory_bytes": needs.memory_bytes,
+        "memory_available_bytes": memory,
+        "disk_bytes": needs.disk_bytes,
+        "disk_free_bytes": free,
+    }
+
+
+def check_scenario(scn: Scenario) -> list[str]:
+    """The files a scenario names, read now (:class:`StationError`, :class:`LevelsError`
+    on the first that cannot be used); returns what was checked, in words."""
+    from levels.process import pass_dem
+    from levels.readers.dem import read_dem
+
+    done = []
+    if scn.orbit.kind == "tle":
+        from station.spacecraft.tle import read_tle
+
+        path = scn.path(scn.orbit.tle_path)
+        records = read_tle(path)
+        if scn.orbit.tle_index >= len(records):
+            raise StationError(
+                f"[orbit] tle_index = {scn.orbit.tle_index}: {path} holds {len(records)} "
+                "element set(s)"
+            )
+        done.append(f"TLE {path.name} ({len(records)} element sets)")
+    if scn.world.kind == "dem":
+        from station.spacecraft.dem import read_hgt
+
+        path = scn.path(scn.world.dem_path)
+        read_hgt(path)
+        done.append(f"world DEM {path.name}")
+    if scn.processing.dem_path:
+        dem = read_dem(scn.processing.dem_path, scn.processing.dem_vertical)
+        done.append(f"level 3 DEM {Path(scn.processing.dem_path).name} ({dem.height_m.shape})")
+    elif scn.dem is None:
+        pass_dem(scn.processing)  # a level needing a DEM without one: said now
+    return done
