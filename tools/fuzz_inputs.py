@@ -1,0 +1,419 @@
+"""Fuzz what a user writes: scenarios, control-point files, DEMs, tolerance files and
+command lines, mutated by hypothesis and handed to ``station`` as a user would.
+
+    python tools/fuzz_inputs.py 10000            # 10 000 cases, every kind in turn
+    python tools/fuzz_inputs.py 500 --kind gcps  # one kind
+
+Every case runs ``station.cli.main`` in this process, in a sandbox directory of its own
+(the current directory while it runs), on inputs written there and with ``--out`` inside
+it. What must hold, whatever the input (the issue's bar):
+
+- the exit code is 0, 1 or 2 (never 3: a bug), or argparse's own 2 for a bad command line;
+- stderr holds no traceback;
+- no file appears outside ``--out`` other than the inputs the case wrote.
+
+Most cases ask for the checks only (``run --check``, ``process --check``: what a user's
+input meets first); a share runs the real work where it is quick (a reduced scene's level
+2 on mutated control points, level 3 on a mutated DEM). The first case that breaks a rule
+is shrunk by hypothesis to its smallest form and printed; the tool then exits 1. The
+figures (cases per kind, exit codes) are printed at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+import tomllib
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import strategies as st
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = ROOT / "scenarios" / "small_test.toml"
+REFDATA = Path(os.environ.get("SPOT_REFDATA", ROOT.parent / "shared" / "refdata"))
+DIMAP = REFDATA / "dimap" / "spot2_hrv1_P_19980220_izmit_METADATA.DIM"
+KINDS = ("scenario", "gcps", "dem", "tolerances", "command")
+
+#: Values a user gets wrong: out of range, of the wrong type, not numbers, paths.
+NASTY_TEXT = ["", "nan", "inf", "-inf", "-1", "0", "1e308", "-1e308", "x", "1,2", "../x", "/etc"]
+NASTY_PATHS = ["../x", "/etc/passwd", "", ".", "a/b", "N00E010.hgt", "missing.tif", "nul\u0000"]
+
+
+def nasty_scalars() -> st.SearchStrategy:
+    return st.one_of(
+        st.integers(min_value=-(2**70), max_value=2**70),
+        st.floats(allow_nan=True, allow_infinity=True),
+        st.sampled_from([0, 1, -1, 2**31, 10**6, 1e-300, 0.5]),
+        st.text(max_size=12),
+        st.sampled_from(NASTY_PATHS),
+        st.booleans(),
+    )
+
+
+def nasty_values() -> st.SearchStrategy:
+    return st.one_of(nasty_scalars(), st.lists(nasty_scalars(), max_size=4))
+
+
+def toml_value(v: object) -> str:
+    """``v`` as a TOML value (NaN and infinities as TOML spells them)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return json.dumps(str(v))  # a TOML basic string: JSON's escapes
+
+
+def toml_text(table: dict) -> str:
+    """A two-level table (scalars, then sections) as TOML text."""
+    lines = [f"{k} = {toml_value(v)}" for k, v in table.items() if not isinstance(v, dict)]
+    for section, values in table.items():
+        if isinstance(values, dict):
+            lines.append(f"[{section}]")
+            lines += [f"{json.dumps(k)} = {toml_value(v)}" for k, v in values.items()]
+    return "\n".join(lines) + "\n"
+
+
+def mutated_text(draw, text: str) -> str:
+    """Text with a few byte-level mutations: a cut, a flipped character, an insertion."""
+    chars = list(text)
+    for _ in range(draw(st.integers(1, 3))):
+        if not chars:
+            break
+        k = draw(st.integers(0, len(chars) - 1))
+        op = draw(st.sampled_from(["cut", "flip", "insert", "delete"]))
+        if op == "cut":
+            chars = chars[:k]
+        elif op == "flip":
+            chars[k] = chr(draw(st.integers(0, 0x2FF)))
+        elif op == "insert":
+            chars.insert(k, draw(st.sampled_from(["\n", "=", "[", '"', ",", "\x00", "é"])))
+        else:
+            del chars[k]
+    return "".join(chars)
+
+
+class Fixture:
+    """What every case starts from, made once: the small scenario's run (its L0 archive,
+    control points, products) and a real DIMAP."""
+
+    def __init__(self, root: Path) -> None:
+        from station.cli import main
+
+        self.run = root / "base_run"
+        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+            code = main(["run", str(SMALL), "--out", str(self.run), "-q", "--no-quicklooks"])
+        if code != 0:
+            raise SystemExit(f"the base run of {SMALL} failed ({code})")
+        self.l0 = self.run / "small_test.l0.h5"
+        self.gcps = self.run / "small_test.gcp.csv"
+        self.product = self.run / "small_test_s000_1A.h5"
+        self.scenario = tomllib.loads(SMALL.read_text())
+
+
+def scenario_case(draw, fx: Fixture, box: Path, out: Path) -> list[str]:
+    from station.scenario import _SECTIONS
+
+    table = json.loads(json.dumps(fx.scenario))
+    how = draw(st.sampled_from(["set", "set", "set", "delete", "text", "unknown"]))
+    if how in ("set", "delete"):
+        section = draw(st.sampled_from([*_SECTIONS, ""]))
+        if section:
+            from dataclasses import fields
+
+            keys = [f.metadata["key"] for f in fields(_SECTIONS[section]) if "key" in f.metadata]
+            keys = keys or ["x"]
+            key = draw(st.sampled_from(keys))
+            sec = table.setdefault(section, {})
+            if how == "set":
+                sec[key] = draw(nasty_values())
+            else:
+                sec.pop(key, None)
+        else:
+            table[draw(st.sampled_from(["name", "seed"]))] = draw(nasty_values())
+        text = toml_text(table)
+    elif how == "unknown":
+        table[draw(st.sampled_from(["extra", "processing"]))] = {
+            draw(st.text(min_size=1, max_size=8)): draw(nasty_values())
+        }
+        text = toml_text(table)
+    else:
+        text = mutated_text(draw, SMALL.read_text())
+    path = box / "s.toml"
+    path.write_text(text, encoding="utf-8", errors="surrogatepass")
+    return ["run", str(path), "--out", str(out), "-q", "--no-quicklooks", "--check"]
+
+
+def gcps_case(draw, fx: Fixture, box: Path, out: Path) -> list[str]:
+    lines = fx.gcps.read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith("#")]
+    header, rows = lines[len(head)], [r.split(",") for r in lines[len(head) + 1 :]]
+    how = draw(st.sampled_from(["cell", "cell", "rows", "header", "text"]))
+    if how == "cell":
+        for _ in range(draw(st.integers(1, 4))):
+            r = draw(st.integers(0, len(rows) - 1))
+            c = draw(st.integers(0, len(rows[r]) - 1))
+            rows[r][c] = draw(st.one_of(st.sampled_from(NASTY_TEXT), st.text(max_size=6)))
+    elif how == "rows":
+        keep = draw(st.lists(st.integers(0, len(rows) - 1), max_size=20))
+        rows = [rows[k] for k in keep]
+    elif how == "header":
+        cols = header.split(",")
+        k = draw(st.integers(0, len(cols) - 1))
+        cols[k] = draw(st.sampled_from(["", "lon_deg", "x", cols[k].upper()]))
+        header = ",".join(cols)
+    text = "\n".join([*head, header, *(",".join(r) for r in rows)]) + "\n"
+    if how == "text":
+        text = mutated_text(draw, text)
+    path = box / "p.gcp.csv"
+    path.write_text(text, encoding="utf-8", errors="surrogatepass")
+    target = draw(st.sampled_from(["process", "process", "check", "locate"]))
+    if target == "locate":
+        return ["locate", str(DIMAP), "--gcps", str(path)]
+    argv = ["process", str(fx.l0), "--levels", "2", "--gcps", str(path), "--out", str(out), "-q"]
+    return [*argv, "--check"] if target == "check" else argv
+
+
+def dem_case(draw, fx: Fixture, box: Path, out: Path) -> list[str]:
+    import warnings
+
+    import rasterio
+    from rasterio.transform import Affine
+
+    path = box / "d.tif"
+    if draw(st.integers(0, 9)) == 0:  # not a raster at all
+        path.write_bytes(draw(st.binary(max_size=64)))
+    else:
+        rows, cols = draw(st.integers(1, 24)), draw(st.integers(1, 24))
+        base = draw(st.sampled_from([450.0, 0.0, -9000.0, 29000.0, 0.45, float("nan")]))
+        noise = draw(st.floats(0, 5000, allow_nan=False))
+        rng = np.random.default_rng(draw(st.integers(0, 2**31)))
+        heights = (base + noise * rng.standard_normal((rows, cols))).astype(np.float32)
+        if draw(st.booleans()):
+            heights[rng.random((rows, cols)) < 0.3] = np.nan
+        crs = draw(st.sampled_from([None, "EPSG:4326", "EPSG:32721", "EPSG:3857", "EPSG:4978"]))
+        step = draw(st.sampled_from([0.02, -0.02, 1e-9, 10.0, 30.0]))
+        x0 = draw(st.sampled_from([-56.4, -56.3, 10.0, 179.9, 560000.0]))
+        y0 = draw(st.sampled_from([-15.3, 0.0, 8270000.0, 91.0]))
+        flip = draw(st.booleans())
+        gt = Affine(step, 0.0, x0, 0.0, step if flip else -abs(step), y0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with rasterio.open(
+                path,
+                "w",
+                driver="GTiff",
+                width=cols,
+                height=rows,
+                count=1,
+                dtype="float32",
+                crs=crs,
+                transform=gt,
+            ) as d:
+                d.write(heights[None])
+    opts = box / "o.toml"
+    vertical = draw(st.sampled_from(["ellipsoid", "egm96", "moon"]))
+    opts.write_text(
+        f'[processing]\nlevels = ["3"]\ndem_path = "{path.name}"\ndem_vertical = "{vertical}"\n'
+    )
+    argv = ["process", str(fx.l0), "--options", str(opts), "--out", str(out), "-q"]
+    return argv if draw(st.integers(0, 3)) == 0 else [*argv, "--check"]
+
+
+def tolerances_case(draw, fx: Fixture, box: Path, out: Path) -> list[str]:
+    from levels.compare import DEFAULT_TOLERANCES
+
+    table: dict = {}
+    for _ in range(draw(st.integers(1, 3))):
+        section = draw(st.sampled_from([*DEFAULT_TOLERANCES, "other"]))
+        keys = [*DEFAULT_TOLERANCES.get(section, {"x": 0}), "unknown"]
+        table.setdefault(section, {})[draw(st.sampled_from(keys))] = draw(nasty_values())
+    text = toml_text(table)
+    if draw(st.integers(0, 4)) == 0:
+        text = mutated_text(draw, text)
+    path = box / "t.toml"
+    path.write_text(text, encoding="utf-8", errors="surrogatepass")
+    return ["compare", str(fx.product), str(fx.product), "--tolerances", str(path)]
+
+
+#: Command-line words: the commands fuzzed, their options, and values good and bad.
+_COMMANDS = ("run", "process", "compare", "inspect", "export", "locate")
+_OPTIONS = (
+    "--json",
+    "--levels",
+    "--name",
+    "--gcps",
+    "--options",
+    "--scenario",
+    "--tolerances",
+    "--workers",
+    "--scheduler",
+    "--attitude",
+    "--model",
+    "--heights",
+    "--rpc",
+    "--geotiff",
+    "--no-quicklooks",
+    "-v",
+    "-q",
+    "--help",
+    "--bogus",
+)
+
+
+def command_case(draw, fx: Fixture, box: Path, out: Path) -> list[str]:
+    cmd = draw(st.sampled_from(_COMMANDS))
+    values = st.sampled_from(
+        [
+            str(fx.l0),
+            str(fx.product),
+            str(fx.gcps),
+            str(SMALL),
+            str(DIMAP),
+            str(fx.run),
+            "1A,2A",
+            "3",
+            "2,2",
+            "4096",
+            "-1",
+            "0",
+            "nonsense",
+            "rpc",
+            "0,1e9",
+            "5,1",
+            "../evil",
+            "/tmp",
+            "",
+            "x" * 300,
+            str(out / "x_RPC.TXT"),
+        ]
+    )
+    words = draw(st.lists(st.one_of(st.sampled_from(_OPTIONS), values), max_size=6))
+    argv = [cmd, *words]
+    if cmd in ("run", "process"):
+        argv += ["--out", str(out), "--check"]
+    elif cmd == "export":
+        argv += ["--out", str(out / "x.tif")]
+    elif cmd == "locate" and "--rpc" in words:
+        argv += ["--rpc", str(out / "y_RPC.TXT")]
+    return argv
+
+
+CASES = {
+    "scenario": scenario_case,
+    "gcps": gcps_case,
+    "dem": dem_case,
+    "tolerances": tolerances_case,
+    "command": command_case,
+}
+
+
+def run_case(argv: list[str]) -> tuple[int, str]:
+    """``station`` on ``argv`` in this process: its exit code and stderr."""
+    from station.cli import main
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse: usage error (2) or --help (0)
+            code = exc.code if isinstance(exc.code, int) else 2
+    return code, err.getvalue()
+
+
+def files_under(d: Path) -> set[Path]:
+    return {p for p in d.rglob("*") if p.is_file() or p.is_symlink()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("n", type=int, nargs="?", default=1000, help="cases (default 1000)")
+    parser.add_argument("--kind", choices=KINDS, help="one kind of input only")
+    parser.add_argument("--seed", type=int, default=0, help="hypothesis seed (default 0)")
+    args = parser.parse_args(argv)
+    kinds = (args.kind,) if args.kind else KINDS
+    counts: Counter = Counter()
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="fuzz_inputs_") as tmp:
+        root = Path(tmp)
+        fx = Fixture(root)
+        here = os.getcwd()
+        serial = iter(range(10**9))
+
+        @settings(
+            max_examples=args.n,
+            deadline=None,
+            database=None,
+            derandomize=False,
+            suppress_health_check=list(HealthCheck),
+            phases=[Phase.generate, Phase.shrink],
+        )
+        @given(st.data())
+        def case(data: st.DataObject) -> None:
+            kind = data.draw(st.sampled_from(kinds), label="kind")
+            box = root / f"case{next(serial)}"
+            box.mkdir()
+            out = box / "out"
+            argv = CASES[kind](data.draw, fx, box, out)
+            before = files_under(box)
+            os.chdir(box)
+            try:
+                code, err = run_case(argv)
+            finally:
+                os.chdir(here)
+            counts[(kind, code)] += 1
+            strays = [p for p in files_under(box) - before if out not in p.parents]
+            problems = []
+            if code not in (0, 1, 2):
+                problems.append(f"exit {code}")
+            if "Traceback" in err:
+                problems.append("a traceback")
+            if strays:
+                problems.append(f"files outside --out: {sorted(map(str, strays))[:3]}")
+            if problems:
+                counts[("violations", kind)] += 1
+                raise AssertionError(
+                    f"{kind}: {', '.join(problems)}\n  argv: {argv}\n  stderr: {err.strip()}"
+                )
+
+        try:
+            import random
+
+            random.seed(args.seed)
+            case()
+            failed = None
+        except AssertionError as exc:
+            failed = str(exc)
+    elapsed = time.perf_counter() - t0
+    total = sum(v for (k, _), v in counts.items() if k != "violations")
+    print(f"{total} cases in {elapsed:.0f} s ({1e3 * elapsed / max(total, 1):.0f} ms each)")
+    for kind in kinds:
+        codes = {c: v for (k, c), v in sorted(counts.items(), key=str) if k == kind}
+        print(f"  {kind:<11} {sum(codes.values()):6d} cases, exit codes {codes}")
+    exit3 = sum(v for (k, c), v in counts.items() if c == 3 and k != "violations")
+    print(f"exit 3: {exit3}; cases breaking a rule: {0 if failed is None else 'see below'}")
+    if failed is not None:
+        print(f"FIRST FAILURE (shrunk):\n{failed}")
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
