@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from levels.errors import GcpError
 from levels.files import atomic_path
+from levels.readers.dem import EARTH_HEIGHTS_M
 
 __all__ = ["GCP_COLUMNS", "ControlPointSet", "read_gcps", "write_gcps"]
 
@@ -38,6 +39,9 @@ GCP_COLUMNS = (
     "sigma_px",
     "hrv",
 )
+#: The largest σ a control point may claim (sigma_ground_m, sigma_h_m, sigma_px): beyond,
+#: it weighs nothing and says nothing (a map position known to 100 km is no measurement).
+SIGMA_CAPS = (100_000.0, 10_000.0, 10_000.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,6 +100,8 @@ def read_gcps(
         )
     cols: dict[str, list] = {c: [] for c in GCP_COLUMNS}
     for k, raw in enumerate(reader, start=1):
+        if None in raw:  # csv's restkey: the row has more fields than the header
+            raise _bad(where, k, f"{len(header) + len(raw[None])} fields for {len(header)} columns")
         rec = {(key or "").strip(): (v or "").strip() for key, v in raw.items()}
         pid = rec["id"]
         if not pid:
@@ -117,6 +123,22 @@ def read_gcps(
         if min(cols["sigma_ground_m"][-1], cols["sigma_h_m"][-1], cols["sigma_px"][-1]) <= 0:
             raise _bad(
                 where, k, "every sigma must be positive (a point known exactly cannot be weighted)"
+            )
+        sigmas = (cols[c][-1] for c in ("sigma_ground_m", "sigma_h_m", "sigma_px"))
+        if any(v > cap for v, cap in zip(sigmas, SIGMA_CAPS, strict=True)):
+            raise _bad(
+                where,
+                k,
+                "a sigma beyond "
+                + ", ".join(
+                    f"{c} {cap:g}" for c, cap in zip(GCP_COLUMNS[6:9], SIGMA_CAPS, strict=True)
+                )
+                + ": that is no measurement",
+            )
+        h_lo, h_hi = EARTH_HEIGHTS_M
+        if not h_lo <= cols["h_m"][-1] <= h_hi:
+            raise _bad(
+                where, k, f"h_m = {rec['h_m']!r}: not a height on Earth ({h_lo:g} to {h_hi:g} m)"
             )
         if cols["hrv"][-1] not in (1.0, 2.0):
             raise _bad(where, k, f"hrv = {rec['hrv']!r}: expected 1 or 2")
