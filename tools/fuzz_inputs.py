@@ -35,7 +35,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -389,15 +389,17 @@ def main(argv: list[str] | None = None) -> int:
                 problems.append(f"files outside --out: {sorted(map(str, strays))[:3]}")
             if problems:
                 counts[("violations", kind)] += 1
+                import shutil
+
+                keep = Path(here) / "fuzz_failure"  # the inputs, to reproduce it
+                shutil.rmtree(keep, ignore_errors=True)
+                shutil.copytree(box, keep, ignore=shutil.ignore_patterns("out"))
                 raise AssertionError(
                     f"{kind}: {', '.join(problems)}\n  argv: {argv}\n  stderr: {err.strip()}"
                 )
 
         try:
-            import random
-
-            random.seed(args.seed)
-            case()
+            seed(args.seed)(case)()
             failed = None
         except AssertionError as exc:
             failed = str(exc)
@@ -410,7 +412,7 @@ def main(argv: list[str] | None = None) -> int:
     exit3 = sum(v for (k, c), v in counts.items() if c == 3 and k != "violations")
     print(f"exit 3: {exit3}; cases breaking a rule: {0 if failed is None else 'see below'}")
     if failed is not None:
-        print(f"FIRST FAILURE (shrunk):\n{failed}")
+        print(f"FIRST FAILURE (shrunk; its inputs in ./fuzz_failure/):\n{failed}")
         return 1
     return 0
 

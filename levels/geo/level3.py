@@ -420,6 +420,11 @@ def level3_geometry(
             levels, heights, window, ellipsoidal, coordinates, DEM_COORD_STEP, spacing, {}
         )
         err = geom.anchor_error(scene, b)
+        if not err["n_points"]:  # no raw pixel lands on the DEM's terrain
+            raise GeometryError(
+                f"level 3: no pixel of scene {scene.cut.index} meets the terrain of the DEM "
+                f"{dem.source or ''} (voids, or heights off the scene's)"
+            )
         current = template.inverse_step[0]
         if err["max_px"] <= ANCHOR_TOLERANCE_PX or inverse_step_px or current <= 1 or like:
             return replace(geom, anchor_error_px=err)

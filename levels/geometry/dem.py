@@ -16,6 +16,7 @@ void or outside the file).
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass
 
@@ -61,6 +62,13 @@ class Dem:
         g = self.geotransform
         return float(np.hypot(g[1], g[4])), float(np.hypot(g[2], g[5]))
 
+    @functools.cached_property
+    def _wraps(self) -> bool:
+        """Longitudes wrap in this grid: a geographic CRS, north-up, columns eastward."""
+        g = self.geotransform
+        crs = pyproj.CRS.from_wkt(self.crs_wkt)
+        return bool(crs.is_geographic and g[1] > 0 and g[2] == 0 and g[4] == 0)
+
     @property
     def void_fraction(self) -> float:
         return float(np.mean(np.isnan(self.height_m)))
@@ -83,8 +91,12 @@ class Dem:
     def pixel_of(
         self, x: NDArray[np.float64], y: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Fractional (row, column) of CRS coordinates, 0 at the centre of the first pixel."""
+        """Fractional (row, column) of CRS coordinates, 0 at the centre of the first pixel.
+        In a geographic CRS a longitude is taken on the turn of the grid (a grid from
+        179.5° to 180.5° holds −179.8° as 180.2°: a DEM across the antimeridian)."""
         g = self.geotransform
+        if self._wraps:
+            x = g[0] + np.mod(x - g[0], 360.0)
         det = g[1] * g[5] - g[2] * g[4]
         dx, dy = x - g[0], y - g[3]
         col = (g[5] * dx - g[2] * dy) / det - 0.5

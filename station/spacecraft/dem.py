@@ -69,7 +69,8 @@ _EARTH_RADIUS_M = 6371e3  # mean: sizes the grid and the error's correlation in 
 
 
 def _footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]:
-    """South, north, west, east bounds (rad) of the terrain the strips truly see."""
+    """South, north, west, east bounds (rad) of the terrain the strips truly see; across
+    the antimeridian, west or east beyond ±π."""
     from station.spacecraft.imaging import trace_pixels
 
     lat, lon = [], []
@@ -87,6 +88,9 @@ def _footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]
     la, lo = np.concatenate(lat), np.concatenate(lon)
     if not la.size:
         raise DemError("[dem]: no pixel of the pass meets the world's terrain; nothing to export")
+    # unwrapped around the first point: a pass across the antimeridian spans 180° ± a
+    # little, not the whole globe (west or east then lies beyond ±180°, as GDAL allows)
+    lo = lo[0] + (lo - lo[0] + np.pi) % (2 * np.pi) - np.pi
     return float(la.min()), float(la.max()), float(lo.min()), float(lo.max())
 
 
