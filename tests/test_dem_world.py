@@ -34,6 +34,7 @@ def test_read_hgt_orientation_and_voids(tile: Path) -> None:
 
 
 def test_read_hgt_errors(tmp_path: Path, tile: Path) -> None:
+    (tmp_path / "dem.bin").write_bytes(b"")
     with pytest.raises(DemError, match=r"named like N00E010\.hgt"):
         read_hgt(tmp_path / "dem.bin")
     cut = tmp_path / "N00E010.hgt"
