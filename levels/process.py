@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyproj
 from numpy.typing import NDArray
 
 from levels import __version__
@@ -430,6 +431,28 @@ def _twin_adjustment(
     return out
 
 
+def check_coverage(dem: Dem, scenes: Sequence[SceneGeometry]) -> None:
+    """:class:`DemError` naming the first scene none of whose corners nor its centre lies
+    on the DEM's grid: level 3 would fail there after everything else was made. A scene
+    partly on it is made, its part off the DEM void."""
+    for s in scenes:
+        lat = np.append(s.corners_lat_rad, s.centre_lat_rad)
+        lon = np.append(s.corners_lon_rad, s.centre_lon_rad)
+        to_dem = pyproj.Transformer.from_crs(
+            "EPSG:4326", pyproj.CRS.from_wkt(dem.crs_wkt), always_xy=True
+        )
+        x, y = to_dem.transform(np.degrees(lon), np.degrees(lat))
+        row, col = dem.pixel_of(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        n_rows, n_cols = dem.height_m.shape
+        on = (row >= -0.5) & (row <= n_rows - 0.5) & (col >= -0.5) & (col <= n_cols - 0.5)
+        if not on.any():
+            raise DemError(
+                f"the DEM {dem.source} does not cover scene {s.cut.index} (centre "
+                f"{np.degrees(s.centre_lat_rad):.3f}°, {np.degrees(s.centre_lon_rad):.3f}°): "
+                "give one over the pass"
+            )
+
+
 def _plan_archive(
     request: ProcessingRequest,
     k: int,
@@ -460,6 +483,8 @@ def _plan_archive(
         **archive.provenance,
         **request.provenance,
     }
+    if dem is not None:
+        check_coverage(dem, scenes)
     t_geo = setup.time_s + clock() - t0  # the adjustment is timed apart
     if Need.ADJUSTMENT in _needs(makers) and scenes and adjustment is None:
         points = request.gcps[k]

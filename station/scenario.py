@@ -573,13 +573,14 @@ class Scenario:
         return p if p.is_absolute() else Path(self.base_dir) / p
 
 
-_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
+#: A name that names files and directories, never a path (scenarios, --name, archives).
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
 
 
 def check_name(name: str, what: str = "name") -> str:
     """A scenario's name, which names its files and run directory: letters, digits, ``_``,
     ``.``, ``-``, starting with a letter or digit, at most 100 characters; never a path."""
-    if not isinstance(name, str) or not _NAME.fullmatch(name):
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
         raise ScenarioError(
             f"{what} = {name!r}: expected letters, digits, '_', '.' or '-', starting with a "
             "letter or a digit (at most 100): it names the run's files and directory"

@@ -50,8 +50,11 @@ def _gcps_moved(src: Path, dst: Path, dlon: float = 0.0, rows: int | None = None
     return dst
 
 
-def _write_dem(path: Path, height_m: float, crs: str | None) -> Path:
-    """A 20 × 20 GeoTIFF of one height over the small scene, with ``crs`` or none."""
+def _write_dem(
+    path: Path, height_m: float, crs: str | None, origin: tuple[float, float] = (-56.3, -15.4)
+) -> Path:
+    """A 20 × 20 GeoTIFF of one height at ``origin`` (over the small scene), with ``crs``
+    or none."""
     import warnings
 
     import rasterio
@@ -68,7 +71,7 @@ def _write_dem(path: Path, height_m: float, crs: str | None) -> Path:
             count=1,
             dtype="float32",
             crs=crs,
-            transform=from_origin(-56.3, -15.4, 0.02, 0.02),
+            transform=from_origin(*origin, 0.02, 0.02),
         ) as d:
             d.write(np.full((1, 20, 20), height_m, np.float32))
     return path
@@ -229,6 +232,24 @@ def test_a_run_too_large_for_the_machine_is_refused_at_once(tmp_path, capsys) ->
         code = main(["run", str(scn), "--out", str(tmp_path / "out"), "-q", *extra])
         _one_line(capsys, code, EXIT_BAD_INPUT, "GiB of memory", "6000 detectors")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_dem_off_the_pass_is_refused_before_any_scene(run_dir, tmp_path, capsys) -> None:
+    """A DEM of another place: refused once GEO has placed the scenes, before the first
+    is made (not after every other level)."""
+    elsewhere = _write_dem(tmp_path / "elsewhere.tif", 300.0, "EPSG:4326", (10.0, 5.0))
+    opts = tmp_path / "opts.toml"
+    opts.write_text(f'[processing]\nlevels = ["1A", "3"]\ndem_path = "{elsewhere}"\n')
+    code = _process(run_dir, tmp_path / "out", "--options", str(opts))
+    _one_line(capsys, code, EXIT_BAD_INPUT, "does not cover scene 0")
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_archive_named_dot_is_not_a_name(run_dir, tmp_path, capsys) -> None:
+    odd = tmp_path / "..l0.h5"
+    shutil.copy(run_dir / "small_test.l0.h5", odd)
+    code = main(["campaign", str(odd), "--out", str(tmp_path / "c"), "-q"])
+    _one_line(capsys, code, EXIT_BAD_INPUT, "cannot name products after this file")
 
 
 def test_a_dem_is_checked_before_the_pass_is_emulated(tmp_path, capsys) -> None:

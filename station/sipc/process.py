@@ -276,10 +276,12 @@ def run_dem(l0_path: Path, archive: L0Archive) -> Path:
 
 def l0_stem(path: str | Path) -> str:
     """The name an L0 archive gives its products: ``<name>.l0.h5`` → ``<name>``."""
+    from station.scenario import NAME_PATTERN
+
     p = Path(path)
     stem = p.name.removesuffix(".h5").removesuffix(".l0")
-    if not stem:
-        raise L0Error(f"{p}: cannot name products after this file; give --name")
+    if not NAME_PATTERN.fullmatch(stem):  # ".", "" or a name no file should carry
+        raise L0Error(f"{p}: cannot name products after this file ({stem!r}); give --name")
     return stem
 
 
