@@ -330,3 +330,46 @@ def test_a_closed_pipe_is_not_an_error(run_dir) -> None:
     proc.stdout.close()  # before it writes: its first write meets a closed pipe
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 0 and b"Broken pipe" not in err and b"Errno" not in err, err
+
+
+def test_a_south_up_dem_is_the_same_dem(run_dir, tmp_path) -> None:
+    """A DEM stored south-up (positive y step, rows from the south) is read where it is:
+    level 3 over it is the level 3 over the same heights stored north-up."""
+    import warnings
+
+    import rasterio
+    from rasterio.transform import Affine
+
+    lat = -15.2 - 0.01 * np.arange(80)  # north → south, 0.01°
+    lon = -56.5 + 0.01 * np.arange(80)
+    heights = (300.0 + 2000.0 * (lat[:, None] + 15.6) + 900.0 * (lon[None, :] + 56.1)).astype(
+        np.float32
+    )
+    north_up = Affine(0.01, 0.0, -56.505, 0.0, -0.01, -15.195)
+    south_up = Affine(0.01, 0.0, -56.505, 0.0, 0.01, -15.195 - 0.8)
+    dirs = []
+    for name, gt, h in (("north", north_up, heights), ("south", south_up, heights[::-1])):
+        path = tmp_path / f"{name}.tif"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PendingDeprecationWarning)
+            with rasterio.open(
+                path,
+                "w",
+                driver="GTiff",
+                width=80,
+                height=80,
+                count=1,
+                dtype="float32",
+                crs="EPSG:4326",
+                transform=gt,
+            ) as d:
+                d.write(h[None])
+        opts = tmp_path / f"{name}.toml"
+        opts.write_text(f'[processing]\nlevels = ["3"]\ndem_path = "{path}"\n')
+        out = tmp_path / f"out_{name}"
+        assert _process(run_dir, out, "--options", str(opts)) == 0
+        dirs.append(out)
+    from levels.products import read_product
+
+    a, b = (read_product(d / "small_test_s000_3.h5").bands["P"] for d in dirs)
+    assert np.array_equal(a.valid, b.valid) and np.array_equal(a.image, b.image)
