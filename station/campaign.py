@@ -73,7 +73,9 @@ def run_campaign(
     runner: Runner | None = None,
 ) -> dict[str, Any]:
     """Process each archive into ``out/<archive>/`` (module docstring); returns the
-    campaign report, also written to ``out/campaign.json``.
+    campaign report, also written to ``out/campaign.json``. The campaign is built beside
+    ``out`` and replaces it whole once complete; one with failed archives is not published
+    over an earlier campaign (:class:`StationError` naming them; the earlier one stays).
 
     The archives go in batches (one in process; twice as many as workers on Dask, so
     that the workers always have scenes while the next archives are planned): each is
@@ -98,8 +100,20 @@ def run_campaign(
         "a campaign",
         [*archives, *([options.dem_path] if options.dem_path else [])],
     )
+    previous = target.is_dir() and any(target.iterdir())
     with staged_dir(target) as stage:  # the previous campaign stays whole until this one is
-        return _run(archives, names, target, stage, options, progress, runner)
+        report = _run(archives, names, target, stage, options, progress, runner)
+        failed = [a for a in report["archives"] if a["status"] != "ok"]
+        if failed and previous:  # never a campaign with failures over a good one
+            what = "; ".join(f"{a['name']}: {a['reason']}" for a in failed)
+            message = (
+                f"{len(failed)} of {len(archives)} archive(s) failed ({what}): not published "
+                "over the previous campaign"
+            )
+            if any(a["kind"] == "internal error" for a in failed):
+                raise RuntimeError(message)  # a bug made it fail: said as one
+            raise StationError(message)
+    return report
 
 
 def _run(

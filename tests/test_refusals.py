@@ -373,3 +373,61 @@ def test_a_south_up_dem_is_the_same_dem(run_dir, tmp_path) -> None:
 
     a, b = (read_product(d / "small_test_s000_3.h5").bands["P"] for d in dirs)
     assert np.array_equal(a.valid, b.valid) and np.array_equal(a.image, b.image)
+
+
+def test_heights_in_kilometres_are_said(run_dir, tmp_path, capsys) -> None:
+    """A DEM in km over the small scene (0.45): made, with a warning naming the file."""
+    km = _write_dem(tmp_path / "km.tif", 0.45, "EPSG:4326")
+    import rasterio
+
+    with rasterio.open(km, "r+") as d:  # not whole numbers: 0.45 km ± 0.05
+        d.write((0.45 + 0.05 * np.random.default_rng(1).random((1, 20, 20))).astype(np.float32))
+    opts = tmp_path / "opts.toml"
+    opts.write_text(f'[processing]\nlevels = ["3"]\ndem_path = "{km}"\n')
+    code = main(
+        [
+            "process",
+            str(run_dir / "small_test.l0.h5"),
+            "--options",
+            str(opts),
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 0 and "kilometres rather than metres?" in err and "km.tif" in err, err
+
+
+def test_a_failed_reprocessing_or_campaign_leaves_the_previous_one(run_dir, tmp_path, capsys):
+    """Reprocessing into an earlier reprocessing's directory, then failing (control points
+    out of reach; a campaign whose one archive is damaged makes nothing): the earlier
+    products and reports, byte for byte."""
+
+    def tree(d: Path) -> dict[str, bytes]:
+        return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+
+    out = tmp_path / "out"
+    assert _process(run_dir, out) == 0
+    before = tree(out)
+    far = _gcps_moved(run_dir / "small_test.gcp.csv", tmp_path / "far.csv", dlon=18.0)
+    code = _process(run_dir, out, "--levels", "2", "--gcps", str(far))
+    _one_line(capsys, code, EXIT_BAD_INPUT, "within reach", f"{out} left as it was")
+    assert tree(out) == before
+    camp = tmp_path / "camp"
+    assert main(["campaign", str(run_dir / "small_test.l0.h5"), "--out", str(camp), "-q"]) == 0
+    before = tree(camp)
+    opts = tmp_path / "bad.toml"
+    opts.write_text('[processing]\nlevels = ["3"]\ndem_path = "missing.tif"\n')
+    code = main(
+        [
+            "campaign",
+            str(run_dir / "small_test.l0.h5"),
+            "--options",
+            str(opts),
+            "--out",
+            str(camp),
+            "-q",
+        ]
+    )
+    _one_line(capsys, code, EXIT_BAD_INPUT, "not published over the previous", "left as it was")
+    assert tree(camp) == before
