@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 import pyproj
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from levels import __version__
 from levels.adjust import Adjustment, Strip, adjust, adjust_strips
@@ -431,6 +431,17 @@ def _twin_adjustment(
     return out
 
 
+def on_dem(dem: Dem, lat_rad: ArrayLike, lon_rad: ArrayLike) -> NDArray[np.bool_]:
+    """Which geodetic points lie on the DEM's grid (voids or not)."""
+    to_dem = pyproj.Transformer.from_crs(
+        "EPSG:4326", pyproj.CRS.from_wkt(dem.crs_wkt), always_xy=True
+    )
+    x, y = to_dem.transform(np.degrees(lon_rad), np.degrees(lat_rad))
+    row, col = dem.pixel_of(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+    n_rows, n_cols = dem.height_m.shape
+    return np.asarray((row >= -0.5) & (row <= n_rows - 0.5) & (col >= -0.5) & (col <= n_cols - 0.5))
+
+
 def check_coverage(dem: Dem, scenes: Sequence[SceneGeometry]) -> None:
     """:class:`DemError` naming the first scene none of whose corners nor its centre lies
     on the DEM's grid: level 3 would fail there after everything else was made. A scene
@@ -438,14 +449,7 @@ def check_coverage(dem: Dem, scenes: Sequence[SceneGeometry]) -> None:
     for s in scenes:
         lat = np.append(s.corners_lat_rad, s.centre_lat_rad)
         lon = np.append(s.corners_lon_rad, s.centre_lon_rad)
-        to_dem = pyproj.Transformer.from_crs(
-            "EPSG:4326", pyproj.CRS.from_wkt(dem.crs_wkt), always_xy=True
-        )
-        x, y = to_dem.transform(np.degrees(lon), np.degrees(lat))
-        row, col = dem.pixel_of(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
-        n_rows, n_cols = dem.height_m.shape
-        on = (row >= -0.5) & (row <= n_rows - 0.5) & (col >= -0.5) & (col <= n_cols - 0.5)
-        if not on.any():
+        if not on_dem(dem, lat, lon).any():
             raise DemError(
                 f"the DEM {dem.source} does not cover scene {s.cut.index} (centre "
                 f"{np.degrees(s.centre_lat_rad):.3f}°, {np.degrees(s.centre_lon_rad):.3f}°): "

@@ -18,6 +18,7 @@ from __future__ import annotations
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from station.errors import StationError
 from station.scenario import Scenario
@@ -135,7 +136,8 @@ def check_needs(needs: Needs, out: Path) -> dict[str, float | None]:
 def check_scenario(scn: Scenario) -> list[str]:
     """The files a scenario names, read now (:class:`StationError`, :class:`LevelsError`
     on the first that cannot be used); returns what was checked, in words."""
-    from levels.process import pass_dem
+    from levels.makers.base import Need
+    from levels.process import pass_dem, plan_levels
     from levels.readers.dem import read_dem
 
     done = []
@@ -158,7 +160,31 @@ def check_scenario(scn: Scenario) -> list[str]:
         done.append(f"world DEM {path.name}")
     if scn.processing.dem_path:
         dem = read_dem(scn.processing.dem_path, scn.processing.dem_vertical)
+        if any(Need.DEM in m.needs for m in plan_levels(scn.processing.levels)):
+            _check_covers(scn, dem)
         done.append(f"level 3 DEM {Path(scn.processing.dem_path).name} ({dem.height_m.shape})")
     elif scn.dem is None:
         pass_dem(scn.processing)  # a level needing a DEM without one: said now
     return done
+
+
+def _check_covers(scn: Scenario, dem: Any) -> None:
+    """:class:`StationError` when the level 3 DEM lies off the pass: the pass's footprint
+    traced on the geometry alone (no image rendered: a fraction of a second), its corners
+    and centre against the DEM's grid (``levels.process.on_dem``)."""
+    import numpy as np
+
+    from levels.process import on_dem
+    from station.spacecraft.dem import _footprint_rad
+    from station.spacecraft.emulator import emulate_pass
+
+    south, north, west, east = _footprint_rad(emulate_pass(scn, render=False))
+    lat = np.array([south, south, north, north, 0.5 * (south + north)])
+    lon = np.array([west, east, west, east, 0.5 * (west + east)])
+    if not on_dem(dem, lat, lon).any():
+        d = np.degrees
+        raise StationError(
+            f"the level 3 DEM {Path(scn.processing.dem_path).name} does not cover the pass "
+            f"(latitudes {d(south):.3f}° to {d(north):.3f}°, longitudes {d(west):.3f}° to "
+            f"{d(east):.3f}°): give one over it"
+        )

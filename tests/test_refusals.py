@@ -253,9 +253,12 @@ def test_an_archive_named_dot_is_not_a_name(run_dir, tmp_path, capsys) -> None:
 
 
 def test_a_dem_is_checked_before_the_pass_is_emulated(tmp_path, capsys) -> None:
-    """A missing level 3 DEM, a world DEM not there, heights in feet: one line at once."""
+    """A level 3 DEM off the pass (its footprint traced on the geometry alone), missing,
+    none, a world DEM not there, heights in feet: one line, before the pass is imaged."""
     feet = _write_dem(tmp_path / "feet.tif", 29_000.0, "EPSG:4326")  # Everest in feet
+    away = _write_dem(tmp_path / "away.tif", 300.0, "EPSG:4326", (10.0, 5.0))
     cases = [
+        (f'[processing]\nlevels = ["3"]\ndem_path = "{away}"\n', "does not cover the pass"),
         ('[processing]\nlevels = ["3"]\ndem_path = "missing.tif"\n', "not found"),
         ('[processing]\nlevels = ["3"]\n', "needs a DEM"),
         ('[world]\nkind = "dem"\ndem_path = "N00E010.hgt"\n', "not found"),
