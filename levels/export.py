@@ -7,9 +7,12 @@ tags carry the level, scene, instrument and the provenance of the product.
 
 - Map levels (2A, 2, 3): the product's CRS (its WKT) and its north-up geotransform.
 - Image-geometry levels (1A, 1B): the RPCs the product carries (:mod:`levels.geo.rpc`,
-  fitted to the rigorous model; the first band's, whose fit error goes in ``ERR_RAND``) in
-  GDAL's RPC metadata, so that ``gdalwarp -rpc -to RPC_DEM=dem.tif`` orthorectifies it. A
-  product written before RPCs were is refused with a clear error.
+  fitted to the rigorous model; the first band's, whose fit error goes in ``ERR_RAND``, in
+  metres) in GDAL's RPC metadata, so that ``gdalwarp -rpc -to RPC_DEM=dem.tif``
+  orthorectifies it. A product written before RPCs were is refused with a clear error.
+
+The products themselves need no export for that: :func:`write_rpc_sidecar` writes, beside
+each 1A and 1B product, the PAM sidecar in which GDAL finds each band's RPCs.
 """
 
 from __future__ import annotations
@@ -23,12 +26,38 @@ from levels.files import atomic_path
 from levels.geo.rpc import Rpc
 from levels.products import Product
 
-__all__ = ["MAP_LEVELS", "RPC_LEVELS", "write_geotiff"]
+__all__ = ["MAP_LEVELS", "RPC_LEVELS", "write_geotiff", "write_rpc_sidecar"]
 
 #: Levels on a map grid, which a GeoTIFF's geotransform can describe.
 MAP_LEVELS = ("2A", "2", "3")
 #: Levels in image geometry, exported with their RPCs.
 RPC_LEVELS = ("1A", "1B")
+
+
+def write_rpc_sidecar(product: Product, path: str | Path) -> Path | None:
+    """Beside an image-geometry product at ``path``, GDAL's PAM sidecar ``<path>.aux.xml``
+    with each band's RPCs in its ``RPC`` metadata domain, so that GDAL finds them on the
+    product as written: ``gdalwarp -rpc -to RPC_DEM=dem.tif NETCDF:"<path>":P out.tif``
+    (the netCDF driver names the band's subdataset ``P``, the HDF5 driver ``//P``: both are
+    given). None (nothing written) for a map level or a product without RPCs."""
+    from xml.sax.saxutils import escape, quoteattr
+
+    from levels.files import write_text
+
+    trees = product.geometry.get("rpc") if product.level in RPC_LEVELS else None
+    if not trees:
+        return None
+    parts = ["<PAMDataset>"]
+    for band, tree in trees.items():
+        md = Rpc.from_tree(tree).gdal_metadata()
+        items = "".join(f"<MDI key={quoteattr(k)}>{escape(v)}</MDI>" for k, v in md.items())
+        for name in (band, f"//{band}"):
+            parts.append(
+                f"  <Subdataset name={quoteattr(name)}><PAMDataset>"
+                f'<Metadata domain="RPC">{items}</Metadata></PAMDataset></Subdataset>'
+            )
+    parts.append("</PAMDataset>")
+    return write_text(Path(f"{path}.aux.xml"), "\n".join(parts) + "\n")
 
 
 def write_geotiff(product: Product, path: str | Path) -> Path:

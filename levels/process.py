@@ -46,6 +46,7 @@ from levels.choices import AdjustmentScope
 from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
 from levels.cor.resample import with_nan
 from levels.errors import DemError, GcpError, GeometryError, LevelsError, OptionsError
+from levels.export import write_rpc_sidecar
 from levels.geo.scenes import PassGeometry, SceneCut, SceneGeometry, cut_scenes, pass_geometry
 from levels.geometry.sensor import LookAngleTable
 from levels.makers.base import BandPixels, LevelMaker, Need, PassContext, Reads, SceneWork
@@ -673,5 +674,10 @@ def _write(work: SceneWork, maker: LevelMaker, quality: dict[str, Any]) -> Path:
         {**ctx.provenance, "level": level},
         maker.map_grid(work),
     )
-    path = ctx.out / product_name(ctx.name, work.scene.cut.index, level)
-    return write_product(path, product, ctx.options.deflate_level)
+    path = write_product(
+        ctx.out / product_name(ctx.name, work.scene.cut.index, level),
+        product,
+        ctx.options.deflate_level,
+    )
+    write_rpc_sidecar(product, path)  # GDAL finds the RPCs on the product as written
+    return path

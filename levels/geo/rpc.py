@@ -173,7 +173,9 @@ class Rpc:
 
     def gdal_metadata(self) -> dict[str, str]:
         """GDAL's ``RPC`` metadata domain (what ``rasterio``'s ``RPC.to_gdal`` gives), with
-        the validity box and the fit's RMS error (``ERR_RAND``, pixels)."""
+        the validity box and the fit's error: ``ERR_RAND`` is RPC00B's random error in
+        metres on the ground (:meth:`random_error_m`); ``ERR_BIAS`` −1, unknown (the bias is
+        the rigorous model's, not the fit's)."""
         md = {
             name: repr(float(getattr(self, attr)))
             for name, attr in zip(_GDAL_NAMES, _SCALARS, strict=True)
@@ -185,8 +187,29 @@ class Rpc:
         md["MIN_LONG"] = repr(self.lon_off - self.lon_scale)
         md["MAX_LONG"] = repr(self.lon_off + self.lon_scale)
         md["ERR_BIAS"] = "-1.0"
-        md["ERR_RAND"] = repr(float(self.fit_error_px.get("rms_px", -1.0)))
+        md["ERR_RAND"] = repr(self.random_error_m())
         return md
+
+    def ground_sample_m(self) -> float:
+        """The ground size of a pixel at the RPC's centre (m): the square root of the area
+        one pixel covers, from the RPC's own Jacobian over the local east and north."""
+        lat, lon, h = self.lat_off, self.lon_off, self.height_off
+        d = 1e-5  # degrees: a metre or so, well inside the rational function's smoothness
+        m_lat = 111_132.954 - 559.822 * np.cos(np.radians(2 * lat))  # m per degree
+        m_lon = 111_412.84 * np.cos(np.radians(lat))
+        l0, s0 = self.image_of(lat, lon, h)
+        ln, sn = self.image_of(lat + d, lon, h)
+        le, se = self.image_of(lat, lon + d, h)
+        jac = np.array([[le - l0, ln - l0], [se - s0, sn - s0]]) / (d * np.array([m_lon, m_lat]))
+        return float(1.0 / np.sqrt(abs(np.linalg.det(jac))))
+
+    def random_error_m(self) -> float:
+        """The fit's RMS error on the ground (m): its RMS in pixels (``fit_error_px``) times
+        :meth:`ground_sample_m`; −1 (RPC00B's "unknown") when the fit was not measured."""
+        rms = self.fit_error_px.get("rms_px")
+        if rms is None:
+            return -1.0
+        return float(rms) * self.ground_sample_m()
 
     def rpc_txt(self) -> str:
         """The ``<image>_RPC.TXT`` sidecar GDAL reads next to an image (``KEY: value``)."""
@@ -201,7 +224,8 @@ class Rpc:
         return "\n".join(lines) + "\n"
 
     def rpb(self) -> str:
-        """The ``<image>.RPB`` sidecar (DigitalGlobe's keyword file, which GDAL reads too)."""
+        """The ``<image>.RPB`` sidecar (DigitalGlobe's keyword file, which GDAL reads too);
+        ``errRand`` in metres as :meth:`gdal_metadata`'s ``ERR_RAND``."""
         keys = (
             "lineOffset",
             "sampOffset",
@@ -216,7 +240,7 @@ class Rpc:
         )
         rows = ['satId = "SPOT";', 'SpecId = "RPC00B";', "BEGIN_GROUP = IMAGE"]
         rows.append("\terrBias = -1.0;")
-        rows.append(f"\terrRand = {float(self.fit_error_px.get('rms_px', -1.0))!r};")
+        rows.append(f"\terrRand = {self.random_error_m()!r};")
         for key, attr in zip(keys, _SCALARS, strict=True):
             rows.append(f"\t{key} = {float(getattr(self, attr))!r};")
         for key, attr in zip(

@@ -1,0 +1,151 @@
+"""Products as GDAL reads them, as written: no export step. A 1A carries its RPCs where
+GDAL finds them (a PAM sidecar beside the product), and GDAL's RPC orthorectification of it
+over the run's DEM lands on our level 3 over relief."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from levels.products import read_product
+from levels.quality import image_shift_px
+from station.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+#: The issue's figure: GDAL's warp of our 1A over the DEM against our level 3, per tile.
+GDAL_VS_LEVEL3_PX = 0.1
+#: Tiles (output pixels) whose shift is measured: big enough for the phase correlation,
+#: small enough that the relief's displacement varies from one to the next.
+TILE_PX = 64
+#: Over flat ground at the reference height instead of the DEM, the same warp misses the
+#: relief's displacement: its tiles must scatter by more than this (the test can tell).
+FLAT_SCATTER_PX = 0.3
+
+SCENARIO = """
+name = "relief"
+seed = 1000
+[attitude]
+roll_offset_urad = 0.0
+pitch_offset_urad = 0.0
+yaw_offset_urad = 0.0
+drift_scale = 0.0
+jitter_amplitude_urad = [0.0, 0.0, 0.0]
+[bulletins]
+bias_m = [0.0, 0.0, 0.0]
+drift_m_per_s = [0.0, 0.0, 0.0]
+[instrument]
+mirror_step = 93
+calibration_error_urad = 0.0
+n_detectors = 400
+n_lines = 400
+[world]
+base_height_m = 700.0
+relief_m = 400.0
+[dem]
+spacing_arcsec = 3.0
+[downlink]
+bit_rate_mbps = 2.0
+preamble_s = 0.1
+postamble_s = 0.1
+[processing]
+levels = ["1A", "3"]
+reference_height_m = 700.0
+"""
+
+
+@pytest.fixture(scope="module")
+def relief_run(tmp_path_factory) -> Path:
+    """A reduced P scene at 27° over 400 m of fractal relief (150 m pixels: the relief
+    moves pixels by up to about 1.6 px), errors off, its 1A and level 3 over the DEM the
+    run exports."""
+    d = tmp_path_factory.mktemp("relief")
+    scn = d / "relief.toml"
+    scn.write_text(SCENARIO)
+    out = d / "run"
+    assert main(["run", str(scn), "--out", str(out), "-q", "--no-quicklooks"]) == 0
+    return out
+
+
+def _open(spec: str):
+    import rasterio
+
+    with warnings.catch_warnings():  # the netCDF driver's notes on the HDF5 groups
+        warnings.simplefilter("ignore")
+        return rasterio.open(spec)
+
+
+def _warp(src_spec: str, grid, **options) -> np.ndarray:
+    """GDAL's RPC warp (``gdalwarp -rpc``, cubic) of the product's band onto ``grid``."""
+    import rasterio.warp
+    from affine import Affine
+    from rasterio.enums import Resampling
+
+    out = np.zeros(grid.shape, dtype=np.float32)
+    with _open(src_spec) as ds:
+        assert ds.rpcs is not None, "GDAL finds no RPCs on the product"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rasterio.warp.reproject(
+                rasterio.band(ds, 1),
+                out,
+                rpcs=ds.rpcs,
+                src_crs="EPSG:4326",
+                dst_transform=Affine.from_gdal(*grid.geotransform),
+                dst_crs=grid.crs_wkt,
+                resampling=Resampling.cubic,
+                dst_nodata=0,
+                **options,
+            )
+    return out
+
+
+def _tile_shifts(ours: np.ndarray, valid: np.ndarray, theirs: np.ndarray) -> np.ndarray:
+    """The (rows, columns) shift of every full tile where both images are valid."""
+    shifts = []
+    for r in range(0, ours.shape[0] - TILE_PX + 1, TILE_PX):
+        for c in range(0, ours.shape[1] - TILE_PX + 1, TILE_PX):
+            win = (slice(r, r + TILE_PX), slice(c, c + TILE_PX))
+            both = valid[win] & (theirs[win] > 0)
+            if both.all():
+                shifts.append(image_shift_px(ours[win], theirs[win], both))
+    return np.array(shifts)
+
+
+def test_gdal_finds_the_rpcs_of_a_1a_as_written(relief_run) -> None:
+    """The netCDF and the HDF5 drivers both find the band's RPCs in the sidecar;
+    ERR_RAND is the fit's RMS in metres on the ground (RPC00B), not in pixels: the RMS in
+    pixels times the ground sample the RPC itself gives (150 m across at nadir for this
+    reduced P scene, more at 27°)."""
+    from levels.geo.rpc import Rpc
+
+    path = relief_run / "relief_s000_1A.h5"
+    rpc = Rpc.from_tree(read_product(path).geometry["rpc"]["P"])
+    gsd = rpc.ground_sample_m()
+    assert 150.0 < gsd < 200.0
+    for spec in (f'NETCDF:"{path}":P', f'HDF5:"{path}"://P'):
+        with _open(spec) as ds:
+            assert ds.rpcs is not None and ds.rpcs.line_off == pytest.approx(rpc.line_off)
+            assert ds.rpcs.err_rand == pytest.approx(rpc.fit_error_px["rms_px"] * gsd)
+    with _open(f'HDF5:"{path}"://P') as ds:  # the HDF5 driver reads the image as stored
+        assert np.array_equal(ds.read(1), read_product(path).bands["P"].image)
+
+
+def test_gdal_orthorectifies_the_1a_as_written_onto_level_3(relief_run) -> None:
+    """``gdalwarp -rpc -to RPC_DEM=relief.dem.tif`` of the 1A product itself onto the level
+    3 grid: every tile within 0.1 px of our level 3; over flat ground instead of the DEM,
+    the tiles scatter (the relief's displacement), so the comparison can tell."""
+    l3 = read_product(relief_run / "relief_s000_3.h5")
+    grid, band = l3.map_grid, l3.bands["P"]
+    assert grid is not None
+    # the HDF5 driver (GDAL's own for .h5): the netCDF driver reads an image without a
+    # decreasing y coordinate bottom-up, a 1A upside down
+    src = f'HDF5:"{relief_run / "relief_s000_1A.h5"}"://P'
+    dem = relief_run / "relief.dem.tif"
+    on_dem = _tile_shifts(band.image, band.valid, _warp(src, grid, RPC_DEM=str(dem)))
+    assert len(on_dem) >= 12
+    assert np.max(np.hypot(*on_dem.T)) <= GDAL_VS_LEVEL3_PX
+    flat = _tile_shifts(band.image, band.valid, _warp(src, grid, RPC_HEIGHT=700.0))
+    assert np.ptp(flat, axis=0).max() > FLAT_SCATTER_PX
