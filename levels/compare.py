@@ -71,7 +71,7 @@ DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
 
 
 #: Root attributes that say how a product is stored, not what it holds.
-_STORAGE_ATTRS = ("format_version", "Conventions")
+_STORAGE_ATTRS = ("format_version", "Conventions", "history")
 
 
 class CompareError(ProductError):

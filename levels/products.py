@@ -218,6 +218,29 @@ def _grid_mapping(f: h5py.File, grid: MapGrid) -> None:
     var.attrs["long_name"] = "map projection of the product"
 
 
+#: The CF version the products declare (1.9 and later allow the unsigned ``uint8`` images).
+CF_CONVENTIONS = "CF-1.11"
+
+
+def cf_global_attrs(product: Product) -> dict[str, str]:
+    """CF's global attributes (§2.6.2) of a product, from what it holds: ``Conventions``,
+    ``title``, ``institution``, ``source``, ``history``. Deterministic (no clock): a rerun
+    writes the same bytes; the software that wrote it is in ``history``."""
+    a, prov = product.attrs, product.provenance
+    what = f"level {a.get('level')}"
+    scene = f", scene {a['scene_index']}" if "scene_index" in a else ""
+    hrv = f"SPOT HRV{a['hrv']} {a.get('mode', '')}".strip() if "hrv" in a else "SPOT HRV"
+    return {
+        "Conventions": CF_CONVENTIONS,
+        "title": f"{hrv} {what} product{scene} of {a.get('name', 'a pass')}",
+        "institution": "spot-station: an emulated SPOT direct-receiving station and "
+        "processing centre (levels)",
+        "source": f"{hrv} pass, L0 archive {prov.get('inputs', '')}".rstrip(),
+        "history": f"{prov.get('software', 'levels')}: {what} made from "
+        f"{prov.get('inputs', 'its L0 archive')}",
+    }
+
+
 def write_product(path: str | Path, product: Product, deflate_level: int = DEFLATE_LEVEL) -> Path:
     """Write a product atomically (module docstring); returns its path. Its image bands
     are deflated at ``deflate_level`` (:func:`levels.hdf5.deflate`; 0: stored: the zlib
@@ -228,9 +251,8 @@ def write_product(path: str | Path, product: Product, deflate_level: int = DEFLA
     with new_hdf5(target) as f:
         f.attrs["format"] = PRODUCT_FORMAT
         f.attrs["format_version"] = PRODUCT_VERSION
-        f.attrs["Conventions"] = "CF-1.8"
         f.attrs["band_names"] = json.dumps(list(product.bands))
-        for k, v in product.attrs.items():
+        for k, v in {**product.attrs, **cf_global_attrs(product)}.items():
             f.attrs[k] = _attr(v)
         rows, cols = next(iter(product.bands.values())).image.shape
         dims = _dimensions(f, product.map_grid, rows, cols)
