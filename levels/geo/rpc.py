@@ -50,10 +50,20 @@ __all__ = [
     "RPC_HEIGHT_MARGIN_M",
     "Rpc",
     "fit_rpc",
+    "ground_on_dem",
     "rpc_of_1b",
     "rpc_of_model",
     "rpc_terms",
 ]
+
+#: The inverse (:meth:`Rpc.ground_of`) stops once the image position is this close (px),
+#: or after this many Newton steps (it takes 3–4 from the RPC's centre).
+INVERSE_TOL_PX = 1e-8
+INVERSE_MAX_ITERATIONS = 20
+#: Heights the DEM intersection (:func:`ground_on_dem`) iterates to (m), in at most so many
+#: steps: each takes the DEM's height under the last ground point.
+DEM_TOL_M = 1e-3
+DEM_MAX_ITERATIONS = 30
 
 #: Height range of a product's RPCs without a DEM: the reference height ± this (m).
 RPC_HEIGHT_MARGIN_M = 1000.0
@@ -171,6 +181,38 @@ class Rpc:
         samp = np.tensordot(self.samp_num, t, 1) / np.tensordot(self.samp_den, t, 1)
         return self.line_off + self.line_scale * line, self.samp_off + self.samp_scale * samp
 
+    def ground_of(
+        self, line: ArrayLike, sample: ArrayLike, height_m: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Latitude and longitude (degrees) of image points at heights (m above the
+        ellipsoid): :meth:`image_of` inverted by Newton's method (its Jacobian by finite
+        differences, all points at once), from the RPC's centre, until the image position
+        is within ``INVERSE_TOL_PX``; NaN where it does not converge (off the RPC's
+        validity, a denominator's zero). Longitudes within [−180°, 180°)."""
+        ln, sm, h = np.broadcast_arrays(
+            *(np.asarray(x, dtype=np.float64) for x in (line, sample, height_m))
+        )
+        lat = np.full(ln.shape, self.lat_off)
+        lon = np.full(ln.shape, self.lon_off)
+        d_lat, d_lon = 1e-7 * abs(self.lat_scale), 1e-7 * abs(self.lon_scale)
+        done = np.zeros(ln.shape, dtype=bool)
+        for _ in range(INVERSE_MAX_ITERATIONS):
+            l0, s0 = self.image_of(lat, lon, h)
+            el, es = ln - l0, sm - s0
+            done = np.abs(el) + np.abs(es) < INVERSE_TOL_PX
+            if done.all():
+                break
+            l1, s1 = self.image_of(lat + d_lat, lon, h)
+            l2, s2 = self.image_of(lat, lon + d_lon, h)
+            a, b = (l1 - l0) / d_lat, (l2 - l0) / d_lon
+            c, d = (s1 - s0) / d_lat, (s2 - s0) / d_lon
+            det = a * d - b * c
+            with np.errstate(divide="ignore", invalid="ignore"):
+                lat = np.where(done, lat, lat + (d * el - b * es) / det)
+                lon = np.where(done, lon, lon + (a * es - c * el) / det)
+        bad = ~done | ~np.isfinite(lat) | ~np.isfinite(lon)
+        return np.where(bad, np.nan, lat), np.where(bad, np.nan, wrap_degrees(lon))
+
     def gdal_metadata(self) -> dict[str, str]:
         """GDAL's ``RPC`` metadata domain (what ``rasterio``'s ``RPC.to_gdal`` gives), with
         the validity box and the fit's error: ``ERR_RAND`` is RPC00B's random error in
@@ -264,6 +306,29 @@ class Rpc:
         fields.update({k: np.asarray(tree[k], dtype=np.float64) for k in _COEFFS})
         errors = {k: float(v) for k, v in tree.get("fit_error_px", {}).items()}
         return cls(**fields, fit_error_px=errors)
+
+
+def ground_on_dem(
+    rpc: Rpc, line: ArrayLike, sample: ArrayLike, dem: Any, start_m: float | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Latitude, longitude (degrees) and height (m) where image points' rays meet a DEM
+    (:class:`levels.geometry.dem.Dem`, ellipsoidal heights through its datum): the ground
+    point at a height, then the DEM's height there, again, until the height moves less
+    than ``DEM_TOL_M`` (it contracts when the terrain's slope times the view angle's
+    tangent is under 1, as everywhere a satellite sees). NaN on voids and off the DEM."""
+    ln, sm = np.broadcast_arrays(np.asarray(line, float), np.asarray(sample, float))
+    h = np.full(ln.shape, rpc.height_off if start_m is None else float(start_m))
+    lat = lon = np.full(ln.shape, np.nan)
+    for _ in range(DEM_MAX_ITERATIONS):
+        lat, lon = rpc.ground_of(ln, sm, h)
+        new = dem.heights(np.radians(lat), np.radians(lon))
+        moved = np.abs(new - h)
+        h = new
+        if not np.any(moved > DEM_TOL_M):  # NaN (voids) compare False: done there
+            break
+    lat, lon = rpc.ground_of(ln, sm, h)
+    bad = ~np.isfinite(h)
+    return np.where(bad, np.nan, lat), np.where(bad, np.nan, lon), h
 
 
 def wrap_degrees(angle: ArrayLike) -> Any:
