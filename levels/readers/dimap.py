@@ -249,10 +249,21 @@ def read_dimap(path: str | Path) -> DimapScene:
             f"{source}: not an XML document ({exc}); expected a DIMAP METADATA.DIM"
         ) from None
     fmt = root.findtext("Metadata_Id/METADATA_FORMAT")
-    if root.tag != "Dimap_Document" or (fmt or "").strip() != "DIMAP":
+    v2 = root.find("Metadata_Identification/METADATA_FORMAT")
+    if root.tag == "Dimap_Document" and v2 is not None:
+        version = v2.get("version", "2")
         raise DimapError(
-            f"{source}: not a DIMAP document (root <{root.tag}>, METADATA_FORMAT {fmt!r}); "
-            "expected <Dimap_Document> with METADATA_FORMAT DIMAP"
+            f"{source}: DIMAP v{version} (SPOT 6/7, Pléiades), not the SPOT 1–5 DIMAP v1 this "
+            "reads; its geometry is the RPC_*.XML beside it (levels.readers.rpc.read_rpc)"
+        )
+    if root.tag != "Dimap_Document":
+        raise DimapError(
+            f"{source}: not a DIMAP document (root <{root.tag}>, expected <Dimap_Document>)"
+        )
+    if (fmt or "").strip() != "DIMAP":
+        raise DimapError(
+            f"{source}: <Dimap_Document> without Metadata_Id/METADATA_FORMAT DIMAP "
+            f"(found {fmt!r}): not a SPOT 1–5 DIMAP v1 METADATA.DIM"
         )
 
     n_cols = _number(root, "Raster_Dimensions/NCOLS", source, int)
