@@ -149,6 +149,7 @@ def _variant(tmp_path: Path, dimap_dir: Path, edit) -> Path:
     ids=[
         "not-xml",
         "not-dimap",
+        "dimap-v2",
         "no-ncols",
         "bad-period",
         "detectors-beyond-ncols",
