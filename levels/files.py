@@ -149,6 +149,8 @@ def staged_dir(target: str | Path) -> Iterator[Path]:
     cannot be written.
     """
     target = Path(target)
+    if target.is_symlink():  # the directory it points to is replaced, the link stays
+        target = target.resolve()
     parent = target.parent
     try:
         parent.mkdir(parents=True, exist_ok=True)

@@ -122,8 +122,10 @@ def _variant(tmp_path: Path, dimap_dir: Path, edit) -> Path:
         (lambda t: "not xml at all", "not an XML document"),
         (lambda t: "<?xml version='1.0'?><Landsat/>", "not a DIMAP document"),
         (
-            lambda t: "<Dimap_Document><Metadata_Identification><METADATA_FORMAT "
-            'version="2.15">DIMAP</METADATA_FORMAT></Metadata_Identification></Dimap_Document>',
+            lambda t: (
+                "<Dimap_Document><Metadata_Identification><METADATA_FORMAT "
+                'version="2.15">DIMAP</METADATA_FORMAT></Metadata_Identification></Dimap_Document>'
+            ),
             r"DIMAP v2\.15 \(SPOT 6/7, Pléiades\).*RPC_\*\.XML",
         ),
         (lambda t: re.sub(r"<NCOLS>.*?</NCOLS>", "", t), "missing element Raster_Dimensions/NCOLS"),
