@@ -287,7 +287,7 @@ def bench_writing(out: Path) -> None:
     import h5py
 
     import levels.products as products
-    from levels.products import read_product, write_product
+    from levels.products import is_product_file, read_product, write_product
 
     print(f"\n4. writing one full P product, {numba.get_num_threads()} threads (target ≤ 0.5 s):")
     own = products.deflated_dataset
@@ -303,7 +303,7 @@ def bench_writing(out: Path) -> None:
             fletcher32=True,
         )
 
-    for path in sorted(out.glob("bench_s000_*.h5")):
+    for path in sorted(q for q in out.glob("bench_s000_*") if is_product_file(q)):
         product = read_product(path)
         target = out / "rewritten.h5"
         figures = []

@@ -39,6 +39,7 @@ from pathlib import Path
 
 from levels.options import ProcessingOptions
 from levels.process import all_made, run_plans
+from levels.products import is_product_file
 from levels.tasks import DaskRunner, InProcess, Runner, dask_runner
 from station.scenario import scenario_from_dict
 from station.sipc.process import plan_reprocess
@@ -138,7 +139,7 @@ def machine_scaling(kind: str) -> float:
 
 
 def products(out: Path) -> dict[str, bytes]:
-    return {p.name: p.read_bytes() for p in sorted(out.glob("*.h5"))}
+    return {p.name: p.read_bytes() for p in sorted(q for q in out.glob("*") if is_product_file(q))}
 
 
 def differences(a: Path, b: Path) -> None:

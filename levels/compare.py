@@ -43,7 +43,7 @@ import pyproj
 from levels.errors import ProductError
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
-from levels.products import Product, read_product
+from levels.products import Product, is_product_file, read_product
 from levels.quality import scalar_figures
 
 __all__ = [
@@ -208,7 +208,7 @@ def compare_paths(
 
 
 def _products_in(d: Path) -> dict[str, Path]:
-    return {p.name: p for p in sorted(d.glob("*.h5")) if not p.name.endswith(".l0.h5")}
+    return {p.name: p for p in sorted(d.iterdir()) if p.is_file() and is_product_file(p)}
 
 
 def compare_directories(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> Comparison:
@@ -217,7 +217,7 @@ def compare_directories(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> C
     out = Comparison(str(a), str(b))
     pa, pb = _products_in(a), _products_in(b)
     if not pa and not pb:
-        raise CompareError(f"no level products (*.h5) in {a} or {b}")
+        raise CompareError(f"no level products (*.nc, *.h5) in {a} or {b}")
     out.findings[""] = [
         Finding(
             "files",

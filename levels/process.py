@@ -675,7 +675,7 @@ def _write(work: SceneWork, maker: LevelMaker, quality: dict[str, Any]) -> Path:
         maker.map_grid(work),
     )
     path = write_product(
-        ctx.out / product_name(ctx.name, work.scene.cut.index, level),
+        ctx.out / product_name(ctx.name, work.scene.cut.index, level, product.map_grid is not None),
         product,
         ctx.options.deflate_level,
     )

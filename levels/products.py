@@ -94,9 +94,25 @@ _UNITS = (
 )
 
 
-def product_name(name: str, scene_index: int, level: str) -> str:
-    """The file name of a scene's product at a level: ``<name>_s<scene>_<level>.h5``."""
-    return f"{name}_s{scene_index:03d}_{level}.h5"
+#: File name extensions: a map level is ``.nc`` (netCDF-4, as CF §2.1 asks: GDAL, QGIS
+#: and xarray take it by its netCDF driver, georeferenced); an image-geometry level keeps
+#: ``.h5``, which GDAL opens with its HDF5 driver, as stored (its netCDF driver reads an
+#: image without a decreasing y coordinate bottom-up: a 1A upside down under its RPCs).
+MAP_SUFFIX, IMAGE_SUFFIX = ".nc", ".h5"
+#: What a directory of products holds (``compare``, ``inspect``): both, L0 archives aside.
+PRODUCT_SUFFIXES = (MAP_SUFFIX, IMAGE_SUFFIX)
+
+
+def product_name(name: str, scene_index: int, level: str, on_map: bool = False) -> str:
+    """The file name of a scene's product at a level: ``<name>_s<scene>_<level>.nc`` on a
+    map grid (``on_map``), ``….h5`` in image geometry (:data:`MAP_SUFFIX`)."""
+    return f"{name}_s{scene_index:03d}_{level}{MAP_SUFFIX if on_map else IMAGE_SUFFIX}"
+
+
+def is_product_file(path: str | Path) -> bool:
+    """A file named as a product (``.nc`` or ``.h5``, not an L0 archive ``.l0.h5``)."""
+    n = Path(path).name
+    return n.endswith(PRODUCT_SUFFIXES) and not n.endswith(".l0.h5") and not n.startswith(".")
 
 
 def units_of(name: str) -> str:

@@ -10,7 +10,7 @@ directory then holds the L0 archive, the products, a quicklook PNG per product a
     <out>/<name>.l0.h5
     <out>/<name>.gcp.csv
     <out>/<name>.dem.tif          (with [dem]: the DEM the station is handed for level 3)
-    <out>/<name>_s<scene>_<level>.h5
+    <out>/<name>_s<scene>_<level>.nc    (2A, 2, 3; 1A and 1B: .h5, with .h5.aux.xml)
     <out>/quicklooks/<name>_s<scene>_<level>.png
     <out>/report.json
 

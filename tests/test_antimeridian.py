@@ -125,7 +125,7 @@ def test_a_scene_across_the_antimeridian_through_gdal(run, tmp_path) -> None:
     from levels.geo.level2a import Level2AGeometry
     from levels.products import read_product
 
-    p2a = read_product(run / "antimeridian_s000_2A.h5")
+    p2a = read_product(run / "antimeridian_s000_2A.nc")
     tif = write_geotiff(read_product(run / "antimeridian_s000_1A.h5"), tmp_path / "1a.tif")
     with rasterio.open(tif) as ds:
         rpcs = ds.rpcs
@@ -162,7 +162,7 @@ def test_level_3_across_the_antimeridian(run) -> None:
 
     with rasterio.open(run / "antimeridian.dem.tif") as ds:
         assert ds.bounds.left < 180.0 < ds.bounds.right and ds.bounds.right - ds.bounds.left < 2
-    p2a, p3 = (read_product(run / f"antimeridian_s000_{lv}.h5") for lv in ("2A", "3"))
+    p2a, p3 = (read_product(run / f"antimeridian_s000_{lv}.nc") for lv in ("2A", "3"))
     v2a, v3 = (float(p.bands["P"].valid.mean()) for p in (p2a, p3))
     assert v3 == pytest.approx(v2a, abs=SAME_VALID_SHARE)
     report = json.loads((run / "report.json").read_text())

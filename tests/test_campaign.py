@@ -11,6 +11,7 @@ import h5py
 import numpy as np
 import pytest
 
+from levels.products import product_name
 from station.cli import EXIT_BAD_INPUT, main
 
 
@@ -45,7 +46,7 @@ def test_a_campaign_names_its_failures_and_finishes_the_rest(archives, tmp_path,
     assert main(["process", str(archives / "pass_a.l0.h5"), "--out", str(single)]) == 0
     capsys.readouterr()
     for level in ("1A", "1B", "2A"):
-        name = f"pass_a_s000_{level}.h5"
+        name = product_name("pass_a", 0, level, on_map=level == "2A")
         with h5py.File(out / "pass_a" / name) as a, h5py.File(single / name) as b:
             for var in ("P", "P_valid"):
                 assert np.array_equal(a[var][()], b[var][()])

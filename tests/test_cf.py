@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from levels.products import product_name
 from station.cli import main
 
 LEVELS = ("1A", "1B", "2A", "2", "3")
@@ -44,14 +45,15 @@ def every_level(tmp_path_factory) -> Path:
 
 @pytest.mark.parametrize("level", LEVELS)
 def test_cf_1_11_without_a_failure(level, every_level, tmp_path, capsys) -> None:
-    """CF §2.1 asks for the ``.nc`` name: the product is checked under it (the products
-    are written ``.h5`` until the rename; their content is what is checked)."""
+    """CF §2.1 asks for the ``.nc`` name, which the map levels have; the image-geometry
+    levels keep ``.h5`` (for GDAL's sake: ``levels.products.MAP_SUFFIX``) and are checked
+    under a ``.nc`` copy: their content is what is checked."""
     import warnings
 
     from compliance_checker.runner import CheckSuite, ComplianceChecker
 
     nc = tmp_path / f"cf_{level}.nc"
-    shutil.copy(every_level / f"cf_s000_{level}.h5", nc)
+    shutil.copy(every_level / product_name("cf", 0, level, level in ("2A", "2", "3")), nc)
     CheckSuite.load_all_available_checkers()
     report = tmp_path / "report.json"
     with warnings.catch_warnings():

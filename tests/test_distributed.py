@@ -18,6 +18,7 @@ import h5py
 import pytest
 
 from levels.errors import L0Error
+from levels.products import is_product_file, product_name
 from levels.tasks import InProcess, TaskFailure
 from station.cli import EXIT_BAD_INPUT, EXIT_INTERNAL, main
 
@@ -139,7 +140,11 @@ def _campaign(archives: Path, out: Path, *extra: str) -> tuple[int, dict]:
 
 
 def _products(out: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*.h5"))}
+    return {
+        str(p.relative_to(out)): p.read_bytes()
+        for p in sorted(out.rglob("*"))
+        if is_product_file(p)
+    }
 
 
 def test_products_are_bit_for_bit_the_same_wherever_they_are_made(
@@ -204,8 +209,12 @@ def test_a_failed_scene_is_named_and_the_others_are_finished(
     z = entries["pass_z"]
     assert z["status"] == "failed" and z["kind"] == "bad input"
     assert z["failed_scenes"] == ["pass_z-s003"] and z["scenes"] == 3
-    made = sorted(p.name for p in (tmp_path / "out" / "pass_z").glob("*.h5"))
-    assert made == [f"pass_z_s{k:03d}_{lv}.h5" for k in range(3) for lv in ("1A", "1B", "2A")]
+    made = sorted(p.name for p in (tmp_path / "out" / "pass_z").iterdir() if is_product_file(p))
+    assert made == sorted(
+        product_name("pass_z", k, lv, on_map=lv == "2A")
+        for k in range(3)
+        for lv in ("1A", "1B", "2A")
+    )
 
 
 def test_a_bug_in_one_scene_is_raised_after_the_others(archives, tmp_path, monkeypatch) -> None:

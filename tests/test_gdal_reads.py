@@ -1,6 +1,7 @@
-"""Products as GDAL reads them, as written: no export step. A 1A carries its RPCs where
-GDAL finds them (a PAM sidecar beside the product), and GDAL's RPC orthorectification of it
-over the run's DEM lands on our level 3 over relief."""
+"""Products as GDAL reads them, as written: no export step. A map product (``.nc``) opens
+georeferenced as its GeoTIFF export does; a 1A (``.h5``) carries its RPCs where GDAL finds
+them (a PAM sidecar beside the product), and GDAL's RPC orthorectification of it over the
+run's DEM lands on our level 3 over relief."""
 
 from __future__ import annotations
 
@@ -51,7 +52,7 @@ bit_rate_mbps = 2.0
 preamble_s = 0.1
 postamble_s = 0.1
 [processing]
-levels = ["1A", "3"]
+levels = ["1A", "2A", "3"]
 reference_height_m = 700.0
 """
 
@@ -137,7 +138,7 @@ def test_gdal_orthorectifies_the_1a_as_written_onto_level_3(relief_run) -> None:
     """``gdalwarp -rpc -to RPC_DEM=relief.dem.tif`` of the 1A product itself onto the level
     3 grid: every tile within 0.1 px of our level 3; over flat ground instead of the DEM,
     the tiles scatter (the relief's displacement), so the comparison can tell."""
-    l3 = read_product(relief_run / "relief_s000_3.h5")
+    l3 = read_product(relief_run / "relief_s000_3.nc")
     grid, band = l3.map_grid, l3.bands["P"]
     assert grid is not None
     # the HDF5 driver (GDAL's own for .h5): the netCDF driver reads an image without a
@@ -149,3 +150,26 @@ def test_gdal_orthorectifies_the_1a_as_written_onto_level_3(relief_run) -> None:
     assert np.max(np.hypot(*on_dem.T)) <= GDAL_VS_LEVEL3_PX
     flat = _tile_shifts(band.image, band.valid, _warp(src, grid, RPC_HEIGHT=700.0))
     assert np.ptp(flat, axis=0).max() > FLAT_SCATTER_PX
+
+
+@pytest.mark.parametrize("level", ["2A", "3"])
+def test_gdal_opens_a_map_product_as_written(level, relief_run, tmp_path) -> None:
+    """``gdalinfo relief_s000_3.nc``, no prefix: GDAL's netCDF driver takes the file, its
+    image band the first subdataset, georeferenced: the CRS and the transform of the
+    product's GeoTIFF export (and of its own map grid), the image as stored."""
+    from rasterio.crs import CRS
+
+    from levels.export import write_geotiff
+
+    path = relief_run / f"relief_s000_{level}.nc"
+    product = read_product(path)
+    with _open(str(path)) as ds:
+        assert ds.driver == "netCDF"
+        first = ds.subdatasets[0]
+    assert first.lower().startswith("netcdf:") and first.endswith(":P")
+    tif = write_geotiff(product, tmp_path / f"{level}.tif")
+    with _open(first) as band, _open(str(tif)) as exported:
+        assert band.crs == exported.crs == CRS.from_wkt(product.map_grid.crs_wkt)
+        assert band.transform.almost_equals(exported.transform, precision=1e-9)
+        assert band.transform.to_gdal() == pytest.approx(product.map_grid.geotransform)
+        assert np.array_equal(band.read(1), product.bands["P"].image)

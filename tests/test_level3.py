@@ -260,7 +260,7 @@ def test_level_3_product_carries_its_dem_and_exports(dem_errors_run, tmp_path) -
     from levels.products import read_product
 
     out, _report = dem_errors_run
-    p = read_product(out / "dem_errors_s000_3.h5")
+    p = read_product(out / "dem_errors_s000_3.nc")
     assert p.level == "3" and p.map_grid is not None
     geom = Level3Geometry.from_tree(p.geometry["level_3"], "P")
     assert geom.anchor_error_px["max_px"] <= ANCHOR_TOLERANCE_PX
@@ -297,6 +297,6 @@ def test_station_process_finds_the_runs_dem(dem_errors_run, tmp_path) -> None:
     )
     made = reprocess_l0(out / "dem_errors.l0.h5", tmp_path, options=opts)
     again = read_product(made.scenes[0].paths["3"])
-    first = read_product(out / "dem_errors_s000_3.h5")
+    first = read_product(out / "dem_errors_s000_3.nc")
     assert np.array_equal(again.bands["P"].image, first.bands["P"].image)
     assert np.array_equal(again.bands["P"].valid, first.bands["P"].valid)

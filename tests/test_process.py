@@ -18,7 +18,7 @@ import rasterio
 from levels.errors import ProductError
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
-from levels.products import read_product
+from levels.products import is_product_file, product_name, read_product
 from station.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -76,8 +76,10 @@ def test_station_process_reproduces_a_run_bit_for_bit(
         )
         == 0
     )
-    made = sorted(p.name for p in out.glob("*.h5"))
-    assert made == [f"small_test_s000_{lv}.h5" for lv in LEVELS]
+    made = sorted(p.name for p in out.iterdir() if is_product_file(p))
+    assert made == sorted(
+        product_name("small_test", 0, lv, lv in ("2A", "2", "3")) for lv in LEVELS
+    )
     for name in made:
         assert (out / name).read_bytes() == (run_dir / name).read_bytes(), name
     assert "3 product(s)" in capsys.readouterr().out
@@ -108,7 +110,7 @@ def test_station_process_without_the_truth(run_dir: Path, tmp_path: Path, capsys
     rows = json.loads(capsys.readouterr().out)["products"]
     assert [r["level"] for r in rows] == ["2A"]
     assert not any(k.startswith("checkpoints") for k in rows[0])
-    p = read_product(out / "small_test_s000_2A.h5")
+    p = read_product(out / "small_test_s000_2A.nc")
     assert p.quality["inverse_method"] == "poly5"
     assert p.provenance["scenario"] == "small_test"  # the archive's own provenance
 
@@ -130,7 +132,7 @@ def test_station_process_bad_input(args, message, run_dir: Path, tmp_path: Path,
 def test_map_product_opens_georeferenced_in_gdal_and_xarray(run_dir: Path, tmp_path: Path) -> None:
     """GDAL's netCDF driver and xarray read the 2A product itself with the CRS and the
     transform of its GeoTIFF export, exactly."""
-    src = run_dir / "small_test_s000_2A.h5"
+    src = run_dir / "small_test_s000_2A.nc"
     tif = tmp_path / "x.tif"
     assert main(["export", str(src), "--geotiff", "--out", str(tif)]) == 0
     with rasterio.open(tif) as t:
@@ -156,7 +158,7 @@ def test_map_product_opens_georeferenced_in_gdal_and_xarray(run_dir: Path, tmp_p
 
 def test_geometry_objects_read_back_their_trees(run_dir: Path) -> None:
     """Each geometry object rebuilt from its product tree maps pixels as it did."""
-    p2 = read_product(run_dir / "small_test_s000_2A.h5", images=False)
+    p2 = read_product(run_dir / "small_test_s000_2A.nc", images=False)
     g2 = Level2AGeometry.from_tree(p2.geometry["level_2a"], "P")
     assert g2.map_grid == p2.map_grid  # CRS, geotransform and shape
     cp = p2.quality["checkpoints"]["P"]
@@ -205,7 +207,7 @@ def test_version_1_products_are_still_read_and_compared(
     product reads as its version 2 twin and compares equal to it."""
     from levels.compare import compare_paths
 
-    src = run_dir / f"small_test_s000_{level}.h5"
+    src = run_dir / product_name("small_test", 0, level, on_map=level == "2A")
     old = tmp_path / src.name
     _as_version_1(src, old)
     a, b = read_product(old), read_product(src)
@@ -219,7 +221,7 @@ def test_version_1_products_are_still_read_and_compared(
 def test_a_product_without_its_geometry_is_refused(run_dir: Path, tmp_path: Path) -> None:
     import h5py
 
-    src = run_dir / "small_test_s000_2A.h5"
+    src = run_dir / "small_test_s000_2A.nc"
     bad = tmp_path / src.name
     bad.write_bytes(src.read_bytes())
     with h5py.File(bad, "r+") as f:
@@ -251,7 +253,7 @@ def test_the_ephemeris_velocity_convention_travels(run_dir: Path) -> None:
     expected = angle_deg(v, v - omega_x_r)
     assert expected.min() > 3.0  # the test can tell the two conventions apart
     assert angle_deg(dr_dt, v) == pytest.approx(expected, abs=0.1)
-    p = read_product(run_dir / "small_test_s000_2A.h5", images=False)
+    p = read_product(run_dir / "small_test_s000_2A.nc", images=False)
     assert p.geometry["ephemeris"]["reference_velocity"] == "inertial"
 
 
@@ -317,7 +319,7 @@ def test_stored_image_bands_read_the_same_everywhere(run_dir: Path, tmp_path: Pa
     argv = ["process", str(l0), "--levels", "2A", "--out"]
     assert main([*argv, str(tmp_path / "z")]) == 0
     assert main([*argv, str(tmp_path / "s"), "--options", str(opts)]) == 0
-    z, s = tmp_path / "z" / "small_test_s000_2A.h5", tmp_path / "s" / "small_test_s000_2A.h5"
+    z, s = tmp_path / "z" / "small_test_s000_2A.nc", tmp_path / "s" / "small_test_s000_2A.nc"
     a, b = read_product(z), read_product(s)
     assert np.array_equal(a.bands["P"].image, b.bands["P"].image)
     assert np.array_equal(a.bands["P"].valid, b.bands["P"].valid)

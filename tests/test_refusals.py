@@ -111,7 +111,7 @@ def test_two_blunders_among_good_points_are_rejected_not_refused(run_dir, tmp_pa
     assert _process(run_dir, out, "--levels", "2", "--gcps", str(two)) == 0
     from levels.products import read_product
 
-    p = read_product(out / "small_test_s000_2.h5")
+    p = read_product(out / "small_test_s000_2.nc")
     status = json.loads(p.geometry["adjustment"]["points"]["status"])
     assert status[:2] == ["rejected", "rejected"] and set(status[2:]) == {"used"}
 
@@ -132,9 +132,9 @@ def test_a_shifted_coordinate_is_caught(run_dir, tmp_path, capsys) -> None:
     (GDAL's): inspect and compare refuse the product as edited."""
     edited = tmp_path / "run"
     shutil.copytree(run_dir, edited)
-    with h5py.File(edited / "small_test_s000_2A.h5", "r+") as f:
+    with h5py.File(edited / "small_test_s000_2A.nc", "r+") as f:
         f["x"][...] = f["x"][()] + 600.0
-    code = main(["inspect", str(edited / "small_test_s000_2A.h5")])
+    code = main(["inspect", str(edited / "small_test_s000_2A.nc")])
     _one_line(capsys, code, EXIT_BAD_INPUT, "coordinate 'x'", "600 m")
     code = main(["compare", str(run_dir), str(edited)])
     _one_line(capsys, code, EXIT_BAD_INPUT, "coordinate 'x'")
@@ -144,7 +144,7 @@ def test_compare_sees_every_number_of_the_geometry(run_dir, tmp_path, capsys) ->
     """One ephemeris position moved 1 m, nothing else: compare names it (exit 1)."""
     edited = tmp_path / "run"
     shutil.copytree(run_dir, edited)
-    with h5py.File(edited / "small_test_s000_2A.h5", "r+") as f:
+    with h5py.File(edited / "small_test_s000_2A.nc", "r+") as f:
         f["geometry/ephemeris/r_ecef_m"][0, 0] += 1.0
     code = main(["compare", str(run_dir), str(edited)])
     out = capsys.readouterr().out
@@ -374,7 +374,7 @@ def test_a_south_up_dem_is_the_same_dem(run_dir, tmp_path) -> None:
         dirs.append(out)
     from levels.products import read_product
 
-    a, b = (read_product(d / "small_test_s000_3.h5").bands["P"] for d in dirs)
+    a, b = (read_product(d / "small_test_s000_3.nc").bands["P"] for d in dirs)
     assert np.array_equal(a.valid, b.valid) and np.array_equal(a.image, b.image)
 
 

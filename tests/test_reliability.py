@@ -111,7 +111,7 @@ def test_a_reused_run_directory(run_dir, tmp_path, capsys) -> None:
     scenario's run there is refused, not mixed in."""
     out = tmp_path / "run"
     shutil.copytree(run_dir, out)
-    (out / ".small_test_s000_2A.h5.999999999.partial").write_bytes(b"killed")
+    (out / ".small_test_s000_2A.nc.999999999.partial").write_bytes(b"killed")
     only_1a = tmp_path / "only_1a.toml"
     only_1a.write_text(SMALL.read_text() + '\n[processing]\nlevels = ["1A"]\n')
     assert main(["run", str(only_1a), "--out", str(out), "--quiet", "--no-quicklooks"]) == 0
@@ -250,7 +250,7 @@ DAMAGES = [
 def test_compare_never_passes_a_damaged_product(kind, run_dir, tmp_path, capsys) -> None:
     """A regression campaign trusts exit 0: a damaged product is bad input (2), or a
     difference (1), never equal; inspect and export say so in one line too."""
-    src = run_dir / "small_test_s000_2A.h5"
+    src = run_dir / "small_test_s000_2A.nc"
     bad = tmp_path / src.name
     _damage(kind, src, bad)
     code = main(["compare", str(src), str(bad)])
@@ -275,7 +275,7 @@ def test_compare_never_passes_a_damaged_run(kind, run_dir, tmp_path, capsys) -> 
     if kind in ("no_report", "killed"):
         (b / "report.json").unlink()
         if kind == "killed":
-            (b / "small_test_s000_2A.h5").unlink()
+            (b / "small_test_s000_2A.nc").unlink()
     elif kind == "no_l0":
         l0.unlink()
     elif kind == "empty_l0":

@@ -109,7 +109,7 @@ def test_compare_names_a_changed_parameter(run_dir: Path, tmp_path: Path, capsys
     capsys.readouterr()
     assert main(["compare", str(run_dir), str(other)]) == 1
     out = capsys.readouterr().out
-    assert "DIFFERS  small_test_s000_2A.h5: bands/P/" in out
+    assert "DIFFERS  small_test_s000_2A.nc: bands/P/" in out
     assert "processing/resampling_2a: 'cubic' → 'bilinear'" in out
     assert "small_test_s000_1A.h5: bands" not in out  # 1A does not depend on it
     assert main(["compare", str(run_dir), str(other), "--json"]) == 1
@@ -145,7 +145,7 @@ def test_compare_sees_one_changed_pixel_and_tolerances(
 
 
 def test_inspect(run_dir: Path, capsys) -> None:
-    assert main(["inspect", str(run_dir / "small_test_s000_2A.h5")]) == 0
+    assert main(["inspect", str(run_dir / "small_test_s000_2A.nc")]) == 0
     out = capsys.readouterr().out
     assert "level 2A of small_test scene 0" in out and "UTM zone 21S" in out
     assert main(["inspect", str(run_dir / "small_test_s000_1B.h5"), "--json"]) == 0
@@ -159,7 +159,7 @@ def test_inspect(run_dir: Path, capsys) -> None:
 def test_geotiff_export_puts_checkpoints_where_the_product_says(
     run_dir: Path, tmp_path: Path
 ) -> None:
-    src = run_dir / "small_test_s000_2A.h5"
+    src = run_dir / "small_test_s000_2A.nc"
     tif = tmp_path / "scene.tif"
     assert main(["export", str(src), "--geotiff", "--out", str(tif)]) == 0
     p = read_product(src)
@@ -198,7 +198,7 @@ def test_1a_and_1b_export_with_rpcs_gdal_orthorectifies(run_dir: Path, tmp_path:
     from levels.export import write_geotiff
     from levels.geo.rpc import Rpc
 
-    a2 = read_product(run_dir / "small_test_s000_2A.h5")
+    a2 = read_product(run_dir / "small_test_s000_2A.nc")
     for level in ("1A", "1B"):
         src = run_dir / f"small_test_s000_{level}.h5"
         tif = tmp_path / f"{level}.tif"
@@ -258,7 +258,7 @@ def test_bad_input_is_one_line_and_exit_2(
     (tmp_path / "bad.toml").write_text("name = [\n")
     (tmp_path / "unknown.toml").write_text("[instrument]\nn_detector = 3\n")
     (tmp_path / "junk.h5").write_bytes(b"not hdf5 at all")
-    good = run_dir / "small_test_s000_2A.h5"
+    good = run_dir / "small_test_s000_2A.nc"
     (tmp_path / "truncated.h5").write_bytes(good.read_bytes()[: good.stat().st_size // 3])
     names = {
         "bad": "bad.toml",
@@ -339,4 +339,4 @@ def test_a_pass_of_both_hrvs_with_a_gap(tmp_path: Path, capsys) -> None:
     found = json.loads(capsys.readouterr().out)
     where = {f["what"] for f in found["findings"][""]}
     assert "decode/HRV2/bands/XS1/lines_missing" in where
-    assert "product both_hrv2_s001_2A.h5" in where  # made in one run only
+    assert "product both_hrv2_s001_2A.nc" in where  # made in one run only

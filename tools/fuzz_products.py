@@ -30,7 +30,7 @@ from levels.errors import LevelsError
 from levels.inspect import product_summary
 from levels.options import ProcessingOptions
 from levels.process import ProcessingRequest, process
-from levels.products import read_product
+from levels.products import is_product_file, read_product
 from levels.readers.l0 import read_l0
 from station.cli import main as station
 
@@ -138,7 +138,7 @@ def main(argv: list[str]) -> int:
         ):
             print("could not make the reference run", file=sys.stderr)
             return 2
-        sources = sorted(run.glob("*.h5"))
+        sources = sorted(q for q in run.glob("*") if is_product_file(q))
         originals = {
             p: read_l0(p) if p.name.endswith(".l0.h5") else read_product(p) for p in sources
         }

@@ -18,6 +18,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from levels.products import is_product_file
+
 #: Attributes that name the software, not the result.
 _IGNORED_ATTRS = {"software"}
 
@@ -64,7 +66,7 @@ def product_hashes(path: Path) -> dict[str, str]:
 def tree_hashes(root: Path) -> dict[str, str]:
     """Every product under ``root`` (``*_s*_*.h5``), keyed by its path relative to ``root``."""
     out: dict[str, str] = {}
-    for p in sorted(root.rglob("*.h5")):
+    for p in sorted(q for q in root.rglob("*") if is_product_file(q)):
         if p.name.endswith(".l0.h5"):
             continue
         rel = p.relative_to(root).as_posix()

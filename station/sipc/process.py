@@ -168,7 +168,7 @@ def reprocess_l0(
 
     ``options`` default to the scenario's ``[processing]``, else to the defaults; with the
     ``scenario``, the checkpoints are measured against its truth. Products are named after
-    the archive (``<name>.l0.h5`` → ``<name>_s000_2A.h5``) unless ``name`` is given.
+    the archive (``<name>.l0.h5`` → ``<name>_s000_2A.nc``) unless ``name`` is given.
     Level 2 reads the control points from ``gcps``, by default the ``<name>.gcp.csv`` a run
     wrote beside the archive.
     """
