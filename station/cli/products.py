@@ -21,7 +21,7 @@ def register(sub: Any) -> None:
         "tolerances (docs/compare.md). Exit 0 within the tolerances, 1 outside, "
         "naming each difference; 2 on bad input.",
     )
-    comp.add_argument("a", help="a product (.h5) or a run directory")
+    comp.add_argument("a", help="a product (.nc, .h5) or a run, process or campaign directory")
     comp.add_argument("b", help="the product or run directory to compare it with")
     comp.add_argument(
         "--tolerances", help="TOML file overriding the default tolerances (docs/compare.md)"
@@ -34,7 +34,7 @@ def register(sub: Any) -> None:
         description="Summarise a level product: its bands, scene, map grid, headline "
         "quality figures and provenance.",
     )
-    insp.add_argument("product", help="a level product (.h5)")
+    insp.add_argument("product", help="a level product (.nc or .h5)")
     add_json(insp)
     insp.set_defaults(func=_inspect)
     expo = sub.add_parser(
@@ -45,7 +45,7 @@ def register(sub: Any) -> None:
         "image-geometry level (1A, 1B) with the RPCs fitted to its rigorous model "
         "(gdalwarp -rpc -to RPC_DEM=dem.tif orthorectifies it).",
     )
-    expo.add_argument("product", help="a level product (.h5)")
+    expo.add_argument("product", help="a level product (.nc or .h5)")
     expo.add_argument(
         "--geotiff",
         action="store_true",
