@@ -191,8 +191,22 @@ def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
                 ds = group.create_dataset(name, data=value, **checksummed(value))
             ds.attrs["units"] = units_of(name)
             ds.attrs["long_name"] = name.replace("_", " ")
+            for k, n in enumerate(value.shape):  # named, not netCDF's phony_dim_N
+                ds.dims[k].attach_scale(_pure_dimension(group, f"{name}_dim{k}", n))
         else:
             group.attrs[name] = _attr(value)
+
+
+#: netCDF-C's mark of a dimension that is not a variable (its HDF5 dimension scale's NAME).
+_PURE_DIMENSION = "This is a netCDF dimension but not a netCDF variable."
+
+
+def _pure_dimension(group: h5py.Group, name: str, size: int) -> h5py.Dataset:
+    """A named netCDF dimension of ``size`` in ``group``: an HDF5 dimension scale with no
+    data written (no storage), as netCDF-C writes a dimension without a coordinate."""
+    d = group.create_dataset(name, shape=(size,), dtype="f4")
+    d.make_scale(f"{_PURE_DIMENSION}{size:10d}")
+    return d
 
 
 def _metadata_chunks(shape: tuple[int, ...]) -> tuple[int, ...]:
@@ -208,7 +222,10 @@ def _read_tree(group: h5py.Group) -> dict[str, Any]:
     for name, value in group.attrs.items():
         out[name] = value.item() if isinstance(value, np.generic) else value
     for name, item in group.items():
-        out[name] = _read_tree(item) if isinstance(item, h5py.Group) else item[()]
+        if isinstance(item, h5py.Group):
+            out[name] = _read_tree(item)
+        elif item.attrs.get("CLASS") != b"DIMENSION_SCALE":  # a tree's named dimensions
+            out[name] = item[()]
     return out
 
 
