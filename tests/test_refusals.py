@@ -13,22 +13,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from _cli import one_line, tree
 
 from station.cli import EXIT_BAD_INPUT, EXIT_DIFFERENT, main
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "scenarios" / "small_test.toml"
 REFDATA_DIMAP = "spot2_hrv1_P_19980220_izmit_METADATA.DIM"
-
-
-def _one_line(capsys, code: int, expected: int, *words: str) -> str:
-    err = capsys.readouterr().err
-    assert code == expected, err
-    lines = [ln for ln in err.splitlines() if not ln.startswith("running ")]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for w in words:
-        assert w in lines[0], lines[0]
-    return lines[0]
 
 
 def _gcps_moved(src: Path, dst: Path, dlon: float = 0.0, rows: int | None = None, **sigma) -> Path:
@@ -51,29 +42,35 @@ def _gcps_moved(src: Path, dst: Path, dlon: float = 0.0, rows: int | None = None
 
 
 def _write_dem(
-    path: Path, height_m: float, crs: str | None, origin: tuple[float, float] = (-56.3, -15.4)
+    path: Path,
+    heights: float | np.ndarray,
+    crs: str | None,
+    origin: tuple[float, float] = (-56.3, -15.4),
+    transform=None,
 ) -> Path:
-    """A 20 × 20 GeoTIFF of one height at ``origin`` (over the small scene), with ``crs``
-    or none."""
+    """A GeoTIFF DEM with ``crs`` or none: ``heights`` as given on ``transform``, or one
+    height over 20 × 20 cells of 0.02° from ``origin`` (the small scene's north-west)."""
     import warnings
 
     import rasterio
     from rasterio.transform import from_origin
 
+    h = np.asarray(heights, dtype=np.float32)
+    h = np.full((20, 20), h, np.float32) if h.ndim == 0 else h
     with warnings.catch_warnings():  # rasterio's own use of affine's deprecated `*`
         warnings.simplefilter("ignore", PendingDeprecationWarning)
         with rasterio.open(
             path,
             "w",
             driver="GTiff",
-            width=20,
-            height=20,
+            width=h.shape[1],
+            height=h.shape[0],
             count=1,
             dtype="float32",
             crs=crs,
-            transform=from_origin(*origin, 0.02, 0.02),
+            transform=transform or from_origin(*origin, 0.02, 0.02),
         ) as d:
-            d.write(np.full((1, 20, 20), height_m, np.float32))
+            d.write(h[None])
     return path
 
 
@@ -90,7 +87,7 @@ def test_control_points_of_another_place_are_refused(run_dir, tmp_path, capsys) 
     far = _gcps_moved(run_dir / "small_test.gcp.csv", tmp_path / "far.csv", dlon=18.0)
     out = tmp_path / "out"
     code = _process(run_dir, out, "--levels", "2", "--gcps", str(far))
-    _one_line(capsys, code, EXIT_BAD_INPUT, "none of the 12 control points", "hrv1_p")
+    one_line(capsys, code, EXIT_BAD_INPUT, "none of the 12 control points", "hrv1_p")
     assert not out.exists()
 
 
@@ -101,7 +98,7 @@ def test_a_fit_beyond_its_chi_squared_is_refused(run_dir, tmp_path, capsys) -> N
         run_dir / "small_test.gcp.csv", tmp_path / "tight.csv", sigma_ground_m=0.01, sigma_px=0.01
     )
     code = _process(run_dir, tmp_path / "out", "--levels", "2", "--gcps", str(tight))
-    _one_line(capsys, code, EXIT_BAD_INPUT, "control points rejected", "σ or the model")
+    one_line(capsys, code, EXIT_BAD_INPUT, "control points rejected", "σ or the model")
 
 
 def test_two_blunders_among_good_points_are_rejected_not_refused(run_dir, tmp_path) -> None:
@@ -120,7 +117,7 @@ def test_locate_with_another_scenes_points(run_dir, refdata, capsys) -> None:
     """The emulated pass's points on a real Izmit scene: exit 2, never ``RMS nan``."""
     dim = refdata / "dimap" / REFDATA_DIMAP
     code = main(["locate", str(dim), "--gcps", str(run_dir / "small_test.gcp.csv")])
-    line = _one_line(capsys, code, EXIT_BAD_INPUT, "within reach of the model")
+    line = one_line(capsys, code, EXIT_BAD_INPUT, "within reach of the model")
     assert "nan" not in line
 
 
@@ -135,9 +132,9 @@ def test_a_shifted_coordinate_is_caught(run_dir, tmp_path, capsys) -> None:
     with h5py.File(edited / "small_test_s000_2A.nc", "r+") as f:
         f["x"][...] = f["x"][()] + 600.0
     code = main(["inspect", str(edited / "small_test_s000_2A.nc")])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "coordinate 'x'", "600 m")
+    one_line(capsys, code, EXIT_BAD_INPUT, "coordinate 'x'", "600 m")
     code = main(["compare", str(run_dir), str(edited)])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "coordinate 'x'")
+    one_line(capsys, code, EXIT_BAD_INPUT, "coordinate 'x'")
 
 
 def test_compare_sees_every_number_of_the_geometry(run_dir, tmp_path, capsys) -> None:
@@ -173,7 +170,7 @@ def test_a_tolerance_file_holds_finite_numbers(run_dir, tmp_path, capsys) -> Non
     tol = tmp_path / "tol.toml"
     tol.write_text("[pixels]\nrms_counts = nan\n")
     code = main(["compare", str(run_dir), str(run_dir), "--tolerances", str(tol)])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "rms_counts = nan", "finite")
+    one_line(capsys, code, EXIT_BAD_INPUT, "rms_counts = nan", "finite")
 
 
 # 5: names are names
@@ -183,7 +180,7 @@ def test_a_tolerance_file_holds_finite_numbers(run_dir, tmp_path, capsys) -> Non
 def test_a_name_is_not_a_path(name, run_dir, tmp_path, capsys) -> None:
     out = tmp_path / "out"
     code = _process(run_dir, out, "--name", name)
-    _one_line(capsys, code, EXIT_BAD_INPUT, f"--name = {name!r}")
+    one_line(capsys, code, EXIT_BAD_INPUT, f"--name = {name!r}")
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
@@ -195,20 +192,20 @@ def test_user_errors_are_not_bugs(run_dir, tmp_path, refdata, monkeypatch, capsy
     opts = tmp_path / "opts.toml"
     opts.write_text(f'[processing]\nlevels = ["3"]\ndem_path = "{nocrs}"\n')
     code = _process(run_dir, tmp_path / "o1", "--options", str(opts))
-    _one_line(capsys, code, EXIT_BAD_INPUT, "no CRS")
+    one_line(capsys, code, EXIT_BAD_INPUT, "no CRS")
     code = _process(run_dir, tmp_path / "o2", "--scheduler", "nonsense")
-    _one_line(capsys, code, EXIT_BAD_INPUT, "nonsense")
+    one_line(capsys, code, EXIT_BAD_INPUT, "nonsense")
     code = _process(run_dir, tmp_path / "o3", "--workers", "4096")
-    _one_line(capsys, code, EXIT_BAD_INPUT, "4096 workers", "cores")
+    one_line(capsys, code, EXIT_BAD_INPUT, "4096 workers", "cores")
     tle = tmp_path / "binary.tle"
     tle.write_bytes(bytes(range(256)) * 4)
     scn = tmp_path / "tle.toml"
     scn.write_text(f'name = "t"\n[orbit]\nkind = "tle"\ntle_path = "{tle}"\n')
     code = main(["run", str(scn), "--out", str(tmp_path / "o4"), "-q"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "not a TLE file")
+    one_line(capsys, code, EXIT_BAD_INPUT, "not a TLE file")
     dim = refdata / "dimap" / REFDATA_DIMAP
     code = main(["locate", str(dim), "--rpc", str(tmp_path / "x_RPC.TXT"), "--heights", "0,1e9"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "--heights '0,1e9'")
+    one_line(capsys, code, EXIT_BAD_INPUT, "--heights '0,1e9'")
 
     import station.cli.products as products
 
@@ -217,7 +214,7 @@ def test_user_errors_are_not_bugs(run_dir, tmp_path, refdata, monkeypatch, capsy
 
     monkeypatch.setattr(products, "_inspect", exhausted)
     code = main(["inspect", "x.h5"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "out of memory", "22.0 GiB")
+    one_line(capsys, code, EXIT_BAD_INPUT, "out of memory", "22.0 GiB")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         ["nocrs.tif", "opts.toml", "binary.tle", "tle.toml"]
     )
@@ -230,7 +227,7 @@ def test_a_run_too_large_for_the_machine_is_refused_at_once(tmp_path, capsys) ->
     scn.write_text('name = "huge"\n[instrument]\nn_detectors = 6000\nn_lines = 1000000\n')
     for extra in ([], ["--check"]):
         code = main(["run", str(scn), "--out", str(tmp_path / "out"), "-q", *extra])
-        _one_line(capsys, code, EXIT_BAD_INPUT, "GiB of memory", "6000 detectors")
+        one_line(capsys, code, EXIT_BAD_INPUT, "GiB of memory", "6000 detectors")
     assert not (tmp_path / "out").exists()
 
 
@@ -241,7 +238,7 @@ def test_a_dem_off_the_pass_is_refused_before_any_scene(run_dir, tmp_path, capsy
     opts = tmp_path / "opts.toml"
     opts.write_text(f'[processing]\nlevels = ["1A", "3"]\ndem_path = "{elsewhere}"\n')
     code = _process(run_dir, tmp_path / "out", "--options", str(opts))
-    _one_line(capsys, code, EXIT_BAD_INPUT, "does not cover scene 0")
+    one_line(capsys, code, EXIT_BAD_INPUT, "does not cover scene 0")
     assert not (tmp_path / "out").exists()
 
 
@@ -249,7 +246,7 @@ def test_an_archive_named_dot_is_not_a_name(run_dir, tmp_path, capsys) -> None:
     odd = tmp_path / "..l0.h5"
     shutil.copy(run_dir / "small_test.l0.h5", odd)
     code = main(["campaign", str(odd), "--out", str(tmp_path / "c"), "-q"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "cannot name products after this file")
+    one_line(capsys, code, EXIT_BAD_INPUT, "cannot name products after this file")
 
 
 def test_a_dem_is_checked_before_the_pass_is_emulated(tmp_path, capsys) -> None:
@@ -268,7 +265,7 @@ def test_a_dem_is_checked_before_the_pass_is_emulated(tmp_path, capsys) -> None:
         scn = tmp_path / f"s{k}.toml"
         scn.write_text(f'name = "s{k}"\n' + table)
         code = main(["run", str(scn), "--out", str(tmp_path / f"o{k}"), "-q"])
-        _one_line(capsys, code, EXIT_BAD_INPUT, words)
+        one_line(capsys, code, EXIT_BAD_INPUT, words)
         assert not (tmp_path / f"o{k}").exists()
 
 
@@ -284,7 +281,7 @@ def test_a_run_that_made_nothing_is_not_a_success(tmp_path, capsys) -> None:
     )
     for command in ("process", "run"):
         code = main([command, str(scn), "--out", str(tmp_path / command), "-q"])
-        _one_line(capsys, code, EXIT_BAD_INPUT, "made no product")
+        one_line(capsys, code, EXIT_BAD_INPUT, "made no product")
 
 
 @pytest.mark.parametrize(
@@ -338,9 +335,6 @@ def test_a_closed_pipe_is_not_an_error(run_dir) -> None:
 def test_a_south_up_dem_is_the_same_dem(run_dir, tmp_path) -> None:
     """A DEM stored south-up (positive y step, rows from the south) is read where it is:
     level 3 over it is the level 3 over the same heights stored north-up."""
-    import warnings
-
-    import rasterio
     from rasterio.transform import Affine
 
     lat = -15.2 - 0.01 * np.arange(80)  # north → south, 0.01°
@@ -352,21 +346,7 @@ def test_a_south_up_dem_is_the_same_dem(run_dir, tmp_path) -> None:
     south_up = Affine(0.01, 0.0, -56.505, 0.0, 0.01, -15.195 - 0.8)
     dirs = []
     for name, gt, h in (("north", north_up, heights), ("south", south_up, heights[::-1])):
-        path = tmp_path / f"{name}.tif"
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", PendingDeprecationWarning)
-            with rasterio.open(
-                path,
-                "w",
-                driver="GTiff",
-                width=80,
-                height=80,
-                count=1,
-                dtype="float32",
-                crs="EPSG:4326",
-                transform=gt,
-            ) as d:
-                d.write(h[None])
+        path = _write_dem(tmp_path / f"{name}.tif", h, "EPSG:4326", transform=gt)
         opts = tmp_path / f"{name}.toml"
         opts.write_text(f'[processing]\nlevels = ["3"]\ndem_path = "{path}"\n')
         out = tmp_path / f"out_{name}"
@@ -380,11 +360,8 @@ def test_a_south_up_dem_is_the_same_dem(run_dir, tmp_path) -> None:
 
 def test_heights_in_kilometres_are_said(run_dir, tmp_path, capsys) -> None:
     """A DEM in km over the small scene (0.45): made, with a warning naming the file."""
-    km = _write_dem(tmp_path / "km.tif", 0.45, "EPSG:4326")
-    import rasterio
-
-    with rasterio.open(km, "r+") as d:  # not whole numbers: 0.45 km ± 0.05
-        d.write((0.45 + 0.05 * np.random.default_rng(1).random((1, 20, 20))).astype(np.float32))
+    heights = 0.45 + 0.05 * np.random.default_rng(1).random((20, 20))  # not whole numbers
+    km = _write_dem(tmp_path / "km.tif", heights, "EPSG:4326")
     opts = tmp_path / "opts.toml"
     opts.write_text(f'[processing]\nlevels = ["3"]\ndem_path = "{km}"\n')
     code = main(
@@ -406,15 +383,12 @@ def test_a_failed_reprocessing_or_campaign_leaves_the_previous_one(run_dir, tmp_
     out of reach; a campaign whose one archive is damaged makes nothing): the earlier
     products and reports, byte for byte."""
 
-    def tree(d: Path) -> dict[str, bytes]:
-        return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
-
     out = tmp_path / "out"
     assert _process(run_dir, out) == 0
     before = tree(out)
     far = _gcps_moved(run_dir / "small_test.gcp.csv", tmp_path / "far.csv", dlon=18.0)
     code = _process(run_dir, out, "--levels", "2", "--gcps", str(far))
-    _one_line(capsys, code, EXIT_BAD_INPUT, "within reach", f"{out} left as it was")
+    one_line(capsys, code, EXIT_BAD_INPUT, "within reach", f"{out} left as it was")
     assert tree(out) == before
     camp = tmp_path / "camp"
     assert main(["campaign", str(run_dir / "small_test.l0.h5"), "--out", str(camp), "-q"]) == 0
@@ -432,5 +406,5 @@ def test_a_failed_reprocessing_or_campaign_leaves_the_previous_one(run_dir, tmp_
             "-q",
         ]
     )
-    _one_line(capsys, code, EXIT_BAD_INPUT, "not published over the previous", "left as it was")
+    one_line(capsys, code, EXIT_BAD_INPUT, "not published over the previous", "left as it was")
     assert tree(camp) == before

@@ -10,21 +10,12 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from _cli import one_line, tree
 
 from station.cli import EXIT_BAD_INPUT, EXIT_DIFFERENT, EXIT_INTERNAL, EXIT_INTERRUPTED, main
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "scenarios" / "small_test.toml"
-
-
-def _one_line(capsys, code: int, expected: int, *words: str) -> str:
-    err = capsys.readouterr().err
-    assert code == expected, err
-    lines = [ln for ln in err.splitlines() if not ln.startswith("running ")]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for w in words:
-        assert w in lines[0], lines[0]
-    return lines[0]
 
 
 def _no_partials(d: Path) -> None:
@@ -45,7 +36,7 @@ def test_a_full_disk_is_one_line_and_nothing_half_written(tmp_path, monkeypatch,
     monkeypatch.setattr(Path, "write_bytes", full)
     out = tmp_path / "run"
     code = main(["run", str(SMALL), "--out", str(out), "--quiet", "--no-quicklooks"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "No space left on device", "_s000_1B.h5")
+    one_line(capsys, code, EXIT_BAD_INPUT, "No space left on device", "_s000_1B.h5")
     _no_partials(out)
     assert not (out / "report.json").exists() and not (out / "small_test_s000_1B.h5").exists()
 
@@ -61,10 +52,10 @@ def test_interrupt_and_internal_error_have_their_own_codes(monkeypatch, capsys) 
 
     monkeypatch.setattr(products, "_inspect", interrupted)
     code = main(["inspect", "x.h5"])
-    _one_line(capsys, code, EXIT_INTERRUPTED, "interrupted")
+    one_line(capsys, code, EXIT_INTERRUPTED, "interrupted")
     monkeypatch.setattr(products, "_inspect", buggy)
     code = main(["inspect", "x.h5"])
-    line = _one_line(capsys, code, EXIT_INTERNAL, "internal error", "ZeroDivisionError")
+    line = one_line(capsys, code, EXIT_INTERNAL, "internal error", "ZeroDivisionError")
     assert "STATION_DEBUG" in line
 
 
@@ -83,7 +74,7 @@ def test_a_scenario_is_checked_before_any_work(toml, words, tmp_path, capsys) ->
     scn.write_text(toml)
     out = tmp_path / "out"
     code = main(["run", str(scn), "--out", str(out), "--quiet"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, *words)
+    one_line(capsys, code, EXIT_BAD_INPUT, *words)
     assert not out.exists()  # nothing written, and nothing above --out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
@@ -92,7 +83,7 @@ def test_an_unwritable_output_fails_first(tmp_path, capsys) -> None:
     blocker = tmp_path / "file"
     blocker.write_text("")
     code = main(["run", str(SMALL), "--out", str(blocker / "run"), "--quiet"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "cannot write in")
+    one_line(capsys, code, EXIT_BAD_INPUT, "cannot write in")
     code = main(
         [
             "capacity",
@@ -103,7 +94,7 @@ def test_an_unwritable_output_fails_first(tmp_path, capsys) -> None:
             "1",
         ]
     )
-    _one_line(capsys, code, EXIT_BAD_INPUT, "cannot write in")
+    one_line(capsys, code, EXIT_BAD_INPUT, "cannot write in")
 
 
 def test_a_reused_run_directory(run_dir, tmp_path, capsys) -> None:
@@ -121,12 +112,7 @@ def test_a_reused_run_directory(run_dir, tmp_path, capsys) -> None:
     other = tmp_path / "other.toml"
     other.write_text('name = "other"\n')
     code = main(["run", str(other), "--out", str(out), "--quiet"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "holds a run of scenario 'small_test'")
-
-
-def _tree(d: Path) -> dict[str, bytes]:
-    """Every file under ``d`` and its bytes."""
-    return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+    one_line(capsys, code, EXIT_BAD_INPUT, "holds a run of scenario 'small_test'")
 
 
 def test_a_full_disk_in_a_rerun_leaves_the_previous_run_whole(
@@ -136,7 +122,7 @@ def test_a_full_disk_in_a_rerun_leaves_the_previous_run_whole(
     mid-rerun leaves the earlier run byte for byte, and the line says so."""
     out = tmp_path / "run"
     shutil.copytree(run_dir, out)
-    before = _tree(out)
+    before = tree(out)
     real = Path.write_bytes
 
     def full(self: Path, data) -> int:
@@ -146,8 +132,8 @@ def test_a_full_disk_in_a_rerun_leaves_the_previous_run_whole(
 
     monkeypatch.setattr(Path, "write_bytes", full)
     code = main(["run", str(SMALL), "--out", str(out), "--quiet", "--no-quicklooks"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "No space left on device", f"{out} left as it was")
-    assert _tree(out) == before
+    one_line(capsys, code, EXIT_BAD_INPUT, "No space left on device", f"{out} left as it was")
+    assert tree(out) == before
     assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no staging directory left
 
 
@@ -162,7 +148,7 @@ def test_a_sigint_in_a_rerun_leaves_the_previous_run_whole(run_dir, tmp_path) ->
 
     out = tmp_path / "run"
     shutil.copytree(run_dir, out)
-    before = _tree(out)
+    before = tree(out)
     cmd = [sys.executable, "-m", "station.cli", "run", str(SMALL), "--out", str(out), "-q"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     try:
@@ -178,7 +164,7 @@ def test_a_sigint_in_a_rerun_leaves_the_previous_run_whole(run_dir, tmp_path) ->
             proc.wait()
     assert proc.returncode == EXIT_INTERRUPTED, err
     assert f"{out} left as it was" in err and "Traceback" not in err, err
-    assert _tree(out) == before
+    assert tree(out) == before
     assert [p.name for p in tmp_path.iterdir()] == ["run"]
 
 
@@ -189,12 +175,12 @@ def test_an_output_directory_is_replaced_only_if_it_is_ours(run_dir, tmp_path, c
     mine.mkdir()
     (mine / "thesis.tex").write_text("years of work")
     code = main(["run", str(SMALL), "--out", str(mine), "--quiet"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "not a run of scenario 'small_test'", "thesis.tex")
+    one_line(capsys, code, EXIT_BAD_INPUT, "not a run of scenario 'small_test'", "thesis.tex")
     assert (mine / "thesis.tex").read_text() == "years of work"
     code = main(["process", str(run_dir / "small_test.l0.h5"), "--out", str(run_dir), "-q"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "holds the input")
+    one_line(capsys, code, EXIT_BAD_INPUT, "holds the input")
     code = main(["campaign", str(run_dir), "--out", str(run_dir.parent), "-q"])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "holds the input")
+    one_line(capsys, code, EXIT_BAD_INPUT, "holds the input")
 
 
 def _damage(kind: str, src: Path, dst: Path) -> None:
@@ -302,7 +288,7 @@ def test_a_flipped_bit_in_the_l0_ephemeris_is_caught(run_dir, tmp_path, capsys) 
     data[info.byte_offset + 13] ^= 0x04
     l0.write_bytes(bytes(data))
     code = main(["process", str(l0), "--out", str(tmp_path / "p")])
-    _one_line(capsys, code, EXIT_BAD_INPUT, "checksum does not match", "ephemeris/r_ecef_m")
+    one_line(capsys, code, EXIT_BAD_INPUT, "checksum does not match", "ephemeris/r_ecef_m")
 
 
 def test_every_command_says_what_it_does(capsys) -> None:
