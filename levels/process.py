@@ -447,10 +447,13 @@ def check_coverage(dem: Dem, scenes: Sequence[SceneGeometry]) -> None:
     """:class:`DemError` naming the first scene none of whose corners nor its centre lies
     on the DEM's grid: level 3 would fail there after everything else was made. A scene
     partly on it is made, its part off the DEM void."""
-    for s in scenes:
-        lat = np.append(s.corners_lat_rad, s.centre_lat_rad)
-        lon = np.append(s.corners_lon_rad, s.centre_lon_rad)
-        if not on_dem(dem, lat, lon).any():
+    if not scenes:
+        return
+    lat = np.array([np.append(s.corners_lat_rad, s.centre_lat_rad) for s in scenes])
+    lon = np.array([np.append(s.corners_lon_rad, s.centre_lon_rad) for s in scenes])
+    covered = np.asarray(on_dem(dem, lat, lon).any(axis=1), dtype=bool)  # all scenes at once
+    for k, s in enumerate(scenes):
+        if not covered[k]:
             raise DemError(
                 f"the DEM {dem.source} does not cover scene {s.cut.index} (centre "
                 f"{np.degrees(s.centre_lat_rad):.3f}°, {np.degrees(s.centre_lon_rad):.3f}°): "

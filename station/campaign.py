@@ -95,9 +95,9 @@ def run_campaign(
     target = replaceable_dir(
         out,
         "campaign.json",
-        lambda r: r["format"] == CAMPAIGN_FORMAT or None,
-        True,
-        "a campaign",
+        lambda r: r["format"] if r["format"] == CAMPAIGN_FORMAT else None,
+        CAMPAIGN_FORMAT,
+        lambda _: "a campaign",
         [*archives, *([options.dem_path] if options.dem_path else [])],
     )
     previous = target.is_dir() and any(target.iterdir())

@@ -27,15 +27,16 @@ def replaceable_dir(
     report: str,
     owner: Callable[[dict[str, Any]], object],
     expected: object,
-    what: str,
+    what: Callable[[object], str],
     inputs: Iterable[str | Path] = (),
 ) -> Path:
     """``out``, which the command may replace whole (module docstring); else
     :class:`StationError` saying why, before any work.
 
     ``report`` is the file naming an earlier output of the command, ``owner(its JSON)``
-    what it was made of (a scenario's name), to equal ``expected``; ``what`` describes it
-    in the message ("a run of scenario 'x'"); none of ``inputs`` may lie in ``out``.
+    what it was made of (a scenario's name), to equal ``expected``; ``what(owner)`` says
+    such an output in words ("a run of scenario 'x'"); none of ``inputs`` may lie in
+    ``out``.
     """
     d = Path(out)
     here = Path.cwd().resolve()
@@ -59,18 +60,12 @@ def replaceable_dir(
     if previous is None:
         sample = sorted(p.name for p in d.iterdir())[:3]
         raise StationError(
-            f"{d} holds files that are not {what} ({', '.join(sample)}…); the output "
+            f"{d} holds files that are not {what(expected)} ({', '.join(sample)}…); the output "
             "directory is replaced whole: give a new or empty --out"
         )
     if previous != expected:
         raise StationError(
-            f"{d} holds {_described(what, previous)}, not {what}: give another --out "
+            f"{d} holds {what(previous)}, not {what(expected)}: give another --out "
             "(or remove that one)"
         )
     return d
-
-
-def _described(what: str, previous: object) -> str:
-    """The earlier output: ``what`` with its owner ("a run of scenario 'other'")."""
-    head = what.rsplit(" ", 1)[0] if " " in what else what
-    return f"{head} {previous!r}"

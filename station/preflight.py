@@ -15,6 +15,7 @@ compressed): the bounds below.
 
 from __future__ import annotations
 
+import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -107,9 +108,9 @@ def available_memory_bytes() -> float | None:
 
 
 def check_needs(needs: Needs, out: Path) -> dict[str, float | None]:
-    """:class:`StationError` when the job will not fit the machine's available memory or
-    the free disk beside ``out`` (a staged output and the previous one coexist until the
-    swap); returns the figures checked."""
+    """:class:`StationError` when the job will not fit the machine's available memory, or
+    ``out``'s nearest existing directory cannot be written or lacks the disk (a staged
+    output and the previous one coexist until the swap); returns the figures checked."""
     memory = available_memory_bytes()
     if memory is not None and needs.memory_bytes > memory:
         raise StationError(
@@ -119,6 +120,8 @@ def check_needs(needs: Needs, out: Path) -> dict[str, float | None]:
             "detector_count) or use fewer --workers"
         )
     parent = next((p for p in (out, *out.absolute().parents) if p.exists()), Path("."))
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise StationError(f"cannot write in {parent}")
     free = float(shutil.disk_usage(parent).free)
     if needs.disk_bytes > free:
         raise StationError(
@@ -175,10 +178,10 @@ def _check_covers(scn: Scenario, dem: Any) -> None:
     import numpy as np
 
     from levels.process import on_dem
-    from station.spacecraft.dem import _footprint_rad
+    from station.spacecraft.dem import footprint_rad
     from station.spacecraft.emulator import emulate_pass
 
-    south, north, west, east = _footprint_rad(emulate_pass(scn, render=False))
+    south, north, west, east = footprint_rad(emulate_pass(scn, render=False))
     lat = np.array([south, south, north, north, 0.5 * (south + north)])
     lon = np.array([west, east, west, east, 0.5 * (west + east)])
     if not on_dem(dem, lat, lon).any():

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -39,7 +38,6 @@ from levels.products import read_product
 from levels.quality import Headline
 from levels.tasks import Runner
 from station import __version__
-from station.errors import StationError
 from station.outdir import replaceable_dir
 from station.scenario import Scenario
 
@@ -205,7 +203,7 @@ def prepare_run_dir(out_dir: str | Path, name: str, inputs: list[Path] | None = 
         "report.json",
         lambda r: r["scenario"]["name"],
         name,
-        f"a run of scenario {name!r}",
+        lambda n: f"a run of scenario {n!r}",
         inputs or [],
     )
 
@@ -219,9 +217,6 @@ def check_run(scn: Scenario, out: Path) -> dict[str, Any]:
     from station.preflight import check_needs, check_scenario, run_needs
 
     files = check_scenario(scn)
-    parent = next((p for p in (out, *out.absolute().parents) if p.exists()), Path("."))
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise StationError(f"cannot write in {parent}")
     needs = run_needs(scn)
     return {"files": files, "pixels": needs.pixels, **check_needs(needs, out)}
 

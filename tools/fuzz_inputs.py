@@ -28,6 +28,7 @@ import io
 import json
 import math
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -408,8 +409,6 @@ def main(argv: list[str] | None = None) -> int:
                 problems.append(f"files outside --out: {sorted(map(str, strays))[:3]}")
             if problems:
                 counts[("violations", kind)] += 1
-                import shutil
-
                 keep = Path(here) / "fuzz_failure"  # the inputs, to reproduce it
                 shutil.rmtree(keep, ignore_errors=True)
                 shutil.copytree(box, keep, ignore=shutil.ignore_patterns("out"))

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
 from levels.geo.level1b import Level1BGeometry
+from levels.geometry.ellipsoid import WGS84
 from levels.geometry.model import PushbroomModel
 from levels.threads import one_blas_thread
 
@@ -237,8 +238,10 @@ class Rpc:
         one pixel covers, from the RPC's own Jacobian over the local east and north."""
         lat, lon, h = self.lat_off, self.lon_off, self.height_off
         d = 1e-5  # degrees: a metre or so, well inside the rational function's smoothness
-        m_lat = 111_132.954 - 559.822 * np.cos(np.radians(2 * lat))  # m per degree
-        m_lon = 111_412.84 * np.cos(np.radians(lat))
+        # metres per degree north and east: WGS84's meridian and prime-vertical radii
+        w = 1.0 - WGS84.e2 * np.sin(np.radians(lat)) ** 2
+        m_lat = np.radians(WGS84.a_m * (1.0 - WGS84.e2) / w**1.5)
+        m_lon = np.radians(WGS84.a_m / np.sqrt(w) * np.cos(np.radians(lat)))
         l0, s0 = self.image_of(lat, lon, h)
         ln, sn = self.image_of(lat + d, lon, h)
         le, se = self.image_of(lat, lon + d, h)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,7 @@ _SCALARS = {
     "LONG_SCALE": "lon_scale",
     "HEIGHT_SCALE": "height_scale",
 }
+_SCALE_NAMES = tuple(n for k, n in _SCALARS.items() if k.endswith("SCALE"))
 _COEFFS = {
     "LINE_NUM_COEFF": "line_num",
     "LINE_DEN_COEFF": "line_den",
@@ -93,14 +95,10 @@ def rpc_from_gdal(md: Mapping[str, str], where: str = "RPC metadata") -> Rpc:
         raise GeometryError(f"{where}: {exc.args[0]} is missing; not an RPC00B") from None
     except (ValueError, IndexError):
         raise GeometryError(f"{where}: a value is not a number") from None
-    values = [v for v in fields.values() if isinstance(v, float)]
-    if not all(np.isfinite(values)) or 0.0 in [fields[k] for k in _scale_names()]:
+    scalars = np.array([fields[n] for n in _SCALARS.values()], dtype=np.float64)
+    if not np.all(np.isfinite(scalars)) or 0.0 in [fields[n] for n in _SCALE_NAMES]:
         raise GeometryError(f"{where}: offsets and scales must be finite, scales non-zero")
     return Rpc(**fields, fit_error_px={})  # type: ignore[arg-type]
-
-
-def _scale_names() -> list[str]:
-    return [n for k, n in _SCALARS.items() if k.endswith("SCALE")]
 
 
 def read_rpc_txt(path: str | Path) -> Rpc:
@@ -162,8 +160,6 @@ def read_dimap2_rpc(path: str | Path) -> Rpc:
         if all(v is not None for v in values):
             md[key] = " ".join(str(v) for v in values)
     rpc = rpc_from_gdal(md, str(p))
-    from dataclasses import replace
-
     return replace(rpc, line_off=rpc.line_off - 1.0, samp_off=rpc.samp_off - 1.0)
 
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
 from levels.files import json_default
 
-__all__ = ["add_json", "add_out", "add_runner", "emit", "runner_of"]
+__all__ = ["add_json", "add_out", "add_runner", "emit", "exit_made", "runner_of"]
 
 
 def add_json(parser: argparse.ArgumentParser, what: str = "JSON instead of text") -> None:
@@ -63,3 +64,14 @@ def runner_of(args: argparse.Namespace) -> Iterator[Any]:
         raise StationError("give --workers (a local cluster) or --scheduler, not both")
     with dask_runner(args.scheduler, args.workers) as runner:
         yield runner
+
+
+def exit_made(n_products: int, what: str) -> int:
+    """The exit code of a command that makes products: 0 when it made some; 2 with one
+    line when it made none (every scene skipped), which is not a success."""
+    if n_products:
+        return 0
+    print(
+        f"station: error: {what} made no product (every scene skipped: see above)", file=sys.stderr
+    )
+    return 2

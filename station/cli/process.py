@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from station.cli._options import add_json, add_out, add_runner, emit, runner_of
+from station.cli._options import add_json, add_out, add_runner, emit, exit_made, runner_of
 from station.errors import StationError
 
 __all__ = ["PROCESS_REPORT", "register"]
@@ -158,14 +158,14 @@ def _process(args: argparse.Namespace) -> int:
         inputs = [*sources, *(args.gcps or []), *([options.dem_path] if options.dem_path else [])]
     out = Path(args.out) if args.out else Path(f"{names[0]}_products")
     replaceable_dir(
-        out, PROCESS_REPORT, lambda r: r["names"], names, f"products of {names}", inputs
+        out, PROCESS_REPORT, lambda r: r["names"], names, lambda n: f"products of {n}", inputs
     )
     if from_scenario:
         from station.run import check_run
 
         found = check_run(scn, out)
     else:
-        found = _check_archives(sources, options, args)
+        found = _check_archives(sources, options, args, out)
     if args.check:
         emit(args, found, lambda f: f"checks passed: {json.dumps(f, default=str)}")
         return 0
@@ -191,13 +191,15 @@ def _process(args: argparse.Namespace) -> int:
             {"format": "spot-station-process", "format_version": 1, "names": names, **report},
         )
     emit(args, report, _text)
-    return _exit_made(sum(len(d["products"]) for d in data), "station process")
+    return exit_made(sum(len(d["products"]) for d in data), "station process")
 
 
-def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace) -> dict:
-    """What reprocessing ``sources`` needs, before any work: the archives readable (their
-    headers), their control points when level 2 is asked, the DEM when a level needs
-    one, and the memory and disk their scenes take (``station.preflight``)."""
+def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace, out: Path) -> dict:
+    """What reprocessing ``sources`` into ``out`` needs, before any work: the archives
+    readable (their headers) and the memory and disk their scenes take
+    (``station.preflight``); with ``--check``, also their control points when level 2 is
+    asked and the DEM when a level needs one (a reprocessing reads those itself before
+    its first scene: read here too, they would be read twice)."""
     from levels.makers.base import Need
     from levels.process import pass_dem, plan_levels
     from levels.readers.gcp import read_gcps
@@ -207,30 +209,20 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace)
 
     archives = [read_l0(s, lazy=True) for s in sources]
     makers = plan_levels(options.levels)
-    if "2" in {m.name for m in makers}:
+    if args.check and "2" in {m.name for m in makers}:
         where = args.gcps or [s.with_name(f"{l0_stem(s)}.gcp.csv") for s in sources]
         for w, a in zip(where, archives, strict=True):
             read_gcps(w, a.n_lines, a.n_columns)
-    if not options.dem_path and any(Need.DEM in m.needs for m in makers):
-        options = dataclasses.replace(options, dem_path=str(run_dem(sources[0], archives[0])))
-    pass_dem(options, makers)
+    if args.check:
+        if not options.dem_path and any(Need.DEM in m.needs for m in makers):
+            dem_path = str(run_dem(sources[0], archives[0]))
+            options = dataclasses.replace(options, dem_path=dem_path)
+        pass_dem(options, makers)
     a = archives[0]
     lines = min(options.scene_lines or a.n_columns, a.n_lines)
     n_scenes = sum(-(-x.n_lines // lines) for x in archives)
     needs = scene_needs(lines, a.n_columns, len(a.bands), len(makers), n_scenes, args.workers)
-    return {"archives": [str(s) for s in sources], **check_needs(needs, Path(args.out or "."))}
-
-
-def _exit_made(n_products: int, what: str) -> int:
-    """0 when products were made; 2 with one line when none were (every scene skipped)."""
-    import sys
-
-    if n_products:
-        return 0
-    print(
-        f"station: error: {what} made no product (every scene skipped: see above)", file=sys.stderr
-    )
-    return 2
+    return {"archives": [str(s) for s in sources], **check_needs(needs, out)}
 
 
 def _campaign(args: argparse.Namespace) -> int:
@@ -262,7 +254,7 @@ def _campaign(args: argparse.Namespace) -> int:
     emit(args, report, _campaign_text)
     failed = [a for a in report["archives"] if a["status"] != "ok"]
     if not failed:
-        return _exit_made(report["summary"]["products"], "the campaign")
+        return exit_made(report["summary"]["products"], "the campaign")
     print(
         f"station: error: {len(failed)} of {len(archives)} archive(s) failed: "
         + "; ".join(f"{a['name']}: {a['reason']}" for a in failed),

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from station.cli._options import add_json, add_out, add_runner, runner_of
+from station.cli._options import add_json, add_out, add_runner, exit_made, runner_of
 from station.errors import StationError
 
 __all__ = ["DEFAULT_SCENARIO", "register"]
@@ -69,9 +69,7 @@ def _run(args: argparse.Namespace) -> int:
             warm_up=True,
         )
     print(json.dumps(report, indent=2) if args.json else summary_table(report, out))
-    from station.cli.process import _exit_made
-
-    return _exit_made(len(report["products"]), "the run")
+    return exit_made(len(report["products"]), "the run")
 
 
 def _check(scn: Any, out: Path, args: argparse.Namespace) -> int:

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from station.scenario import DemConfig
     from station.spacecraft.emulator import Acquisition
 
-__all__ = ["DemError", "export_dem", "read_hgt"]
+__all__ = ["DemError", "export_dem", "footprint_rad", "read_hgt"]
 
 _VOID = -32768
 _NAME = re.compile(r"^([NS])(\d{2})([EW])(\d{3})\.hgt$", re.IGNORECASE)
@@ -68,7 +68,7 @@ _NODATA = -32768.0
 _EARTH_RADIUS_M = 6371e3  # mean: sizes the grid and the error's correlation in nodes
 
 
-def _footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]:
+def footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]:
     """South, north, west, east bounds (rad) of the terrain the strips truly see; across
     the antimeridian, west or east beyond ±π."""
     from station.spacecraft.imaging import trace_pixels
@@ -109,7 +109,7 @@ def export_dem(acqs: list[Acquisition], cfg: DemConfig, seed: int, path: str | P
 
     from levels.files import atomic_path
 
-    south, north, west, east = _footprint_rad(acqs)
+    south, north, west, east = footprint_rad(acqs)
     margin = cfg.margin_km * 1e3 / _EARTH_RADIUS_M
     step = np.radians(cfg.spacing_arcsec / 3600.0)
     coslat = max(np.cos(max(abs(south), abs(north))), 1e-3)
