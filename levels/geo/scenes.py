@@ -35,7 +35,14 @@ from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch
 from levels.threads import one_blas_thread
 
-__all__ = ["PassGeometry", "SceneCut", "SceneGeometry", "cut_scenes", "pass_geometry"]
+__all__ = [
+    "PassGeometry",
+    "SceneCut",
+    "SceneGeometry",
+    "cut_scenes",
+    "models_of_tree",
+    "pass_geometry",
+]
 
 
 @dataclass(frozen=True)
@@ -280,6 +287,44 @@ class PassGeometry:
         """Rows after the last whole scene (made as a partial scene, or skipped and said)."""
         cuts = cut_scenes(self.n_lines, scene_lines, overlap_lines)
         return self.n_lines - (cuts[-1].first_line + cuts[-1].n_lines)
+
+
+def models_of_tree(tree: dict[str, Any]) -> tuple[Epoch, dict[str, PushbroomModel]]:
+    """The epoch and each band's model of a product's ``geometry`` tree, as
+    :meth:`PassGeometry.product_tree` wrote them (scene line 0 is the product's row 0): the
+    model the product was made with, rebuilt from the product alone."""
+    from levels.geometry.times import parse_utc
+
+    try:
+        epoch = Epoch(parse_utc(str(tree["epoch_utc"])), name="the product's epoch")
+        clock = LineClock(
+            float(tree["clock"]["t_first_line_s"]), 0.0, float(tree["clock"]["line_period_s"])
+        )
+        e = tree["ephemeris"]
+        eph = Ephemeris(
+            np.asarray(e["t_s"]),
+            np.asarray(e["r_ecef_m"]),
+            np.asarray(e["v_ecef_m_per_s"]),
+            int(e.get("lagrange_points", 8)),
+            e.get("reference_velocity") or None,
+        )
+        a = tree["attitude"]
+        att = SampledAttitude(np.asarray(a["t_s"]), np.asarray(a["angles_rad"]))
+        n_lines = int(tree["scene"]["n_lines"])
+        looks = {
+            band: LookAngleTable(
+                np.asarray(t["column"]),
+                np.asarray(t["psi_x_rad"]),
+                np.asarray(t["psi_y_rad"]),
+                int(np.asarray(t["column"])[-1]) + 1,
+            )
+            for band, t in tree["look_angles"].items()
+        }
+    except KeyError as exc:
+        raise GeometryError(f"product geometry tree without {exc}: no model to rebuild") from None
+    return epoch, {
+        band: PushbroomModel(epoch, clock, eph, att, look, n_lines) for band, look in looks.items()
+    }
 
 
 @one_blas_thread

@@ -27,7 +27,7 @@ Attitude: which one reproduces the producer's own scene location
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -46,7 +46,7 @@ from levels.geometry.model import LineClock, PushbroomModel
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch, parse_utc
 
-__all__ = ["AttitudeChoice", "DimapScene", "read_dimap"]
+__all__ = ["AttitudeChoice", "BandCalibration", "DimapScene", "read_dimap"]
 
 AttitudeChoice = Literal["auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed"]
 _ATTITUDE_CHOICES = ("auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed")
@@ -59,6 +59,25 @@ _TIME_STAMP = f"{_STRIP}/Sensor_Configuration/Time_Stamp"
 _LOOK_ANGLES = f"{_STRIP}/Sensor_Configuration/Instrument_Look_Angles_List/Instrument_Look_Angles"
 _MIRROR = f"{_STRIP}/Sensor_Configuration/Mirror_Position/STEP_COUNT"
 _SOURCE = "Dataset_Sources/Source_Information/Scene_Source"
+_CALIBRATION = f"{_STRIP}/Sensor_Calibration/Calibration/Band_Parameters"
+
+
+@dataclass(frozen=True, eq=False)
+class BandCalibration:
+    """One band's radiometric calibration as a level-1A file gives it.
+
+    ``physical_gain``: counts per unit of radiance (``Spectral_Band_Info/PHYSICAL_GAIN``,
+    ``X = gain · L + bias``), ``physical_bias``; ``analog_gain``: the instrument's gain
+    setting (``GAIN_ANALOG_VALUE``); ``detector_gain`` and ``dark_current``: each detector's
+    relative gain ``G`` and dark signal (``Cells/Cell``), the table the 1A normalisation
+    used; empty arrays when the file has none.
+    """
+
+    physical_gain: float | None
+    physical_bias: float | None
+    analog_gain: float | None
+    detector_gain: NDArray[np.float64]
+    dark_current: NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,6 +117,7 @@ class DimapScene:
     corrected_attitude: SampledAttitude | None
     look_angles: dict[int, LookAngleTable]
     mirror_step: int | None
+    calibration: dict[int, BandCalibration] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -312,7 +332,33 @@ def read_dimap(path: str | Path) -> DimapScene:
         corrected_attitude=corrected,
         look_angles=look_angles,
         mirror_step=_optional(root, _MIRROR, int),
+        calibration=_calibration(root, source),
     )
+
+
+def _calibration(root: ET.Element, source: Path) -> dict[int, BandCalibration]:
+    """Each band's ``Spectral_Band_Info`` gains and ``Sensor_Calibration`` cells."""
+    info = {
+        _number(e, "BAND_INDEX", source, int): e
+        for e in root.findall("Image_Interpretation/Spectral_Band_Info")
+    }
+    cells = {_number(e, "BAND_INDEX", source, int): e for e in root.findall(_CALIBRATION)}
+    out = {}
+    for band in sorted(set(info) | set(cells)):
+        i, c = info.get(band), cells.get(band)
+        cell = [] if c is None else c.findall("Gain_Section/Pixel_Parameters/Cells/Cell")
+        out[band] = BandCalibration(
+            physical_gain=None if i is None else _optional(i, "PHYSICAL_GAIN", float),
+            physical_bias=None if i is None else _optional(i, "PHYSICAL_BIAS", float),
+            analog_gain=None
+            if c is None
+            else _optional(c, "Gain_Section/GAIN_ANALOG_VALUE", float),
+            detector_gain=np.array([_number(e, "G", source) for e in cell], dtype=np.float64),
+            dark_current=np.array(
+                [_number(e, "DARK_CURRENT", source) for e in cell], dtype=np.float64
+            ),
+        )
+    return out
 
 
 def _time_stamp(

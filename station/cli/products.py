@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from station.cli._options import add_json, add_out, emit
+from station.errors import StationError
 
 __all__ = ["register"]
 
@@ -39,20 +40,37 @@ def register(sub: Any) -> None:
     insp.set_defaults(func=_inspect)
     expo = sub.add_parser(
         "export",
-        help="export a product as a GeoTIFF (map levels georeferenced, 1A/1B with RPCs)",
-        description="Write a product as a tiled, compressed GeoTIFF with its validity mask, "
-        "for GDAL and QGIS: a map level (2A, 2, 3) with its CRS and geotransform, an "
-        "image-geometry level (1A, 1B) with the RPCs fitted to its rigorous model "
-        "(gdalwarp -rpc -to RPC_DEM=dem.tif orthorectifies it).",
+        help="export a product as a GeoTIFF, or a 1A as a SPOT DIMAP scene with its truth",
+        description="--geotiff: write a product as a tiled, compressed GeoTIFF with its "
+        "validity mask, for GDAL and QGIS: a map level (2A, 2, 3) with its CRS and "
+        "geotransform, an image-geometry level (1A, 1B) with the RPCs fitted to its rigorous "
+        "model (gdalwarp -rpc -to RPC_DEM=dem.tif orthorectifies it). --dimap DIR: write a 1A "
+        "as a SPOT 1-4 DIMAP v1 scene (METADATA.DIM + IMAGERY.TIF) with the truth to score a "
+        "processing against (the terrain, checkpoints, control points, true orbit and "
+        "attitude: docs/benchmark.md).",
     )
     expo.add_argument("product", help="a level product (.nc or .h5)")
-    expo.add_argument(
-        "--geotiff",
-        action="store_true",
-        required=True,
-        help="GeoTIFF through GDAL (the only format so far)",
+    fmt = expo.add_mutually_exclusive_group(required=True)
+    fmt.add_argument("--geotiff", action="store_true", help="GeoTIFF through GDAL")
+    fmt.add_argument(
+        "--dimap",
+        metavar="DIR",
+        help="a 1A as a SPOT DIMAP v1 scene and its truth in DIR (replaced whole)",
     )
-    add_out(expo, "output file (default: the product's name with .tif)")
+    expo.add_argument(
+        "--scenario",
+        help="with --dimap: the scenario that made the product, for the truth (default: the "
+        "one the run's report.json names, when it is found)",
+    )
+    expo.add_argument(
+        "--mission-index",
+        type=int,
+        default=2,
+        choices=(1, 2, 3),
+        help="with --dimap: the SPOT written as MISSION_INDEX (the emulated HRV flies SPOT "
+        "1-3's orbit; default 2)",
+    )
+    add_out(expo, "with --geotiff: output file (default: the product's name with .tif)")
     expo.set_defaults(func=_export)
 
 
@@ -79,6 +97,18 @@ def _export(args: argparse.Namespace) -> int:
     from levels.products import read_product
 
     src = Path(args.product)
+    if args.dimap:
+        from station.benchmark_pack import write_pack
+
+        if args.out:
+            raise StationError("--out goes with --geotiff; --dimap names its own directory")
+        result = write_pack(
+            src, args.dimap, scenario=args.scenario, mission_index=args.mission_index
+        )
+        print(result.text())
+        return 0
+    if args.scenario:
+        raise StationError("--scenario goes with --dimap")
     out = Path(args.out) if args.out else src.with_suffix(".tif")
     print(f"wrote {write_geotiff(read_product(src), out)}")
     return 0

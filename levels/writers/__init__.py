@@ -1,0 +1,1 @@
+"""Writers of formats other tools read (DIMAP v1 scenes)."""
