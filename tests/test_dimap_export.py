@@ -25,6 +25,7 @@ from levels.geometry.times import Epoch, parse_utc
 from levels.products import read_product
 from levels.readers.dimap import DimapScene, read_dimap
 from levels.writers.dimap import (
+    BAND_INDEX,
     band_descriptions,
     dimap_scene_of,
     rates_reproducing,
@@ -116,20 +117,30 @@ def test_the_exported_scene_is_the_products_model(product_1a: Path, tmp_path: Pa
         "P",
     )
     assert back.mirror_step == product.attrs["mirror_step"]
-    _, models = models_of_tree(product.geometry)
-    ours = models["P"]
-    theirs = back.model(attitude="integrated_zeroed")  # INPE's rule, the station's own
-    rng = np.random.default_rng(35)
-    line = rng.uniform(0, ours.n_lines - 1, 1000)
-    col = rng.uniform(0, ours.n_columns - 1, 1000)
-    h = rng.uniform(-100.0, 2000.0, 1000)
-    g = ours.image_to_ground(line, col, h)
-    assert g.ok.all()
-    i = theirs.ground_to_image(g.lat_rad, g.lon_rad, h)
-    assert np.hypot(i.line - line, i.column - col).max() < EXPORT_MODEL_PX
+    assert _model_gap_px(product, back) < EXPORT_MODEL_PX
+    theirs = back.model(attitude="integrated_zeroed")
     # the frame is located by the same model: station locate reproduces it
     corners = theirs.image_to_ground(back.frame_row - 1.0, back.frame_col - 1.0, 0.0)
     np.testing.assert_allclose(np.degrees(corners.lat_rad), back.frame_lat_deg, atol=1e-9)
+
+
+def _model_gap_px(product, scene: DimapScene, n: int = 1000) -> float:
+    """The largest image distance, over every band at ``n`` random points and heights,
+    between the product's model and the scene's (read with INPE's attitude rule, the
+    station's own)."""
+    _, models = models_of_tree(product.geometry)
+    rng = np.random.default_rng(35)
+    gap = 0.0
+    for name, ours in models.items():
+        theirs = scene.model(band=BAND_INDEX[name], attitude="integrated_zeroed")
+        line = rng.uniform(0, ours.n_lines - 1, n)
+        col = rng.uniform(0, ours.n_columns - 1, n)
+        h = rng.uniform(-100.0, 2000.0, n)
+        g = ours.image_to_ground(line, col, h)
+        assert g.ok.all()
+        i = theirs.ground_to_image(g.lat_rad, g.lon_rad, h)
+        gap = max(gap, float(np.hypot(i.line - line, i.column - col).max()))
+    return gap
 
 
 def test_gdal_opens_the_exported_scene(product_1a: Path, tmp_path: Path) -> None:
@@ -195,15 +206,17 @@ def test_the_pack_holds_the_scene_and_its_truth(pack: Path) -> None:
     assert 150 < scores["rms_m"] < 300 and scores["n"] == 21 * 21
 
 
-def test_the_truth_tables_locate_the_checkpoints(pack: Path) -> None:
-    """What a user of the pack does: build the true model from the truth tables and the
-    DIMAP's dating, and find each checkpoint where the truth says it is."""
+def _truth_miss_m(pack: Path) -> float:
+    """What a user of the pack does: build the true model of band 1 from the truth tables
+    and find each checkpoint where the truth says it is; the largest miss (m)."""
     scene = read_dimap(pack / "METADATA.DIM")
     assert scene.epoch is not None and scene.line_period_s and scene.scene_center_line
     epoch = scene.epoch
     eph = _columns(pack / "truth" / "ephemeris.csv")
     att = _columns(pack / "truth" / "attitude.csv")
     look = _columns(pack / "truth" / "look_angles.csv")
+    first = [k for k, b in enumerate(look["band"]) if b == look["band"][0]]  # band 1
+    look = {k: [v[i] for i in first] for k, v in look.items()}
     cp = _columns(pack / "truth" / "checkpoints.csv")
 
     def num(table: dict, *keys: str) -> np.ndarray:
@@ -238,7 +251,11 @@ def test_the_truth_tables_locate_the_checkpoints(pack: Path) -> None:
     from pyproj import Geod
 
     _, _, miss = Geod(ellps="WGS84").inv(lon, lat, np.degrees(g.lon_rad), np.degrees(g.lat_rad))
-    assert miss.max() < TRUTH_TABLES_M
+    return float(miss.max())
+
+
+def test_the_truth_tables_locate_the_checkpoints(pack: Path) -> None:
+    assert _truth_miss_m(pack) < TRUTH_TABLES_M
     # the measured control points are the truth plus the scenario's errors
     measured = _columns(pack / "control_points.csv")
     true = _columns(pack / "truth" / "control_points.csv")
@@ -253,6 +270,53 @@ def test_station_locate_reads_the_pack(pack: Path, capsys) -> None:
     out = capsys.readouterr().out
     assert float(out.strip().splitlines()[-1].split()[2]) < 0.05  # "max error X m"
     assert main([*args, "--gcps", str(pack / "control_points.csv")]) == 0
+
+
+TWIN = """
+name = "twin_xs"
+seed = 7
+[[instrument]]
+hrv = 1
+twin = true
+mode = "XS"
+n_detectors = 150
+n_lines = 150
+[[instrument]]
+hrv = 2
+twin = true
+mode = "XS"
+n_detectors = 150
+n_lines = 150
+[downlink]
+bit_rate_mbps = 0.5
+preamble_s = 0.1
+postamble_s = 0.1
+[processing]
+levels = ["1A"]
+"""
+
+
+def test_a_twin_pass_in_xs_is_exported_the_same_way(tmp_path: Path) -> None:
+    """Both HRVs of a twin pass, three bands each: two packs, each its HRV's scene and
+    truth (reduced: 150 detectors, 150 lines)."""
+    scenario = tmp_path / "twin_xs.toml"
+    scenario.write_text(TWIN)
+    run = tmp_path / "run"
+    assert main(["run", str(scenario), "--out", str(run), "--quiet", "--no-quicklooks"]) == 0
+    for hrv in (1, 2):
+        product = run / f"twin_xs_hrv{hrv}_s000_1A.h5"
+        pack = tmp_path / f"hrv{hrv}"
+        assert (
+            main(["export", str(product), "--dimap", str(pack), "--scenario", str(scenario)]) == 0
+        )
+        scene = read_dimap(pack / "METADATA.DIM")
+        assert (scene.instrument_index, scene.sensor_code, sorted(scene.look_angles)) == (
+            hrv,
+            "X",
+            [1, 2, 3],
+        )
+        assert _model_gap_px(read_product(product), scene) < EXPORT_MODEL_PX
+        assert _truth_miss_m(pack) < TRUTH_TABLES_M
 
 
 def test_refusals(run_dir: Path, product_1a: Path, tmp_path: Path, capsys) -> None:
@@ -270,3 +334,11 @@ def test_refusals(run_dir: Path, product_1a: Path, tmp_path: Path, capsys) -> No
     (tmp_path / "d" / "keep.txt").write_text("mine")
     one_line(capsys, main(["export", str(product_1a), "--dimap", str(tmp_path / "d")]), 2, "keep")
     assert (tmp_path / "d" / "keep.txt").read_text() == "mine"
+
+
+def test_the_scenario_is_found_through_the_runs_report(
+    product_1a: Path, tmp_path: Path, monkeypatch
+) -> None:
+    monkeypatch.chdir(ROOT)  # report.json names scenarios/small_test.toml's file name
+    assert main(["export", str(product_1a), "--dimap", str(tmp_path / "p")]) == 0
+    assert json.loads((tmp_path / "p" / "pack.json").read_text())["truth"]
