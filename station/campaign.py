@@ -31,6 +31,7 @@ from levels.files import staged_dir, write_json
 from levels.options import ProcessingOptions
 from levels.tasks import Runner
 from station import __version__
+from station.catalog import write_catalog
 from station.errors import StationError
 from station.outdir import replaceable_dir
 
@@ -193,6 +194,7 @@ def _run(
         },
     }
     write_json(stage / "campaign.json", report)
+    write_catalog(stage, target.name, f"the products of a campaign of {len(entries)} archive(s)")
     return report
 
 

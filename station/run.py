@@ -97,6 +97,7 @@ def _run(
 
     from levels.quicklook import write_quicklook
     from levels.warmup import start_warm_up, stop_warm_up, wait_for_warm_up
+    from station.catalog import CATALOG_FILE, write_catalog
     from station.sipc.process import with_exported_dem
     from station.spacecraft.emulator import emulate_pass
 
@@ -169,6 +170,9 @@ def _run(
         _log.info("quicklooks drawn in %.1f s", timings["quicklooks"])
         stages.update()
     stages.set_description("report")
+    t = clock()
+    write_catalog(out, scn.name, f"the products of a run of scenario {scn.name} (spot-station)")
+    timings["catalog"] = clock() - t
     timings["total"] = clock() - t_start
     report = {
         "format": REPORT_FORMAT,
@@ -187,6 +191,7 @@ def _run(
             else {}
         ),
         "products": rows,
+        "catalog": CATALOG_FILE,
         "timings_s": _rounded(timings),
     }
     write_json(out / "report.json", report)
@@ -473,7 +478,7 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
         n_ql = sum("quicklook" in r for r in report["products"])
         l0 = ", ".join(h["l0"]["file"] for h in report["hrvs"])
         lines.append(
-            f"in {out_dir}/: report.json, {l0}, "
+            f"in {out_dir}/: report.json, catalog.json, {l0}, "
             f"{len(report['products'])} products, {n_ql} quicklooks"
         )
     return "\n".join(lines)

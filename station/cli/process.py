@@ -117,6 +117,7 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
 def _process(args: argparse.Namespace) -> int:
     from levels.files import staged_dir, write_json
     from levels.options import ProcessingOptions
+    from station.catalog import write_catalog
     from station.outdir import replaceable_dir
     from station.scenario import check_name, load_scenario
     from station.sipc.process import l0_stem, process_scenario, reprocess_pass
@@ -190,6 +191,7 @@ def _process(args: argparse.Namespace) -> int:
             stage / PROCESS_REPORT,
             {"format": "spot-station-process", "format_version": 1, "names": names, **report},
         )
+        write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
     emit(args, report, _text)
     return exit_made(sum(len(d["products"]) for d in data), "station process")
 
