@@ -2,18 +2,23 @@
 
 This is the check a photogrammetrist runs before trusting the model: the four
 ``Dataset_Frame`` corners and the scene centre, predicted on the ellipsoid (height 0) by the
-rigorous model of ``levels.geometry``, against the producer's own coordinates.
+rigorous model of ``levels.geometry``, against the producer's own coordinates. A SPOT 6/7
+(or Pléiades) DIMAP v2 ``DIM_*.XML`` has no model to rebuild: its producer's RPC is the
+model (:mod:`levels.readers.dimap2`), its ``Dataset_Extent`` the frame, at the heights the
+file gives.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pyproj import Geod
 
 from levels.readers.dimap import AttitudeChoice, read_dimap
+from levels.readers.dimap2 import Dimap2Scene, is_dimap2, read_dimap2
 from station.errors import StationError
 
 __all__ = ["FrameCheck", "GcpCheck", "check_frame", "check_gcps", "write_rpc"]
@@ -72,18 +77,40 @@ def check_frame(path: str | Path, attitude: AttitudeChoice = "auto") -> FrameChe
 
     ``roundtrip_px`` is the image → ground → image closure at each point (pixels).
     """
-    scene = read_dimap(path)
-    model = scene.model(attitude=attitude)
-    row = np.append(scene.frame_row, scene.center_row)
-    col = np.append(scene.frame_col, scene.center_col)
-    lat = np.append(scene.frame_lat_deg, scene.center_lat_deg)
-    lon = np.append(scene.frame_lon_deg, scene.center_lon_deg)
-    ground = model.image_to_ground(row - 1.0, col - 1.0, 0.0)  # DIMAP is 1-based
+    if is_dimap2(path):
+        v2 = read_dimap2(path)
+        model: Any = v2.model()
+        name, attitude = v2.name, _PRODUCER_RPC
+        row, col, h = v2.frame_row, v2.frame_col, v2.frame_h_m
+        lat, lon = v2.frame_lat_deg, v2.frame_lon_deg
+    else:
+        scene = read_dimap(path)
+        model, name = scene.model(attitude=attitude), scene.name
+        row = np.append(scene.frame_row, scene.center_row)
+        col = np.append(scene.frame_col, scene.center_col)
+        lat = np.append(scene.frame_lat_deg, scene.center_lat_deg)
+        lon = np.append(scene.frame_lon_deg, scene.center_lon_deg)
+        h = np.zeros(row.shape)  # SPOT 1–5 frames lie on the ellipsoid
+    ground = model.image_to_ground(row - 1.0, col - 1.0, h)  # DIMAP is 1-based
     plat, plon = np.degrees(ground.lat_rad), np.degrees(ground.lon_rad)
     _, _, dist = _GEOD.inv(lon, lat, plon, plat)
-    back = model.ground_to_image(ground.lat_rad, ground.lon_rad, 0.0)
+    back = model.ground_to_image(ground.lat_rad, ground.lon_rad, h)
     roundtrip = np.hypot(back.line - (row - 1.0), back.column - (col - 1.0))
-    return FrameCheck(scene.name, attitude, row, col, lat, lon, plat, plon, dist, roundtrip)
+    return FrameCheck(name, attitude, row, col, lat, lon, plat, plon, dist, roundtrip)
+
+
+#: What ``attitude`` says for a DIMAP v2 scene, whose model is its producer's RPC.
+_PRODUCER_RPC = "the producer's RPC"
+
+
+def _scene_model(path: str | Path, attitude: AttitudeChoice) -> tuple[str, Any, str]:
+    """A scene's name, model and the attitude it was built with: DIMAP v1's rigorous
+    model, or DIMAP v2's RPC."""
+    if is_dimap2(path):
+        v2: Dimap2Scene = read_dimap2(path)
+        return v2.name, v2.model(), _PRODUCER_RPC
+    scene = read_dimap(path)
+    return scene.name, scene.model(attitude=attitude), attitude
 
 
 @dataclass(frozen=True)
@@ -191,13 +218,12 @@ def check_gcps(
 
     if model not in ("rigorous", "rpc"):
         raise StationError(f"model {model!r}: expected 'rigorous' or 'rpc'")
-    scene = read_dimap(path)
-    rigorous = scene.model(attitude=attitude)
+    name, rigorous, attitude = _scene_model(path, attitude)
     g = read_gcps(gcp_path, rigorous.n_lines, rigorous.n_columns)
     back = rigorous.ground_to_image(g.lat_rad, g.lon_rad, g.h_m, first_line=g.line)
     line, column = back.line, back.column
     extra: dict = {}
-    if model == "rpc":
+    if model == "rpc" and attitude != _PRODUCER_RPC:  # a DIMAP v2 model is an RPC already
         heights = (float(g.h_m.min()) - GCP_RPC_MARGIN_M, float(g.h_m.max()) + GCP_RPC_MARGIN_M)
         rpc = rpc_of_model(rigorous, heights)
         line, column = rpc.image_of(np.degrees(g.lat_rad), np.degrees(g.lon_rad), g.h_m)
@@ -209,7 +235,7 @@ def check_gcps(
     plat, plon = np.degrees(ground.lat_rad), np.degrees(ground.lon_rad)
     _, _, dist = _GEOD.inv(np.degrees(g.lon_rad), np.degrees(g.lat_rad), plon, plat)
     check = GcpCheck(
-        scene.name, attitude, g.id, g.line, g.column, line, column, np.asarray(dist), model, **extra
+        name, attitude, g.id, g.line, g.column, line, column, np.asarray(dist), model, **extra
     )
     _judge(check, g.sigma_ground_m)
     return check
@@ -263,10 +289,14 @@ def write_rpc(
         ossim = read_ossim_geom(path)
         name, model = f"{ossim.sensor} ({Path(path).name})", ossim.model
         attitude = "ossim"  # the keyword list's own attitude samples
+    elif is_dimap2(path):  # its model is an RPC: written as it is
+        v2 = read_dimap2(path)
+        name, attitude, rpc = v2.name, _PRODUCER_RPC, v2.rpc
     else:
         scene = read_dimap(path)
         name, model = scene.name, scene.model(attitude=attitude)
-    rpc = rpc_of_model(model, heights_m)
+    if attitude != _PRODUCER_RPC:
+        rpc = rpc_of_model(model, heights_m)
     target = Path(out)
     target.parent.mkdir(parents=True, exist_ok=True)
     text = rpc.rpb() if target.suffix.upper() == ".RPB" else rpc.rpc_txt()

@@ -4,10 +4,9 @@ and onto a DEM), against our forward model and GDAL's transformer."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from _dimap2 import write_rpc_xml
 
 from levels.errors import GeometryError
 from levels.geo.rpc import Rpc, ground_on_dem, rpc_of_model
@@ -89,43 +88,8 @@ def test_a_geotiff_and_a_product_as_gdal_reads_them(rpc, run_dir, tmp_path) -> N
     assert _same(ours, read_gdal_rpc(f'HDF5:"{product}"://P')) <= SAME_PX
 
 
-def _dimap2(rpc: Rpc, path: Path) -> Path:
-    """``rpc`` written as a DIMAP v2 ``RPC_*.XML`` does (Airbus's layout: ground → image
-    is the ``Inverse_Model``, offsets in ``RFM_Validity``, pixels counted from 1)."""
-    coeffs = "".join(
-        f"<{key}_{k + 1}>{float(c)!r}</{key}_{k + 1}>"
-        for key, arr in (
-            ("SAMP_NUM_COEFF", rpc.samp_num),
-            ("SAMP_DEN_COEFF", rpc.samp_den),
-            ("LINE_NUM_COEFF", rpc.line_num),
-            ("LINE_DEN_COEFF", rpc.line_den),
-        )
-        for k, c in enumerate(arr)
-    )
-    box = {
-        "LONG_SCALE": rpc.lon_scale,
-        "LONG_OFF": rpc.lon_off,
-        "LAT_SCALE": rpc.lat_scale,
-        "LAT_OFF": rpc.lat_off,
-        "HEIGHT_SCALE": rpc.height_scale,
-        "HEIGHT_OFF": rpc.height_off,
-        "SAMP_SCALE": rpc.samp_scale,
-        "SAMP_OFF": rpc.samp_off + 1.0,
-        "LINE_SCALE": rpc.line_scale,
-        "LINE_OFF": rpc.line_off + 1.0,
-    }
-    validity = "".join(f"<{k}>{v!r}</{k}>" for k, v in box.items())
-    path.write_text(
-        '<?xml version="1.0" encoding="UTF-8"?><Dimap_Document><Rational_Function_Model>'
-        "<Global_RFM><Direct_Model/><Inverse_Model>" + coeffs + "</Inverse_Model>"
-        "<RFM_Validity>" + validity + "</RFM_Validity></Global_RFM>"
-        "</Rational_Function_Model></Dimap_Document>"
-    )
-    return path
-
-
 def test_dimap_v2_counts_pixels_from_one(rpc, tmp_path) -> None:
-    xml = _dimap2(rpc, tmp_path / "RPC_SPOT6_P_20130101.XML")
+    xml = write_rpc_xml(rpc, tmp_path / "RPC_SPOT6_P_20130101.XML")
     for back in (read_dimap2_rpc(xml), read_rpc(xml)):
         assert _same(rpc, back) <= SAME_PX
 

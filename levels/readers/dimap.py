@@ -274,7 +274,8 @@ def read_dimap(path: str | Path) -> DimapScene:
         version = v2.get("version", "2")
         raise DimapError(
             f"{source}: DIMAP v{version} (SPOT 6/7, Pléiades), not the SPOT 1–5 DIMAP v1 this "
-            "reads; its geometry is the RPC_*.XML beside it (levels.readers.rpc.read_rpc)"
+            "reads: levels.readers.dimap2.read_dimap2 reads it (its model is the RPC_*.XML "
+            "it names), as station locate does"
         )
     if root.tag != "Dimap_Document":
         raise DimapError(

@@ -17,12 +17,13 @@ def register(sub: Any) -> None:
         help="predict the frame of a real SPOT scene from its METADATA.DIM",
         description="Predict the frame corners and centre of a real SPOT 1–5 level-1A scene "
         "from its DIMAP metadata (ephemeris, attitude, look angles) and compare "
-        "them with the producer's Dataset_Frame.",
+        "them with the producer's Dataset_Frame; of a SPOT 6/7 (or Pléiades) DIMAP v2 "
+        "scene from its producer's RPC (RPC_*.XML), against its Dataset_Extent.",
     )
     p.add_argument(
         "metadata",
-        help="path to a SPOT level-1A METADATA.DIM (or, with --rpc, OSSIM's .geom keyword "
-        "list of a SPOT 5 scene)",
+        help="path to a SPOT level-1A METADATA.DIM, a SPOT 6/7 DIMAP v2 DIM_*.XML (or, "
+        "with --rpc, OSSIM's .geom keyword list of a SPOT 5 scene)",
     )
     p.add_argument(
         "--attitude",
@@ -99,6 +100,8 @@ def _heights(text: str) -> tuple[float, float]:
 
 def _rpc_text(d: dict) -> str:
     e = d["fit_error_px"]
+    if not e:  # a DIMAP v2 scene's own RPC, converted
+        return f"{d['scene']}: {d['attitude']} written to {d['path']} as it is (no fit)"
     return (
         f"{d['scene']}  (attitude: {d['attitude']}): RPC00B written to {d['path']}\n"
         f"fitted over the image and heights {e['height_min_m']:.0f}–{e['height_max_m']:.0f} m; "
