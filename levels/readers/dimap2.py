@@ -185,7 +185,9 @@ def read_dimap2(path: str | Path) -> Dimap2Scene:
         raise DimapError(str(exc)) from None
     heights = np.array(
         [
-            float(p.findtext("H")) if p.findtext("H") not in (None, "") else rpc.height_off
+            _number(p, "H", source, f"Dataset_Extent/{p.tag}")
+            if (p.findtext("H") or "").strip()
+            else rpc.height_off
             for p in points
         ]
     )
