@@ -371,6 +371,9 @@ def _write_band(
         ds.attrs["long_name"] = long_name
         if product.map_grid is not None:
             ds.attrs["grid_mapping"] = "crs"
+            # the grid mapping also as a (scalar) coordinate: xarray then opens it as one,
+            # which is where rioxarray looks for the CRS (``ds.rio.crs``)
+            ds.attrs["coordinates"] = "crs"
         if var == name:
             ds.attrs["ancillary_variables"] = f"{name}_valid"
         else:

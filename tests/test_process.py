@@ -131,7 +131,7 @@ def test_station_process_bad_input(args, message, run_dir: Path, tmp_path: Path,
 
 def test_map_product_opens_georeferenced_in_gdal_and_xarray(run_dir: Path, tmp_path: Path) -> None:
     """GDAL's netCDF driver and xarray read the 2A product itself with the CRS and the
-    transform of its GeoTIFF export, exactly."""
+    transform of its GeoTIFF export, exactly; xarray's defaults give rioxarray the CRS."""
     src = run_dir / "small_test_s000_2A.nc"
     tif = tmp_path / "x.tif"
     assert main(["export", str(src), "--geotiff", "--out", str(tif)]) == 0
@@ -154,6 +154,14 @@ def test_map_product_opens_georeferenced_in_gdal_and_xarray(run_dir: Path, tmp_p
         assert pyproj.CRS.from_wkt(ds["crs"].attrs["crs_wkt"]) == pyproj.CRS(crs.to_wkt())
         assert pyproj.CRS.from_cf(dict(ds["crs"].attrs)).equals(pyproj.CRS(crs.to_wkt()))
         assert np.array_equal(da.values, image)
+    # with xarray's defaults (any engine): the grid mapping is a coordinate carrying the
+    # CRS as WKT, which is where rioxarray finds it (``ds.rio.crs``)
+    with xr.open_dataset(src) as ds:
+        assert "crs" in ds.coords and "crs" not in ds.data_vars
+        assert pyproj.CRS.from_wkt(ds.coords["crs"].attrs["spatial_ref"]) == pyproj.CRS(
+            crs.to_wkt()
+        )
+        assert ds["P"].attrs.get("grid_mapping", ds["P"].encoding.get("grid_mapping")) == "crs"
 
 
 def test_geometry_objects_read_back_their_trees(run_dir: Path) -> None:
