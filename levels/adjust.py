@@ -696,6 +696,9 @@ class Strip:
     def __post_init__(self) -> None:
         if not self.band:
             object.__setattr__(self, "band", next(iter(self.pg.look_angles)))
+        # tie points (kind "tie") tie passes together: one pass's adjustment has no use
+        # for a point whose ground it does not know (docs/gcp.md)
+        object.__setattr__(self, "gcps", self.gcps.controls())
 
 
 def adjust(

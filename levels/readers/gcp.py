@@ -8,6 +8,11 @@ detector), the 1σ of each (``sigma_ground_m`` per horizontal axis, ``sigma_h_m`
 comments. :func:`read_gcps` checks everything before handing it over: a missing column, a
 value that is not a number or not finite, a duplicate id, a point outside the image or a
 σ that is not positive is a :class:`~levels.errors.GcpError` naming the row and the value.
+
+An optional ``kind`` column says ``gcp`` (the default) or ``tie``: a tie point
+(:mod:`levels.tiepoints`) was measured in several passes' images, under the same id in each
+pass's file; its map position is only an approximation (its σ says how rough), which a
+block adjustment solves.
 """
 
 from __future__ import annotations
@@ -58,13 +63,26 @@ class ControlPointSet:
     sigma_h_m: NDArray[np.float64]
     sigma_px: NDArray[np.float64]
     hrv: NDArray[np.int64]
+    #: Tie points (kind ``tie``), whose ground position is unknown, not control.
+    tie: NDArray[np.bool_] | None = None
+
+    def __post_init__(self) -> None:
+        if self.tie is None:
+            object.__setattr__(self, "tie", np.zeros(len(self.id), dtype=bool))
 
     def __len__(self) -> int:
         return len(self.id)
 
     def of_hrv(self, hrv: int) -> ControlPointSet:
         """The points imaged by one HRV."""
-        k = self.hrv == hrv
+        return self._subset(self.hrv == hrv)
+
+    def controls(self) -> ControlPointSet:
+        """The control points alone (kind ``gcp``): what a single-pass adjustment uses."""
+        assert self.tie is not None
+        return self._subset(~self.tie)
+
+    def _subset(self, k: NDArray[np.bool_]) -> ControlPointSet:
         return ControlPointSet(
             tuple(i for i, keep in zip(self.id, k, strict=True) if keep),
             *(getattr(self, f.name)[k] for f in fields(self)[1:]),
@@ -99,6 +117,7 @@ def read_gcps(
             f"{', '.join(GCP_COLUMNS)} (docs/gcp.md)"
         )
     cols: dict[str, list] = {c: [] for c in GCP_COLUMNS}
+    kinds: list[bool] = []
     for k, raw in enumerate(reader, start=1):
         if None in raw:  # csv's restkey: the row has more fields than the header
             raise _bad(where, k, f"{len(header) + len(raw[None])} fields for {len(header)} columns")
@@ -142,6 +161,10 @@ def read_gcps(
             )
         if cols["hrv"][-1] not in (1.0, 2.0):
             raise _bad(where, k, f"hrv = {rec['hrv']!r}: expected 1 or 2")
+        kind = rec.get("kind", "") or "gcp"
+        if kind not in ("gcp", "tie"):
+            raise _bad(where, k, f"kind = {kind!r}: expected gcp or tie")
+        kinds.append(kind == "tie")
         line, col = cols["line"][-1], cols["column"][-1]
         if (n_lines is not None and not -0.5 <= line <= n_lines - 0.5) or (
             n_columns is not None and not -0.5 <= col <= n_columns - 0.5
@@ -164,6 +187,7 @@ def read_gcps(
         a["sigma_h_m"],
         a["sigma_px"],
         a["hrv"].astype(np.int64),
+        np.array(kinds, dtype=bool),
     )
 
 
@@ -171,7 +195,9 @@ def write_gcps(path: str | Path, gcps: ControlPointSet, comment: str = "") -> Pa
     """Write a control-point file (module docstring) atomically; returns its path."""
     target = Path(path)
     rows = [f"# {ln}" for ln in comment.splitlines()] if comment else []
-    rows.append(",".join(GCP_COLUMNS))
+    assert gcps.tie is not None
+    kinds = bool(gcps.tie.any())  # the kind column only where a tie point needs it
+    rows.append(",".join(GCP_COLUMNS) + (",kind" if kinds else ""))
     for k, pid in enumerate(gcps.id):
         rows.append(
             ",".join(
@@ -186,6 +212,7 @@ def write_gcps(path: str | Path, gcps: ControlPointSet, comment: str = "") -> Pa
                     f"{gcps.sigma_h_m[k]:g}",
                     f"{gcps.sigma_px[k]:g}",
                     str(int(gcps.hrv[k])),
+                    *(["tie" if gcps.tie[k] else "gcp"] if kinds else []),
                 ]
             )
         )
