@@ -71,7 +71,52 @@ def register(sub: Any) -> None:
         "1-3's orbit; default 2)",
     )
     add_out(expo, "with --geotiff: output file (default: the product's name with .tif)")
+    tie = sub.add_parser(
+        "tie",
+        help="tie points between two passes' 2A products, written as each pass's tie file",
+        description="Find the same ground in two overlapping 2A (or 2) products of different "
+        "passes (or of a twin) and write the tie points, measured in each raw image, as "
+        "control points of kind 'tie' (docs/gcp.md): <name>.tie.csv for each pass.",
+    )
+    tie.add_argument("a", help="the first pass's 2A product (its map grid is the common one)")
+    tie.add_argument("b", help="the second pass's 2A product")
+    tie.add_argument("--band", help="the band matched (default: the first)")
+    tie.add_argument("--out", required=True, help="directory of the two tie files")
+    add_json(tie)
+    tie.set_defaults(func=_tie)
     expo.set_defaults(func=_export)
+
+
+def _tie(args: argparse.Namespace) -> int:
+    from levels.products import read_product
+    from levels.readers.gcp import write_gcps
+    from levels.tiepoints import MapView, match_views
+
+    a, b = (MapView.of_product(read_product(p), args.band) for p in (args.a, args.b))
+    if a.name == b.name and a.hrv == b.hrv:
+        raise StationError(f"{args.a} and {args.b} are the same pass ({a.name}, HRV{a.hrv})")
+    tp = match_views(a, b)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    for which, view in (("a", a), ("b", b)):
+        tag = view.name if view.hrv == 1 else f"{view.name}_hrv{view.hrv}"
+        comment = f"tie points of {a.name} HRV{a.hrv} and {b.name} HRV{b.hrv} (docs/gcp.md)"
+        files.append(str(write_gcps(out / f"{tag}.tie.csv", tp.control_points(which), comment)))
+    result = {"files": files, "points": len(tp), "counts": tp.counts}
+    emit(
+        args,
+        result,
+        lambda r: (
+            f"{r['points']} tie points (of {r['counts']['candidates']} candidates; "
+            + ", ".join(
+                f"{k} {v}" for k, v in r["counts"].items() if k not in ("candidates", "kept")
+            )
+            + ") in "
+            + ", ".join(r["files"])
+        ),
+    )
+    return 0 if len(tp) else 2
 
 
 def _compare(args: argparse.Namespace) -> int:
