@@ -71,7 +71,15 @@ from levels.geometry.frames import (
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
 
-__all__ = ["PASS_PARAMETERS", "SCENE_PARAMETERS", "Adjustment", "Strip", "adjust", "adjust_strips"]
+__all__ = [
+    "PASS_PARAMETERS",
+    "SCENE_PARAMETERS",
+    "Adjustment",
+    "Strip",
+    "adjust",
+    "adjust_block",
+    "adjust_strips",
+]
 
 #: The pass's parameters, in order (SI units).
 PASS_PARAMETERS = (
@@ -971,3 +979,355 @@ def _solve_group(
                 prob, sub, np.searchsorted(group, nodes.scene_node[k][mine]), x, [cov, prior_cov]
             )
     sol.node_inc[group], sol.node_lost[group] = prob.increment_sigma, lost
+
+
+#: Scale of a tie point's ground unknowns in the solution vector (m per unit): its
+#: east, north and up corrections to the approximate position, on the scale of the
+#: parameters' (scaled by their a priori σ).
+TIE_SCALE_M = 100.0
+
+
+@dataclass(frozen=True)
+class _TieObservations:
+    """One pass's measurements of tie points: their points (ground at the current
+    estimate), tie index, whitening (image σ only: the ground is an unknown)."""
+
+    points: _Points
+    tie: NDArray[np.int64]
+    whitening: NDArray[np.float64]
+
+
+def _image_whitening(
+    pg: PassGeometry, band: str, line: NDArray, col: NDArray, p: _Points, sigma_px: NDArray
+) -> NDArray[np.float64]:
+    """``L⁻¹`` of a tie measurement's condition covariance from its image σ alone."""
+    zero = np.zeros((p.t_s.size, 3))
+    f0 = _condition(p, zero, zero, zero)
+    a = np.stack(
+        [
+            (
+                _condition(
+                    _points(pg, band, line + dl, col + dc, p.g_ecef_m, p.scene), zero, zero, zero
+                )
+                - f0
+            )
+            / _STEP_PX
+            for dl, dc in ((_STEP_PX, 0.0), (0.0, _STEP_PX))
+        ],
+        axis=-1,
+    )
+    cov = np.einsum("nik,n,njk->nij", a, sigma_px**2, a)
+    return np.linalg.inv(np.linalg.cholesky(cov))
+
+
+def adjust_block(
+    passes: list[list[Strip]],
+    ties: list[list[ControlPointSet]],
+    options: ProcessingOptions,
+    dem: Any = None,
+    dem_sigma_m: float = 10.0,
+) -> list[tuple[Adjustment, ...]]:
+    """Refine several passes over one ground together (ADRIN's blocks, paper ``001_…``,
+    solved at once rather than strip after strip): each pass its own ephemeris and
+    attitude corrections with their priors, as :func:`adjust_strips` (Westin); its control
+    points; and the **tie points** (``kind = tie``, ``ties[p][s]`` the measurements in pass
+    ``p``'s strip ``s``, the same id in every pass that saw the point), whose ground
+    positions are unknowns: three per point (east, north, up of its approximate position),
+    eliminated from the normal equations (the Schur complement, as a bundle adjustment
+    does: their 3 × 3 blocks inverted one by one), so that a block of many scenes stays a
+    problem in the passes' parameters alone.
+
+    The covariance of the passes' parameters is that of the reduced system, a priori (the
+    budget trusted); each scene's predicted accuracy follows from it as in one pass. Tie
+    points arrive from :mod:`levels.tiepoints`, blunders already refused there (left–right,
+    y-parallax); control points are not snooped here (``adjust`` does that pass by pass).
+
+    Two passes tied by points alone leave one freedom: shifting one pass across the
+    baseline is the same as raising every tie point by that shift over the base-to-height
+    ratio. Control points seen in both (with their heights) remove it; so does a ``dem``
+    (:class:`levels.geometry.dem.Dem`): each tie point's height observed as the DEM's under
+    it, with ``dem_sigma_m`` (ADRIN's "secondary controls" were map points, heights and
+    all). Without either, the predicted accuracy says so.
+
+    Returns each pass's :class:`Adjustment` per strip, mode ``block``.
+    """
+    t0 = time.perf_counter()
+    if len(passes) != len(ties) or any(len(p) != len(t) for p, t in zip(passes, ties, strict=True)):
+        raise GeometryError("adjust_block: one tie-point set per strip of every pass")
+    # each pass: its problem of control points and priors, as adjust_strips builds it
+    setups = []
+    for strips in passes:
+        if not strips or not any(s.scenes for s in strips):
+            raise GeometryError("adjust_block: a pass without a scene")
+        _check_one_platform(strips)
+        pg0 = strips[0].pg
+        t_ref = float(0.5 * (pg0.line_t_s[0] + pg0.line_t_s[-1]))
+        nodes = _nodes(strips)
+        prob, lost = _problem(strips, nodes.has, nodes.point_node, nodes.t_node, t_ref, options)
+        setups.append((strips, nodes, prob, lost, t_ref))
+    # the tie points: one unknown ground per id
+    ids = sorted({i for pass_ties in ties for t in pass_ties for i in t.id})
+    where = {i: k for k, i in enumerate(ids)}
+    n_ties = len(ids)
+    g_sum = np.zeros((n_ties, 3))
+    g_n = np.zeros(n_ties)
+    for pass_ties in ties:
+        for t in pass_ties:
+            k = np.array([where[i] for i in t.id], dtype=np.int64)
+            np.add.at(g_sum, k, WGS84.to_ecef(t.lat_rad, t.lon_rad, t.h_m))
+            np.add.at(g_n, k, 1.0)
+    g0 = g_sum / np.maximum(g_n, 1.0)[:, None]
+    enu0 = _local_axes(g0)  # (T, 3, 3) rows east, north, up
+    observations: list[_TieObservations | None] = []
+    for (strips, nodes, _prob, _lost, _t), pass_ties in zip(setups, ties, strict=True):
+        parts, whites, tie_of = [], [], []
+        for strip, sn, t in zip(strips, nodes.scene_node, pass_ties, strict=True):
+            pos, inside = _scene_of_points(strip.scenes, t.line)
+            if not inside.any():
+                continue
+            k = np.array([where[i] for i in t.id], dtype=np.int64)[inside]
+            line, col = t.line[inside], t.column[inside]
+            p = _points(strip.pg, strip.band, line, col, g0[k], sn[pos[inside]])
+            parts.append(p)
+            whites.append(_image_whitening(strip.pg, strip.band, line, col, p, t.sigma_px[inside]))
+            tie_of.append(k)
+        if parts:
+            observations.append(
+                _TieObservations(
+                    _Points.concatenate(parts), np.concatenate(tie_of), np.concatenate(whites)
+                )
+            )
+        else:
+            observations.append(None)
+    seen = np.zeros(n_ties, dtype=int)
+    for obs in observations:
+        if obs is not None:
+            np.add.at(seen, obs.tie, 1)
+    if n_ties and seen.min() < 2:
+        raise GeometryError(
+            f"adjust_block: {int(np.sum(seen < 2))} tie point(s) measured in fewer than two "
+            "scenes of the block: a tie point ties at least two"
+        )
+    heights_known = np.zeros(n_ties, dtype=bool)
+    if dem is not None and n_ties:
+        lat0, lon0, _h0 = WGS84.to_geodetic(g0)
+        heights_known = np.isfinite(dem.heights(lat0, lon0))
+    offsets = np.cumsum([0] + [s[2].n_params for s in setups])
+    nx = int(offsets[-1])
+    n = nx + 3 * n_ties
+
+    def ground(d: NDArray) -> NDArray:
+        return g0 + TIE_SCALE_M * np.einsum("tij,ti->tj", enu0, d.reshape(-1, 3))
+
+    def residuals_and_jacobian(z: NDArray, jac: bool) -> tuple[NDArray, sparse.csr_matrix | None]:
+        g = ground(z[nx:])
+        res, blocks = [], []
+        for p_idx, ((_s, _n, prob, _l, _t), obs) in enumerate(
+            zip(setups, observations, strict=True)
+        ):
+            x = z[offsets[p_idx] : offsets[p_idx + 1]]
+            use = np.ones(prob.points.t_s.size, dtype=bool)  # the problem holds only these
+            res.append(prob.residuals(x, use))
+            if jac:
+                j = prob.jacobian(x, use)
+                blocks.append(
+                    sparse.hstack(
+                        [
+                            sparse.csr_matrix((j.shape[0], offsets[p_idx])),
+                            j,
+                            sparse.csr_matrix((j.shape[0], n - offsets[p_idx + 1])),
+                        ]
+                    )
+                )
+            if obs is None:
+                continue
+            pts = _Points(
+                **{
+                    **{f.name: getattr(obs.points, f.name) for f in fields(_Points)},
+                    "g_ecef_m": g[obs.tie],
+                }
+            )
+            f0 = prob.condition(x, pts)
+            res.append(np.einsum("nij,nj->ni", obs.whitening, f0).ravel())
+            if not jac:
+                continue
+            m = obs.tie.size
+            jx = np.einsum("nij,njk->nik", obs.whitening, prob.parameter_jacobian(x, pts))
+            jd = np.stack(
+                [
+                    (
+                        prob.condition(
+                            x,
+                            _Points(
+                                **{
+                                    **{f.name: getattr(pts, f.name) for f in fields(_Points)},
+                                    "g_ecef_m": pts.g_ecef_m + _STEP_M * enu0[obs.tie, k],
+                                }
+                            ),
+                        )
+                        - f0
+                    )
+                    / _STEP_M
+                    * TIE_SCALE_M
+                    for k in range(3)
+                ],
+                axis=-1,
+            )
+            jd = np.einsum("nij,njk->nik", obs.whitening, jd)
+            cols = np.concatenate(
+                [
+                    offsets[p_idx] + np.broadcast_to(np.arange(_NP), (m, _NP)),
+                    offsets[p_idx] + _NP + _NS * pts.scene[:, None] + np.arange(_NS),
+                    nx + 3 * obs.tie[:, None] + np.arange(3),
+                ],
+                axis=1,
+            )  # (m, 15)
+            vals = np.concatenate([jx, jd], axis=2)  # (m, 2, 15)
+            blocks.append(
+                sparse.csr_matrix(
+                    (
+                        vals.reshape(-1),
+                        np.repeat(cols[:, None, :], 2, axis=1).reshape(-1),
+                        np.arange(0, 2 * m * 15 + 1, 15),
+                    ),
+                    shape=(2 * m, n),
+                )
+            )
+        if dem is not None and heights_known.any():
+            hr, hj = _dem_rows(g, z[nx:], jac)
+            res.append(hr)
+            if jac:
+                blocks.append(hj)
+        r = np.concatenate(res)
+        return r, (sparse.vstack(blocks, format="csr") if jac else None)
+
+    def _dem_rows(g: NDArray, d: NDArray, jac: bool) -> tuple[NDArray, Any]:
+        """Each tie point's height minus the DEM's under it, over ``dem_sigma_m``; the
+        Jacobian by the point's up offset and the DEM's slope east and north."""
+        t = np.flatnonzero(heights_known)
+        lat, lon, h = WGS84.to_geodetic(g[t])
+        h_dem = dem.heights(lat, lon)
+        rows = np.nan_to_num((h - h_dem) / dem_sigma_m)
+        if not jac:
+            return rows, None
+        slope = []
+        for k in range(2):
+            la, lo, _ = WGS84.to_geodetic(g[t] + _STEP_M * enu0[t, k])
+            slope.append((dem.heights(la, lo) - h_dem) / _STEP_M)
+        vals = np.stack([-slope[0], -slope[1], np.ones(t.size)], axis=1)
+        vals = np.nan_to_num(vals) * TIE_SCALE_M / dem_sigma_m
+        m = sparse.csr_matrix(
+            (
+                vals.ravel(),
+                (np.repeat(np.arange(t.size), 3), (nx + 3 * t[:, None] + np.arange(3)).ravel()),
+            ),
+            shape=(t.size, n),
+        )
+        return rows, m
+
+    def reduced(j: sparse.csr_matrix, r: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """The normal equations with the ground unknowns eliminated: S, its right-hand
+        side, and what recovers the ground steps (their blocks' inverses, W)."""
+        normal = (j.T @ j).tocsc()
+        grad = -(j.T @ r)
+        u = normal[:nx, :nx].toarray()
+        w = normal[:nx, nx:]
+        v = normal[nx:, nx:]
+        vb = (
+            np.stack([v[3 * t : 3 * t + 3, 3 * t : 3 * t + 3].toarray() for t in range(n_ties)])
+            if n_ties
+            else np.zeros((0, 3, 3))
+        )
+        vinv = np.linalg.inv(vb) if n_ties else vb
+        vinv_sp = (
+            sparse.block_diag(list(vinv), format="csr") if n_ties else sparse.csr_matrix((0, 0))
+        )
+        wv = w @ vinv_sp
+        schur = u - (wv @ w.T).toarray() if n_ties else u
+        b = grad[:nx] - (wv @ grad[nx:] if n_ties else 0.0)
+        return schur, b, vinv, np.asarray(grad[nx:])
+
+    z = np.zeros(n)
+    r, j = residuals_and_jacobian(z, True)
+    cost = float(r @ r)
+    for _ in range(MAX_ITERATIONS):
+        assert j is not None
+        schur, b, vinv, gd = reduced(j, r)
+        dx = cho_solve(cho_factor(schur), b)
+        w = (j.T @ j).tocsc()[:nx, nx:]
+        dd = np.einsum("tij,tj->ti", vinv, (gd - w.T @ dx).reshape(-1, 3)).ravel()
+        step = np.r_[dx, dd]
+        for _ in range(MAX_HALVINGS):
+            r_try, _ = residuals_and_jacobian(z + step, False)
+            trial = float(r_try @ r_try)
+            if trial <= cost * (1 + 1e-12) + 1e-12:
+                break
+            step = 0.5 * step
+        else:
+            break
+        z, decrease, cost = z + step, cost - trial, trial
+        r, j = residuals_and_jacobian(z, True)
+        if np.max(np.abs(step)) < STEP_TOL or decrease <= COST_TOL * cost:
+            break
+    assert j is not None
+    schur, *_ = reduced(j, r)
+    cov_all = np.linalg.inv(schur)
+    n_obs = sum(2 * int(setup[2].points.t_s.size) for setup in setups)
+    n_obs += sum(2 * o.tie.size for o in observations if o is not None)
+    n_obs += int(heights_known.sum()) if dem is not None else 0
+    dof = n_obs - 3 * n_ties
+    sigma0 = float(np.sqrt(cost / dof)) if dof > 0 else float("nan")
+    elapsed = {"adjust": time.perf_counter() - t0}
+    out = []
+    for p_idx, (strips, nodes, prob, lost, t_ref) in enumerate(setups):
+        x = z[offsets[p_idx] : offsets[p_idx + 1]]
+        cov = cov_all[offsets[p_idx] : offsets[p_idx + 1], offsets[p_idx] : offsets[p_idx + 1]]
+        rows = prob.prior_rows
+        prior_cov = np.linalg.inv(rows.T @ rows).astype(np.float64, copy=False)
+        pas, sce = prob.split(x)
+        scale = np.r_[prob.sigma_pass, prob.sigma_scene]
+        n_nodes = nodes.t_node.size
+        node_cov = np.empty((n_nodes, _NP + _NS, _NP + _NS))
+        for jn in range(n_nodes):
+            sel = np.r_[np.arange(_NP), _NP + _NS * jn + np.arange(_NS)]
+            node_cov[jn] = cov[np.ix_(sel, sel)] * np.outer(scale, scale)
+        f_before = prob.condition(np.zeros(prob.n_params))
+        f_after = prob.condition(x)
+        cut = np.cumsum([0] + [int(h.sum()) for h in nodes.has])
+        adjs: list[Adjustment] = []
+        for si, st in enumerate(strips):
+            before = np.full((len(st.gcps), 2), np.nan)
+            after = np.full((len(st.gcps), 2), np.nan)
+            before[nodes.has[si]] = f_before[cut[si] : cut[si + 1]]
+            after[nodes.has[si]] = f_after[cut[si] : cut[si + 1]]
+            sn = nodes.scene_node[si]
+            predicted, prior = (
+                _predicted(prob, st, sn, x, [cov, prior_cov])
+                if st.scenes
+                else (np.zeros((0, 3)), np.zeros((0, 3)))
+            )
+            adjs.append(
+                Adjustment(
+                    "block",
+                    t_ref,
+                    nodes.index[si],
+                    nodes.t_node[sn],
+                    np.broadcast_to(pas, (sn.size, _NP)).copy(),
+                    sce[sn],
+                    node_cov[sn],
+                    predicted,
+                    prior,
+                    prob.increment_sigma[sn],
+                    lost[sn],
+                    tuple(st.gcps.id),
+                    nodes.point_scene[si],
+                    tuple("used" if h else "outside" for h in nodes.has[si]),
+                    before,
+                    after,
+                    np.full(len(st.gcps), np.nan),
+                    sigma0,
+                    elapsed,
+                )
+            )
+        out.append(tuple(adjs))
+    return out

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pyproj
@@ -34,7 +35,7 @@ from levels.readers.l0 import L0Archive
 from station.spacecraft.emulator import Acquisition, truth_model
 from station.spacecraft.imaging import trace_pixels
 
-__all__ = ["Truth", "checkpoints_1b", "checkpoints_2a", "checkpoints_3"]
+__all__ = ["Truth", "checkpoints_1b", "checkpoints_2a", "checkpoints_3", "true_tie_points"]
 
 
 @dataclass(eq=False)
@@ -234,3 +235,63 @@ def checkpoints_3(
         "error_e_m": (e - eg)[fine],
         "error_n_m": (n - ng)[fine],
     }
+
+
+def true_tie_points(
+    acq_a: Acquisition,
+    acq_b: Acquisition,
+    per_side: int,
+    sigma_px: float,
+    rng: np.random.Generator,
+    approximate_h_m: float = 0.0,
+) -> tuple[Any, Any]:
+    """Tie points between two acquisitions as a perfect matcher with image noise
+    ``sigma_px`` would give them (the geometry studies of block adjustment, without
+    images): a lattice of ``per_side`` × ``per_side`` pixels of ``a`` (emulator lines), the
+    ground each truly sees projected into ``b`` by its true model, those inside ``b`` kept;
+    their approximate ground the true one at ``approximate_h_m`` (what a block solves).
+    Two control-point sets of kind ``tie`` (lines in each acquisition's own numbering)."""
+    from levels.geometry.ellipsoid import WGS84
+    from levels.readers.gcp import ControlPointSet
+
+    n_a = acq_a.line_times_s.size
+    line, col = (
+        v.ravel()
+        for v in np.meshgrid(
+            np.linspace(0.02, 0.98, per_side) * (n_a - 1),
+            np.linspace(0.02, 0.98, per_side) * (acq_a.hrv.n_columns - 1),
+            indexing="ij",
+        )
+    )
+    lat, lon, h = WGS84.to_geodetic(Truth(acq_a, 0).ground(0, line, col))
+    back = truth_model(acq_b).ground_to_image(lat, lon, h)
+    inside = (
+        back.converged
+        & (back.line >= 0)
+        & (back.line <= acq_b.line_times_s.size - 1)
+        & (back.column >= 0)
+        & (back.column <= acq_b.hrv.n_columns - 1)
+        & np.isfinite(h)
+    )
+    n = int(inside.sum())
+    ids = tuple(f"tie{k:04d}" for k in range(n))
+
+    def measured(ln: NDArray, cl: NDArray, hrv: int) -> ControlPointSet:
+        return ControlPointSet(
+            ids,
+            lon[inside],
+            lat[inside],
+            np.full(n, approximate_h_m),
+            ln + sigma_px * rng.standard_normal(n),
+            cl + sigma_px * rng.standard_normal(n),
+            np.full(n, 1e4),
+            np.full(n, 5e3),
+            np.full(n, sigma_px),
+            np.full(n, hrv, dtype=np.int64),
+            np.ones(n, dtype=bool),
+        )
+
+    return (
+        measured(line[inside], col[inside], acq_a.hrv.number),
+        measured(back.line[inside], back.column[inside], acq_b.hrv.number),
+    )

@@ -1,0 +1,165 @@
+"""Block adjustment (issue 36 §3): two passes over one ground, 26 days apart, the mirror at
+0° and +8.4°, full P geometry (no image), tied by points; measured against the truth.
+
+The first pass has 12 control points, the second none. Tie points come from the truth
+(``station.sipc.truth.true_tie_points``: a 15 × 15 lattice, 0.2 px of image noise, the
+matcher's figure): the adjustment is tested here, the matcher in ``test_tiepoints.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyproj
+import pytest
+
+from levels.adjust import Strip, adjust, adjust_block
+from levels.errors import GeometryError
+from levels.geometry.dem import Dem
+from levels.options import ProcessingOptions
+from levels.readers.gcp import ControlPointSet
+from station.scenario import scenario_from_dict
+from station.sipc.process import control_points, emulated_pass
+from station.sipc.truth import Truth, true_tie_points
+from station.spacecraft.emulator import emulate, truth_model
+
+PIXEL_M = 10.0
+#: The issue's bar for a block's scenes (ADRIN: 25–105 m at 10 m pixels).
+BLOCK_RMS_PX = 1.5
+TIE_SIGMA_PX = 0.2
+#: One draw of one block: the measured/predicted ratio within twice the issue's band
+#: (its [0.7, 1.5] is over 10 blocks: `tools/` for that figure).
+RATIO = (0.35, 3.0)
+DEM_SIGMA_M = 5.0
+
+
+def _pass(seed: int, date: str, step: int, count: int):
+    scn = scenario_from_dict(
+        {
+            "name": f"p{seed}",
+            "seed": seed,
+            "pass": {"date_utc": date},
+            "instrument": {"mirror_step": step},
+            "world": {"relief_m": 400.0},
+            "gcps": {"count": count},
+        }
+    )
+    acq = emulate(scn, render=False)
+    pg, scenes = emulated_pass(acq, 6000)
+    return acq, pg, scenes
+
+
+@pytest.fixture(scope="module")
+def block():
+    a = _pass(1, "1998-02-20", 48, 12)
+    b = _pass(2, "1998-03-18", 62, 0)
+    ties = true_tie_points(a[0], b[0], 15, TIE_SIGMA_PX, np.random.default_rng(36), 450.0)
+    return a, b, ties
+
+
+def _error_m(acq, pg, scenes, adj) -> float:
+    e = np.hypot(*Truth(acq, 0).model_error_en(adj.refine(pg, scenes[0])))
+    return float(np.sqrt(np.mean(e**2)))
+
+
+def _strip(p, gcps=None) -> Strip:
+    acq, pg, scenes = p
+    return Strip(pg, scenes, control_points(acq) if gcps is None else gcps)
+
+
+def _world_dem(acq) -> Dem:
+    """The world's terrain at 1" around the scenes, with 5 m of white error."""
+    step = np.radians(1 / 3600)
+    lat, lon = np.radians(-15.6), np.radians(-56.1)
+    grid = acq.world.dem(
+        (lat - 0.012, lat + 0.012),
+        (lon - 0.014, lon + 0.014),
+        step,
+        DEM_SIGMA_M,
+        np.random.default_rng(5),
+    )
+    d = 1 / 3600
+    gt = (
+        np.degrees(grid.lon_rad[0]) - d / 2,
+        d,
+        0.0,
+        np.degrees(grid.lat_rad[-1]) + d / 2,
+        0.0,
+        -d,
+    )
+    return Dem(grid.height_m[::-1], gt, pyproj.CRS.from_epsg(4326).to_wkt(), "ellipsoid", "world")
+
+
+def test_ties_alone_leave_the_baseline_freedom_and_say_so(block) -> None:
+    """Tied by points only, the second pass can slide across the baseline with the points'
+    heights: its error stays large, and its predicted σ says as much."""
+    a, b, (ta, tb) = block
+    opts = ProcessingOptions()
+    adj_a, adj_b = (r[0] for r in adjust_block([[_strip(a)], [_strip(b)]], [[ta], [tb]], opts))
+    alone_a = adjust(a[1], a[2], control_points(a[0]), opts)
+    # the first pass: as alone (its control points hold it)
+    assert abs(_error_m(*a, adj_a) - _error_m(*a, alone_a)) < 1.0
+    assert _error_m(*a, adj_a) <= BLOCK_RMS_PX * PIXEL_M
+    err_b = _error_m(*b, adj_b)
+    assert err_b > 5 * BLOCK_RMS_PX * PIXEL_M
+    assert err_b <= 1.5 * adj_b.predicted_sigma_m[0, 2]  # honest: it does not claim more
+    assert adj_b.mode == "block" and 0.8 < adj_b.sigma0 < 1.2
+
+
+def test_a_shared_control_point_carries_the_control_across(block) -> None:
+    a, b, (ta, tb) = block
+    acq_a, acq_b = a[0], b[0]
+    cp = control_points(acq_a)
+    g = acq_a.gcps
+    seen = truth_model(acq_b).ground_to_image(g.true_lat_rad, g.true_lon_rad, g.true_h_m)
+    k = np.flatnonzero(
+        seen.converged
+        & (seen.line > 0)
+        & (seen.line < 5999)
+        & (seen.column > 0)
+        & (seen.column < 5999)
+    )[:1]
+    assert k.size == 1
+    rng = np.random.default_rng(1)
+    in_b = ControlPointSet(
+        tuple(cp.id[i] for i in k),
+        cp.lon_rad[k],
+        cp.lat_rad[k],
+        cp.h_m[k],
+        seen.line[k] + cp.sigma_px[k] * rng.standard_normal(1),
+        seen.column[k] + cp.sigma_px[k] * rng.standard_normal(1),
+        cp.sigma_ground_m[k],
+        cp.sigma_h_m[k],
+        cp.sigma_px[k],
+        np.full(1, acq_b.hrv.number, dtype=np.int64),
+    )
+    res = adjust_block([[_strip(a)], [_strip(b, in_b)]], [[ta], [tb]], ProcessingOptions())
+    adj_b = res[1][0]
+    err = _error_m(*b, adj_b)
+    assert err <= BLOCK_RMS_PX * PIXEL_M
+    assert RATIO[0] <= err / adj_b.predicted_sigma_m[0, 2] <= RATIO[1]
+
+
+def test_the_dem_under_the_tie_points_carries_the_control_across(block) -> None:
+    """ADRIN's secondary controls were map points, heights and all: the tie points'
+    heights from a DEM (5 m) leave the second pass, without a control point of its own, as
+    good as the first."""
+    a, b, (ta, tb) = block
+    res = adjust_block(
+        [[_strip(a)], [_strip(b)]],
+        [[ta], [tb]],
+        ProcessingOptions(),
+        dem=_world_dem(a[0]),
+        dem_sigma_m=DEM_SIGMA_M,
+    )
+    adj_b = res[1][0]
+    err = _error_m(*b, adj_b)
+    assert err <= BLOCK_RMS_PX * PIXEL_M
+    assert RATIO[0] <= err / adj_b.predicted_sigma_m[0, 2] <= RATIO[1]
+    assert _error_m(*b, adjust(b[1], b[2], control_points(b[0]), ProcessingOptions())) > 100.0
+
+
+def test_a_tie_point_in_one_pass_only_is_refused(block) -> None:
+    a, b, (ta, _tb) = block
+    empty = ControlPointSet((), *(np.zeros(0) for _ in range(8)), np.zeros(0, dtype=np.int64))
+    with pytest.raises(GeometryError, match="fewer than two"):
+        adjust_block([[_strip(a)], [_strip(b)]], [[ta], [empty]], ProcessingOptions())
