@@ -1225,36 +1225,40 @@ def adjust_block(
         )
         return rows, m
 
-    def reduced(j: sparse.csr_matrix, r: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-        """The normal equations with the ground unknowns eliminated: S, its right-hand
-        side, and what recovers the ground steps (their blocks' inverses, W)."""
+    def reduced(j: sparse.csr_matrix, r: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray, Any]:
+        """The normal equations with the ground unknowns eliminated (the Schur complement
+        ``S = U − W V⁻¹ Wᵀ`` and its right-hand side), and what recovers the ground steps:
+        ``V``'s 3 × 3 blocks inverted, the ground part of the gradient, ``W``."""
         normal = (j.T @ j).tocsc()
         grad = -(j.T @ r)
         u = normal[:nx, :nx].toarray()
         w = normal[:nx, nx:]
         v = normal[nx:, nx:]
-        vb = (
-            np.stack([v[3 * t : 3 * t + 3, 3 * t : 3 * t + 3].toarray() for t in range(n_ties)])
-            if n_ties
-            else np.zeros((0, 3, 3))
-        )
+        vb = np.zeros((n_ties, 3, 3))
+        if n_ties:  # the ground unknowns' normal matrix is block diagonal: its 3 × 3 blocks
+            coo = v.tocoo()
+            same = coo.row // 3 == coo.col // 3
+            np.add.at(
+                vb, (coo.row[same] // 3, coo.row[same] % 3, coo.col[same] % 3), coo.data[same]
+            )
         vinv = np.linalg.inv(vb) if n_ties else vb
-        vinv_sp = (
-            sparse.block_diag(list(vinv), format="csr") if n_ties else sparse.csr_matrix((0, 0))
+        t3 = 3 * np.arange(n_ties)[:, None, None]
+        i3, j3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+        vinv_sp = sparse.csr_matrix(
+            (vinv.ravel(), ((t3 + i3).ravel(), (t3 + j3).ravel())), shape=(3 * n_ties,) * 2
         )
         wv = w @ vinv_sp
-        schur = u - (wv @ w.T).toarray() if n_ties else u
-        b = grad[:nx] - (wv @ grad[nx:] if n_ties else 0.0)
-        return schur, b, vinv, np.asarray(grad[nx:])
+        schur = u - (wv @ w.T).toarray()
+        b = grad[:nx] - wv @ grad[nx:]
+        return schur, b, vinv, np.asarray(grad[nx:]), w
 
     z = np.zeros(n)
     r, j = residuals_and_jacobian(z, True)
     cost = float(r @ r)
     for _ in range(MAX_ITERATIONS):
         assert j is not None
-        schur, b, vinv, gd = reduced(j, r)
+        schur, b, vinv, gd, w = reduced(j, r)
         dx = cho_solve(cho_factor(schur), b)
-        w = (j.T @ j).tocsc()[:nx, nx:]
         dd = np.einsum("tij,tj->ti", vinv, (gd - w.T @ dx).reshape(-1, 3)).ravel()
         step = np.r_[dx, dd]
         for _ in range(MAX_HALVINGS):
