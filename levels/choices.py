@@ -79,12 +79,13 @@ class GridColumns(StrEnum):
 
 
 class AdjustmentScope(StrEnum):
-    """Level 2's adjustment: the whole pass (Westin), each scene alone, or both HRVs of a
-    twin pass together."""
+    """Level 2's adjustment: the whole pass (Westin), each scene alone, both HRVs of a
+    twin pass together, or every pass of a block together, tied by their tie points."""
 
     PASS = "pass"
     SCENE = "scene"
     TWIN = "twin"
+    BLOCK = "block"
 
 
 class RobustLoss(StrEnum):

@@ -294,8 +294,17 @@ class ProcessingOptions:
     adjustment: AdjustmentScope = option(
         AdjustmentScope.PASS,
         "adjustment",
-        "level 2: one adjustment over the whole pass (Westin), each scene alone, or both "
-        "HRVs of a twin pass together (one platform: points in one HRV refine the other)",
+        "level 2: one adjustment over the whole pass (Westin), each scene alone, both "
+        "HRVs of a twin pass together (one platform: points in one HRV refine the other), "
+        "or every pass given together, tied by their tie points (docs/blocks.md)",
+    )
+    tie_height_sigma_m: float = option(
+        10.0,
+        "tie_height_sigma_m",
+        "level 2 of a block: 1σ of the DEM's height under each tie point (with dem_path)",
+        1.0,
+        0.1,
+        1000.0,
     )
     prior_ephemeris_m: tuple[float, float, float] = option(
         [300.0, 150.0, 50.0],

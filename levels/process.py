@@ -41,7 +41,7 @@ import pyproj
 from numpy.typing import ArrayLike, NDArray
 
 from levels import __version__
-from levels.adjust import Adjustment, Strip, adjust, adjust_strips
+from levels.adjust import Adjustment, Strip, adjust, adjust_block, adjust_strips
 from levels.choices import AdjustmentScope
 from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
 from levels.cor.resample import with_nan
@@ -321,8 +321,11 @@ class ProcessingRequest:
             if len(getattr(self, what)) != n:
                 raise ValueError(f"{n} archives but {len(getattr(self, what))} {what}")
         hrvs = [a.hrv for a in self.archives]
-        if len(set(hrvs)) != n:
+        block = self.options.adjustment == AdjustmentScope.BLOCK
+        if len(set(hrvs)) != n and not block:  # a block's archives are passes of their own
             raise GeometryError(f"one archive per HRV of a pass: got HRVs {hrvs}")
+        if len(set(self.names)) != n:
+            raise GeometryError(f"two archives named alike: {list(self.names)}")
 
     @classmethod
     def of(
@@ -393,9 +396,14 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
     if dem is None and Need.DEM in needs:
         dem = pass_dem(opt, makers)  # read once for every HRV
     twin = Need.ADJUSTMENT in needs and opt.adjustment == AdjustmentScope.TWIN
+    block = Need.ADJUSTMENT in needs and opt.adjustment == AdjustmentScope.BLOCK
     setups: list[PassSetup | None] = [None] * len(archives)
     adjustments: list[Adjustment | None] = [None] * len(archives)
-    if twin and len(archives) > 1:
+    if block:
+        placed = [geo_pass(a, opt) for a in archives]
+        setups = list(placed)
+        adjustments = _block_adjustment(request, placed, dem)
+    elif twin and len(archives) > 1:
         records = platform_records(archives)
         placed = [geo_pass(a, opt, records) for a in archives]
         setups = list(placed)
@@ -429,6 +437,35 @@ def _twin_adjustment(
     if strips:
         for k, adj in zip(placed, adjust_strips(strips, request.options), strict=True):
             out[k] = adj
+    return out
+
+
+def _block_adjustment(
+    request: ProcessingRequest, setups: list[PassSetup], dem: Dem | None
+) -> list[Adjustment | None]:
+    """Level 2 of every archive of the request together, each its own pass, tied by the tie
+    points (kind ``tie``) of their control-point sets (:func:`levels.adjust.adjust_block`);
+    the DEM of ``dem_path``, when given, observes the tie points' heights."""
+    opt = request.options
+    if dem is None and opt.dem_path:
+        dem = read_dem(opt.dem_path, opt.dem_vertical)
+    placed = [k for k, s in enumerate(setups) if s.scenes]
+    passes, ties = [], []
+    for k in placed:
+        archive, points = request.archives[k], request.gcps[k]
+        assert points is not None  # plan() checked
+        mine = points.of_hrv(archive.hrv)
+        passes.append([Strip(setups[k].pg, setups[k].scenes, mine, next(iter(archive.bands)))])
+        ties.append([mine.ties()])
+    if len(passes) < 2 or not any(len(t[0]) for t in ties):
+        raise GcpError(
+            "level 2 of a block: give two passes or more and their tie points (kind tie, "
+            "docs/gcp.md: station tie writes them)"
+        )
+    out: list[Adjustment | None] = [None] * len(setups)
+    result = adjust_block(passes, ties, opt, dem=dem, dem_sigma_m=opt.tie_height_sigma_m)
+    for k, adjs in zip(placed, result, strict=True):
+        out[k] = adjs[0]
     return out
 
 

@@ -163,3 +163,75 @@ def test_a_tie_point_in_one_pass_only_is_refused(block) -> None:
     empty = ControlPointSet((), *(np.zeros(0) for _ in range(8)), np.zeros(0, dtype=np.int64))
     with pytest.raises(GeometryError, match="fewer than two"):
         adjust_block([[_strip(a)], [_strip(b)]], [[ta], [empty]], ProcessingOptions())
+
+
+BLOCK_PASS = """
+name = "{name}"
+seed = {seed}
+[pass]
+date_utc = "{date}"
+[instrument]
+mirror_step = {step}
+n_detectors = 600
+n_lines = 600
+[world]
+relief_m = 400.0
+[gcps]
+count = {count}
+[downlink]
+bit_rate_mbps = 2.0
+preamble_s = 0.1
+postamble_s = 0.1
+[processing]
+levels = ["2A"]
+{dem}
+"""
+#: Reduced scenes (100 m pixels): the block's second pass, with no control point of its
+#: own, must reach a fifth of a pixel (it does 0.1 px; alone it has none to reach).
+REDUCED_BLOCK_PX = 0.2
+
+
+def test_station_processes_a_block_end_to_end(tmp_path) -> None:
+    """Two passes run, their tie points found (station tie), then both reprocessed to
+    level 2 as one block (station process --adjustment block), the DEM the first run
+    exported observing the tie points' heights; checkpoints against each pass's truth."""
+    from levels.products import read_product
+    from station.cli import main
+
+    runs = {}
+    for name, seed, date, step, count, dem in (
+        ("pa", 11, "1998-02-20", 48, 12, "[dem]\nspacing_arcsec = 3.0\nerror_rms_m = 5.0"),
+        ("pb", 12, "1998-03-18", 62, 0, ""),
+    ):
+        scenario = tmp_path / f"{name}.toml"
+        scenario.write_text(
+            BLOCK_PASS.format(name=name, seed=seed, date=date, step=step, count=count, dem=dem)
+        )
+        run = tmp_path / name
+        assert main(["run", str(scenario), "--out", str(run), "-q", "--no-quicklooks"]) == 0
+        runs[name] = (scenario, run)
+    (sa, ra), (sb, rb) = runs.values()
+    ties = tmp_path / "ties"
+    assert (
+        main(["tie", str(ra / "pa_s000_2A.nc"), str(rb / "pb_s000_2A.nc"), "--out", str(ties)]) == 0
+    )
+    options = tmp_path / "block.toml"
+    options.write_text(
+        '[processing]\nlevels = ["2A", "2"]\nadjustment = "block"\n'
+        f'dem_path = "{ra / "pa.dem.tif"}"\ntie_height_sigma_m = 5.0\n'
+    )
+    out = tmp_path / "block"
+    args = ["process", str(ra / "pa.l0.h5"), str(rb / "pb.l0.h5"), "--options", str(options)]
+    args += ["--ties", str(ties), "--scenario", str(sa), "--scenario", str(sb)]
+    assert main([*args, "--out", str(out), "-q"]) == 0
+    level2 = read_product(out / "pb_s000_2.nc", images=False)
+    adj = level2.geometry["adjustment"]
+    assert adj["mode"] == "block"
+    los = level2.quality["checkpoints"]["P"]["line_of_sight"]["rms_m"]
+    before = level2.quality["checkpoints_2a"]["P"]["line_of_sight"]["rms_m"]
+    pixel = level2.attrs["pixel_size_m"]
+    assert before > 150.0 and los <= REDUCED_BLOCK_PX * pixel
+    assert RATIO[0] <= los / adj["predicted_sigma_m"]["horizontal"] <= RATIO[1]
+    # the second pass alone has no control point to make a level 2 of
+    alone = ["process", str(rb / "pb.l0.h5"), "--levels", "2", "--out", str(tmp_path / "x")]
+    assert main([*alone, "-q"]) == 2

@@ -82,6 +82,24 @@ class ControlPointSet:
         assert self.tie is not None
         return self._subset(~self.tie)
 
+    def ties(self) -> ControlPointSet:
+        """The tie points alone (kind ``tie``): what a block adds to its passes' controls."""
+        assert self.tie is not None
+        return self._subset(self.tie)
+
+    def __add__(self, other: ControlPointSet) -> ControlPointSet:
+        """Both sets' points (a pass's control points and its tie points, read apart)."""
+        clash = set(self.id) & set(other.id)
+        if clash:
+            raise GcpError(f"point id {sorted(clash)[0]!r} in both sets")
+        return ControlPointSet(
+            self.id + other.id,
+            *(
+                np.concatenate([getattr(self, f.name), getattr(other, f.name)])
+                for f in fields(self)[1:]
+            ),
+        )
+
     def _subset(self, k: NDArray[np.bool_]) -> ControlPointSet:
         return ControlPointSet(
             tuple(i for i, keep in zip(self.id, k, strict=True) if keep),

@@ -38,8 +38,10 @@ def register(sub: Any) -> None:
     )
     p.add_argument(
         "--scenario",
+        action="append",
         help="the scenario that made the L0 archive: its "
-        "[processing] options and its truth for the checkpoints",
+        "[processing] options and its truth for the checkpoints; once for the archives of "
+        "one pass, or once per archive (a block of several passes)",
     )
     p.add_argument(
         "--options",
@@ -50,10 +52,22 @@ def register(sub: Any) -> None:
         "--levels", help="comma-separated levels to make (e.g. 1A,2A); overrides the options'"
     )
     p.add_argument(
+        "--adjustment",
+        choices=("pass", "scene", "twin", "block"),
+        help="level 2's adjustment; overrides the options' (block: every archive its own "
+        "pass, tied by the <name>.tie.csv beside each: docs/blocks.md)",
+    )
+    p.add_argument(
         "--gcps",
         action="append",
         help="control points of the pass for level 2 (docs/gcp.md; default: the "
         "<name>.gcp.csv beside the L0 archive); once per archive, in their order",
+    )
+    p.add_argument(
+        "--ties",
+        metavar="DIR",
+        help="with --adjustment block: the directory of the passes' tie files "
+        "(<name>.tie.csv, station tie; default: beside each archive)",
     )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     p.add_argument(
@@ -111,6 +125,10 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
                 f"without repeats, of {', '.join(known)}"
             )
         opts = dataclasses.replace(opts, levels=tuple(levels))
+    if getattr(args, "adjustment", None):
+        from levels.choices import AdjustmentScope
+
+        opts = dataclasses.replace(opts, adjustment=AdjustmentScope(args.adjustment))
     return opts
 
 
@@ -123,7 +141,13 @@ def _process(args: argparse.Namespace) -> int:
     from station.sipc.process import l0_stem, process_scenario, reprocess_pass
 
     sources = [Path(s) for s in args.source]
-    scenario = load_scenario(args.scenario) if args.scenario else None
+    scenarios = [load_scenario(s) for s in args.scenario or []]
+    if len(scenarios) > 1 and len(scenarios) != len(sources):
+        raise StationError(
+            f"--scenario given {len(scenarios)} times for {len(sources)} source(s): once for "
+            "one pass, or once per archive"
+        )
+    scenario = scenarios[0] if scenarios else None
     if args.name:
         check_name(args.name, "--name")
     from_scenario = any(s.suffix == ".toml" for s in sources)
@@ -179,10 +203,11 @@ def _process(args: argparse.Namespace) -> int:
                 sources,
                 stage,
                 options=options,
-                scenario=scenario,
+                scenario=scenarios if len(scenarios) > 1 else scenario,
                 names=names,
                 gcps=args.gcps,
                 runner=runner,
+                ties_dir=args.ties,
             )
             made = list(zip(sources, passes, strict=True))
         data = [_archive_data(l0, out, products) for l0, products in made]

@@ -188,17 +188,24 @@ def reprocess_pass(
     out_dir: str | Path,
     *,
     options: ProcessingOptions | None = None,
-    scenario: Scenario | None = None,
+    scenario: Scenario | list[Scenario] | None = None,
     names: list[str] | None = None,
     gcps: list[str | Path] | None = None,
     runner: Runner | None = None,
+    ties_dir: str | Path | None = None,
 ) -> list[PassProducts]:
     """:func:`reprocess_l0` of the archives of one pass, one per HRV, together
     (:func:`levels.process.plan`: with ``adjustment = "twin"``, level 2 adjusts
     both HRVs at once). ``names`` and ``gcps``, when given, one per archive; the scenes
     are tasks of ``runner`` (:mod:`levels.tasks`, in this process by default)."""
     plans = plan_reprocess(
-        l0_paths, out_dir, options=options, scenario=scenario, names=names, gcps=gcps
+        l0_paths,
+        out_dir,
+        options=options,
+        scenario=scenario,
+        names=names,
+        gcps=gcps,
+        ties_dir=ties_dir,
     )
     return all_made(run_plans(plans, runner))
 
@@ -208,19 +215,28 @@ def plan_reprocess(
     out_dir: str | Path,
     *,
     options: ProcessingOptions | None = None,
-    scenario: Scenario | None = None,
+    scenario: Scenario | list[Scenario] | None = None,
     names: list[str] | None = None,
     gcps: list[str | Path] | None = None,
+    ties_dir: str | Path | None = None,
 ) -> list[PassPlan]:
     """Everything of :func:`reprocess_pass` before its scene tasks: the archives read
-    lazily (a scene's counts are read by its task), GEO, the truth, the adjustment."""
+    lazily (a scene's counts are read by its task), GEO, the truth, the adjustment (of a
+    block: each archive's ``<name>.tie.csv`` from ``ties_dir``, else beside it)."""
     paths = [Path(p) for p in l0_paths]
     for what, given in (("names", names), ("control-point files", gcps)):
         if given is not None and len(given) != len(paths):
             raise L0Error(f"{len(paths)} L0 archives but {len(given)} {what}")
     archives = [read_l0(p, lazy=True) for p in paths]
-    opts = options or (scenario.processing if scenario is not None else ProcessingOptions())
-    truths = [truth_for(scenario, a) if scenario is not None else None for a in archives]
+    # one scenario for the archives of one pass, or one per archive (a block)
+    per = scenario if isinstance(scenario, list) else [scenario] * len(archives)
+    if len(per) != len(archives):
+        raise L0Error(f"{len(archives)} L0 archives but {len(per)} scenarios")
+    first = per[0] if per else None
+    opts = options or (first.processing if first is not None else ProcessingOptions())
+    truths = [
+        truth_for(s, a) if s is not None else None for s, a in zip(per, archives, strict=True)
+    ]
     if "3" in opts.levels and not opts.dem_path:
         opts = dataclasses.replace(opts, dem_path=str(run_dem(paths[0], archives[0])))
     points = None
@@ -233,6 +249,12 @@ def plan_reprocess(
         points = [
             read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)
         ]
+        if opts.adjustment == "block":  # each pass's tie points, in ties_dir or beside it
+            for k, (p, a) in enumerate(zip(paths, archives, strict=True)):
+                name = f"{l0_stem(p)}.tie.csv"
+                tie = Path(ties_dir) / name if ties_dir else p.with_name(name)
+                if tie.is_file():
+                    points[k] = points[k] + read_gcps(tie, a.n_lines, a.n_columns)
     request = ProcessingRequest(
         tuple(archives),
         opts,
