@@ -1042,12 +1042,14 @@ def adjust_block(
     points arrive from :mod:`levels.tiepoints`, blunders already refused there (left–right,
     y-parallax); control points are not snooped here (``adjust`` does that pass by pass).
 
-    Two passes tied by points alone leave one freedom: shifting one pass across the
-    baseline is the same as raising every tie point by that shift over the base-to-height
-    ratio. Control points seen in both (with their heights) remove it; so does a ``dem``
-    (:class:`levels.geometry.dem.Dem`): each tie point's height observed as the DEM's under
-    it, with ``dem_sigma_m`` (ADRIN's "secondary controls" were map points, heights and
-    all). Without either, the predicted accuracy says so.
+    The weakest direction of two passes tied by points alone is across the baseline:
+    shifting one pass that way is nearly the same as raising every tie point by the shift
+    over the base-to-height ratio (only the view angles' spread across the swaths tells
+    them apart). Control points seen in both passes, with their heights, strengthen it; so
+    does a ``dem`` (:class:`levels.geometry.dem.Dem`): each tie point's height observed as
+    the DEM's under it, with ``dem_sigma_m`` (ADRIN's "secondary controls" were map points,
+    heights and all). The tie points' own σ (``sigma_ground_m``, ``sigma_h_m`` of their
+    files: loose) are priors on their ground.
 
     Returns each pass's :class:`Adjustment` per strip, mode ``block``.
     """
@@ -1078,6 +1080,16 @@ def adjust_block(
             np.add.at(g_n, k, 1.0)
     g0 = g_sum / np.maximum(g_n, 1.0)[:, None]
     enu0 = _local_axes(g0)  # (T, 3, 3) rows east, north, up
+    # the approximate positions' σ (the files' sigma_ground_m, sigma_h_m: a tie point's are
+    # loose, 10 and 5 km from the matcher) as priors on the ground unknowns: they keep a
+    # point the images barely determine (a small base-to-height ratio) well-posed
+    tie_sigma = np.full((n_ties, 3), np.inf)
+    for pass_ties in ties:
+        for t in pass_ties:
+            k = np.array([where[i] for i in t.id], dtype=np.int64)
+            sig = np.stack([t.sigma_ground_m, t.sigma_ground_m, t.sigma_h_m], axis=1)
+            tie_sigma[k] = np.minimum(tie_sigma[k], sig)
+    tie_prior = (TIE_SCALE_M / tie_sigma).ravel()
     observations: list[_TieObservations | None] = []
     for (strips, nodes, _prob, _lost, _t), pass_ties in zip(setups, ties, strict=True):
         parts, whites, tie_of = [], [], []
@@ -1193,6 +1205,15 @@ def adjust_block(
                     shape=(2 * m, n),
                 )
             )
+        if n_ties:
+            res.append(tie_prior * z[nx:])
+            if jac:
+                blocks.append(
+                    sparse.csr_matrix(
+                        (tie_prior, (np.arange(3 * n_ties), nx + np.arange(3 * n_ties))),
+                        shape=(3 * n_ties, n),
+                    )
+                )
         if dem is not None and heights_known.any():
             hr, hj = _dem_rows(g, z[nx:], jac)
             res.append(hr)

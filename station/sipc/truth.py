@@ -244,13 +244,17 @@ def true_tie_points(
     sigma_px: float,
     rng: np.random.Generator,
     approximate_h_m: float = 0.0,
+    approximate_error_m: float = 300.0,
 ) -> tuple[Any, Any]:
     """Tie points between two acquisitions as a perfect matcher with image noise
     ``sigma_px`` would give them (the geometry studies of block adjustment, without
     images): a lattice of ``per_side`` × ``per_side`` pixels of ``a`` (emulator lines), the
-    ground each truly sees projected into ``b`` by its true model, those inside ``b`` kept;
-    their approximate ground the true one at ``approximate_h_m`` (what a block solves).
-    Two control-point sets of kind ``tie`` (lines in each acquisition's own numbering)."""
+    ground each truly sees projected into ``b`` by its true model, those inside ``b`` kept.
+    Their approximate ground, what a block starts from and solves: the true one moved by
+    ``approximate_error_m`` (1σ east and north, as a system model misplaces it) at
+    ``approximate_h_m`` — never the truth itself, which a weakly determined solution would
+    otherwise keep. Two control-point sets of kind ``tie`` (lines in each acquisition's
+    own numbering)."""
     from levels.geometry.ellipsoid import WGS84
     from levels.readers.gcp import ControlPointSet
 
@@ -275,12 +279,15 @@ def true_tie_points(
     )
     n = int(inside.sum())
     ids = tuple(f"tie{k:04d}" for k in range(n))
+    east, north = approximate_error_m * rng.standard_normal((2, n))
+    lat0 = lat[inside] + north / WGS84.a_m
+    lon0 = lon[inside] + east / (WGS84.a_m * np.cos(lat[inside]))
 
     def measured(ln: NDArray, cl: NDArray, hrv: int) -> ControlPointSet:
         return ControlPointSet(
             ids,
-            lon[inside],
-            lat[inside],
+            lon0,
+            lat0,
             np.full(n, approximate_h_m),
             ln + sigma_px * rng.standard_normal(n),
             cl + sigma_px * rng.standard_normal(n),

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
@@ -161,3 +161,31 @@ def export_dem(acqs: list[Acquisition], cfg: DemConfig, seed: int, path: str | P
             spacing_arcsec=str(cfg.spacing_arcsec),
         )
     return out
+
+
+def world_dem(
+    world: Any,
+    lat_range_rad: tuple[float, float],
+    lon_range_rad: tuple[float, float],
+    spacing_deg: float,
+    error_rms_m: float,
+    rng: np.random.Generator,
+) -> Any:
+    """The world's terrain as the processing centre reads a DEM
+    (:class:`levels.geometry.dem.Dem`, WGS84 geographic, ellipsoidal heights, north-up),
+    every ``spacing_deg`` over the ranges, with white errors of ``error_rms_m``: a DEM in
+    memory for the geometry studies (tests, tools), as :func:`export_dem` writes one."""
+    import pyproj
+
+    from levels.geometry.dem import Dem
+
+    grid = world.dem(lat_range_rad, lon_range_rad, np.radians(spacing_deg), error_rms_m, rng)
+    d = spacing_deg
+    west, north = np.degrees(grid.lon_rad[0]) - d / 2, np.degrees(grid.lat_rad[-1]) + d / 2
+    return Dem(
+        grid.height_m[::-1],
+        (west, d, 0.0, north, 0.0, -d),
+        pyproj.CRS.from_epsg(4326).to_wkt(),
+        "ellipsoid",
+        "the emulated world",
+    )
