@@ -105,7 +105,7 @@ def main() -> None:
         f"block of {len(strips)} strips × {n_scenes} scenes ({len(strips) * n_scenes} scenes), "
         f"{n_ties} tie points ({3 * n_ties} ground unknowns), {n_params} parameters: "
         f"{ours:.2f} s [≤ {TARGET_S:g} s: {ours / TARGET_S:.2f}× the target], "
-        f"{res[0][0].timings_s['iterations']:.0f} Gauss–Newton iterations"
+        f"{res[0][0].timings_s['iterations']:.0f} Levenberg–Marquardt iterations"
     )
     t0 = time.perf_counter()
     alone = [adjust(p[0].pg, p[0].scenes, p[0].gcps, opts) for p in passes]

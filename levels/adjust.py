@@ -981,6 +981,12 @@ def _solve_group(
     sol.node_inc[group], sol.node_lost[group] = prob.increment_sigma, lost
 
 
+#: A block's iterations stop when the χ² drops by less than this: a block tied by points
+#: has nearly flat directions (each pass's along-track bias against its pitch, the tie
+#: points' heights at a small base-to-height ratio) along which Levenberg–Marquardt creeps
+#: while nothing the data tell changes; what is left there moves no combination of the
+#: unknowns by more than about √0.1 ≈ 0.3 of its σ.
+BLOCK_CHI2_TOL = 0.1
 #: Scale of a tie point's ground unknowns in the solution vector (m per unit): its
 #: east, north and up corrections to the approximate position, on the scale of the
 #: parameters' (scaled by their a priori σ).
@@ -1037,8 +1043,10 @@ def adjust_block(
     does: their 3 × 3 blocks inverted one by one), so that a block of many scenes stays a
     problem in the passes' parameters alone.
 
-    The covariance of the passes' parameters is that of the reduced system, a priori (the
-    budget trusted); each scene's predicted accuracy follows from it as in one pass. Tie
+    Solved by Levenberg–Marquardt on the reduced normal equations (its damping added to
+    both blocks), until the χ² drops by less than ``BLOCK_CHI2_TOL``; the iterations are in
+    ``timings_s``. The covariance of the passes' parameters is that of the reduced system,
+    a priori (the budget trusted); each scene's predicted accuracy follows from it as in one pass. Tie
     points arrive from :mod:`levels.tiepoints`, blunders already refused there (left–right,
     y-parallax); control points are not snooped here (``adjust`` does that pass by pass).
 
@@ -1246,13 +1254,15 @@ def adjust_block(
         )
         return rows, m
 
-    def reduced(j: sparse.csr_matrix, r: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray, Any]:
+    def reduced(
+        j: sparse.csr_matrix, r: NDArray, damping: float = 0.0
+    ) -> tuple[NDArray, NDArray, NDArray, NDArray, Any]:
         """The normal equations with the ground unknowns eliminated (the Schur complement
         ``S = U − W V⁻¹ Wᵀ`` and its right-hand side), and what recovers the ground steps:
         ``V``'s 3 × 3 blocks inverted, the ground part of the gradient, ``W``."""
         normal = (j.T @ j).tocsc()
         grad = -(j.T @ r)
-        u = normal[:nx, :nx].toarray()
+        u = normal[:nx, :nx].toarray() + damping * np.eye(nx)
         w = normal[:nx, nx:]
         v = normal[nx:, nx:]
         vb = np.zeros((n_ties, 3, 3))
@@ -1262,7 +1272,7 @@ def adjust_block(
             np.add.at(
                 vb, (coo.row[same] // 3, coo.row[same] % 3, coo.col[same] % 3), coo.data[same]
             )
-        vinv = np.linalg.inv(vb) if n_ties else vb
+        vinv = np.linalg.inv(vb + damping * np.eye(3)) if n_ties else vb
         t3 = 3 * np.arange(n_ties)[:, None, None]
         i3, j3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
         vinv_sp = sparse.csr_matrix(
@@ -1277,23 +1287,25 @@ def adjust_block(
     r, j = residuals_and_jacobian(z, True)
     cost = float(r @ r)
     iterations = 0
+    damping = 1e-3  # Levenberg–Marquardt's, in the scaled unknowns' units
     for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (reported)
         assert j is not None
-        schur, b, vinv, gd, w = reduced(j, r)
-        dx = cho_solve(cho_factor(schur), b)
-        dd = np.einsum("tij,tj->ti", vinv, (gd - w.T @ dx).reshape(-1, 3)).ravel()
-        step = np.r_[dx, dd]
         for _ in range(MAX_HALVINGS):
+            schur, b, vinv, gd, w = reduced(j, r, damping)
+            dx = cho_solve(cho_factor(schur), b)
+            dd = np.einsum("tij,tj->ti", vinv, (gd - w.T @ dx).reshape(-1, 3)).ravel()
+            step = np.r_[dx, dd]
             r_try, _ = residuals_and_jacobian(z + step, False)
             trial = float(r_try @ r_try)
             if trial <= cost * (1 + 1e-12) + 1e-12:
+                damping = max(damping / 4.0, 1e-9)
                 break
-            step = 0.5 * step
+            damping *= 8.0
         else:
             break
         z, decrease, cost = z + step, cost - trial, trial
         r, j = residuals_and_jacobian(z, True)
-        if np.max(np.abs(step)) < STEP_TOL or decrease <= COST_TOL * cost:
+        if np.max(np.abs(step)) < STEP_TOL or decrease <= max(COST_TOL * cost, BLOCK_CHI2_TOL):
             break
     assert j is not None
     schur, *_ = reduced(j, r)

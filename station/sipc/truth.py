@@ -292,7 +292,7 @@ def true_tie_points(
             ln + sigma_px * rng.standard_normal(n),
             cl + sigma_px * rng.standard_normal(n),
             np.full(n, 1e4),
-            np.full(n, 5e3),
+            np.full(n, 1e3),
             np.full(n, sigma_px),
             np.full(n, hrv, dtype=np.int64),
             np.ones(n, dtype=bool),
