@@ -1046,9 +1046,10 @@ def adjust_block(
     Solved by Levenberg–Marquardt on the reduced normal equations (its damping added to
     both blocks), until the χ² drops by less than ``BLOCK_CHI2_TOL``; the iterations are in
     ``timings_s``. The covariance of the passes' parameters is that of the reduced system,
-    a priori (the budget trusted); each scene's predicted accuracy follows from it as in one pass. Tie
-    points arrive from :mod:`levels.tiepoints`, blunders already refused there (left–right,
-    y-parallax); control points are not snooped here (``adjust`` does that pass by pass).
+    a priori (the budget trusted); each scene's predicted accuracy follows from it as in
+    one pass. Tie points arrive from :mod:`levels.tiepoints`, blunders already refused there
+    (left–right, y-parallax); control points are not snooped here (``adjust`` does that
+    pass by pass).
 
     The weakest direction of two passes tied by points alone is across the baseline:
     shifting one pass that way is nearly the same as raising every tie point by the shift
