@@ -331,6 +331,8 @@ class Adjustment:
     normalised_residual: NDArray[np.float64]  # (N,) at the last test, NaN if not tested
     sigma0: float
     timings_s: dict[str, float]
+    #: A block's tie points found to be blunders and left out (their ids).
+    ties_rejected: tuple[str, ...] = ()
 
     def of_scene(self, index: int) -> int:
         hit = np.flatnonzero(self.scene_index == index)
@@ -399,6 +401,7 @@ class Adjustment:
                 "residual_after_px": self.residual_after_px,
                 "normalised_residual": self.normalised_residual,
             },
+            **({"ties_rejected": list(self.ties_rejected)} if self.mode == "block" else {}),
         }
 
 
@@ -1140,15 +1143,21 @@ def adjust_block(
     def ground(d: NDArray) -> NDArray:
         return g0 + TIE_SCALE_M * np.einsum("tij,ti->tj", enu0, d.reshape(-1, 3))
 
+    active = np.ones(n_ties, dtype=bool)  # tie points not rejected as blunders
+    tie_rows: list[tuple[int, _TieObservations]] = []  # where each pass's tie rows start
+
     def residuals_and_jacobian(z: NDArray, jac: bool) -> tuple[NDArray, sparse.csr_matrix | None]:
         g = ground(z[nx:])
         res, blocks = [], []
+        tie_rows.clear()
+        row = 0
         for p_idx, ((_s, _n, prob, _l, _t), obs) in enumerate(
             zip(setups, observations, strict=True)
         ):
             x = z[offsets[p_idx] : offsets[p_idx + 1]]
             use = np.ones(prob.points.t_s.size, dtype=bool)  # the problem holds only these
             res.append(prob.residuals(x, use))
+            row += res[-1].size
             if jac:
                 j = prob.jacobian(x, use)
                 blocks.append(
@@ -1169,7 +1178,10 @@ def adjust_block(
                 }
             )
             f0 = prob.condition(x, pts)
-            res.append(np.einsum("nij,nj->ni", obs.whitening, f0).ravel())
+            on = active[obs.tie].astype(float)[:, None]  # a rejected point weighs nothing
+            res.append((on * np.einsum("nij,nj->ni", obs.whitening, f0)).ravel())
+            tie_rows.append((row, obs))
+            row += res[-1].size
             if not jac:
                 continue
             m = obs.tie.size
@@ -1194,7 +1206,8 @@ def adjust_block(
                 ],
                 axis=-1,
             )
-            jd = np.einsum("nij,njk->nik", obs.whitening, jd)
+            jd = np.einsum("nij,njk->nik", obs.whitening, jd) * on[:, :, None]
+            jx = jx * on[:, :, None]
             cols = np.concatenate(
                 [
                     offsets[p_idx] + np.broadcast_to(np.arange(_NP), (m, _NP)),
@@ -1284,37 +1297,76 @@ def adjust_block(
         b = grad[:nx] - wv @ grad[nx:]
         return schur, b, vinv, np.asarray(grad[nx:]), w
 
-    z = np.zeros(n)
-    r, j = residuals_and_jacobian(z, True)
-    cost = float(r @ r)
-    iterations = 0
-    damping = 1e-3  # Levenberg–Marquardt's, in the scaled unknowns' units
-    for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (reported)
-        assert j is not None
-        for _ in range(MAX_HALVINGS):
-            schur, b, vinv, gd, w = reduced(j, r, damping)
-            dx = cho_solve(cho_factor(schur), b)
-            dd = np.einsum("tij,tj->ti", vinv, (gd - w.T @ dx).reshape(-1, 3)).ravel()
-            step = np.r_[dx, dd]
-            r_try, _ = residuals_and_jacobian(z + step, False)
-            trial = float(r_try @ r_try)
-            if trial <= cost * (1 + 1e-12) + 1e-12:
-                damping = max(damping / 4.0, 1e-9)
-                break
-            damping *= 8.0
-        else:
-            break
-        z, decrease, cost = z + step, cost - trial, trial
+    def solve(z: NDArray) -> tuple[NDArray, NDArray, Any, float, int]:
+        """Levenberg–Marquardt from ``z``: the solution, its residuals, Jacobian, cost and
+        iterations."""
         r, j = residuals_and_jacobian(z, True)
-        if np.max(np.abs(step)) < STEP_TOL or decrease <= max(COST_TOL * cost, BLOCK_CHI2_TOL):
+        cost = float(r @ r)
+        iterations = 0
+        damping = 1e-3  # in the scaled unknowns' units
+        for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (reported)
+            assert j is not None
+            for _ in range(MAX_HALVINGS):
+                schur, b, vinv, gd, w = reduced(j, r, damping)
+                dx = cho_solve(cho_factor(schur), b)
+                dd = np.einsum("tij,tj->ti", vinv, (gd - w.T @ dx).reshape(-1, 3)).ravel()
+                step = np.r_[dx, dd]
+                r_try, _ = residuals_and_jacobian(z + step, False)
+                trial = float(r_try @ r_try)
+                if trial <= cost * (1 + 1e-12) + 1e-12:
+                    damping = max(damping / 4.0, 1e-9)
+                    break
+                damping *= 8.0
+            else:
+                break
+            z, decrease, cost = z + step, cost - trial, trial
+            r, j = residuals_and_jacobian(z, True)
+            if np.max(np.abs(step)) < STEP_TOL or decrease <= max(COST_TOL * cost, BLOCK_CHI2_TOL):
+                break
+        return z, r, j, cost, iterations
+
+    def tie_tests(r: NDArray, j: Any) -> NDArray[np.float64]:
+        """Each tie point's largest normalised residual over its measurements (Baarda's
+        ``|v| / σ_v``, the leverage of the point's own ground unknowns: ``J_d V⁻¹ J_dᵀ``);
+        NaN for the rejected."""
+        _s, _b, vinv, _g, _w = reduced(j, r)
+        worst = np.full(n_ties, np.nan)
+        for start, obs in tie_rows:
+            m = obs.tie.size
+            rows = start + np.arange(2 * m)
+            sub = j[rows].tocoo()
+            own = sub.col >= nx  # a tie row's three ground columns: its own point's
+            jd = np.zeros((2 * m, 3))
+            jd[sub.row[own], (sub.col[own] - nx) % 3] = sub.data[own]
+            h = np.einsum("ri,rij,rj->r", jd, vinv[np.repeat(obs.tie, 2)], jd)
+            w = np.abs(r[rows]) / np.sqrt(np.clip(1.0 - h, 1e-6, None))
+            per = w.reshape(m, 2).max(axis=1)
+            np.fmax.at(worst, obs.tie, per)
+        worst[~active] = np.nan
+        return worst
+
+    z, r, j, cost, iterations = solve(np.zeros(n))
+    for _ in range(MAX_SNOOPING_ROUNDS):  # Baarda's data snooping among the tie points
+        test = tie_tests(r, j)
+        bad = np.flatnonzero(np.nan_to_num(test) > options.blunder_threshold)
+        if bad.size == 0:
             break
+        active[bad] = False
+        if (~active).sum() > MAX_REJECTED_SHARE * n_ties:
+            raise AdjustmentError(
+                f"level 2 of a block: {int((~active).sum())} of {n_ties} tie points rejected "
+                f"(more than {MAX_REJECTED_SHARE:.0%}): the tie points or their σ are wrong"
+            )
+        z, r, j, cost, more = solve(z)
+        iterations += more
+    ties_rejected = tuple(ids[k] for k in np.flatnonzero(~active))
     assert j is not None
     schur, *_ = reduced(j, r)
     cov_all = np.linalg.inv(schur)
     n_obs = sum(2 * int(setup[2].points.t_s.size) for setup in setups)
-    n_obs += sum(2 * o.tie.size for o in observations if o is not None)
+    n_obs += sum(2 * int(active[o.tie].sum()) for o in observations if o is not None)
     n_obs += int(heights_known.sum()) if dem is not None else 0
-    dof = n_obs - 3 * n_ties
+    dof = n_obs - 3 * int(active.sum())
     sigma0 = float(np.sqrt(cost / dof)) if dof > 0 else float("nan")
     # Gauss–Newton's iterations are reported: where the tie points' lines of sight are
     # nearly parallel (a base-to-height ratio of a few hundredths) it converges slowly
@@ -1368,6 +1420,7 @@ def adjust_block(
                     np.full(len(st.gcps), np.nan),
                     sigma0,
                     elapsed,
+                    ties_rejected,
                 )
             )
         out.append(tuple(adjs))

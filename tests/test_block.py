@@ -228,3 +228,26 @@ def test_station_processes_a_block_end_to_end(tmp_path) -> None:
     # the second pass alone has no control point to make a level 2 of
     alone = ["process", str(rb / "pb.l0.h5"), "--levels", "2", "--out", str(tmp_path / "x")]
     assert main([*alone, "-q"]) == 2
+
+
+#: Planted blunders among the tie points (pixels along the line in the second image).
+TIE_BLUNDER_PX = 5.0
+
+
+def test_tie_point_blunders_are_found_as_control_points_are(block) -> None:
+    """Three tie points measured 5 px off in the second pass: data snooping (Baarda, the
+    threshold of control points) rejects them and only them, and the block is as without."""
+    import dataclasses
+
+    a, b, (ta, tb) = block
+    planted = np.array([3, 50, 120])
+    line = tb.line.copy()
+    line[planted] += TIE_BLUNDER_PX
+    dirty = dataclasses.replace(tb, line=line)
+    opts = ProcessingOptions()
+    clean = adjust_block([[_strip(a)], [_strip(b)]], [[ta], [tb]], opts)[1][0]
+    res = adjust_block([[_strip(a)], [_strip(b)]], [[ta], [dirty]], opts)[1][0]
+    assert set(res.ties_rejected) == {tb.id[k] for k in planted}
+    assert clean.ties_rejected == ()
+    assert abs(_error_m(*b, res) - _error_m(*b, clean)) < 1.0
+    assert res.product_tree(res.scene_index[0])["ties_rejected"] == list(res.ties_rejected)
