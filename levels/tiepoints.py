@@ -98,6 +98,7 @@ class MapView:
     geometry: Level2AGeometry
     model: PushbroomModel
     first_line: int
+    scene: int = 0
 
     @classmethod
     def of_product(cls, product: Any, band: str | None = None) -> MapView:
@@ -120,6 +121,7 @@ class MapView:
             geometry=Level2AGeometry.from_tree(tree, name),
             model=models[name],
             first_line=int(product.geometry["scene"]["first_line"]),
+            scene=int(product.attrs.get("scene_index", 0)),
         )
 
 
@@ -144,13 +146,16 @@ class TiePoints:
     h_m: NDArray[np.float64]
     y_parallax_m: NDArray[np.float64]
     counts: dict[str, int] = field(default_factory=dict)
+    scene_a: int = 0
+    scene_b: int = 0
 
     def __len__(self) -> int:
         return int(self.line_a.size)
 
     @property
     def ids(self) -> tuple[str, ...]:
-        return tuple(f"t_{self.a}_{self.b}_{k:05d}" for k in range(len(self)))
+        pair = f"{self.a}_s{self.scene_a:03d}_{self.b}_s{self.scene_b:03d}"
+        return tuple(f"t_{pair}_{k:05d}" for k in range(len(self)))
 
     def control_points(self, which: str) -> ControlPointSet:
         """The points as measured in view ``which`` (``"a"`` or ``"b"``): control points of
@@ -442,4 +447,6 @@ def match_views(a: MapView, b: MapView, max_points: int = MAX_CANDIDATES) -> Tie
         h_m=h[good],
         y_parallax_m=ypar[good],
         counts=counts,
+        scene_a=a.scene,
+        scene_b=b.scene,
     )

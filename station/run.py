@@ -482,3 +482,187 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
             f"{len(report['products'])} products, {n_ql} quicklooks"
         )
     return "\n".join(lines)
+
+
+#: The key of a scenario file that makes it a block: an array of tables, one per pass.
+BLOCK_KEY = "passes"
+BLOCK_FORMAT = "spot-station-block-run"
+
+
+def is_block_file(path: str | Path) -> bool:
+    """Whether a scenario file describes a block (``[[passes]]``)."""
+    from station.scenario import read_toml
+
+    data, _ = read_toml(path)
+    return BLOCK_KEY in data
+
+
+def block_scenarios(path: str | Path) -> tuple[str, list[Scenario], Any]:
+    """A block file's name, each pass's scenario and the block's processing options.
+
+    Each ``[[passes]]`` table is merged over the file's other tables (the world, the
+    instrument, the errors…): its own ``name`` (``p1``, ``p2``… by default) names the pass
+    ``<block>_<name>``, its ``seed`` (default: the block's plus its rank) draws its errors
+    independently. A pass's run makes the levels of one pass (level 2's adjustment and
+    level 3 are the block's, made after on every pass together): its ``[processing]
+    levels`` less ``2`` and ``3``, with ``2A``, on which its tie points are matched."""
+    import dataclasses
+    import hashlib
+
+    from station.errors import ScenarioError
+    from station.scenario import check_name, merge_tables, read_toml, scenario_from_dict
+
+    p = Path(path)
+    data, raw = read_toml(p)
+    passes = data.pop(BLOCK_KEY)
+    if not isinstance(passes, list) or len(passes) < 2:
+        raise ScenarioError(f"{p}: [[{BLOCK_KEY}]] must be given twice or more (a block)")
+    name = check_name(str(data.get("name", p.stem)))
+    seed = int(data.get("seed", 0))
+    block = scenario_from_dict(data, p.resolve().parent)  # the shared tables, checked
+    scns = []
+    for k, over in enumerate(passes):
+        if not isinstance(over, dict):
+            raise ScenarioError(f"{p}: [[{BLOCK_KEY}]] {k + 1} is not a table")
+        over = dict(over)
+        tag = check_name(str(over.pop("name", f"p{k + 1}")), f"[[{BLOCK_KEY}]] name")
+        table = merge_tables(data, over)
+        table["name"] = f"{name}_{tag}"
+        if "seed" not in over:
+            table["seed"] = seed + k + 1
+        levels = [lv for lv in block.processing.levels if lv not in ("2", "3")]
+        processing = dict(table.get("processing", {}))
+        processing["levels"] = sorted(set(levels) | {"2A"}, key=["1A", "1B", "2A"].index)
+        processing["adjustment"] = "pass"
+        table["processing"] = processing
+        scn = scenario_from_dict(table, p.resolve().parent)
+        digest = hashlib.sha256(raw + tag.encode()).hexdigest()  # the pass's own
+        scns.append(dataclasses.replace(scn, source=str(p.resolve()), source_sha256=digest))
+    if len({s.name for s in scns}) != len(scns):
+        raise ScenarioError(f"{p}: two [[{BLOCK_KEY}]] named alike")
+    return name, scns, block.processing
+
+
+def run_block(
+    path: str | Path,
+    out_dir: str | Path,
+    *,
+    quicklooks: bool = True,
+    progress: bool = False,
+    runner: Runner | None = None,
+) -> dict[str, Any]:
+    """Run a block (``[[passes]]``, :func:`block_scenarios`) end to end into ``out_dir``:
+    each pass as ``station run`` runs one (``<out>/<pass>/``); the tie points between every
+    two passes whose 2A scenes overlap (:mod:`levels.tiepoints`, ``<out>/ties/``); then, with
+    level 2 asked and ``adjustment = "block"``, every pass's level 2 on one adjustment
+    (``<out>/block/``, checkpoints against each pass's truth). Published whole, as a run."""
+    import dataclasses
+
+    from levels.process import all_made, run_plans
+    from station.catalog import write_catalog
+    from station.sipc.process import plan_reprocess
+
+    name, scns, processing = block_scenarios(path)
+    inputs = [i for s in scns for i in s.inputs()]
+    out = prepare_run_dir(out_dir, name, inputs)
+    for s in scns:
+        check_run(s, out)
+    t0 = time.perf_counter()
+    with staged_dir(out) as stage:
+        reports = []
+        for s in scns:
+            (stage / s.name).mkdir()
+            reports.append(_run(s, stage / s.name, quicklooks, progress, runner, False))
+        ties = _block_ties(stage, scns)
+        block: dict[str, Any] = {}
+        if "2" in processing.levels and processing.adjustment == "block":
+            opts = processing
+            first = scns[0].name
+            if not opts.dem_path and scns[0].dem is not None:  # the first pass's export
+                opts = dataclasses.replace(opts, dem_path=str(stage / first / f"{first}.dem.tif"))
+            keep = tuple(lv for lv in opts.levels if lv in ("2", "3"))
+            opts = dataclasses.replace(opts, levels=keep)
+            plans = plan_reprocess(
+                [stage / s.name / f"{s.name}.l0.h5" for s in scns],
+                stage / "block",
+                options=opts,
+                scenario=scns,
+                ties_dir=stage / "ties",
+            )
+            made = all_made(run_plans(plans, runner))
+            block = {
+                "products": [
+                    {
+                        "pass": s.name,
+                        "scene": sc.index,
+                        "level": level,
+                        "file": f"block/{p.name}",
+                        "quality": sc.quality[level],
+                    }
+                    for s, pp in zip(scns, made, strict=True)
+                    for sc in pp.scenes
+                    for level, p in sc.paths.items()
+                ],
+            }
+        report = {
+            "format": BLOCK_FORMAT,
+            "format_version": 1,
+            "software": f"spot-station {__version__}",
+            "scenario": {"name": name, "file": Path(path).name, "passes": [s.name for s in scns]},
+            "passes": reports,
+            "ties": ties,
+            "block": block,
+            "timings_s": {"total": round(time.perf_counter() - t0, 3)},
+        }
+        write_json(stage / "report.json", report)
+        write_catalog(stage, name, f"the products of a block run of {name} (spot-station)")
+    return report
+
+
+def _block_ties(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
+    """Tie points between every two passes' overlapping 2A scenes, each pass's merged into
+    ``<stage>/ties/<pass>.tie.csv``; what was found, per pair."""
+    from levels.errors import GeometryError
+    from levels.readers.gcp import write_gcps
+    from levels.tiepoints import MapView, match_views
+
+    views = {
+        s.name: [
+            MapView.of_product(read_product(p)) for p in sorted((stage / s.name).glob("*_2A.nc"))
+        ]
+        for s in scns
+    }
+    per: dict[str, list[Any]] = {s.name: [] for s in scns}
+    pairs = []
+    names = [s.name for s in scns]
+    for i, a in enumerate(names):
+        for b in names[i + 1 :]:
+            for va in views[a]:
+                for vb in views[b]:
+                    try:
+                        tp = match_views(va, vb)
+                    except GeometryError:  # these two scenes do not overlap
+                        continue
+                    if not len(tp):
+                        continue
+                    per[a].append(tp.control_points("a"))
+                    per[b].append(tp.control_points("b"))
+                    pairs.append(
+                        {
+                            "a": a,
+                            "b": b,
+                            "scene_a": va.scene,
+                            "scene_b": vb.scene,
+                            "points": len(tp),
+                            "counts": tp.counts,
+                        }
+                    )
+    (stage / "ties").mkdir(exist_ok=True)
+    for n, sets in per.items():
+        if sets:
+            merged = sets[0]
+            for s in sets[1:]:
+                merged = merged + s
+            comment = f"tie points of {n} (docs/gcp.md)"
+            write_gcps(stage / "ties" / f"{n}.tie.csv", merged, comment)
+    return {"pairs": pairs}

@@ -638,6 +638,11 @@ def scenario_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Scen
             kwargs["pass_" if key == "pass" else key] = build_section(
                 _SECTIONS[key], key, value, ScenarioError
             )
+        elif key == "passes":
+            raise ScenarioError(
+                "[[passes]] makes a block of several passes: `station run` runs it "
+                "(station.run.block_scenarios reads it), not as one pass"
+            )
         else:
             raise ScenarioError(f"unknown key {key!r}; allowed: {', '.join(allowed)}")
     scn = Scenario(**kwargs)

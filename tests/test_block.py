@@ -8,6 +8,8 @@ matcher's figure): the adjustment is tested here, the matcher in ``test_tiepoint
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -251,3 +253,39 @@ def test_tie_point_blunders_are_found_as_control_points_are(block) -> None:
     assert clean.ties_rejected == ()
     assert abs(_error_m(*b, res) - _error_m(*b, clean)) < 1.0
     assert res.product_tree(res.scene_index[0])["ties_rejected"] == list(res.ties_rejected)
+
+
+#: The block run's level 2 on reduced scenes (100 m pixels): the control points' 0.3 px of
+#: pointing error (30 m) dominates; a third of a pixel covers it.
+BLOCK_RUN_PX = 0.33
+
+
+def test_station_runs_a_block_scenario(tmp_path) -> None:
+    """``scenarios/blocks/two_passes.toml``: every pass run, their tie points found, level
+    2 of both on one adjustment, in one command; the second pass has no control point."""
+    import json
+
+    import pystac
+
+    from levels.products import read_product
+    from station.cli import main
+    from station.errors import ScenarioError
+    from station.scenario import load_scenario
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "blocks" / "two_passes.toml"
+    out = tmp_path / "run"
+    assert main(["run", str(path), "--out", str(out), "-q", "--no-quicklooks"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["scenario"]["passes"] == ["two_passes_a", "two_passes_b"]
+    assert report["ties"]["pairs"][0]["points"] >= 200
+    ties = {p.name for p in (out / "ties").iterdir()}
+    assert ties == {"two_passes_a.tie.csv", "two_passes_b.tie.csv"}
+    for name in ("two_passes_a", "two_passes_b"):
+        level2 = read_product(out / "block" / f"{name}_s000_2.nc", images=False)
+        assert level2.geometry["adjustment"]["mode"] == "block"
+        los = level2.quality["checkpoints"]["P"]["line_of_sight"]["rms_m"]
+        assert los <= BLOCK_RUN_PX * level2.attrs["pixel_size_m"]
+    children = pystac.Catalog.from_file(str(out / "catalog.json")).get_children()
+    assert {c.id for c in children} >= {"two_passes_a", "block"}
+    with pytest.raises(ScenarioError, match="block of several passes"):
+        load_scenario(path)

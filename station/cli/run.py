@@ -53,6 +53,10 @@ def _run(args: argparse.Namespace) -> int:
             f"the default scenario {path} is not there (an install without "
             "the repository's scenarios/); give a scenario file"
         )
+    from station.run import is_block_file
+
+    if is_block_file(path):
+        return _run_block(path, args)
     scn = load_scenario(path)
     out = Path(args.out) if args.out else Path("runs") / scn.name
     if args.check:
@@ -70,6 +74,58 @@ def _run(args: argparse.Namespace) -> int:
         )
     print(json.dumps(report, indent=2) if args.json else summary_table(report, out))
     return exit_made(len(report["products"]), "the run")
+
+
+def _run_block(path: Path, args: argparse.Namespace) -> int:
+    """A block scenario (``[[passes]]``): every pass, their tie points, the block."""
+    import json
+
+    from station.run import block_scenarios, run_block, summary_table
+
+    name, scns, _ = block_scenarios(path)
+    out = Path(args.out) if args.out else Path("runs") / name
+    if args.check:
+        for scn in scns:
+            _check(scn, out / scn.name, args)
+        return 0
+    if not args.json and not args.quiet:
+        print(f"running the block {path} ({len(scns)} passes) into {out}/ ...", file=sys.stderr)
+    with runner_of(args) as runner:
+        report = run_block(
+            path,
+            out,
+            quicklooks=not args.no_quicklooks,
+            progress=not args.quiet and sys.stderr.isatty(),
+            runner=runner,
+        )
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        for r in report["passes"]:
+            print(summary_table(r, out / r["scenario"]["name"]))
+        pairs = report["ties"]["pairs"]
+        print(
+            f"tie points: {sum(p['points'] for p in pairs)} between {len(pairs)} pair(s) of "
+            f"scenes, in {out}/ties/"
+        )
+        for p in report["block"].get("products", []):
+            los = next(
+                (
+                    v
+                    for k, v in p["quality"].items()
+                    if k.startswith("checkpoints/") and k.endswith("/line_of_sight/rms_m")
+                ),
+                None,
+            )
+            print(
+                f"block: {p['pass']} scene {p['scene']} level {p['level']}"
+                + (f", line of sight RMS {los:.1f} m" if los is not None else "")
+                + f": {out}/{p['file']}"
+            )
+    made = len(report["block"].get("products", [])) + sum(
+        len(r["products"]) for r in report["passes"]
+    )
+    return exit_made(made, "the block")
 
 
 def _check(scn: Any, out: Path, args: argparse.Namespace) -> int:
