@@ -18,6 +18,9 @@ Run: ``python benchmarks/bench_block.py [scenes_per_strip]`` (default 25). Emula
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+import operator
 import sys
 import time
 
@@ -56,24 +59,7 @@ def strip(k: int, n_scenes: int):
 
 def renamed(t: ControlPointSet, prefix: str) -> ControlPointSet:
     """The same tie points under ids unique to their pair of strips."""
-    return ControlPointSet(
-        tuple(f"{prefix}{i}" for i in t.id),
-        *(
-            getattr(t, f)
-            for f in (
-                "lon_rad",
-                "lat_rad",
-                "h_m",
-                "line",
-                "column",
-                "sigma_ground_m",
-                "sigma_h_m",
-                "sigma_px",
-                "hrv",
-                "tie",
-            )
-        ),
-    )
+    return dataclasses.replace(t, id=tuple(f"{prefix}{i}" for i in t.id))
 
 
 def main() -> None:
@@ -85,12 +71,7 @@ def main() -> None:
         a, b = true_tie_points(strips[k][0], strips[k + 1][0], 60, 0.2, rng, 450.0)
         per[k].append(renamed(a, f"p{k}_"))
         per[k + 1].append(renamed(b, f"p{k}_"))
-    ties = []
-    for sets in per:
-        merged = sets[0]
-        for s in sets[1:]:
-            merged = merged + s
-        ties.append([merged])
+    ties = [[functools.reduce(operator.add, sets)] for sets in per]
     passes = [[Strip(pg, scenes, control_points(acq))] for acq, pg, scenes in strips]
     opts = ProcessingOptions()
     n_ties = len({i for t in ties for i in t[0].id})

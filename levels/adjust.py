@@ -46,6 +46,7 @@ points cannot determine is held by the priors, and the predicted σ says so.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from dataclasses import dataclass, fields
@@ -426,6 +427,27 @@ def _increment_sigma(
     return sig, lost
 
 
+def _image_partials(
+    pg: PassGeometry, band: str, line: NDArray, col: NDArray, p: _Points
+) -> NDArray[np.float64]:
+    """The condition's partials by the measured line and column, ``(N, 2, 2)``."""
+    zero = np.zeros((p.t_s.size, 3))
+    f0 = _condition(p, zero, zero, zero)
+    return np.stack(
+        [
+            (
+                _condition(
+                    _points(pg, band, line + dl, col + dc, p.g_ecef_m, p.scene), zero, zero, zero
+                )
+                - f0
+            )
+            / _STEP_PX
+            for dl, dc in ((_STEP_PX, 0.0), (0.0, _STEP_PX))
+        ],
+        axis=-1,
+    )
+
+
 def _whitening(
     pg: PassGeometry,
     band: str,
@@ -434,20 +456,10 @@ def _whitening(
     p: _Points,
 ) -> NDArray[np.float64]:
     """``L⁻¹`` of every point's condition covariance ``A Q Aᵀ`` (eq. 20), ``(N, 2, 2)``."""
-    n = p.t_s.size
-    zero = np.zeros((n, 3))
+    zero = np.zeros((p.t_s.size, 3))
     f0 = _condition(p, zero, zero, zero)
     line, col = gcps.line[use], gcps.column[use]
-    cols = [
-        (
-            _condition(
-                _points(pg, band, line + dl, col + dc, p.g_ecef_m, p.scene), zero, zero, zero
-            )
-            - f0
-        )
-        / _STEP_PX
-        for dl, dc in ((_STEP_PX, 0.0), (0.0, _STEP_PX))
-    ]
+    cols = list(np.moveaxis(_image_partials(pg, band, line, col, p), -1, 0))
     enu = _local_axes(p.g_ecef_m)
     for k in range(3):
         q = _points(pg, band, line, col, p.g_ecef_m + _STEP_M * enu[:, k], p.scene)
@@ -1012,21 +1024,7 @@ def _image_whitening(
     pg: PassGeometry, band: str, line: NDArray, col: NDArray, p: _Points, sigma_px: NDArray
 ) -> NDArray[np.float64]:
     """``L⁻¹`` of a tie measurement's condition covariance from its image σ alone."""
-    zero = np.zeros((p.t_s.size, 3))
-    f0 = _condition(p, zero, zero, zero)
-    a = np.stack(
-        [
-            (
-                _condition(
-                    _points(pg, band, line + dl, col + dc, p.g_ecef_m, p.scene), zero, zero, zero
-                )
-                - f0
-            )
-            / _STEP_PX
-            for dl, dc in ((_STEP_PX, 0.0), (0.0, _STEP_PX))
-        ],
-        axis=-1,
-    )
+    a = _image_partials(pg, band, line, col, p)
     cov = np.einsum("nik,n,njk->nij", a, sigma_px**2, a)
     return np.linalg.inv(np.linalg.cholesky(cov))
 
@@ -1173,12 +1171,7 @@ def adjust_block(
                 )
             if obs is None:
                 continue
-            pts = _Points(
-                **{
-                    **{f.name: getattr(obs.points, f.name) for f in fields(_Points)},
-                    "g_ecef_m": g[obs.tie],
-                }
-            )
+            pts = dataclasses.replace(obs.points, g_ecef_m=g[obs.tie])
             f0 = prob.condition(x, pts)
             on = active[obs.tie].astype(float)[:, None]  # a rejected point weighs nothing
             res.append((on * np.einsum("nij,nj->ni", obs.whitening, f0)).ravel())
@@ -1193,11 +1186,8 @@ def adjust_block(
                     (
                         prob.condition(
                             x,
-                            _Points(
-                                **{
-                                    **{f.name: getattr(pts, f.name) for f in fields(_Points)},
-                                    "g_ecef_m": pts.g_ecef_m + _STEP_M * enu0[obs.tie, k],
-                                }
+                            dataclasses.replace(
+                                pts, g_ecef_m=pts.g_ecef_m + _STEP_M * enu0[obs.tie, k]
                             ),
                         )
                         - f0
@@ -1270,24 +1260,28 @@ def adjust_block(
         )
         return rows, m
 
-    def reduced(
-        j: sparse.csr_matrix, r: NDArray, damping: float = 0.0
-    ) -> tuple[NDArray, NDArray, NDArray, NDArray, Any]:
-        """The normal equations with the ground unknowns eliminated (the Schur complement
-        ``S = U − W V⁻¹ Wᵀ`` and its right-hand side), and what recovers the ground steps:
-        ``V``'s 3 × 3 blocks inverted, the ground part of the gradient, ``W``."""
+    def normal_equations(j: sparse.csr_matrix, r: NDArray) -> tuple[NDArray, Any, NDArray, NDArray]:
+        """``JᵀJ`` in its parts: the parameters' block ``U`` (dense), their coupling with the
+        ground unknowns ``W``, the ground unknowns' 3 × 3 diagonal blocks of ``V`` (it is
+        block diagonal), and the gradient ``−Jᵀr``; built once per iteration."""
         normal = (j.T @ j).tocsc()
-        grad = -(j.T @ r)
-        u = normal[:nx, :nx].toarray() + damping * np.eye(nx)
-        w = normal[:nx, nx:]
-        v = normal[nx:, nx:]
         vb = np.zeros((n_ties, 3, 3))
-        if n_ties:  # the ground unknowns' normal matrix is block diagonal: its 3 × 3 blocks
-            coo = v.tocoo()
+        if n_ties:
+            coo = normal[nx:, nx:].tocoo()
             same = coo.row // 3 == coo.col // 3
             np.add.at(
                 vb, (coo.row[same] // 3, coo.row[same] % 3, coo.col[same] % 3), coo.data[same]
             )
+        return normal[:nx, :nx].toarray(), normal[:nx, nx:], vb, -(j.T @ r)
+
+    def reduced(
+        parts: tuple[NDArray, Any, NDArray, NDArray], damping: float = 0.0
+    ) -> tuple[NDArray, NDArray, NDArray, NDArray, Any]:
+        """The normal equations with the ground unknowns eliminated (the Schur complement
+        ``S = U − W V⁻¹ Wᵀ`` and its right-hand side), ``damping`` on the diagonal, and what
+        recovers the ground steps: ``V``'s 3 × 3 blocks inverted, the ground part of the
+        gradient, ``W``."""
+        u, w, vb, grad = parts
         vinv = np.linalg.inv(vb + damping * np.eye(3)) if n_ties else vb
         t3 = 3 * np.arange(n_ties)[:, None, None]
         i3, j3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
@@ -1295,7 +1289,7 @@ def adjust_block(
             (vinv.ravel(), ((t3 + i3).ravel(), (t3 + j3).ravel())), shape=(3 * n_ties,) * 2
         )
         wv = w @ vinv_sp
-        schur = u - (wv @ w.T).toarray()
+        schur = u + damping * np.eye(nx) - (wv @ w.T).toarray()
         b = grad[:nx] - wv @ grad[nx:]
         return schur, b, vinv, np.asarray(grad[nx:]), w
 
@@ -1308,8 +1302,9 @@ def adjust_block(
         damping = 1e-3  # in the scaled unknowns' units
         for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (reported)
             assert j is not None
+            parts = normal_equations(j, r)
             for _ in range(MAX_HALVINGS):
-                schur, b, vinv, gd, w = reduced(j, r, damping)
+                schur, b, vinv, gd, w = reduced(parts, damping)
                 dx = cho_solve(cho_factor(schur), b)
                 dd = np.einsum("tij,tj->ti", vinv, (gd - w.T @ dx).reshape(-1, 3)).ravel()
                 step = np.r_[dx, dd]
@@ -1331,7 +1326,7 @@ def adjust_block(
         """Each tie point's largest normalised residual over its measurements (Baarda's
         ``|v| / σ_v``, the leverage of the point's own ground unknowns: ``J_d V⁻¹ J_dᵀ``);
         NaN for the rejected."""
-        _s, _b, vinv, _g, _w = reduced(j, r)
+        _s, _b, vinv, _g, _w = reduced(normal_equations(j, r))
         worst = np.full(n_ties, np.nan)
         for start, obs in tie_rows:
             m = obs.tie.size
@@ -1363,7 +1358,7 @@ def adjust_block(
         iterations += more
     ties_rejected = tuple(ids[k] for k in np.flatnonzero(~active))
     assert j is not None
-    schur, *_ = reduced(j, r)
+    schur, *_ = reduced(normal_equations(j, r))
     cov_all = np.linalg.inv(schur)
     n_obs = sum(2 * int(setup[2].points.t_s.size) for setup in setups)
     n_obs += sum(2 * int(active[o.tie].sum()) for o in observations if o is not None)

@@ -323,8 +323,9 @@ def match_views(a: MapView, b: MapView, max_points: int = MAX_CANDIDATES) -> Tie
     def sample_b(rows: NDArray, cols: NDArray, h: int, order: int = 3) -> NDArray:
         """Windows of ``b`` on ``a``'s grid around positions of ``a``'s grid."""
         g = np.arange(-h, h + 1, dtype=np.float64)
-        rr = (rows[:, None, None] + g[None, :, None]) + 0 * g[None, None, :]
-        cc = (cols[:, None, None] + g[None, None, :]) + 0 * g[None, :, None]
+        rr, cc = np.broadcast_arrays(
+            rows[:, None, None] + g[None, :, None], cols[:, None, None] + g[None, None, :]
+        )
         br, bc = to_b(rr, cc)
         return ndimage.map_coordinates(
             b_spline if order == 3 else b.image,

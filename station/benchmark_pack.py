@@ -300,37 +300,28 @@ def _control_points(
     # docs/gcp.md's columns first (line, column 0-based: station locate --gcps reads it),
     # then DIMAP's 1-based row and col
     ids = [f"g{i:04d}" for i in k]
-    _csv(
-        stage / "control_points.csv",
-        {
-            "id": ids,
-            "lon_deg": _f(np.degrees(g.lon_rad[k]), ".9f"),
-            "lat_deg": _f(np.degrees(g.lat_rad[k]), ".9f"),
-            "h_m": _f(g.h_m[k], ".3f"),
-            "line": _f(line[k], ".3f"),
-            "column": _f(g.column[k], ".3f"),
-            "sigma_ground_m": [f"{cfg.horizontal_error_m:g}"] * k.size,
-            "sigma_h_m": [f"{cfg.vertical_error_m:g}"] * k.size,
-            "sigma_px": [f"{cfg.pointing_error_px:g}"] * k.size,
-            "hrv": [str(hrv)] * k.size,
-            "row": _f(line[k] + 1, ".3f"),
-            "col": _f(g.column[k] + 1, ".3f"),
-        },
-    )
-    _csv(
-        truth_dir / "control_points.csv",
-        {
-            "id": ids,
-            "lon_deg": _f(np.degrees(g.true_lon_rad[k]), ".9f"),
-            "lat_deg": _f(np.degrees(g.true_lat_rad[k]), ".9f"),
-            "h_m": _f(g.true_h_m[k], ".3f"),
-            "line": _f(true_line[k], ".3f"),
-            "column": _f(g.true_column[k], ".3f"),
-            "row": _f(true_line[k] + 1, ".3f"),
-            "col": _f(g.true_column[k] + 1, ".3f"),
-            "blunder": ["true" if x else "false" for x in g.blunder[k]],
-        },
-    )
+
+    def where(lon: NDArray, lat: NDArray, h: NDArray, ln: NDArray, col: NDArray) -> dict:
+        """A point's ground and image columns: docs/gcp.md's, then DIMAP's row and col."""
+        return {
+            "lon_deg": _f(np.degrees(lon[k]), ".9f"),
+            "lat_deg": _f(np.degrees(lat[k]), ".9f"),
+            "h_m": _f(h[k], ".3f"),
+            "line": _f(ln[k], ".3f"),
+            "column": _f(col[k], ".3f"),
+        }, {"row": _f(ln[k] + 1, ".3f"), "col": _f(col[k] + 1, ".3f")}
+
+    ground, dimap = where(g.lon_rad, g.lat_rad, g.h_m, line, g.column)
+    sigmas = {
+        "sigma_ground_m": [f"{cfg.horizontal_error_m:g}"] * k.size,
+        "sigma_h_m": [f"{cfg.vertical_error_m:g}"] * k.size,
+        "sigma_px": [f"{cfg.pointing_error_px:g}"] * k.size,
+        "hrv": [str(hrv)] * k.size,
+    }
+    _csv(stage / "control_points.csv", {"id": ids, **ground, **sigmas, **dimap})
+    ground, dimap = where(g.true_lon_rad, g.true_lat_rad, g.true_h_m, true_line, g.true_column)
+    blunder = {"blunder": ["true" if x else "false" for x in g.blunder[k]]}
+    _csv(truth_dir / "control_points.csv", {"id": ids, **ground, **dimap, **blunder})
 
 
 def _f(values: NDArray, spec: str) -> list[str]:

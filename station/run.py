@@ -26,8 +26,11 @@ with the same scenario and seed give identical products and the same report
 
 from __future__ import annotations
 
+import functools
+import itertools
 import json
 import logging
+import operator
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -634,35 +637,23 @@ def _block_ties(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
     }
     per: dict[str, list[Any]] = {s.name: [] for s in scns}
     pairs = []
-    names = [s.name for s in scns]
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            for va in views[a]:
-                for vb in views[b]:
-                    try:
-                        tp = match_views(va, vb)
-                    except GeometryError:  # these two scenes do not overlap
-                        continue
-                    if not len(tp):
-                        continue
-                    per[a].append(tp.control_points("a"))
-                    per[b].append(tp.control_points("b"))
-                    pairs.append(
-                        {
-                            "a": a,
-                            "b": b,
-                            "scene_a": va.scene,
-                            "scene_b": vb.scene,
-                            "points": len(tp),
-                            "counts": tp.counts,
-                        }
-                    )
+    for a, b in itertools.combinations([s.name for s in scns], 2):
+        for va, vb in itertools.product(views[a], views[b]):
+            try:
+                tp = match_views(va, vb)
+            except GeometryError:  # these two scenes do not overlap
+                continue
+            if not len(tp):
+                continue
+            per[a].append(tp.control_points("a"))
+            per[b].append(tp.control_points("b"))
+            pair = {"a": a, "b": b, "scene_a": va.scene, "scene_b": vb.scene}
+            pairs.append({**pair, "points": len(tp), "counts": tp.counts})
     (stage / "ties").mkdir(exist_ok=True)
     for n, sets in per.items():
         if sets:
-            merged = sets[0]
-            for s in sets[1:]:
-                merged = merged + s
             comment = f"tie points of {n} (docs/gcp.md)"
-            write_gcps(stage / "ties" / f"{n}.tie.csv", merged, comment)
+            write_gcps(
+                stage / "ties" / f"{n}.tie.csv", functools.reduce(operator.add, sets), comment
+            )
     return {"pairs": pairs}

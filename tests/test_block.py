@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _passes import run_pass
 
 from levels.adjust import Strip, adjust, adjust_block
 from levels.errors import GeometryError
@@ -160,27 +161,6 @@ def test_a_tie_point_in_one_pass_only_is_refused(block) -> None:
         adjust_block([[_strip(a)], [_strip(b)]], [[ta], [empty]], ProcessingOptions())
 
 
-BLOCK_PASS = """
-name = "{name}"
-seed = {seed}
-[pass]
-date_utc = "{date}"
-[instrument]
-mirror_step = {step}
-n_detectors = 600
-n_lines = 600
-[world]
-relief_m = 400.0
-[gcps]
-count = {count}
-[downlink]
-bit_rate_mbps = 2.0
-preamble_s = 0.1
-postamble_s = 0.1
-[processing]
-levels = ["2A"]
-{dem}
-"""
 #: Reduced scenes (100 m pixels): the block's second pass, with no control point of its
 #: own, must reach a fifth of a pixel (it does 0.1 px; alone it has none to reach).
 REDUCED_BLOCK_PX = 0.2
@@ -193,19 +173,9 @@ def test_station_processes_a_block_end_to_end(tmp_path) -> None:
     from levels.products import read_product
     from station.cli import main
 
-    runs = {}
-    for name, seed, date, step, count, dem in (
-        ("pa", 11, "1998-02-20", 48, 12, "[dem]\nspacing_arcsec = 3.0\nerror_rms_m = 5.0"),
-        ("pb", 12, "1998-03-18", 62, 0, ""),
-    ):
-        scenario = tmp_path / f"{name}.toml"
-        scenario.write_text(
-            BLOCK_PASS.format(name=name, seed=seed, date=date, step=step, count=count, dem=dem)
-        )
-        run = tmp_path / name
-        assert main(["run", str(scenario), "--out", str(run), "-q", "--no-quicklooks"]) == 0
-        runs[name] = (scenario, run)
-    (sa, ra), (sb, rb) = runs.values()
+    dem = "[dem]\nspacing_arcsec = 3.0\nerror_rms_m = 5.0"
+    sa, ra = run_pass(tmp_path, "pa", 11, "1998-02-20", 48, extra=dem)
+    sb, rb = run_pass(tmp_path, "pb", 12, "1998-03-18", 62, gcps=0)
     ties = tmp_path / "ties"
     assert (
         main(["tie", str(ra / "pa_s000_2A.nc"), str(rb / "pb_s000_2A.nc"), "--out", str(ties)]) == 0

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _passes import run_pass
 
 from levels.errors import GeometryError
 from levels.geometry.ellipsoid import WGS84
@@ -33,38 +34,15 @@ WRONG_MATCH_PX = 1.0
 #: Tie points expected at least on the reduced pair (it finds 642 of 1000 candidates).
 MIN_TIE_POINTS = 200
 
-PASS = """
-name = "{name}"
-seed = {seed}
-[pass]
-date_utc = "{date}"
-[instrument]
-mirror_step = {step}
-n_detectors = 600
-n_lines = 600
-[world]
-relief_m = 400.0
-[downlink]
-bit_rate_mbps = 2.0
-preamble_s = 0.1
-postamble_s = 0.1
-[processing]
-levels = ["2A"]
-"""
-
 
 @pytest.fixture(scope="module")
 def passes(tmp_path_factory) -> dict[str, tuple[Path, Path]]:
     """Two passes run end to end: their scenario and their run directory."""
     d = tmp_path_factory.mktemp("tie")
-    out = {}
-    for name, seed, date, step in (("pa", 11, "1998-02-20", 48), ("pb", 12, "1998-03-18", 62)):
-        scenario = d / f"{name}.toml"
-        scenario.write_text(PASS.format(name=name, seed=seed, date=date, step=step))
-        run = d / name
-        assert main(["run", str(scenario), "--out", str(run), "--quiet", "--no-quicklooks"]) == 0
-        out[name] = (scenario, run)
-    return out
+    return {
+        "pa": run_pass(d, "pa", 11, "1998-02-20", 48),
+        "pb": run_pass(d, "pb", 12, "1998-03-18", 62),
+    }
 
 
 @pytest.fixture(scope="module")
