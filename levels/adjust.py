@@ -59,6 +59,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from levels.errors import AdjustmentError, GeometryError
 from levels.geo.scenes import PassGeometry, SceneGeometry
+from levels.geometry import collinearity
 from levels.geometry.attitude import SampledAttitude, attitude_gaps, westin_variogram_rad2
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.ephemeris import Ephemeris
@@ -141,6 +142,12 @@ class _Points:
     table: NDArray[np.float64]  # (N, 2) the look table's psi_x, psi_y at the column
     pitch_rad: NDArray[np.float64]  # (N,) the look table's pitch (one per HRV and band)
 
+    @functools.cached_property
+    def kernel_args(self) -> tuple[NDArray[np.float64], ...]:
+        """The points as :mod:`levels.geometry.collinearity`'s kernels take them."""
+        arrays = (self.r, self.v, self.axes, self.attitude, self.table, self.pitch_rad)
+        return tuple(np.ascontiguousarray(a, dtype=np.float64) for a in (*arrays, self.g_ecef_m))
+
     @staticmethod
     def concatenate(parts: list[_Points]) -> _Points:
         return _Points(
@@ -178,6 +185,18 @@ def _condition(
     p: _Points, bias_m: NDArray[np.float64], drift: NDArray[np.float64], d_att: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """The collinearity condition (module docstring) in pixels, ``(N, 2)``, for orbital-frame
+    position corrections ``bias_m`` with velocity corrections ``drift`` and attitude
+    corrections ``d_att`` per point (:func:`levels.geometry.collinearity.condition`)."""
+    c = np.ascontiguousarray(np.concatenate(np.broadcast_arrays(bias_m, drift, d_att), axis=1))
+    r, v, axes, att, table, pitch, g = p.kernel_args
+    return collinearity.condition(r, v, axes, att, table, pitch, g, c)
+
+
+def _condition_numpy(
+    p: _Points, bias_m: NDArray[np.float64], drift: NDArray[np.float64], d_att: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The collinearity condition (module docstring) in pixels, in numpy (the reference
+    :mod:`levels.geometry.collinearity`'s kernels are tested against), ``(N, 2)``, for orbital-frame
     position corrections ``bias_m`` with velocity corrections ``drift`` and attitude
     corrections ``d_att`` per point. The orbital frame is rebuilt on the corrected state, as
     the refined model (:meth:`Adjustment.refine`) does."""
@@ -240,19 +259,32 @@ class _Problem:
 
     def parameter_jacobian(self, x: NDArray[np.float64], p: _Points) -> NDArray[np.float64]:
         """∂condition/∂x, ``(N, 2, 12)``: the 6 pass and the point's own scene's 6 columns
-        (central differences; a scene parameter moves only its own scene's points, so each
-        kind is stepped in every scene at once)."""
-        out = np.empty((p.t_s.size, 2, _NP + _NS))
-        for k in range(_NP + _NS):
-            step = np.zeros_like(x)
-            if k < _NP:
-                step[k] = _STEP_X
-            else:
-                step[_NP + (k - _NP) :: _NS] = _STEP_X
-            out[:, :, k] = (self.condition(x + step, p) - self.condition(x - step, p)) / (
-                2 * _STEP_X
-            )
-        return out
+        (central differences of ± ``_STEP_X``, in one kernel call: the corrections
+        are linear in the parameters, so each parameter moves a point's nine corrections
+        along a fixed direction)."""
+        c = np.concatenate(self.corrections(x, p), axis=1)
+        dt = p.t_s - self.t_ref_s
+        dc = np.zeros((p.t_s.size, _NP + _NS, 9))
+        for k in range(3):  # along, across, radial: orbital X across, Y along, Z
+            o = (1, 0, 2)[k]
+            dc[:, k, o] = self.sigma_pass[k]
+            dc[:, 3 + k, o] = self.sigma_pass[3 + k] * dt
+            dc[:, 3 + k, 3 + o] = self.sigma_pass[3 + k]
+            dc[:, _NP + k, 6 + k] = self.sigma_scene[k]
+            dc[:, _NP + 3 + k, 6 + k] = self.sigma_scene[3 + k] * (p.t_s - self.t_centre_s[p.scene])
+        r, v, axes, att, table, pitch, g = p.kernel_args
+        c = np.ascontiguousarray(c)
+        return collinearity.jacobian(r, v, axes, att, table, pitch, g, c, dc, _STEP_X)
+
+    def ground_jacobian(
+        self, x: NDArray[np.float64], p: _Points, directions: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """∂condition/∂(ground moved along ``directions``, ``(N, K, 3)`` unit vectors), in
+        pixels per metre, ``(N, 2, K)`` (forward differences of ``_STEP_M``)."""
+        c = np.ascontiguousarray(np.concatenate(self.corrections(x, p), axis=1))
+        r, v, axes, att, table, pitch, g = p.kernel_args
+        d = np.ascontiguousarray(directions)
+        return collinearity.ground_jacobian(r, v, axes, att, table, pitch, g, c, d, _STEP_M)
 
     @functools.cached_property
     def prior_rows(self) -> NDArray[np.float64]:
@@ -1181,23 +1213,7 @@ def adjust_block(
                 continue
             m = obs.tie.size
             jx = np.einsum("nij,njk->nik", obs.whitening, prob.parameter_jacobian(x, pts))
-            jd = np.stack(
-                [
-                    (
-                        prob.condition(
-                            x,
-                            dataclasses.replace(
-                                pts, g_ecef_m=pts.g_ecef_m + _STEP_M * enu0[obs.tie, k]
-                            ),
-                        )
-                        - f0
-                    )
-                    / _STEP_M
-                    * TIE_SCALE_M
-                    for k in range(3)
-                ],
-                axis=-1,
-            )
+            jd = prob.ground_jacobian(x, pts, enu0[obs.tie]) * TIE_SCALE_M
             jd = np.einsum("nij,njk->nik", obs.whitening, jd) * on[:, :, None]
             jx = jx * on[:, :, None]
             cols = np.concatenate(
@@ -1260,19 +1276,37 @@ def adjust_block(
         )
         return rows, m
 
+    last: list[Any] = [None, None]  # the last Jacobian and its normal equations
+
     def normal_equations(j: sparse.csr_matrix, r: NDArray) -> tuple[NDArray, Any, NDArray, NDArray]:
         """``JᵀJ`` in its parts: the parameters' block ``U`` (dense), their coupling with the
         ground unknowns ``W``, the ground unknowns' 3 × 3 diagonal blocks of ``V`` (it is
-        block diagonal), and the gradient ``−Jᵀr``; built once per iteration."""
-        normal = (j.T @ j).tocsc()
+        block diagonal), and the gradient ``−Jᵀr``; built once per Jacobian (the snooping's
+        tests and the covariance reuse the last iteration's)."""
+        if last[0] is j:
+            return last[1]
+        last[0], last[1] = j, _normal_equations(j, r)
+        return last[1]
+
+    def _normal_equations(
+        j: sparse.csr_matrix, r: NDArray
+    ) -> tuple[NDArray, Any, NDArray, NDArray]:
+        jc = j.tocsc()
+        jx, jd = jc[:, :nx], jc[:, nx:].tocoo()
         vb = np.zeros((n_ties, 3, 3))
         if n_ties:
-            coo = normal[nx:, nx:].tocoo()
-            same = coo.row // 3 == coo.col // 3
-            np.add.at(
-                vb, (coo.row[same] // 3, coo.row[same] % 3, coo.col[same] % 3), coo.data[same]
-            )
-        return normal[:nx, :nx].toarray(), normal[:nx, nx:], vb, -(j.T @ r)
+            # V is block diagonal: every row's ground columns are one tie point's, so its
+            # blocks are sums of the rows' outer products, point by point
+            rows_d = np.zeros((j.shape[0], 3))
+            rows_d[jd.row, jd.col % 3] = jd.data
+            tie_of_row = np.full(j.shape[0], -1)
+            tie_of_row[jd.row] = jd.col // 3
+            on = tie_of_row >= 0
+            outer = np.einsum("ri,rj->rij", rows_d[on], rows_d[on]).reshape(-1, 9)
+            sums = [np.bincount(tie_of_row[on], outer[:, k], n_ties) for k in range(9)]
+            vb = np.stack(sums, axis=1).astype(np.float64).reshape(n_ties, 3, 3)
+        jxt = jx.T.tocsr()
+        return (jxt @ jx).toarray(), (jxt @ jd.tocsc()), vb, -(j.T @ r)
 
     def reduced(
         parts: tuple[NDArray, Any, NDArray, NDArray], damping: float = 0.0
