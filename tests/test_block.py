@@ -8,6 +8,7 @@ matcher's figure): the adjustment is tested here, the matcher in ``test_tiepoint
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -230,9 +231,35 @@ def test_tie_point_blunders_are_found_as_control_points_are(block) -> None:
 BLOCK_RUN_PX = 0.33
 
 
+def _through_gdal_m(path: Path, product) -> float:
+    """RMS (m) of where GDAL puts each checkpoint's pixel of a level 2 product, opened as
+    written (the netCDF driver's first subdataset: its CRS and transform), against where
+    the truth says that pixel looked at the reference height: the checkpoints' true map
+    positions are the product's minus its reported errors, both in the product's CRS,
+    which GDAL must read as the same."""
+    import rasterio
+    import rasterio.errors
+    from rasterio.crs import CRS
+
+    cp = product.quality["checkpoints"]["P"]
+    x0, dx, _, y0, _, dy = product.map_grid.geotransform
+    true_e = x0 + (cp["output_col"] + 0.5) * dx - cp["error_e_m"]
+    true_n = y0 + (cp["output_row"] + 0.5) * dy - cp["error_n_m"]
+    with warnings.catch_warnings():  # the container itself is not georeferenced: its bands are
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(str(path)) as ds:
+            first = ds.subdatasets[0]
+    with rasterio.open(first) as band:
+        assert band.crs == CRS.from_wkt(product.map_grid.crs_wkt)
+        e, n = band.transform @ (cp["output_col"] + 0.5, cp["output_row"] + 0.5)
+    return float(np.sqrt(np.mean((np.asarray(e) - true_e) ** 2 + (np.asarray(n) - true_n) ** 2)))
+
+
 def test_station_runs_a_block_scenario(tmp_path) -> None:
     """``scenarios/blocks/two_passes.toml``: every pass run, their tie points found, level
-    2 of both on one adjustment, in one command; the second pass has no control point."""
+    2 of both on one adjustment, in one command; the second pass has no control point.
+    Each level 2 is also read through GDAL and its checkpoints placed by GDAL's reading of
+    its georeferencing, against the truth."""
     import json
 
     import pystac
@@ -251,10 +278,20 @@ def test_station_runs_a_block_scenario(tmp_path) -> None:
     ties = {p.name for p in (out / "ties").iterdir()}
     assert ties == {"two_passes_a.tie.csv", "two_passes_b.tie.csv"}
     for name in ("two_passes_a", "two_passes_b"):
-        level2 = read_product(out / "block" / f"{name}_s000_2.nc", images=False)
+        written = out / "block" / f"{name}_s000_2.nc"
+        level2 = read_product(written, images=False)
         assert level2.geometry["adjustment"]["mode"] == "block"
         los = level2.quality["checkpoints"]["P"]["line_of_sight"]["rms_m"]
         assert los <= BLOCK_RUN_PX * level2.attrs["pixel_size_m"]
+        assert _through_gdal_m(written, level2) <= BLOCK_RUN_PX * level2.attrs["pixel_size_m"]
+        # level 3 on the block's model over the first pass's DEM: on the terrain as level 2
+        # is at its reference height, the relief's displacement (2A's "ground") removed
+        level3 = read_product(out / "block" / f"{name}_s000_3.nc", images=False)
+        assert level3.geometry["adjustment"]["mode"] == "block"
+        on_terrain = level3.quality["checkpoints"]["P"]["ground"]["rms_m"]
+        assert on_terrain <= BLOCK_RUN_PX * level3.attrs["pixel_size_m"]
+    relief = level3.quality["checkpoints"]["P"]["ground_2a"]["rms_m"]
+    assert relief > 2 * on_terrain  # the pass 8.4° off nadir: its relief displacement
     children = pystac.Catalog.from_file(str(out / "catalog.json")).get_children()
     assert {c.id for c in children} >= {"two_passes_a", "block"}
     with pytest.raises(ScenarioError, match="block of several passes"):

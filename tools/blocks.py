@@ -9,8 +9,12 @@ strip; tie points between the strips from the truth (``station.sipc.truth.true_t
 0.2 px of noise: the matcher's figure, ``docs/blocks.md``) and the world's 3″ DEM with 5 m
 of error under them. Each scene's model against the truth's line of sight, 11 × 11 lattice.
 
-    python tools/blocks.py             # 10 blocks (about 2 min)
+    python tools/blocks.py             # 10 blocks (about 1 min)
     python tools/blocks.py --blocks 3
+    python tools/blocks.py --set gcps.horizontal_error_m=0 --set attitude.yaw_offset_urad=0
+
+``--set section.key=value`` changes the emulated errors of both strips (the processing's
+priors stay the defaults): the block's error budget, one source switched off at a time.
 
 Printed per block and over all: RMS of every scene in P pixels (10 m) for each strip alone
 (its control point or none: the priors) and in the block; the block's predicted σ and the
@@ -20,13 +24,14 @@ ratio measured / predicted.
 from __future__ import annotations
 
 import argparse
+import json
 from typing import Any
 
 import numpy as np
 
 from levels.adjust import Strip, adjust, adjust_block
 from levels.options import ProcessingOptions
-from station.scenario import scenario_from_dict
+from station.scenario import merge_tables, scenario_from_dict
 from station.sipc.process import control_points, emulated_pass
 from station.sipc.truth import Truth, true_tie_points
 from station.spacecraft.dem import world_dem
@@ -44,17 +49,24 @@ STRIPS = (
 )
 
 
-def strip(seed: int, k: int):
+def strip(seed: int, k: int, changes: dict | None = None, opposite: bool = False):
+    """Strip ``k`` of block ``seed``; ``opposite``: the second strip gets a control point
+    too, at its far end (the block's opposite corner)."""
     date, step, count, ranges = STRIPS[k]
+    if opposite and k == 1:
+        count, ranges = 1, [0.95, 1.0]
     scn = scenario_from_dict(
-        {
-            "name": f"block{seed}_{k}",
-            "seed": 1000 * seed + k,
-            "pass": {"date_utc": date, "aim": "nadir"},
-            "instrument": {"mirror_step": step, "n_lines": 3 * SCENE},
-            "world": {"relief_m": 400.0},
-            "gcps": {"count": count, "line_ranges": ranges},
-        }
+        merge_tables(
+            {
+                "name": f"block{seed}_{k}",
+                "seed": 1000 * seed + k,
+                "pass": {"date_utc": date, "aim": "nadir"},
+                "instrument": {"mirror_step": step, "n_lines": 3 * SCENE},
+                "world": {"relief_m": 400.0},
+                "gcps": {"count": count, "line_ranges": ranges},
+            },
+            changes or {},
+        )
     )
     acq = emulate(scn, render=False)
     pg, scenes = emulated_pass(acq, SCENE)
@@ -87,11 +99,20 @@ def errors_px(acq, pg, scenes, adj) -> np.ndarray:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--blocks", type=int, default=10)
+    ap.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE")
+    ap.add_argument(
+        "--opposite", action="store_true", help="a second control point, in the opposite corner"
+    )
     args = ap.parse_args()
+    changes: dict = {}
+    for item in args.set:
+        key, value = item.split("=", 1)
+        section, name = key.split(".", 1)
+        changes.setdefault(section, {})[name] = json.loads(value)
     opts = ProcessingOptions()
     alone_all, block_all, pred_all = [], [], []
     for seed in range(args.blocks):
-        a, b = strip(seed, 0), strip(seed, 1)
+        a, b = strip(seed, 0, changes), strip(seed, 1, changes, args.opposite)
         ta, tb = true_tie_points(a[0], b[0], 40, TIE_SIGMA_PX, np.random.default_rng(seed), 450.0)
         dem = block_dem(a[0])
         sa, sb = (Strip(p[1], p[2], control_points(p[0])) for p in (a, b))

@@ -35,13 +35,23 @@ def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
     return BandImage(image, ok)
 
 
+def _model(work: SceneWork) -> str:
+    """Which model the ortho-image was made on."""
+    if not work.makes(Level.L2):
+        return "system"
+    adj = work.ctx.adjustment
+    if adj is not None and adj.mode == "block":
+        return "level 2 (a block adjustment: control and tie points of several passes)"
+    return "level 2 (adjusted on control points)"
+
+
 def _quality(work: SceneWork) -> dict[str, Any]:
     g3, bands = geometry_3(work), work.bands
     g = g3[bands[0]]
     lo, hi = g.terrain_range_m
     q: dict[str, Any] = {
         "radiometry": radiometry(work),
-        "model": "level 2 (adjusted on control points)" if work.makes(Level.L2) else "system",
+        "model": _model(work),
         "anchor_error_px": {b: dict(g3[b].anchor_error_px) for b in bands},
         "anchor_step_px": int(g.template.inverse_step[0]),
         "anchor_heights_m": g.heights_m,

@@ -16,6 +16,10 @@ __all__ = ["DEFAULT_SCENARIO", "register"]
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "quickstart.toml"
 
 
+#: The checkpoint figure a block's product line shows: the first its quality has.
+_BLOCK_FIGURES = (("line_of_sight", "line of sight"), ("ground", "on the terrain"))
+
+
 def register(sub: Any) -> None:
     p = sub.add_parser(
         "run",
@@ -109,17 +113,18 @@ def _run_block(path: Path, args: argparse.Namespace) -> int:
             f"scenes, in {out}/ties/"
         )
         for p in report["block"].get("products", []):
-            los = next(
-                (
-                    v
-                    for k, v in p["quality"].items()
-                    if k.startswith("checkpoints/") and k.endswith("/line_of_sight/rms_m")
-                ),
-                None,
+            # level 2: the line of sight at the reference height; level 3: on the terrain
+            figures = {
+                k.split("/")[2]: v
+                for k, v in p["quality"].items()
+                if k.startswith("checkpoints/") and k.endswith("/rms_m")
+            }
+            what, rms = next(
+                ((w, figures[k]) for k, w in _BLOCK_FIGURES if k in figures), (None, None)
             )
             print(
                 f"block: {p['pass']} scene {p['scene']} level {p['level']}"
-                + (f", line of sight RMS {los:.1f} m" if los is not None else "")
+                + (f", {what} RMS {rms:.1f} m" if rms is not None else "")
                 + f": {out}/{p['file']}"
             )
     made = len(report["block"].get("products", [])) + sum(
