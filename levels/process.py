@@ -400,9 +400,15 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
     setups: list[PassSetup | None] = [None] * len(archives)
     adjustments: list[Adjustment | None] = [None] * len(archives)
     if block:
-        placed = [geo_pass(a, opt) for a in archives]
+        groups = passes_of(archives)
+        platform = {  # a twin pass: its HRVs on the platform's records, as below
+            k: platform_records([archives[i] for i in group]) if len(group) > 1 else None
+            for group in groups
+            for k in group
+        }
+        placed = [geo_pass(a, opt, platform[k]) for k, a in enumerate(archives)]
         setups = list(placed)
-        adjustments = _block_adjustment(request, placed, dem)
+        adjustments = _block_adjustment(request, placed, groups, dem)
     elif twin and len(archives) > 1:
         records = platform_records(archives)
         placed = [geo_pass(a, opt, records) for a in archives]
@@ -440,32 +446,62 @@ def _twin_adjustment(
     return out
 
 
+def passes_of(archives: Sequence[L0Archive]) -> list[list[int]]:
+    """The archives of a block grouped by pass: those counting time from one epoch are the
+    HRVs of one pass (a twin pass, :func:`platform_records`), in the order given; an HRV
+    twice in one pass is refused."""
+    groups: dict[Any, list[int]] = {}
+    for k, a in enumerate(archives):
+        groups.setdefault(a.epoch, []).append(k)
+    for group in groups.values():
+        hrvs = [archives[k].hrv for k in group]
+        if len(set(hrvs)) != len(hrvs):
+            raise GeometryError(
+                f"{', '.join(str(archives[k].path) for k in group)}: one pass (one epoch) "
+                f"with HRVs {hrvs}: one archive per HRV of a pass"
+            )
+    return list(groups.values())
+
+
 def _block_adjustment(
-    request: ProcessingRequest, setups: list[PassSetup], dem: Dem | None
+    request: ProcessingRequest,
+    setups: list[PassSetup],
+    groups: list[list[int]],
+    dem: Dem | None,
 ) -> list[Adjustment | None]:
-    """Level 2 of every archive of the request together, each its own pass, tied by the tie
+    """Level 2 of every pass of the request together (``groups``: the archives of each, a
+    twin pass's HRVs on one platform as ``adjustment = "twin"`` takes them), tied by the tie
     points (kind ``tie``) of their control-point sets (:func:`levels.adjust.adjust_block`);
     the DEM of ``dem_path``, when given, observes the tie points' heights."""
     opt = request.options
     if dem is None and opt.dem_path:
         dem = read_dem(opt.dem_path, opt.dem_vertical)
-    placed = [k for k, s in enumerate(setups) if s.scenes]
-    passes, ties = [], []
-    for k in placed:
-        archive, points = request.archives[k], request.gcps[k]
-        assert points is not None  # plan() checked
-        mine = points.of_hrv(archive.hrv)
-        passes.append([Strip(setups[k].pg, setups[k].scenes, mine, next(iter(archive.bands)))])
-        ties.append([mine.ties()])
-    if len(passes) < 2 or not any(len(t[0]) for t in ties):
+    passes, ties, where = [], [], []
+    for group in groups:
+        placed = [k for k in group if setups[k].scenes]
+        if not placed:
+            continue
+        strips, sets = [], []
+        for k in placed:
+            archive, points = request.archives[k], request.gcps[k]
+            assert points is not None  # plan() checked
+            mine = points.of_hrv(archive.hrv)
+            band = next(iter(archive.bands))
+            strips.append(Strip(setups[k].pg, setups[k].scenes, mine, band))
+            sets.append(mine.ties())
+        passes.append(strips)
+        ties.append(sets)
+        where.append(placed)
+    if len(passes) < 2 or not any(len(t) for sets in ties for t in sets):
         raise GcpError(
             "level 2 of a block: give two passes or more and their tie points (kind tie, "
             "docs/gcp.md: station tie writes them)"
         )
     out: list[Adjustment | None] = [None] * len(setups)
     result = adjust_block(passes, ties, opt, dem=dem, dem_sigma_m=opt.tie_height_sigma_m)
-    for k, adjs in zip(placed, result, strict=True):
-        out[k] = adjs[0]
+    for placed, adjs in zip(where, result, strict=True):
+        for k, adj in zip(placed, adjs, strict=True):
+            out[k] = adj
     return out
 
 

@@ -296,3 +296,73 @@ def test_station_runs_a_block_scenario(tmp_path) -> None:
     assert {c.id for c in children} >= {"two_passes_a", "block"}
     with pytest.raises(ScenarioError, match="block of several passes"):
         load_scenario(path)
+
+
+TWIN_PASS = """
+name = "tw"
+seed = 21
+[pass]
+date_utc = "1998-02-20"
+[[instrument]]
+hrv = 2
+twin = true
+n_detectors = 600
+n_lines = 600
+[[instrument]]
+hrv = 1
+twin = true
+n_detectors = 600
+n_lines = 600
+[world]
+relief_m = 400.0
+[gcps]
+count = 12
+hrvs = [1]
+[dem]
+spacing_arcsec = 3.0
+error_rms_m = 5.0
+[downlink]
+bit_rate_mbps = 2.0
+preamble_s = 0.1
+postamble_s = 0.1
+[processing]
+levels = ["2A"]
+"""
+
+
+def test_a_twin_pass_in_a_block_carries_its_control_through_the_platform(tmp_path) -> None:
+    """A twin pass (HRV2 aimed at the target, HRV1 56 km west with the 12 control points)
+    and a second pass 26 days later over the target, with none: the tie points join the
+    second pass to HRV2 only. The block takes the twin's two archives as one pass (one
+    epoch: one platform, its attitude shared), so the control points reach HRV2 through the
+    platform and the second pass through the tie points."""
+    from levels.products import read_product
+    from station.cli import main
+
+    twin = tmp_path / "tw.toml"
+    twin.write_text(TWIN_PASS)
+    run = tmp_path / "tw"
+    assert main(["run", str(twin), "--out", str(run), "-q", "--no-quicklooks"]) == 0
+    sb, rb = run_pass(tmp_path, "pb", 60, "1998-03-18", 60, gcps=0)
+    ties = tmp_path / "ties"
+    pair = [str(run / "tw_hrv2_s000_2A.nc"), str(rb / "pb_s000_2A.nc")]
+    assert main(["tie", *pair, "--out", str(ties), "-q"]) == 0
+    assert {p.name for p in ties.iterdir()} == {"tw_hrv2.tie.csv", "pb.tie.csv"}
+    options = tmp_path / "block.toml"
+    options.write_text(
+        '[processing]\nlevels = ["2A", "2"]\nadjustment = "block"\n'
+        f'dem_path = "{run / "tw.dem.tif"}"\ntie_height_sigma_m = 5.0\n'
+    )
+    archives = [str(run / f"tw_hrv{h}.l0.h5") for h in (2, 1)] + [str(rb / "pb.l0.h5")]
+    scenarios = ["--scenario", str(twin), "--scenario", str(twin), "--scenario", str(sb)]
+    out = tmp_path / "block"
+    args = ["process", *archives, "--options", str(options), "--ties", str(ties)]
+    assert main([*args, *scenarios, "--out", str(out), "-q"]) == 0
+    for name in ("tw_hrv2", "pb"):  # no control point of their own
+        level2 = read_product(out / f"{name}_s000_2.nc", images=False)
+        adj = level2.geometry["adjustment"]
+        assert adj["mode"] == "block"
+        los = level2.quality["checkpoints"]["P"]["line_of_sight"]["rms_m"]
+        before = level2.quality["checkpoints_2a"]["P"]["line_of_sight"]["rms_m"]
+        assert before > 150.0 and los <= BLOCK_RUN_PX * level2.attrs["pixel_size_m"]
+        assert RATIO[0] <= los / adj["predicted_sigma_m"]["horizontal"] <= RATIO[1]

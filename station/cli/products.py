@@ -100,7 +100,7 @@ def _tie(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for which, view in (("a", a), ("b", b)):
-        tag = view.name if view.hrv == 1 else f"{view.name}_hrv{view.hrv}"
+        tag = view.name  # the archive's name: station process --ties looks for it
         comment = f"tie points of {a.name} HRV{a.hrv} and {b.name} HRV{b.hrv} (docs/gcp.md)"
         files.append(str(write_gcps(out / f"{tag}.tie.csv", tp.control_points(which), comment)))
     result = {"files": files, "points": len(tp), "counts": tp.counts}
