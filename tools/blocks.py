@@ -96,6 +96,15 @@ def errors_px(acq, pg, scenes, adj) -> np.ndarray:
     )
 
 
+def a_priori_px(acq, pg, scenes) -> np.ndarray:
+    """Each scene's system model (2A's) against the truth: what a strip without a control
+    point and without tie points keeps (the station makes no level 2 of it)."""
+    t = Truth(acq, 0)
+    return np.array([np.sqrt(np.mean(np.hypot(*t.model_error_en(s)) ** 2)) for s in scenes]) / (
+        PIXEL_M
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--blocks", type=int, default=10)
@@ -121,7 +130,7 @@ def main() -> None:
             errors_px(*a, adjust(a[1], a[2], control_points(a[0]), opts)),
             errors_px(*b, adjust(b[1], b[2], control_points(b[0]), opts))
             if len(control_points(b[0]))
-            else np.full(3, np.nan),
+            else a_priori_px(*b),
         ]
         block = [errors_px(*a, res[0][0]), errors_px(*b, res[1][0])]
         pred = [
@@ -143,13 +152,18 @@ def main() -> None:
             + ")"
         )
     blk, prd = np.array(block_all), np.array(pred_all)
-    alone_a = np.array(alone_all)[:, :3]
+    alone_a, alone_b = np.array(alone_all)[:, :3], np.array(alone_all)[:, 3:]
     rms = lambda x: float(np.sqrt(np.nanmean(np.square(x))))  # noqa: E731
     print(
         f"over {args.blocks} blocks, every scene: block RMS {rms(blk):.2f} px (max scene "
         f"{np.nanmax(blk):.2f} px; target ≤ 1.5), predicted {rms(prd):.2f} px, measured / "
         f"predicted {rms(blk) / rms(prd):.2f} (target [0.7, 1.5]); strip 1 alone with its one "
-        f"control point {rms(alone_a):.2f} px; strip 2 alone: no control point, no level 2"
+        f"control point {rms(alone_a):.2f} px; strip 2 alone: "
+        + (
+            f"no control point, no level 2 (its system model {rms(alone_b):.2f} px)"
+            if not args.opposite
+            else f"its one control point {rms(alone_b):.2f} px"
+        )
     )
 
 
