@@ -1177,17 +1177,23 @@ def adjust_block(
 
     active = np.ones(n_ties, dtype=bool)  # tie points not rejected as blunders
     tie_rows: list[tuple[int, _TieObservations]] = []  # where each pass's tie rows start
+    # each pass's control points not rejected (its problem holds only those inside), and
+    # where their rows start
+    use_gcp = [np.ones(s[2].points.t_s.size, dtype=bool) for s in setups]
+    gcp_rows: list[int] = []
 
     def residuals_and_jacobian(z: NDArray, jac: bool) -> tuple[NDArray, sparse.csr_matrix | None]:
         g = ground(z[nx:])
         res, blocks = [], []
         tie_rows.clear()
+        gcp_rows.clear()
         row = 0
         for p_idx, ((_s, _n, prob, _l, _t), obs) in enumerate(
             zip(setups, observations, strict=True)
         ):
             x = z[offsets[p_idx] : offsets[p_idx + 1]]
-            use = np.ones(prob.points.t_s.size, dtype=bool)  # the problem holds only these
+            use = use_gcp[p_idx]
+            gcp_rows.append(row)
             res.append(prob.residuals(x, use))
             row += res[-1].size
             if jac:
@@ -1376,11 +1382,40 @@ def adjust_block(
         worst[~active] = np.nan
         return worst
 
+    def gcp_tests(r: NDArray, j: Any) -> list[NDArray[np.float64]]:
+        """Each pass's control points' largest normalised residual (Baarda's, the leverage
+        ``h = j S⁻¹ jᵀ`` of a row on the parameters alone: a control point has no ground
+        unknown), NaN for the rejected and those outside."""
+        schur, *_ = reduced(normal_equations(j, r))
+        cov = None
+        out = []
+        for start, use in zip(gcp_rows, use_gcp, strict=True):
+            worst = np.full(use.size, np.nan)
+            m = int(use.sum())
+            if m:
+                if cov is None:
+                    cov = np.linalg.inv(schur)
+                rows = start + np.arange(2 * m)
+                jr = j[rows][:, :nx].toarray()
+                h = np.einsum("ri,ij,rj->r", jr, cov, jr)
+                w = np.abs(r[rows]) / np.sqrt(np.clip(1.0 - h, 1e-6, None))
+                worst[use] = w.reshape(m, 2).max(axis=1)
+            out.append(worst)
+        return out
+
     z, r, j, cost, iterations = solve(np.zeros(n))
-    for _ in range(MAX_SNOOPING_ROUNDS):  # Baarda's data snooping among the tie points
+    for _ in range(MAX_SNOOPING_ROUNDS):  # Baarda's data snooping: tie and control points
         test = tie_tests(r, j)
         bad = np.flatnonzero(np.nan_to_num(test) > options.blunder_threshold)
-        if bad.size == 0:
+        gcp_test = gcp_tests(r, j)
+        worst_gcp = max(
+            ((float(np.nanmax(t)), p) for p, t in enumerate(gcp_test) if np.isfinite(t).any()),
+            default=(0.0, -1),
+        )
+        if worst_gcp[0] > options.blunder_threshold:  # the worst control point, one a round
+            p_idx = worst_gcp[1]
+            use_gcp[p_idx][int(np.nanargmax(gcp_test[p_idx]))] = False
+        elif bad.size == 0:
             break
         active[bad] = False
         if (~active).sum() > MAX_REJECTED_SHARE * n_ties:
@@ -1388,13 +1423,20 @@ def adjust_block(
                 f"level 2 of a block: {int((~active).sum())} of {n_ties} tie points rejected "
                 f"(more than {MAX_REJECTED_SHARE:.0%}): the tie points or their σ are wrong"
             )
+        for use in use_gcp:
+            if (~use).sum() > MAX_REJECTED_SHARE * use.size:
+                raise AdjustmentError(
+                    f"level 2 of a block: {int((~use).sum())} of a pass's {use.size} control "
+                    f"points rejected (more than {MAX_REJECTED_SHARE:.0%}): the points' σ or "
+                    "the model are wrong, not a few points: check them"
+                )
         z, r, j, cost, more = solve(z)
         iterations += more
     ties_rejected = tuple(ids[k] for k in np.flatnonzero(~active))
     assert j is not None
     schur, *_ = reduced(normal_equations(j, r))
     cov_all = np.linalg.inv(schur)
-    n_obs = sum(2 * int(setup[2].points.t_s.size) for setup in setups)
+    n_obs = sum(2 * int(use.sum()) for use in use_gcp)
     n_obs += sum(2 * int(active[o.tie].sum()) for o in observations if o is not None)
     n_obs += int(heights_known.sum()) if dem is not None else 0
     dof = n_obs - 3 * int(active.sum())
@@ -1424,6 +1466,10 @@ def adjust_block(
             after = np.full((len(st.gcps), 2), np.nan)
             before[nodes.has[si]] = f_before[cut[si] : cut[si + 1]]
             after[nodes.has[si]] = f_after[cut[si] : cut[si + 1]]
+            status = np.where(nodes.has[si], "used", "outside").astype(object)
+            status[np.flatnonzero(nodes.has[si])[~use_gcp[p_idx][cut[si] : cut[si + 1]]]] = (
+                "rejected"
+            )
             sn = nodes.scene_node[si]
             predicted, prior = (
                 _predicted(prob, st, sn, x, [cov, prior_cov])
@@ -1445,7 +1491,7 @@ def adjust_block(
                     lost[sn],
                     tuple(st.gcps.id),
                     nodes.point_scene[si],
-                    tuple("used" if h else "outside" for h in nodes.has[si]),
+                    tuple(str(v) for v in status),
                     before,
                     after,
                     np.full(len(st.gcps), np.nan),

@@ -366,3 +366,31 @@ def test_a_twin_pass_in_a_block_carries_its_control_through_the_platform(tmp_pat
         before = level2.quality["checkpoints_2a"]["P"]["line_of_sight"]["rms_m"]
         assert before > 150.0 and los <= BLOCK_RUN_PX * level2.attrs["pixel_size_m"]
         assert RATIO[0] <= los / adj["predicted_sigma_m"]["horizontal"] <= RATIO[1]
+
+
+#: A control point's map position planted this far off (metres north): 20 of its 8 m σ.
+GCP_BLUNDER_M = 160.0
+
+
+def test_control_point_blunders_are_found_in_a_block(block) -> None:
+    """One of the first pass's control points planted 160 m off: the block's data snooping
+    (Baarda's, with the leverage of a row on the parameters) rejects it and only it, says
+    so in the pass's adjustment, and the block is as without it."""
+    import dataclasses
+
+    a, b, (ta, tb) = block
+    opts = ProcessingOptions()
+    gcps = control_points(a[0])
+    planted = 5
+    lat = gcps.lat_rad.copy()
+    lat[planted] += GCP_BLUNDER_M / 6.37e6
+    dirty = dataclasses.replace(gcps, lat_rad=lat)
+    clean = adjust_block([[_strip(a)], [_strip(b)]], [[ta], [tb]], opts)
+    res = adjust_block([[_strip(a, dirty)], [_strip(b)]], [[ta], [tb]], opts)
+    status = res[0][0].point_status
+    assert [i for i, s in zip(res[0][0].point_id, status, strict=True) if s == "rejected"] == [
+        gcps.id[planted]
+    ]
+    assert clean[0][0].point_status.count("rejected") == 0
+    for k, p in enumerate((a, b)):
+        assert abs(_error_m(*p, res[k][0]) - _error_m(*p, clean[k][0])) < 1.0
