@@ -76,6 +76,7 @@ __all__ = [
     "make_scene",
     "nominal_pixel_size_m",
     "pass_dem",
+    "passes_of",
     "plan",
     "plan_levels",
     "platform_records",

@@ -42,6 +42,7 @@ from scipy import ndimage
 from levels.errors import GeometryError
 from levels.geo.level2a import Level2AGeometry
 from levels.geometry.model import PushbroomModel
+from levels.readers.dem import EARTH_HEIGHTS_M
 from levels.readers.gcp import ControlPointSet
 
 __all__ = [
@@ -99,6 +100,7 @@ class MapView:
     model: PushbroomModel
     first_line: int
     scene: int = 0
+    reference_height_m: float = 0.0
 
     @classmethod
     def of_product(cls, product: Any, band: str | None = None) -> MapView:
@@ -122,6 +124,7 @@ class MapView:
             model=models[name],
             first_line=int(product.geometry["scene"]["first_line"]),
             scene=int(product.attrs.get("scene_index", 0)),
+            reference_height_m=float(product.geometry.get("reference_height_m", 0.0)),
         )
 
 
@@ -413,6 +416,15 @@ def match_views(a: MapView, b: MapView, max_points: int = MAX_CANDIDATES) -> Tie
     r2, u2 = b.model.sight(lb, colb)
     mid, ypar = _closest(r1, u1, r2, u2)
     lat, lon, h = WGS84.to_geodetic(mid)
+
+    # lines of sight that meet nowhere near the Earth (views from one track through the
+    # mirror converge by a few 1e-4 rad: their tie points tie the images, not the heights):
+    # their approximate ground is a's line of sight at its reference height
+    h_lo, h_hi = EARTH_HEIGHTS_M
+    wild = np.isfinite(h) & ((h < h_lo) | (h > h_hi))
+    if wild.any():
+        on_ref = a.model.image_to_ground(la[wild], cola[wild], a.reference_height_m)
+        lat[wild], lon[wild], h[wild] = on_ref.lat_rad, on_ref.lon_rad, a.reference_height_m
 
     # 5. the y-parallax: a plane over a's image, robustly; wrong matches are off it
     keep = np.isfinite(ypar) & np.isfinite(h)
