@@ -308,23 +308,14 @@ def _closest(
     return 0.5 * (p1 + p2), np.sum((p2 - p1) * n, axis=1)
 
 
-def match_views(a: MapView, b: MapView, max_points: int = MAX_CANDIDATES) -> TiePoints:
-    """Tie points between two overlapping views (module docstring)."""
-    import cv2
-
-    from levels.geometry.ellipsoid import WGS84
-    from levels.quality import image_shift_px
-
-    half, search = WINDOW_PX // 2, SEARCH_PX
-    to_b = _b_of_a(a, b)
-    res = abs(a.geometry.map_grid.geotransform[1])
-    counts: dict[str, int] = {}
-    # b's cubic B-spline coefficients, once (map_coordinates would filter the whole image
-    # at every call)
+def _sampler(b: MapView, to_b: Any) -> Any:
+    """``sample_b(rows, cols, h, order)``: windows of ``b`` on ``a``'s grid around
+    positions of ``a``'s grid (``to_b``: :func:`_b_of_a`); ``b``'s cubic B-spline
+    coefficients computed once (map_coordinates would filter the whole image at every
+    call)."""
     b_spline = ndimage.spline_filter(b.image, order=3, output=np.float32)
 
     def sample_b(rows: NDArray, cols: NDArray, h: int, order: int = 3) -> NDArray:
-        """Windows of ``b`` on ``a``'s grid around positions of ``a``'s grid."""
         g = np.arange(-h, h + 1, dtype=np.float64)
         rr, cc = np.broadcast_arrays(
             rows[:, None, None] + g[None, :, None], cols[:, None, None] + g[None, None, :]
@@ -339,7 +330,14 @@ def match_views(a: MapView, b: MapView, max_points: int = MAX_CANDIDATES) -> Tie
             prefilter=False,
         ).astype(np.float32)
 
-    # 1. the global shift, on a decimated common grid
+    return sample_b
+
+
+def _global_shift(a: MapView, b: MapView, to_b: Any) -> tuple[float, float]:
+    """Step 1: the shift of ``b`` on ``a``'s grid, by phase correlation on a decimated
+    common grid: ``b(x) ≈ a(x − s)``, ``a``'s point ``x`` is at ``x + s``."""
+    from levels.quality import image_shift_px
+
     step = max(1, int(np.ceil(max(a.image.shape) / 1024)))
     gr, gc = np.mgrid[0 : a.image.shape[0] : step, 0 : a.image.shape[1] : step].astype(float)
     br, bc = to_b(gr, gc)
@@ -349,11 +347,15 @@ def match_views(a: MapView, b: MapView, max_points: int = MAX_CANDIDATES) -> Tie
     if both.sum() < 64:
         raise GeometryError(f"{a.name} and {b.name}: their images do not overlap")
     s_r, s_c = image_shift_px(np.nan_to_num(b_on_a), a.image[::step, ::step], both)
-    shift_r, shift_c = s_r * step, s_c * step  # b(x) ≈ a(x − s): a's point x is at x + s
+    return s_r * step, s_c * step
 
-    # 2. candidates: corners of a, their windows on valid pixels of both
-    margin = half + search + 2
-    side = 2 * margin + 1  # the valid pixels a whole window and its search fit around
+
+def _corners(a: MapView, max_points: int, margin: int) -> tuple[NDArray, NDArray]:
+    """Step 2: corners of ``a`` (rows, columns) whose window and search, ``margin`` pixels
+    each way, lie on its valid pixels."""
+    import cv2
+
+    side = 2 * margin + 1
     mask = cv2.erode(a.valid.astype(np.uint8), np.ones((side, side), np.uint8))
     corners = cv2.goodFeaturesToTrack(
         a.image, maxCorners=max_points, qualityLevel=0.01, minDistance=MIN_DISTANCE_PX, mask=mask
@@ -361,86 +363,109 @@ def match_views(a: MapView, b: MapView, max_points: int = MAX_CANDIDATES) -> Tie
     if corners is None:
         raise GeometryError(f"{a.name}: no corner to match (a flat or invalid image)")
     pa = np.rint(corners[:, 0, ::-1]).astype(np.float64)  # (row, col)
-    counts["candidates"] = int(pa.shape[0])
-    ra, ca = pa[:, 0], pa[:, 1]
+    return pa[:, 0], pa[:, 1]
+
+
+def _refuse(ok: NDArray[np.bool_], bad: NDArray[np.bool_], counts: dict, why: str) -> None:
+    """Candidates still ``ok`` and ``bad`` are refused, counted under ``why``."""
+    counts[why] = int((ok & bad).sum())
+    ok &= ~bad
+
+
+def _left_right(
+    a: MapView, sample_b: Any, ok: NDArray, ra: NDArray, ca: NDArray, mr: NDArray,
+    mc: NDArray, half: int,
+) -> NDArray[np.bool_]:  # fmt: skip
+    """Step 4: the matches whose window of ``b`` does not find ``a``'s point back (within
+    ``BACK_MATCH_PX``, correlation ``MIN_NCC``)."""
+    bad = np.zeros(ra.size, dtype=bool)
+    if ok.any():
+        back_t = sample_b(mr[ok], mc[ok], half, order=3)
+        back_s = _windows(a.image, ra[ok], ca[ok], half + 2, order=0)
+        b_r, b_c, b_best, _ = _ncc_peaks(np.nan_to_num(back_t), back_s)
+        miss = np.hypot(b_r, b_c)  # the back-match's offset from where a's point is
+        bad[np.flatnonzero(ok)[~(miss <= BACK_MATCH_PX) | ~(b_best >= MIN_NCC)]] = True
+    return bad
+
+
+def _approximate_ground(
+    a: MapView, b: MapView, la: NDArray, cola: NDArray, lb: NDArray, colb: NDArray
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """The mid-point of the two lines of sight (latitude, longitude, height) and their
+    y-parallax. Lines that meet nowhere near the Earth (views from one track through the
+    mirror converge by a few 1e-4 rad: their tie points tie the images, not the heights)
+    get ``a``'s line of sight at its reference height instead."""
+    from levels.geometry.ellipsoid import WGS84
+
+    r1, u1 = a.model.sight(la, cola)
+    r2, u2 = b.model.sight(lb, colb)
+    mid, ypar = _closest(r1, u1, r2, u2)
+    lat, lon, h = WGS84.to_geodetic(mid)
+    h_lo, h_hi = EARTH_HEIGHTS_M
+    wild = np.isfinite(h) & ((h < h_lo) | (h > h_hi))
+    if wild.any():
+        on_ref = a.model.image_to_ground(la[wild], cola[wild], a.reference_height_m)
+        lat[wild], lon[wild], h[wild] = on_ref.lat_rad, on_ref.lon_rad, a.reference_height_m
+    return lat, lon, h, ypar
+
+
+def _off_plane(
+    ypar: NDArray, h: NDArray, la: NDArray, cola: NDArray, res: float
+) -> NDArray[np.bool_]:
+    """Step 5: the matches off the y-parallax's plane over ``a``'s image (fitted robustly,
+    Tukey's biweight): wrong matches, the two models' smooth error being a plane."""
+    keep = np.isfinite(ypar) & np.isfinite(h)
+    if keep.sum() < 3:
+        return ~keep
+    design = np.column_stack([np.ones(la.size), la / 1000.0, cola / 1000.0])
+    w = keep.astype(float)
+    for _ in range(10):  # iteratively reweighted: Tukey's biweight on the residuals
+        coef, *_ = np.linalg.lstsq(design * w[:, None], ypar * w, rcond=None)
+        resid = ypar - design @ coef
+        mad = 1.4826 * np.median(np.abs(resid[keep]))
+        scale = max(Y_PARALLAX_SIGMAS * mad, Y_PARALLAX_FLOOR_PX * res)
+        u = resid / scale
+        w = np.where(keep & (np.abs(u) < 1), (1 - u**2) ** 2, 0.0)
+    return ~keep | (np.abs(resid) > scale)
+
+
+def match_views(a: MapView, b: MapView, max_points: int = MAX_CANDIDATES) -> TiePoints:
+    """Tie points between two overlapping views (module docstring)."""
+    half, search = WINDOW_PX // 2, SEARCH_PX
+    to_b = _b_of_a(a, b)
+    sample_b = _sampler(b, to_b)
+    shift_r, shift_c = _global_shift(a, b, to_b)
+    ra, ca = _corners(a, max_points, half + search + 2)
+    counts: dict[str, int] = {"candidates": int(ra.size)}
     pr, pc = ra + shift_r, ca + shift_c
     tpl = _windows(a.image, ra, ca, half, order=0)
     srch = sample_b(np.rint(pr), np.rint(pc), half + search, order=1)
-    ok = np.isfinite(srch).all(axis=(1, 2))
-    counts["off_the_second_image"] = int((~ok).sum())
-    flat = tpl.std(axis=(1, 2)) < MIN_STD
-    counts["flat"] = int((ok & flat).sum())
-    ok &= ~flat
+    ok = np.ones(ra.size, dtype=bool)
+    _refuse(ok, ~np.isfinite(srch).all(axis=(1, 2)), counts, "off_the_second_image")
+    _refuse(ok, tpl.std(axis=(1, 2)) < MIN_STD, counts, "flat")
 
     # 3. correlation, uniqueness, sub-pixel
-    off_r, off_c, best, second = (np.full(pa.shape[0], np.nan) for _ in range(4))
+    off_r, off_c, best, second = (np.full(ra.size, np.nan) for _ in range(4))
     if ok.any():
-        o = _ncc_peaks(tpl[ok], np.nan_to_num(srch[ok]))
-        off_r[ok], off_c[ok], best[ok], second[ok] = o
-    low = ok & ~(best >= MIN_NCC)
-    counts["low_correlation"] = int(low.sum())
-    ok &= ~low
-    ambiguous = ok & ((best - second < MIN_MARGIN) | ~np.isfinite(off_r))
-    counts["ambiguous"] = int(ambiguous.sum())
-    ok &= ~ambiguous
+        off_r[ok], off_c[ok], best[ok], second[ok] = _ncc_peaks(tpl[ok], np.nan_to_num(srch[ok]))
+    _refuse(ok, ~(best >= MIN_NCC), counts, "low_correlation")
+    _refuse(ok, (best - second < MIN_MARGIN) | ~np.isfinite(off_r), counts, "ambiguous")
     mr, mc = np.rint(pr) + off_r, np.rint(pc) + off_c  # on a's grid
     if ok.any():
         lr, lc = _lucas_kanade(tpl[ok], sample_b, mr[ok], mc[ok], half)
         moved = np.hypot(lr - mr[ok], lc - mc[ok])
         good = np.isfinite(moved) & (moved < 1.0)
         mr[ok], mc[ok] = np.where(good, lr, np.nan), np.where(good, lc, np.nan)
-    diverged = ok & ~np.isfinite(mr)
-    counts["refinement_diverged"] = int(diverged.sum())
-    ok &= ~diverged
+    _refuse(ok, ~np.isfinite(mr), counts, "refinement_diverged")
+    _refuse(ok, _left_right(a, sample_b, ok, ra, ca, mr, mc, half), counts, "left_right")
 
-    # 4. back from b to a
-    if ok.any():
-        back_t = sample_b(mr[ok], mc[ok], half, order=3)
-        back_s = _windows(a.image, ra[ok], ca[ok], half + 2, order=0)
-        b_r, b_c, b_best, _ = _ncc_peaks(np.nan_to_num(back_t), back_s)
-        miss = np.hypot(b_r, b_c)  # the back-match's offset from where a's point is
-        inconsistent = ~(miss <= BACK_MATCH_PX) | ~(b_best >= MIN_NCC)
-        bad = np.zeros(pa.shape[0], dtype=bool)
-        bad[np.flatnonzero(ok)[inconsistent]] = True
-    else:
-        bad = np.zeros(pa.shape[0], dtype=bool)
-    counts["left_right"] = int(bad.sum())
-    ok &= ~bad
-
-    # to raw, then the lines of sight
+    # to raw, the lines of sight, the y-parallax
     k = np.flatnonzero(ok)
     rb, cb = to_b(mr[k], mc[k])
     la, cola = a.geometry.raw_of(ra[k], ca[k])
     lb, colb = b.geometry.raw_of(rb, cb)
-    r1, u1 = a.model.sight(la, cola)
-    r2, u2 = b.model.sight(lb, colb)
-    mid, ypar = _closest(r1, u1, r2, u2)
-    lat, lon, h = WGS84.to_geodetic(mid)
-
-    # lines of sight that meet nowhere near the Earth (views from one track through the
-    # mirror converge by a few 1e-4 rad: their tie points tie the images, not the heights):
-    # their approximate ground is a's line of sight at its reference height
-    h_lo, h_hi = EARTH_HEIGHTS_M
-    wild = np.isfinite(h) & ((h < h_lo) | (h > h_hi))
-    if wild.any():
-        on_ref = a.model.image_to_ground(la[wild], cola[wild], a.reference_height_m)
-        lat[wild], lon[wild], h[wild] = on_ref.lat_rad, on_ref.lon_rad, a.reference_height_m
-
-    # 5. the y-parallax: a plane over a's image, robustly; wrong matches are off it
-    keep = np.isfinite(ypar) & np.isfinite(h)
-    if keep.sum() >= 3:
-        design = np.column_stack([np.ones(k.size), la / 1000.0, cola / 1000.0])
-        w = keep.astype(float)
-        for _ in range(10):  # iteratively reweighted: Tukey's biweight on the residuals
-            coef, *_ = np.linalg.lstsq(design * w[:, None], ypar * w, rcond=None)
-            resid = ypar - design @ coef
-            mad = 1.4826 * np.median(np.abs(resid[keep]))
-            scale = max(Y_PARALLAX_SIGMAS * mad, Y_PARALLAX_FLOOR_PX * res)
-            u = resid / scale
-            w = np.where(keep & (np.abs(u) < 1), (1 - u**2) ** 2, 0.0)
-        off_plane = ~keep | (np.abs(resid) > scale)
-    else:
-        off_plane = ~keep
+    lat, lon, h, ypar = _approximate_ground(a, b, la, cola, lb, colb)
+    off_plane = _off_plane(ypar, h, la, cola, abs(a.geometry.map_grid.geotransform[1]))
     counts["off_the_model"] = int(off_plane.sum())
     good = ~off_plane
     counts["kept"] = int(good.sum())
