@@ -126,6 +126,28 @@ def _number(elem: ET.Element, tag: str, source: Path, where: str) -> float:
         raise DimapError(f"{source}: {where}/{tag} = {text!r} is not a number") from None
 
 
+def _rpc_of(root: ET.Element, source: Path) -> tuple[Path, Rpc]:
+    """The RPC file a DIMAP v2 document names (its last ``Rational_Function_Model``
+    component) and its model."""
+    from levels.readers.rpc import read_dimap2_rpc
+
+    href = None
+    for comp in root.iterfind(".//Rational_Function_Model/Component/COMPONENT_PATH"):
+        href = comp.get("href")
+    if not href:
+        raise DimapError(
+            f"{source}: no Geoposition_Models/Rational_Function_Model/Component/"
+            "COMPONENT_PATH: the scene's RPC file is not named"
+        )
+    rpc_path = source.parent / href
+    if not rpc_path.is_file():
+        raise DimapError(f"{source}: its RPC file {rpc_path} is not there")
+    try:
+        return rpc_path, read_dimap2_rpc(rpc_path)
+    except GeometryError as exc:
+        raise DimapError(str(exc)) from None
+
+
 def read_dimap2(path: str | Path) -> Dimap2Scene:
     """Read a DIMAP v2 ``DIM_*.XML`` and the ``RPC_*.XML`` it names.
 
@@ -135,8 +157,6 @@ def read_dimap2(path: str | Path) -> Dimap2Scene:
         Not a DIMAP v2 document, a needed element missing or not a number, the RPC file
         absent or not one; the message names the file and the element.
     """
-    from levels.readers.rpc import read_dimap2_rpc
-
     source = Path(path)
     try:
         root = ET.parse(source).getroot()
@@ -168,21 +188,7 @@ def read_dimap2(path: str | Path) -> Dimap2Scene:
             for p in points
         ]
     )
-    href = None
-    for comp in root.iterfind(".//Rational_Function_Model/Component/COMPONENT_PATH"):
-        href = comp.get("href")
-    if not href:
-        raise DimapError(
-            f"{source}: no Geoposition_Models/Rational_Function_Model/Component/"
-            "COMPONENT_PATH: the scene's RPC file is not named"
-        )
-    rpc_path = source.parent / href
-    if not rpc_path.is_file():
-        raise DimapError(f"{source}: its RPC file {rpc_path} is not there")
-    try:
-        rpc = read_dimap2_rpc(rpc_path)
-    except GeometryError as exc:
-        raise DimapError(str(exc)) from None
+    rpc_path, rpc = _rpc_of(root, source)
     heights = np.array(
         [
             _number(p, "H", source, f"Dataset_Extent/{p.tag}")

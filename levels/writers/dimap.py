@@ -110,11 +110,26 @@ def write_dimap_xml(
             "name": "METADATA.DIM",
         },
     )
+    bands = sorted(set(scene.look_angles) | set(scene.calibration)) or [1]
+    _identity_and_frame(root, scene)
+    _production_and_source(root, scene, production or {})
+    _raster(root, scene, len(bands), image_file)
+    _interpretation(root, scene, bands, band_names or {})
+    strip = _sub(root, "Data_Strip")
+    _data_strip(strip, scene, bands)
+    ET.indent(root, space="  ")
+    text = ET.tostring(root, encoding="unicode")
+    return write_text(Path(path), '<?xml version="1.0" encoding="UTF-8"?>\n' + text + "\n")
+
+
+def _identity_and_frame(root: ET.Element, scene: DimapScene) -> None:
+    """``Metadata_Id`` to ``Geoposition``: what the file is, the scene's frame (its four
+    vertices and centre), its CRS, and the frame's corners as tie points (what GDAL's DIMAP
+    driver reads as GCPs)."""
     mid = _sub(root, "Metadata_Id")
     _sub(mid, "METADATA_FORMAT", "DIMAP", version="1.1")
     _sub(mid, "METADATA_PROFILE", "SPOTSCENE_1A")
     _sub(_sub(root, "Dataset_Id"), "DATASET_NAME", f"SCENE {scene.name}")
-
     frame = _sub(root, "Dataset_Frame")
     for k in range(4):
         _point(
@@ -141,18 +156,22 @@ def write_dimap_xml(
     _sub(rcs, "RASTER_CS_TYPE", "POINT")
     _sub(rcs, "PIXEL_ORIGIN", 1)
     gp = _sub(_sub(root, "Geoposition"), "Geoposition_Points")
-    for k in range(4):  # the frame's corners as GCPs (what GDAL's DIMAP driver reads)
+    for k in range(4):
         tp = _sub(gp, "Tie_Point")
         _sub(tp, "TIE_POINT_CRS_X", _num(scene.frame_lon_deg[k]))
         _sub(tp, "TIE_POINT_CRS_Y", _num(scene.frame_lat_deg[k]))
         _sub(tp, "TIE_POINT_CRS_Z", _num(0.0))
         _sub(tp, "TIE_POINT_DATA_X", _num(scene.frame_col[k]))
         _sub(tp, "TIE_POINT_DATA_Y", _num(scene.frame_row[k]))
+
+
+def _production_and_source(root: ET.Element, scene: DimapScene, production: dict) -> None:
+    """``Production`` (its fields as given) and the ``Scene_Source``: date, time, mission,
+    instrument, sensor."""
     prod = _sub(root, "Production")
     _sub(prod, "PRODUCT_TYPE", "SCENE1A")
-    for key, value in (production or {}).items():
+    for key, value in production.items():
         _sub(prod, key, value)
-
     src = _sub(_sub(_sub(root, "Dataset_Sources"), "Source_Information"), "Scene_Source")
     if scene.epoch is not None:
         day, _, time = str(scene.epoch.t0_utc.astype("datetime64[s]")).partition("T")
@@ -167,11 +186,14 @@ def write_dimap_xml(
     _sub(src, "SENSOR_CODE", scene.sensor_code)
     _sub(src, "SCENE_PROCESSING_LEVEL", "1A")
 
-    bands = sorted(set(scene.look_angles) | set(scene.calibration)) or [1]
+
+def _raster(root: ET.Element, scene: DimapScene, n_bands: int, image_file: str) -> None:
+    """``Raster_Dimensions`` to ``Data_Processing``: the image's size, encoding, file and
+    processing (8-bit band-composite GeoTIFF, raw geometry, system radiometry)."""
     dims = _sub(root, "Raster_Dimensions")
     _sub(dims, "NCOLS", scene.n_cols)
     _sub(dims, "NROWS", scene.n_rows)
-    _sub(dims, "NBANDS", len(bands))
+    _sub(dims, "NBANDS", n_bands)
     enc = _sub(root, "Raster_Encoding")
     _sub(enc, "NBITS", 8)
     _sub(enc, "DATA_TYPE", "UNSIGNED")
@@ -185,21 +207,21 @@ def write_dimap_xml(
     _sub(proc, "PROCESSING_LEVEL", "1A")
     _sub(proc, "GEOMETRIC_PROCESSING", "RAW")
     _sub(proc, "RADIOMETRIC_PROCESSING", "SYSTEM")
+
+
+def _interpretation(
+    root: ET.Element, scene: DimapScene, bands: list[int], band_names: dict[int, str]
+) -> None:
+    """``Image_Interpretation``: each band's index, description and physical gain."""
     interp = _sub(root, "Image_Interpretation")
     for band in bands:
         cal = scene.calibration.get(band)
         info = _sub(interp, "Spectral_Band_Info")
         _sub(info, "BAND_INDEX", band)
-        _sub(info, "BAND_DESCRIPTION", (band_names or {}).get(band, f"BAND{band}"))
+        _sub(info, "BAND_DESCRIPTION", band_names.get(band, f"BAND{band}"))
         if cal is not None and cal.physical_gain is not None:
             _sub(info, "PHYSICAL_BIAS", _num(cal.physical_bias or 0.0))
             _sub(info, "PHYSICAL_GAIN", _num(cal.physical_gain))
-
-    strip = _sub(root, "Data_Strip")
-    _data_strip(strip, scene, bands)
-    ET.indent(root, space="  ")
-    text = ET.tostring(root, encoding="unicode")
-    return write_text(Path(path), '<?xml version="1.0" encoding="UTF-8"?>\n' + text + "\n")
 
 
 def _data_strip(strip: ET.Element, scene: DimapScene, bands: list[int]) -> None:
@@ -390,18 +412,6 @@ def dimap_scene_of(
     lat, lon = np.degrees(g.lat_rad), np.degrees(g.lon_rad)
     a = product.attrs
     bands = {BAND_INDEX.get(name, k + 1): name for k, name in enumerate(models)}
-    cal = {}
-    for index, name in bands.items():
-        gains, dark = (calibration or {}).get(name, (np.empty(0), np.empty(0)))
-        cal[index] = BandCalibration(
-            physical_gain=counts_per_radiance,
-            physical_bias=0.0 if counts_per_radiance is not None else None,
-            analog_gain=None,
-            detector_gain=np.asarray(gains, dtype=np.float64),
-            dark_current=np.asarray(dark, dtype=np.float64),
-        )
-    from levels.geometry.sensor import LookAngleTable
-
     return DimapScene(
         path=Path("METADATA.DIM"),
         mission="SPOT",
@@ -428,17 +438,37 @@ def dimap_scene_of(
         angular_speeds_t_s=t_att,
         angular_speeds_rad_per_s=rates,
         corrected_attitude=None,
-        look_angles={
-            index: LookAngleTable(
-                models[name].look_angles.column,
-                models[name].look_angles.psi_x_rad,
-                models[name].look_angles.psi_y_rad,
-                n_cols,
+        look_angles={index: _look_table(models[name], n_cols) for index, name in bands.items()},
+        mirror_step=int(a["mirror_step"]) if "mirror_step" in a else None,
+        calibration={
+            index: _band_calibration(
+                (calibration or {}).get(name, (np.empty(0), np.empty(0))), counts_per_radiance
             )
             for index, name in bands.items()
         },
-        mirror_step=int(a["mirror_step"]) if "mirror_step" in a else None,
-        calibration=cal,
+    )
+
+
+def _look_table(model: Any, n_cols: int) -> Any:
+    """A model's look angles as a DIMAP file tabulates them (one per detector)."""
+    from levels.geometry.sensor import LookAngleTable
+
+    la = model.look_angles
+    return LookAngleTable(la.column, la.psi_x_rad, la.psi_y_rad, n_cols)
+
+
+def _band_calibration(
+    gains_dark: tuple[NDArray, NDArray], counts_per_radiance: float | None
+) -> BandCalibration:
+    """A band's calibration as DIMAP carries it: the physical gain (no bias), the
+    detectors' gains and dark offsets (the L0 archive's table; empty: none)."""
+    gains, dark = gains_dark
+    return BandCalibration(
+        physical_gain=counts_per_radiance,
+        physical_bias=0.0 if counts_per_radiance is not None else None,
+        analog_gain=None,
+        detector_gain=np.asarray(gains, dtype=np.float64),
+        dark_current=np.asarray(dark, dtype=np.float64),
     )
 
 
