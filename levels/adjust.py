@@ -1225,6 +1225,7 @@ class _Block:
         self.gcp_rows: list[int] = []
         self.tie_rows: list[tuple[int, _TieObservations]] = []
         self._last: tuple[Any, Any] = (None, None)  # a Jacobian and its normal equations
+        self._undamped: tuple[Any, Any] = (None, None)  # those equations and their reduction
 
     def ground(self, d: NDArray) -> NDArray:
         """The tie points' ECEF ground for their scaled unknowns ``d``."""
@@ -1414,11 +1415,19 @@ class _Block:
                 break
         return z, r, j, cost, iterations
 
+    def reduced_at(self, j: Any, r: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray, Any]:
+        """The undamped reduction of ``j``'s normal equations, once (the tests of a round
+        and the covariance share it)."""
+        parts = self.normal_equations(j, r)
+        if self._undamped[0] is not parts:
+            self._undamped = (parts, self.reduced(parts))
+        return self._undamped[1]
+
     def tie_tests(self, r: NDArray, j: Any) -> NDArray[np.float64]:
         """Each tie point's largest normalised residual over its measurements (Baarda's
         ``|v| / σ_v``, the leverage of the point's own ground unknowns: ``J_d V⁻¹ J_dᵀ``);
         NaN for the rejected."""
-        _s, _b, vinv, _g, _w = self.reduced(self.normal_equations(j, r))
+        _s, _b, vinv, _g, _w = self.reduced_at(j, r)
         worst = np.full(self.n_ties, np.nan)
         for start, obs in self.tie_rows:
             m = obs.tie.size
@@ -1437,7 +1446,7 @@ class _Block:
         """Each pass's control points' largest normalised residual (Baarda's, the leverage
         ``h = j S⁻¹ jᵀ`` of a row on the parameters alone: a control point has no ground
         unknown), NaN for the rejected and those outside."""
-        schur, *_ = self.reduced(self.normal_equations(j, r))
+        schur, *_ = self.reduced_at(j, r)
         cov = None
         out = []
         for start, use in zip(self.gcp_rows, self.use_gcp, strict=True):
@@ -1499,7 +1508,7 @@ class _Block:
     ) -> list[tuple[Adjustment, ...]]:
         """Each pass's :class:`Adjustment` per strip from the solution: the covariance of
         the reduced system, σ0 over the degrees of freedom left by the tie points' ground."""
-        schur, *_ = self.reduced(self.normal_equations(j, r))
+        schur, *_ = self.reduced_at(j, r)
         cov_all = np.linalg.inv(schur)
         n_obs = sum(2 * int(use.sum()) for use in self.use_gcp)
         n_obs += sum(2 * int(self.active[o.tie].sum()) for o in self.observations if o is not None)
