@@ -29,7 +29,10 @@ from levels.products import Product
 __all__ = ["MAP_LEVELS", "RPC_LEVELS", "write_geotiff", "write_rpc_sidecar"]
 
 #: Levels on a map grid, which a GeoTIFF's geotransform can describe.
-MAP_LEVELS = ("2A", "2", "3")
+MAP_LEVELS = ("2A", "2", "3", "DEM")
+#: A DEM product (:mod:`levels.stereo`) is exported as its heights alone, float32, NaN
+#: where it has none (GDAL's nodata): the raster level 3 and any GIS read as a DEM.
+DEM_EXPORT_BAND = "height_m"
 #: Levels in image geometry, exported with their RPCs.
 RPC_LEVELS = ("1A", "1B")
 
@@ -86,7 +89,7 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
         georef["transform"] = Affine.from_gdal(*grid.geotransform)
     else:
         raise ProductError(f"level {level}: no GeoTIFF export for it")
-    names = list(product.bands)
+    names = [DEM_EXPORT_BAND] if level == "DEM" else list(product.bands)
     images = [product.bands[n].image for n in names]
     valid = np.logical_and.reduce([product.bands[n].valid for n in names])
     rows, cols = images[0].shape
@@ -97,7 +100,8 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
         "width": cols,
         "height": rows,
         "count": len(names),
-        "dtype": "uint8",
+        "dtype": str(images[0].dtype),
+        **({"nodata": float("nan")} if images[0].dtype.kind == "f" else {}),
         **georef,
         "tiled": True,
         "blockxsize": 256,
@@ -113,7 +117,8 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
         for k, (name, im) in enumerate(zip(names, images, strict=True), start=1):
             ds.write(im, k)
             ds.set_band_description(k, name)
-        ds.write_mask(valid)
+        if images[0].dtype.kind != "f":
+            ds.write_mask(valid)
         ds.update_tags(
             level=level,
             scene_index=a.get("scene_index", ""),
@@ -121,6 +126,7 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
             hrv=a.get("hrv", ""),
             mode=a.get("mode", ""),
             pixel_size_m=a.get("pixel_size_m", ""),
+            **({"vertical": a.get("vertical", "")} if level == "DEM" else {}),
             **{f"provenance_{k}": v for k, v in product.provenance.items()},
         )
     return out

@@ -306,6 +306,12 @@ class ProcessingOptions:
         0.1,
         1000.0,
     )
+    stereo: bool = option(
+        False,
+        "stereo",
+        "a block of two passes: their DEM by dense matching on epipolar images after level 2 "
+        "(docs/stereo.md), and level 3 over it instead of a DEM from outside",
+    )
     prior_ephemeris_m: tuple[float, float, float] = option(
         [300.0, 150.0, 50.0],
         "prior_ephemeris_m",

@@ -103,6 +103,15 @@ MAP_SUFFIX, IMAGE_SUFFIX = ".nc", ".h5"
 PRODUCT_SUFFIXES = (MAP_SUFFIX, IMAGE_SUFFIX)
 
 
+#: Bands that hold a quantity rather than counts (a DEM product's, :mod:`levels.stereo`):
+#: their long name and CF standard name (None: none fits); their units come from the name.
+QUANTITY_BANDS: dict[str, tuple[str, str | None]] = {
+    "height_m": ("height above the WGS84 ellipsoid", "height_above_reference_ellipsoid"),
+    "points": ("points triangulated in the cell", None),
+    "sigma_m": ("predicted 1 sigma of the cell's height", None),
+}
+
+
 def product_name(name: str, scene_index: int, level: str, on_map: bool = False) -> str:
     """The file name of a scene's product at a level: ``<name>_s<scene>_<level>.nc`` on a
     map grid (``on_map``), ``….h5`` in image geometry (:data:`MAP_SUFFIX`)."""
@@ -354,9 +363,16 @@ def _write_band(
     chunks: tuple[int, int],
     deflate_level: int,
 ) -> None:
-    """One band's image and validity mask, on the dimension scales, CF-described."""
+    """One band's image and validity mask, on the dimension scales, CF-described: a byte
+    band as counts, a quantity (:data:`QUANTITY_BANDS`: a DEM's heights) with its units and
+    standard name (NaN where not valid)."""
+    quantity = QUANTITY_BANDS.get(name) if band.image.dtype != np.uint8 else None
     for var, data, long_name in (
-        (name, band.image, f"level {product.level} counts of band {name}"),
+        (
+            name,
+            band.image,
+            quantity[0] if quantity else f"level {product.level} counts of band {name}",
+        ),
         (
             f"{name}_valid",
             band.valid.view(np.uint8),
@@ -367,8 +383,11 @@ def _write_band(
         ds = deflated_dataset(f, var, data, chunks, level=level)
         for axis, dim in enumerate(dims):
             ds.dims[axis].attach_scale(dim)
-        ds.attrs["units"] = "1"
+        ds.attrs["units"] = units_of(name) if quantity and var == name else "1"
         ds.attrs["long_name"] = long_name
+        if quantity and var == name:
+            if quantity[1]:
+                ds.attrs["standard_name"] = quantity[1]
         if product.map_grid is not None:
             ds.attrs["grid_mapping"] = "crs"
             # the grid mapping also as a (scalar) coordinate: xarray then opens it as one,

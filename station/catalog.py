@@ -134,6 +134,55 @@ def _quality(product: Product, path: Path) -> dict[str, Any]:
     return out
 
 
+def _pair_item(product: Product, path: Path) -> Any:
+    """The STAC Item of a pair's product (a stereo DEM, :mod:`levels.stereo`): its map
+    grid's footprint, the pair's two dates."""
+    import pystac
+    import pyproj
+
+    grid = product.map_grid
+    if grid is None:
+        raise ValueError(f"{path}: a pair's product without a map grid")
+    gt, (rows, cols) = grid.geotransform, grid.shape
+    x = np.array([gt[0], gt[0] + cols * gt[1], gt[0] + cols * gt[1], gt[0]])
+    y = np.array([gt[3], gt[3], gt[3] + rows * gt[5], gt[3] + rows * gt[5]])
+    lon, lat = pyproj.Transformer.from_crs(
+        pyproj.CRS.from_wkt(grid.crs_wkt), pyproj.CRS.from_epsg(4326), always_xy=True
+    ).transform(x, y)
+    geometry, bbox = footprint_geojson(np.asarray(lat), np.asarray(lon))
+    when = sorted(str(t) for t in product.attrs["datetimes_utc"].split())
+    start, end = (dt.datetime.fromisoformat(t[:26]).replace(tzinfo=dt.UTC) for t in when)
+    epsg = pyproj.CRS.from_wkt(grid.crs_wkt).to_epsg()
+    item = pystac.Item(
+        id=path.stem,
+        geometry=geometry,
+        bbox=bbox,
+        datetime=None,
+        start_datetime=start,
+        end_datetime=end,
+        properties={
+            "title": str(product.attrs.get("name", path.stem)),
+            "constellation": "spot",
+            "processing:level": str(product.level),
+            "proj:code": f"EPSG:{epsg}" if epsg else None,
+            "proj:shape": [rows, cols],
+            "proj:transform": [gt[1], gt[2], gt[0], gt[4], gt[5], gt[3]],
+            "gsd": float(abs(gt[1])),
+        },
+        stac_extensions=list(EXTENSIONS),
+    )
+    item.add_asset(
+        "data",
+        pystac.Asset(
+            href=str(path.resolve()),
+            media_type=_MEDIA.get(path.suffix, "application/x-hdf5"),
+            roles=["data"],
+            title=f"{product.level} product of a stereo pair",
+        ),
+    )
+    return item
+
+
 def item_of(path: Path, root: Path) -> Any:
     """The STAC Item of the product at ``path`` (module docstring); asset hrefs are made
     relative when the catalogue is saved."""
@@ -143,6 +192,8 @@ def item_of(path: Path, root: Path) -> Any:
     from station import __version__
 
     product = read_product(path, images=False)
+    if "scene" not in product.geometry:  # a pair's product (a stereo DEM)
+        return _pair_item(product, path)
     a, scene = product.attrs, product.geometry["scene"]
     geometry, bbox = footprint_geojson(scene["corners_lat_deg"], scene["corners_lon_deg"])
     view = _centre_view(product)

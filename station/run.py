@@ -534,6 +534,8 @@ def block_scenarios(path: str | Path) -> tuple[str, list[Scenario], Any]:
         if "seed" not in over:
             table["seed"] = seed + k + 1
         levels = [lv for lv in block.processing.levels if lv not in ("2", "3")]
+        if block.processing.stereo:  # the pair's DEM reads the raw pixels of the 1A
+            levels.append("1A")
         processing = dict(table.get("processing", {}))
         processing["levels"] = sorted(set(levels) | {"2A"}, key=["1A", "1B", "2A"].index)
         processing["adjustment"] = "pass"
@@ -578,21 +580,34 @@ def run_block(
             reports.append(_run(s, stage / s.name, quicklooks, progress, runner, False))
         ties = _block_ties(stage, scns)
         block: dict[str, Any] = {}
+        stereo: dict[str, Any] = {}
         if "2" in processing.levels and processing.adjustment == "block":
             opts = processing
             first = scns[0].name
             if not opts.dem_path and scns[0].dem is not None:  # the first pass's export
                 opts = dataclasses.replace(opts, dem_path=str(stage / first / f"{first}.dem.tif"))
             keep = tuple(lv for lv in opts.levels if lv in ("2", "3"))
+            if processing.stereo:  # level 3 waits for the pair's own DEM
+                keep = ("2",)
             opts = dataclasses.replace(opts, levels=keep)
-            plans = plan_reprocess(
-                [stage / s.name / f"{s.name}.l0.h5" for s in scns],
-                stage / "block",
-                options=opts,
-                scenario=scns,
-                ties_dir=stage / "ties",
-            )
-            made = all_made(run_plans(plans, runner))
+            l0s = [stage / s.name / f"{s.name}.l0.h5" for s in scns]
+
+            def make(o: Any) -> Any:
+                plans = plan_reprocess(
+                    l0s, stage / "block", options=o, scenario=scns, ties_dir=stage / "ties"
+                )
+                return all_made(run_plans(plans, runner))
+
+            made = make(opts)
+            if processing.stereo:
+                stereo = _block_stereo(stage, scns)
+                if "3" in processing.levels and stereo["dems"]:
+                    dem = stage / "stereo" / stereo["dems"][0]["geotiff"]
+                    made = make(
+                        dataclasses.replace(
+                            opts, levels=("2", "3"), dem_path=str(dem), dem_vertical="ellipsoid"
+                        )
+                    )
             block = {
                 "products": [
                     {
@@ -615,6 +630,7 @@ def run_block(
             "passes": reports,
             "ties": ties,
             "block": block,
+            **({"stereo": stereo} if stereo else {}),
             "timings_s": {"total": round(time.perf_counter() - t0, 3)},
         }
         write_json(stage / "report.json", report)
@@ -657,3 +673,52 @@ def _block_ties(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
                 stage / "ties" / f"{n}.tie.csv", functools.reduce(operator.add, sets), comment
             )
     return {"pairs": pairs}
+
+
+def _block_stereo(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
+    """The DEM of every overlapping pair of scenes of the block's first two passes
+    (:mod:`levels.stereo`), on their level 2 (``<stage>/block/``), 1A and tie points, into
+    ``<stage>/stereo/`` with its GeoTIFF, measured against each pass's truth."""
+    from levels.errors import GeometryError
+    from levels.export import write_geotiff
+    from levels.products import write_product
+    from levels.readers.gcp import read_gcps
+    from levels.readers.l0 import read_l0
+    from levels.stereo import StereoView, dem_name, dem_product, disparity_range, epipolar_pair
+    from levels.stereo import stereo_dem as make_dem
+    from station.errors import ScenarioError
+    from station.sipc.process import truth_for
+    from station.sipc.stereo import StereoTruth, stereo_quality
+
+    if len(scns) != 2:
+        raise ScenarioError(f"stereo takes a block of two passes, got {len(scns)}")
+    a, b = scns
+    truth = StereoTruth(
+        *(truth_for(s, read_l0(stage / s.name / f"{s.name}.l0.h5", lazy=True)) for s in scns)
+    )
+    ties = [read_gcps(stage / "ties" / f"{s.name}.tie.csv") for s in scns]
+    out = stage / "stereo"
+    out.mkdir(exist_ok=True)
+    dems = []
+    for pa, pb in itertools.product(
+        sorted((stage / "block").glob(f"{a.name}_s*_2.nc")),
+        sorted((stage / "block").glob(f"{b.name}_s*_2.nc")),
+    ):
+        views = [
+            StereoView.of_products(
+                read_product(p), read_product(stage / s.name / p.name.replace("_2.nc", "_1A.h5"))
+            )
+            for p, s in ((pa, a), (pb, b))
+        ]
+        try:
+            pair = epipolar_pair(*views)
+        except GeometryError:  # these two scenes do not overlap
+            continue
+        dem = make_dem(pair, disparity_range(pair, *ties))
+        quality = stereo_quality(dem, truth, truth.a.acq.world)
+        name = dem_name(dem)
+        product = dem_product(dem, quality, inputs=[pa.name, pb.name])
+        write_product(out / name, product)
+        tif = write_geotiff(product, out / name.replace(".nc", ".tif"))
+        dems.append({"file": f"stereo/{name}", "geotiff": tif.name, "quality": quality})
+    return {"dems": dems}

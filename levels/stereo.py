@@ -1,0 +1,676 @@
+"""Stereo: a DEM from two overlapping scenes of different passes (PHOTOMOD, paper ``003_…``),
+on their adjusted models (level 2 of a block, :mod:`levels.adjust`).
+
+1. **Epipolar grid from the rigorous model.** Each scene's raw image is resampled onto one
+   grid on the plane at the pair's reference height ``h0`` (both level 2s' own), turned so
+   that its rows are epipolar lines: a ground point at height ``h`` appears in a scene's
+   map image at ``h0`` moved by ``(h − h0)·a`` along its view's horizontal tilt ``a``
+   (metres per metre), so between the two by ``(h − h0)·(a_b − a_a)``: the grid's ``u``
+   axis is the direction of ``a_b − a_a``, and a point's images differ only in ``u``, by
+   the disparity ``d = (h − h0)·|a_b − a_a| / pixel``. ``a`` is measured through the model
+   (ground → raw → plane) over the scene; what ``a`` turns across it is the *epipolar
+   error* (the ``v``-parallax over the height range, pixels), stored with the pair. The grid
+   reaches the raw image through each level 2's inverse grid (the adjusted model at
+   ``h0``, :class:`~levels.geo.level2a.Level2AGeometry`), sampled at nodes every
+   ``NODE_STEP_PX`` (a CCD segment's lines apart), and both images are resampled with the
+   COR kernel (:func:`levels.cor.epipolar.resample_epipolar`): the 2A arithmetic, the raw
+   image read once.
+2. **Dense matching** by OpenCV's semi-global matching (``StereoSGBM``, Hirschmüller 2008)
+   over the disparity range the pair's tie points give, its uniqueness and left–right
+   checks and speckle filter; then each pixel's disparity refined to a fraction of a pixel
+   by one-dimensional least-squares matching (Lucas–Kanade along the row, gain and offset
+   removed in a ``REFINE_WINDOW_PX`` window, :func:`levels.cor.epipolar.shift_rows`): SGBM's
+   1/16 px parabola is biased toward whole pixels ("pixel locking"), the least-squares
+   solution is not. Its a posteriori σ (Förstner: the residual variance over the window's
+   gradient energy) is each pixel's matching σ. A pixel is refused when SGBM found no
+   unique match, the refinement moved it more than ``MAX_REFINE_PX`` or failed, or its
+   window is flat.
+3. **Triangulation** by the middle of the common perpendicular of the two lines of sight
+   (PHOTOMOD), the miss kept per point.
+4. **Gridding** onto a north-up map grid of ``cell_px`` pixels: the mean of the points in
+   each cell, their count, and the predicted σ of the mean (the points' matching σ times
+   the metres of height per pixel of disparity, reduced by the number of independent
+   windows in the cell); cells without a point are holes (NaN), never filled.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pyproj
+from numpy.typing import NDArray
+
+from levels.cor.epipolar import resample_epipolar, shift_rows
+from levels.errors import GeometryError
+from levels.geo.inverse_grid import bilinear_grid
+from levels.geo.level2a import Level2AGeometry
+from levels.geo.maps import MapGrid
+from levels.geometry.ellipsoid import WGS84
+from levels.geometry.model import PushbroomModel
+from levels.readers.gcp import ControlPointSet
+
+__all__ = [
+    "MAX_REFINE_PX",
+    "NODE_STEP_PX",
+    "REFINE_WINDOW_PX",
+    "Disparity",
+    "EpipolarPair",
+    "StereoDem",
+    "StereoView",
+    "closest_approach",
+    "epipolar_pair",
+    "grid_points",
+    "match",
+    "stereo_dem",
+    "triangulate",
+]
+
+#: Spacing of the epipolar grid's nodes (pixels): the model through level 2's inverse grid
+#: there, bilinearly between (its approximation error is stored with the pair).
+NODE_STEP_PX = 16
+#: Height span over which the disparity direction and the epipolar error are measured (m).
+TILT_SPAN_M = 1000.0
+#: Side of the least-squares refinement's window (pixels, odd).
+REFINE_WINDOW_PX = 7
+#: Refinement iterations, and how far they may move SGBM's disparity (pixels).
+REFINE_ITERATIONS = 4
+MAX_REFINE_PX = 1.0
+#: SGBM's block (pixels, odd), smoothness penalties per 8-bit grey level and block pixel,
+#: uniqueness (%), left–right tolerance (px), speckle filter (pixels, disparity range).
+SGBM_BLOCK_PX = 5
+SGBM_P1, SGBM_P2 = 8, 32
+SGBM_UNIQUENESS = 10
+SGBM_LR_PX = 1
+SGBM_SPECKLE_PX, SGBM_SPECKLE_RANGE = 100, 2
+#: Margin around the tie points' disparity range (pixels, each side).
+DISPARITY_MARGIN_PX = 8.0
+#: Lowest gradient energy of a refinement window (counts² per pixel): flatter is refused.
+MIN_GRADIENT = 0.5
+#: Points triangulated at once (memory: about 1 kB each in flight).
+_CHUNK = 1 << 20
+
+
+@dataclass(frozen=True, eq=False)
+class StereoView:
+    """One scene of a pair: its raw image (level 1A, NaN where not valid), the adjusted
+    model and level 2's geometry back to raw (its inverse grid at the reference height)."""
+
+    name: str
+    scene: int
+    image: NDArray[np.float32]
+    model: PushbroomModel
+    geometry: Level2AGeometry
+    reference_height_m: float
+    first_line: int = 0  # the L0 row of the scene's line 0 (tie-point files count L0 rows)
+    time_utc: str = ""  # the scene's centre time (ISO 8601, UTC)
+
+    @classmethod
+    def of_products(cls, level2: Any, level1a: Any, band: str | None = None) -> StereoView:
+        """The view of a scene from its level 2 product (the adjusted model and grids) and
+        its level 1A (the raw pixels)."""
+        from levels.geo.scenes import models_of_tree
+
+        if level2.level != "2" or level1a.level != "1A":
+            raise GeometryError(
+                f"a stereo view is made of a level 2 and a level 1A, got {level2.level} and "
+                f"{level1a.level}"
+            )
+        name = band or next(iter(level2.bands))
+        one = level1a.bands[name]
+        image = np.where(one.valid, one.image.astype(np.float32), np.float32(np.nan))
+        epoch, models = models_of_tree(level2.geometry)
+        geom = Level2AGeometry.from_tree(level2.geometry["level_2a"], name)
+        if image.shape != (geom.n_raw_lines, geom.n_raw_columns):
+            raise GeometryError(
+                f"the 1A image {image.shape} is not the raw image of the level 2 "
+                f"({geom.n_raw_lines}, {geom.n_raw_columns}): not the same scene"
+            )
+        return cls(
+            name=str(level2.attrs.get("name", "")),
+            scene=int(level2.attrs.get("scene_index", 0)),
+            image=image,
+            model=models[name],
+            geometry=geom,
+            reference_height_m=float(level2.geometry["reference_height_m"]),
+            first_line=int(level2.geometry["scene"]["first_line"]),
+            time_utc=str(epoch.utc(np.array([float(level2.geometry["scene"]["t_centre_s"])]))[0]),
+        )
+
+    def ground_to_plane(
+        self, lat: NDArray, lon: NDArray, h: NDArray, to_map: pyproj.Transformer
+    ) -> tuple[NDArray, NDArray, NDArray]:
+        """Where ground points appear on the map plane at the reference height (x, y, m),
+        through the model: raw pixel, then its line of sight met with the plane; and the
+        raw line and column."""
+        img = self.model.ground_to_image(lat, lon, h)
+        on = self.model.image_to_ground(img.line, img.column, self.reference_height_m)
+        x, y = to_map.transform(np.degrees(on.lon_rad), np.degrees(on.lat_rad))
+        return np.asarray(x), np.asarray(y), img.line
+
+
+@dataclass(frozen=True)
+class EpipolarFrame:
+    """The epipolar grid on the map plane: pixel ``(v, u)`` (row, column) is at map
+    ``origin + pixel·(u·ex + v·ey)``; ``ex`` the disparity direction."""
+
+    crs_wkt: str
+    origin_m: tuple[float, float]
+    ex: tuple[float, float]
+    pixel_m: float
+    shape: tuple[int, int]
+
+    @property
+    def ey(self) -> tuple[float, float]:
+        return (self.ex[1], -self.ex[0])  # rows go "down" the image, as map rows do
+
+    def map_of(self, u: NDArray, v: NDArray) -> tuple[NDArray, NDArray]:
+        (x0, y0), (ax, ay), (bx, by) = self.origin_m, self.ex, self.ey
+        return x0 + self.pixel_m * (u * ax + v * bx), y0 + self.pixel_m * (u * ay + v * by)
+
+    def uv_of(self, x: NDArray, y: NDArray) -> tuple[NDArray, NDArray]:
+        dx, dy = (np.asarray(x) - self.origin_m[0]), (np.asarray(y) - self.origin_m[1])
+        (ax, ay), (bx, by) = self.ex, self.ey
+        return (dx * ax + dy * ay) / self.pixel_m, (dx * bx + dy * by) / self.pixel_m
+
+
+@dataclass(frozen=True, eq=False)
+class EpipolarPair:
+    """Two views on one epipolar frame: each one's raw column and per-segment lines at the
+    grid's nodes, the tilts and what they leave."""
+
+    a: StereoView
+    b: StereoView
+    frame: EpipolarFrame
+    step: int
+    nodes: tuple[tuple[NDArray, NDArray], tuple[NDArray, NDArray]]  # (columns, lines) per view
+    height_per_px_m: float  # metres of height per pixel of disparity
+    base_to_height: float  # |a_b − a_a|: B/H
+    epipolar_error_px: float  # the most v-parallax over TILT_SPAN_M, over the frame
+    convergence_deg: float
+
+    def raw_of(self, which: int, u: NDArray, v: NDArray) -> tuple[NDArray, NDArray]:
+        """Raw (line, column) of view ``which`` (0: a, 1: b) at epipolar ``(u, v)``."""
+        cols, lines = self.nodes[which]
+        rows = np.arange(cols.shape[0], dtype=np.float64) * self.step
+        cc = np.arange(cols.shape[1], dtype=np.float64) * self.step
+        col = bilinear_grid(rows, cc, cols, v, u)
+        g = (self.a, self.b)[which].geometry
+        seg = g.segment_of(col)
+        line = np.empty_like(col)
+        for s in np.unique(seg):
+            k = seg == s
+            line[k] = bilinear_grid(rows, cc, lines[s], v[k], u[k])
+        return line, col
+
+    def image(self, which: int) -> NDArray[np.float32]:
+        """View ``which``'s raw image on the epipolar grid (NaN where not valid)."""
+        cols, lines = self.nodes[which]
+        view = (self.a, self.b)[which]
+        return resample_epipolar(
+            view.image, self.step, cols, lines, view.geometry.segment_first_column, self.frame.shape
+        )
+
+    def tree(self) -> dict[str, Any]:
+        """What a DEM product keeps of the pair's geometry."""
+        f = self.frame
+        return {
+            "views": [f"{self.a.name}_s{self.a.scene:03d}", f"{self.b.name}_s{self.b.scene:03d}"],
+            "reference_height_m": self.a.reference_height_m,
+            "epipolar_origin_m": np.array(f.origin_m),
+            "epipolar_direction": np.array(f.ex),
+            "epipolar_pixel_m": f.pixel_m,
+            "epipolar_shape": np.array(f.shape),
+            "base_to_height": self.base_to_height,
+            "convergence_deg": self.convergence_deg,
+            "height_per_disparity_px_m": self.height_per_px_m,
+            "epipolar_error_px": self.epipolar_error_px,
+        }
+
+
+def _to_map(crs_wkt: str) -> pyproj.Transformer:
+    return pyproj.Transformer.from_crs(
+        pyproj.CRS.from_epsg(4326), pyproj.CRS.from_wkt(crs_wkt), always_xy=True
+    )
+
+
+def _valid_xy(view: StereoView, decimate: int = 4) -> tuple[NDArray, NDArray]:
+    """Map positions of a view's level 2 footprint (its inverse grid's cells that fall in
+    the raw image)."""
+    g = view.geometry
+    i, j = np.meshgrid(
+        np.arange(0, g.map_grid.n_rows, decimate, dtype=np.float64),
+        np.arange(0, g.map_grid.n_cols, decimate, dtype=np.float64),
+        indexing="ij",
+    )
+    line, col = g.raw_of(i.ravel(), j.ravel())
+    inside = (line >= 0) & (line <= g.n_raw_lines - 1) & (col >= 0) & (col <= g.n_raw_columns - 1)
+    return g.map_grid.map_of(i.ravel()[inside], j.ravel()[inside])
+
+
+def _tilts(
+    view: StereoView, lat: NDArray, lon: NDArray, to_map: pyproj.Transformer
+) -> NDArray[np.float64]:
+    """The view's horizontal tilt ``a`` (metres on the plane per metre of height, (N, 2))
+    at ground points on the plane: where they appear raised by ``TILT_SPAN_M``."""
+    h0 = view.reference_height_m
+    x0, y0, _ = view.ground_to_plane(lat, lon, np.full(lat.shape, h0), to_map)
+    x1, y1, _ = view.ground_to_plane(lat, lon, np.full(lat.shape, h0 + TILT_SPAN_M), to_map)
+    return np.column_stack([x1 - x0, y1 - y0]) / TILT_SPAN_M
+
+
+def epipolar_pair(a: StereoView, b: StereoView, step: int = NODE_STEP_PX) -> EpipolarPair:
+    """The epipolar grid of two views over their common footprint (module docstring)."""
+    ga, gb = a.geometry.map_grid, b.geometry.map_grid
+    if ga.crs_wkt != gb.crs_wkt:
+        raise GeometryError("a stereo pair's level 2s must share their map CRS")
+    if abs(a.reference_height_m - b.reference_height_m) > 1e-6:
+        raise GeometryError(
+            f"a stereo pair's level 2s must share their reference height "
+            f"({a.reference_height_m} and {b.reference_height_m} m)"
+        )
+    to_map = _to_map(ga.crs_wkt)
+    xa, ya = _valid_xy(a)
+    xb, yb = _valid_xy(b)
+    lo = np.maximum([xa.min(), ya.min()], [xb.min(), yb.min()])
+    hi = np.minimum([xa.max(), ya.max()], [xb.max(), yb.max()])
+    if np.any(hi - lo <= 0):
+        raise GeometryError("the two scenes do not overlap")
+    # the tilts over the common part: a 7 × 7 lattice of it on the plane
+    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 7), np.linspace(lo[1], hi[1], 7))
+    lon, lat = pyproj.Transformer.from_crs(
+        pyproj.CRS.from_wkt(ga.crs_wkt), pyproj.CRS.from_epsg(4326), always_xy=True
+    ).transform(gx.ravel(), gy.ravel())
+    lat, lon = np.radians(lat), np.radians(lon)
+    tilt = _tilts(b, lat, lon, to_map) - _tilts(a, lat, lon, to_map)
+    mean = np.nanmean(tilt, axis=0)
+    base_to_height = float(np.hypot(*mean))
+    if not base_to_height > 0.05:
+        raise GeometryError(
+            f"the two views converge by B/H {base_to_height:.3f}: no stereo (views from one "
+            "track see a point along one line of sight)"
+        )
+    ex = mean / base_to_height
+    ey = np.array([ex[1], -ex[0]])
+    pixel = abs(ga.geotransform[1])
+    epipolar_error = float(np.nanmax(np.abs(tilt @ ey))) * TILT_SPAN_M / pixel
+    # the frame: the common footprint's corners in (u, v), on whole pixels
+    corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
+    u = corners @ ex / pixel
+    v = corners @ ey / pixel
+    u0, v0 = np.floor(u.min()), np.floor(v.min())
+    origin = tuple(pixel * (u0 * ex + v0 * ey))
+    shape = (int(np.ceil(v.max() - v0)) + 1, int(np.ceil(u.max() - u0)) + 1)
+    frame = EpipolarFrame(ga.crs_wkt, (float(origin[0]), float(origin[1])), tuple(ex), pixel, shape)  # type: ignore[arg-type]
+    nodes = tuple(_nodes(view, frame, step) for view in (a, b))
+    return EpipolarPair(
+        a=a,
+        b=b,
+        frame=frame,
+        step=step,
+        nodes=nodes,  # type: ignore[arg-type]
+        height_per_px_m=pixel / base_to_height,
+        base_to_height=base_to_height,
+        epipolar_error_px=epipolar_error,
+        convergence_deg=float(np.degrees(2 * np.arctan(base_to_height / 2))),
+    )
+
+
+def _nodes(view: StereoView, frame: EpipolarFrame, step: int) -> tuple[NDArray, NDArray]:
+    """A view's raw column and per-segment lines at the frame's nodes (through its level
+    2 inverse grid)."""
+    rows, cols = frame.shape
+    nv, nu = -(-(rows - 1) // step) + 1, -(-(cols - 1) // step) + 1
+    v, u = np.meshgrid(np.arange(nv) * step, np.arange(nu) * step, indexing="ij")
+    x, y = frame.map_of(u.astype(float), v.astype(float))
+    i, j = view.geometry.map_grid.ij_of_map(x, y)
+    g = view.geometry
+    col = bilinear_grid(g.inverse_rows, g.inverse_cols, g.inverse_column, i, j)
+    lines = np.stack(
+        [bilinear_grid(g.inverse_rows, g.inverse_cols, z, i, j) for z in g.inverse_line]
+    )
+    return col, lines
+
+
+@dataclass(frozen=True, eq=False)
+class Disparity:
+    """A disparity field on the epipolar grid (``u_b = u_a + d``, pixels; NaN where
+    refused), its matching σ (pixels) and what each test refused."""
+
+    d: NDArray[np.float32]
+    sigma: NDArray[np.float32]
+    counts: dict[str, int]
+
+    @property
+    def valid(self) -> NDArray[np.bool_]:
+        return np.isfinite(self.d)
+
+
+def _box(x: NDArray, w: int) -> NDArray:
+    import cv2
+
+    return cv2.boxFilter(x, -1, (w, w), normalize=True, borderType=cv2.BORDER_REFLECT)
+
+
+def _bytes(img: NDArray[np.float32]) -> NDArray[np.uint8]:
+    return np.clip(np.rint(np.nan_to_num(img, nan=0.0)), 0, 255).astype(np.uint8)
+
+
+def _sgbm(left: NDArray, right: NDArray, d_lo: float, d_hi: float) -> NDArray[np.float32]:
+    """OpenCV's SGBM (its disparity ``left(x) = right(x − D)``: ``D = −d``), NaN where it
+    found none."""
+    import cv2
+
+    lo = int(np.floor(-d_hi - DISPARITY_MARGIN_PX))
+    n = int(np.ceil((d_hi - d_lo + 2 * DISPARITY_MARGIN_PX) / 16.0)) * 16
+    cn = 1
+    sgbm = cv2.StereoSGBM.create(
+        minDisparity=lo,
+        numDisparities=n,
+        blockSize=SGBM_BLOCK_PX,
+        P1=SGBM_P1 * cn * SGBM_BLOCK_PX**2,
+        P2=SGBM_P2 * cn * SGBM_BLOCK_PX**2,
+        disp12MaxDiff=SGBM_LR_PX,
+        uniquenessRatio=SGBM_UNIQUENESS,
+        speckleWindowSize=SGBM_SPECKLE_PX,
+        speckleRange=SGBM_SPECKLE_RANGE,
+        mode=cv2.StereoSGBM_MODE_SGBM_3WAY,
+    )
+    raw = sgbm.compute(_bytes(left), _bytes(right))
+    d = -raw.astype(np.float32) / 16.0
+    d[raw < lo * 16] = np.nan
+    return d
+
+
+def match(
+    left: NDArray[np.float32], right: NDArray[np.float32], d_lo: float, d_hi: float
+) -> Disparity:
+    """Dense disparity between two epipolar images over ``[d_lo, d_hi]`` pixels (module
+    docstring, step 2)."""
+    counts: dict[str, int] = {}
+    bad = ~(np.isfinite(left))
+    d0 = _sgbm(left, right, d_lo, d_hi)
+    d0[bad] = np.nan
+    counts["sgbm_none"] = int(np.sum(~np.isfinite(d0) & ~bad))
+    w = REFINE_WINDOW_PX
+    gx_right = np.gradient(right, axis=1).astype(np.float32)
+    lft = np.nan_to_num(left).astype(np.float32)
+    lc = lft - _box(lft, w)
+    d = np.where(np.isfinite(d0), d0, 0.0).astype(np.float32)
+    den = np.zeros_like(d)
+    for _ in range(REFINE_ITERATIONS):
+        rw = shift_rows(right, d)
+        g = shift_rows(gx_right, d)
+        rw0, g0 = np.nan_to_num(rw), np.nan_to_num(g)
+        rc = rw0 - _box(rw0, w)
+        gm = _box(g0, w)
+        den = _box(g0 * g0, w) - gm * gm
+        step = _box((g0 - gm) * (lc - rc), w) / np.maximum(den, 1e-6)
+        d = (d + np.clip(step, -0.5, 0.5)).astype(np.float32)
+        d[~np.isfinite(rw)] = np.nan
+    rw0 = np.nan_to_num(shift_rows(right, d))
+    res = lc - (rw0 - _box(rw0, w))
+    n = w * w
+    s2 = _box(res * res, w) * n / (n - 2)
+    sigma = np.sqrt(s2 / (n * np.maximum(den, 1e-6))).astype(np.float32)
+    moved = np.abs(d - d0)
+    refused = [
+        ("refinement_moved", np.isfinite(d0) & ~(moved <= MAX_REFINE_PX)),
+        ("flat", np.isfinite(d0) & (den < MIN_GRADIENT)),
+    ]
+    keep = np.isfinite(d0) & np.isfinite(d)
+    for why, mask in refused:
+        counts[why] = int(np.sum(mask & keep))
+        keep &= ~mask
+    d[~keep] = np.nan
+    sigma[~keep] = np.nan
+    counts["valid"] = int(keep.sum())
+    return Disparity(d, sigma, counts)
+
+
+def closest_approach(
+    r1: NDArray, u1: NDArray, r2: NDArray, u2: NDArray
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Mid-point of the common perpendicular of two lines (PHOTOMOD's triangulation,
+    paper ``003_…``: "the middle of the common perpendicular", the rays never meeting) and
+    the lines' miss along it (m, signed)."""
+    w = r1 - r2
+    b = np.sum(u1 * u2, axis=1)
+    d, e = np.sum(u1 * w, axis=1), np.sum(u2 * w, axis=1)
+    den = 1.0 - b**2
+    s = (b * e - d) / den
+    t = (e - b * d) / den
+    p1, p2 = r1 + s[:, None] * u1, r2 + t[:, None] * u2
+    n = np.cross(u1, u2)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return 0.5 * (p1 + p2), np.sum((p2 - p1) * n, axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class StereoPoints:
+    """Triangulated points: map position (m), ellipsoidal height (m), the rays' miss (m)
+    and the predicted height σ (m)."""
+
+    x_m: NDArray[np.float64]
+    y_m: NDArray[np.float64]
+    h_m: NDArray[np.float64]
+    miss_m: NDArray[np.float64]
+    sigma_h_m: NDArray[np.float64]
+    pixel_m: float  # the epipolar pixel they were triangulated on
+    stride: int  # every stride-th pixel of it
+
+
+def triangulate_raw(
+    a: StereoView, b: StereoView, la: NDArray, ca: NDArray, lb: NDArray, cb: NDArray
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Latitude, longitude (rad), height (m) and miss (m) of points measured at raw
+    ``(la, ca)`` in ``a`` and ``(lb, cb)`` in ``b``."""
+    r1, u1 = a.model.sight(la, ca)
+    r2, u2 = b.model.sight(lb, cb)
+    mid, miss = closest_approach(r1, u1, r2, u2)
+    lat, lon, h = WGS84.to_geodetic(mid)
+    return lat, lon, h, miss
+
+
+def triangulate(pair: EpipolarPair, disparity: Disparity, stride: int = 1) -> StereoPoints:
+    """Every ``stride``-th valid pixel of the disparity field, triangulated (step 3)."""
+    vv, uu = np.nonzero(disparity.valid[::stride, ::stride])
+    v, u = (vv * stride).astype(np.float64), (uu * stride).astype(np.float64)
+    d = disparity.d[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
+    sig = disparity.sigma[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
+    to_map = _to_map(pair.frame.crs_wkt)
+    out = [np.empty(v.size) for _ in range(4)]
+    for k in range(0, v.size, _CHUNK):
+        s = slice(k, k + _CHUNK)
+        la, ca = pair.raw_of(0, u[s], v[s])
+        lb, cb = pair.raw_of(1, u[s] + d[s], v[s])
+        lat, lon, h, miss = triangulate_raw(pair.a, pair.b, la, ca, lb, cb)
+        x, y = to_map.transform(np.degrees(lon), np.degrees(lat))
+        out[0][s], out[1][s], out[2][s], out[3][s] = x, y, h, miss
+    return StereoPoints(
+        out[0], out[1], out[2], out[3], sig * pair.height_per_px_m, pair.frame.pixel_m, stride
+    )
+
+
+def _mean_correlation(m: int, stride: int, window: int) -> float:
+    """Mean correlation of the matching errors of ``m × m`` points ``stride`` pixels apart
+    whose ``window``-pixel windows overlap (box windows: ``(1 − |dx|/w)(1 − |dy|/w)``)."""
+    k = np.arange(m) * stride
+    dx = np.abs(k[:, None] - k[None, :])
+    r1 = np.clip(1.0 - dx / window, 0.0, None)
+    return float(np.mean(r1) ** 2)
+
+
+def grid_points(
+    points: StereoPoints, grid: MapGrid, window: int = REFINE_WINDOW_PX
+) -> tuple[NDArray[np.float32], NDArray[np.uint16], NDArray[np.float32]]:
+    """Heights (NaN: a hole), point counts and predicted σ (m) on ``grid`` (step 4)."""
+    i, j = grid.ij_of_map(points.x_m, points.y_m)
+    i, j = np.rint(i).astype(np.int64), np.rint(j).astype(np.int64)
+    inside = (i >= 0) & (i < grid.n_rows) & (j >= 0) & (j < grid.n_cols) & np.isfinite(points.h_m)
+    k = i[inside] * grid.n_cols + j[inside]
+    size = grid.n_rows * grid.n_cols
+    n = np.bincount(k, minlength=size)
+    s = np.bincount(k, points.h_m[inside], minlength=size)
+    s2 = np.bincount(k, points.sigma_h_m[inside] ** 2, minlength=size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        h = np.where(n > 0, s / n, np.nan)
+        var = s2 / n  # the points' mean variance
+    m = max(1, round(abs(grid.geotransform[1]) / (points.pixel_m * points.stride)))
+    rho = _mean_correlation(m, points.stride, window)
+    sigma = np.sqrt(var * (rho + (1.0 - rho) / np.maximum(n, 1)))
+    shape = (grid.n_rows, grid.n_cols)
+    return (
+        h.reshape(shape).astype(np.float32),
+        np.minimum(n, 65535).reshape(shape).astype(np.uint16),
+        np.where(n > 0, sigma, np.nan).reshape(shape).astype(np.float32),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class StereoDem:
+    """A pair's DEM: heights on a map grid (NaN: holes), points per cell, predicted σ, and
+    the pair, its disparity, its points and timings."""
+
+    grid: MapGrid
+    height_m: NDArray[np.float32]
+    count: NDArray[np.uint16]
+    sigma_m: NDArray[np.float32]
+    pair: EpipolarPair
+    disparity: Disparity
+    points: StereoPoints
+    disparity_range_px: tuple[float, float]
+    timings_s: dict[str, float]
+
+
+def disparity_range(
+    pair: EpipolarPair, ties_a: ControlPointSet, ties_b: ControlPointSet
+) -> tuple[float, float]:
+    """The disparity range the pair's tie points span (pixels): each tie point's raw
+    positions taken onto the epipolar grid through each view's model at ``h0``."""
+    common = sorted(set(ties_a.id) & set(ties_b.id))
+    if len(common) < 3:
+        raise GeometryError(
+            f"{len(common)} tie points between the pair: the disparity range needs 3 or more"
+        )
+    ia = [ties_a.id.index(t) for t in common]
+    ib = [ties_b.id.index(t) for t in common]
+    first = (pair.a, pair.b)
+    u = []
+    for view, ties, idx in zip(first, (ties_a, ties_b), (ia, ib), strict=True):
+        line = np.asarray(ties.line)[idx] - view.first_line
+        col = np.asarray(ties.column)[idx]
+        on = view.model.image_to_ground(line, col, view.reference_height_m)
+        x, y = _to_map(pair.frame.crs_wkt).transform(np.degrees(on.lon_rad), np.degrees(on.lat_rad))
+        uu, _ = pair.frame.uv_of(np.asarray(x), np.asarray(y))
+        u.append(uu)
+    d = u[1] - u[0]
+    d = d[np.isfinite(d)]
+    return float(np.min(d)), float(np.max(d))
+
+
+def stereo_dem(
+    pair: EpipolarPair,
+    d_range: tuple[float, float],
+    cell_px: int = 2,
+    stride: int = 1,
+) -> StereoDem:
+    """The pair's DEM (module docstring): epipolar images, matching over ``d_range``,
+    triangulation of every ``stride``-th pixel, gridding on ``cell_px`` pixels."""
+    import time
+
+    t: dict[str, float] = {}
+    t0 = time.perf_counter()
+    left, right = pair.image(0), pair.image(1)
+    t["resample"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    disparity = match(left, right, *d_range)
+    t["match"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    points = triangulate(pair, disparity, stride)
+    t["triangulate"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    grid = _dem_grid(points, pair.frame.crs_wkt, cell_px * pair.frame.pixel_m)
+    h, n, sigma = grid_points(points, grid)
+    t["grid"] = time.perf_counter() - t0
+    return StereoDem(grid, h, n, sigma, pair, disparity, points, d_range, t)
+
+
+def _dem_grid(points: StereoPoints, crs_wkt: str, cell_m: float) -> MapGrid:
+    """A north-up grid of ``cell_m`` over the points, its nodes on multiples of it."""
+    x0 = np.floor(np.nanmin(points.x_m) / cell_m) * cell_m
+    x1 = np.ceil(np.nanmax(points.x_m) / cell_m) * cell_m
+    y0 = np.floor(np.nanmin(points.y_m) / cell_m) * cell_m
+    y1 = np.ceil(np.nanmax(points.y_m) / cell_m) * cell_m
+    rows, cols = round((y1 - y0) / cell_m) + 1, round((x1 - x0) / cell_m) + 1
+    return MapGrid.north_up(crs_wkt, x0 - cell_m / 2, y1 + cell_m / 2, cell_m, rows, cols)
+
+
+#: The level name of a pair's DEM product, and its bands (:data:`levels.products.QUANTITY_BANDS`).
+DEM_LEVEL = "DEM"
+DEM_BANDS = ("height_m", "points", "sigma_m")
+
+
+def dem_name(dem: StereoDem) -> str:
+    """A pair's product name, as its tie points are named: ``<a>_s<k>_<b>_s<k>_DEM.nc``."""
+    a, b = dem.pair.a, dem.pair.b
+    return f"{a.name}_s{a.scene:03d}_{b.name}_s{b.scene:03d}_{DEM_LEVEL}.nc"
+
+
+def _miss_stats(points: StereoPoints) -> dict[str, float]:
+    m = points.miss_m[np.isfinite(points.miss_m)]
+    return {
+        "rms_m": float(np.sqrt(np.mean(m**2))) if m.size else float("nan"),
+        "p99_abs_m": float(np.percentile(np.abs(m), 99)) if m.size else float("nan"),
+    }
+
+
+def dem_product(
+    dem: StereoDem, quality: dict[str, Any] | None = None, inputs: list[str] | None = None
+) -> Any:
+    """The pair's DEM as a map product (``docs/stereo.md``): bands ``height_m`` (above the
+    ellipsoid, NaN in holes), ``points`` and ``sigma_m``; the pair's geometry; its quality
+    (the matching's counts, the rays' miss, and what ``quality`` adds: the truth's)."""
+    from levels import __version__
+    from levels.products import BandImage, Product
+
+    valid = np.isfinite(dem.height_m)
+    bands = {
+        "height_m": BandImage(dem.height_m, valid),  # type: ignore[arg-type]
+        "points": BandImage(dem.count, valid),  # type: ignore[arg-type]
+        "sigma_m": BandImage(dem.sigma_m, valid),  # type: ignore[arg-type]
+    }
+    a, b = dem.pair.a, dem.pair.b
+    q = {
+        "matching": dict(dem.disparity.counts),
+        "disparity_range_px": np.array(dem.disparity_range_px),
+        "ray_miss": _miss_stats(dem.points),
+        "valid_cell_fraction": float(valid.mean()),
+        "predicted_sigma_rms_m": float(np.sqrt(np.nanmean(dem.sigma_m.astype(np.float64) ** 2))),
+        "timings_s": dict(dem.timings_s),
+        **(quality or {}),
+    }
+    return Product(
+        attrs={
+            "level": DEM_LEVEL,
+            "name": f"{a.name}_s{a.scene:03d}_{b.name}_s{b.scene:03d}",
+            "vertical": "ellipsoid",
+            "datetimes_utc": f"{a.time_utc} {b.time_utc}",
+            "n_rows": dem.grid.n_rows,
+            "n_cols": dem.grid.n_cols,
+        },
+        bands=bands,
+        geometry={
+            "stereo": dem.pair.tree(),
+            "dem": {
+                "cell_m": float(abs(dem.grid.geotransform[1])),
+                "stride_px": dem.points.stride,
+                "matcher": "OpenCV StereoSGBM + least-squares refinement",
+                "refine_window_px": REFINE_WINDOW_PX,
+            },
+        },
+        quality=q,
+        provenance={"software": f"levels {__version__}", "inputs": ", ".join(inputs or [])},
+        map_grid=dem.grid,
+    )
