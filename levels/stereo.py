@@ -73,7 +73,7 @@ NODE_STEP_PX = 16
 #: Height span over which the disparity direction and the epipolar error are measured (m).
 TILT_SPAN_M = 1000.0
 #: Side of the least-squares refinement's window (pixels, odd).
-REFINE_WINDOW_PX = 7
+REFINE_WINDOW_PX = 11
 #: Refinement iterations, and how far they may move SGBM's disparity (pixels).
 REFINE_ITERATIONS = 4
 MAX_REFINE_PX = 1.0
@@ -87,7 +87,7 @@ SGBM_SPECKLE_PX, SGBM_SPECKLE_RANGE = 100, 2
 #: Margin around the tie points' disparity range (pixels, each side).
 DISPARITY_MARGIN_PX = 8.0
 #: Lowest gradient energy of a refinement window (counts² per pixel): flatter is refused.
-MIN_GRADIENT = 0.5
+MIN_GRADIENT = 0.2
 #: Points triangulated at once (memory: about 1 kB each in flight).
 _CHUNK = 1 << 20
 
@@ -295,13 +295,19 @@ def epipolar_pair(a: StereoView, b: StereoView, step: int = NODE_STEP_PX) -> Epi
     ey = np.array([ex[1], -ex[0]])
     pixel = abs(ga.geotransform[1])
     epipolar_error = float(np.nanmax(np.abs(tilt @ ey))) * TILT_SPAN_M / pixel
-    # the frame: the common footprint's corners in (u, v), on whole pixels
-    corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
-    u = corners @ ex / pixel
-    v = corners @ ey / pixel
-    u0, v0 = np.floor(u.min()), np.floor(v.min())
+    # the frame: the two footprints' common box in (u, v) (the disparity direction runs
+    # across the tracks: a scene is nearly a rectangle there), on whole pixels
+    box = [
+        (np.array([x, y]).T @ ex / pixel, np.array([x, y]).T @ ey / pixel)
+        for x, y in ((xa, ya), (xb, yb))
+    ]
+    u_lo, u_hi = max(u.min() for u, _ in box), min(u.max() for u, _ in box)
+    v_lo, v_hi = max(v.min() for _, v in box), min(v.max() for _, v in box)
+    if not (u_hi > u_lo and v_hi > v_lo):
+        raise GeometryError("the two scenes do not overlap")
+    u0, v0 = np.floor(u_lo), np.floor(v_lo)
     origin = tuple(pixel * (u0 * ex + v0 * ey))
-    shape = (int(np.ceil(v.max() - v0)) + 1, int(np.ceil(u.max() - u0)) + 1)
+    shape = (int(np.ceil(v_hi - v0)) + 1, int(np.ceil(u_hi - u0)) + 1)
     frame = EpipolarFrame(ga.crs_wkt, (float(origin[0]), float(origin[1])), tuple(ex), pixel, shape)  # type: ignore[arg-type]
     nodes = tuple(_nodes(view, frame, step) for view in (a, b))
     return EpipolarPair(
@@ -473,24 +479,86 @@ def triangulate_raw(
     return lat, lon, h, miss
 
 
-def triangulate(pair: EpipolarPair, disparity: Disparity, stride: int = 1) -> StereoPoints:
-    """Every ``stride``-th valid pixel of the disparity field, triangulated (step 3)."""
-    vv, uu = np.nonzero(disparity.valid[::stride, ::stride])
-    v, u = (vv * stride).astype(np.float64), (uu * stride).astype(np.float64)
-    d = disparity.d[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
-    sig = disparity.sigma[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
+def _triangulate_exact(
+    pair: EpipolarPair, u: NDArray, v: NDArray, d: NDArray
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Map x, y, height and miss of epipolar points ``(u, v)`` matched at ``u + d``."""
     to_map = _to_map(pair.frame.crs_wkt)
-    out = [np.empty(v.size) for _ in range(4)]
-    for k in range(0, v.size, _CHUNK):
+    out = [np.empty(u.size) for _ in range(4)]
+    for k in range(0, u.size, _CHUNK):
         s = slice(k, k + _CHUNK)
         la, ca = pair.raw_of(0, u[s], v[s])
         lb, cb = pair.raw_of(1, u[s] + d[s], v[s])
         lat, lon, h, miss = triangulate_raw(pair.a, pair.b, la, ca, lb, cb)
         x, y = to_map.transform(np.degrees(lon), np.degrees(lat))
         out[0][s], out[1][s], out[2][s], out[3][s] = x, y, h, miss
-    return StereoPoints(
+    return out[0], out[1], out[2], out[3]
+
+
+#: The triangulation's anchor grid: nodes every ``ANCHOR_STEP_PX`` epipolar pixels, and
+#: ``ANCHOR_LEVELS`` disparities over the range, fitted per node by a cubic in the
+#: disparity (a point moves along smooth curves as its disparity grows), bilinearly
+#: between nodes: level 3's anchor grids, in the pair's geometry. Its error against the
+#: rigorous triangulation is measured on ``ANCHOR_CHECKS`` points and kept.
+ANCHOR_STEP_PX = 32
+ANCHOR_LEVELS = 7
+ANCHOR_CHECKS = 2000
+
+
+def _anchor_fit(
+    pair: EpipolarPair, d_range: tuple[float, float]
+) -> tuple[NDArray, NDArray, NDArray, float, float]:
+    """Per node, the cubic coefficients in the normalised disparity of x, y, h and miss:
+    ``(4 quantities, 4 powers, nodes v, nodes u)``; the node rows, columns, and the
+    normalisation (centre, half span)."""
+    rows, cols = pair.frame.shape
+    step = ANCHOR_STEP_PX
+    nv, nu = -(-(rows - 1) // step) + 1, -(-(cols - 1) // step) + 1
+    v_n, u_n = np.arange(nv) * float(step), np.arange(nu) * float(step)
+    c, half = 0.5 * (d_range[0] + d_range[1]), max(0.5 * (d_range[1] - d_range[0]), 1.0)
+    t = np.cos(np.pi * (np.arange(ANCHOR_LEVELS) + 0.5) / ANCHOR_LEVELS)  # Chebyshev nodes
+    V, U, T = np.meshgrid(v_n, u_n, t, indexing="ij")
+    q = np.stack(_triangulate_exact(pair, U.ravel(), V.ravel(), c + half * T.ravel()))
+    q = q.reshape(4, nv, nu, ANCHOR_LEVELS)
+    powers = np.vander(t, 4, increasing=True)  # (levels, 4)
+    coef = np.linalg.lstsq(powers, q.reshape(-1, ANCHOR_LEVELS).T, rcond=None)[0]
+    return coef.T.reshape(4, nv, nu, 4).transpose(0, 3, 1, 2), v_n, u_n, c, half
+
+
+def _anchor_eval(
+    fit: tuple[NDArray, NDArray, NDArray, float, float], u: NDArray, v: NDArray, d: NDArray
+) -> NDArray:
+    """x, y, h, miss ``(4, N)`` from the anchor fit."""
+    coef, v_n, u_n, c, half = fit
+    t = (d - c) / half
+    out = np.zeros((4, u.size))
+    for p in range(3, -1, -1):  # Horner in t, each coefficient bilinearly between nodes
+        at = np.stack([bilinear_grid(v_n, u_n, coef[k, p], v, u) for k in range(4)])
+        out = out * t + at
+    return out
+
+
+def triangulate(
+    pair: EpipolarPair, disparity: Disparity, d_range: tuple[float, float], stride: int = 1
+) -> tuple[StereoPoints, float]:
+    """Every ``stride``-th valid pixel of the disparity field, triangulated through the
+    anchor grid (step 3); and the grid's largest height error on the checks (m)."""
+    vv, uu = np.nonzero(disparity.valid[::stride, ::stride])
+    v, u = (vv * stride).astype(np.float64), (uu * stride).astype(np.float64)
+    d = disparity.d[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
+    sig = disparity.sigma[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
+    fit = _anchor_fit(pair, d_range)
+    out = np.empty((4, u.size))
+    for k in range(0, u.size, _CHUNK):
+        s = slice(k, k + _CHUNK)
+        out[:, s] = _anchor_eval(fit, u[s], v[s], d[s])
+    check = np.random.default_rng(0).choice(u.size, min(ANCHOR_CHECKS, u.size), replace=False)
+    exact = np.stack(_triangulate_exact(pair, u[check], v[check], d[check]))
+    error = float(np.max(np.abs(exact[:3] - out[:3, check]))) if check.size else 0.0
+    points = StereoPoints(
         out[0], out[1], out[2], out[3], sig * pair.height_per_px_m, pair.frame.pixel_m, stride
     )
+    return points, error
 
 
 def _mean_correlation(m: int, stride: int, window: int) -> float:
@@ -542,6 +610,7 @@ class StereoDem:
     points: StereoPoints
     disparity_range_px: tuple[float, float]
     timings_s: dict[str, float]
+    anchor_error_m: float  # the triangulation grid's largest error on its checks
 
 
 def disparity_range(
@@ -570,6 +639,42 @@ def disparity_range(
     return float(np.min(d)), float(np.max(d))
 
 
+#: The coarse search's reduction, and its range beyond the tie points' (coarse pixels).
+COARSE_FACTOR = 8
+COARSE_MARGIN_PX = 24
+
+
+def coarse_range(
+    left: NDArray[np.float32], right: NDArray[np.float32], d_range: tuple[float, float]
+) -> tuple[float, float]:
+    """The disparity range of the whole pair: SGBM on both images reduced ``COARSE_FACTOR``
+    times (area averages) over the tie points' range widened by ``COARSE_MARGIN_PX`` coarse
+    pixels each side (tie points, matched where the parallax is small, may miss the
+    highest and lowest ground), where both are valid; its 1–99 % span, full scale, a
+    coarse pixel wider each side, united with ``d_range``."""
+    import cv2
+
+    f = COARSE_FACTOR
+
+    def reduce(x: NDArray) -> NDArray:  # NaN where any pixel of the area is
+        return cv2.resize(x, None, fx=1 / f, fy=1 / f, interpolation=cv2.INTER_AREA)
+
+    small = [reduce(x) for x in (left, right)]
+    lo, hi = d_range[0] / f - COARSE_MARGIN_PX, d_range[1] / f + COARSE_MARGIN_PX
+    d = _sgbm(np.nan_to_num(small[0]), np.nan_to_num(small[1]), lo, hi)
+    # only where the left pixel and its match on the right are valid
+    rows, cols = np.nonzero(np.isfinite(d) & np.isfinite(small[0]))
+    at = np.rint(cols + d[rows, cols]).astype(np.int64)
+    inside = (at >= 0) & (at < d.shape[1])
+    ok = np.zeros(rows.size, dtype=bool)
+    ok[inside] = np.isfinite(small[1][rows[inside], at[inside]])
+    d = d[rows[ok], cols[ok]] * f
+    if d.size < 100:
+        return d_range
+    p_lo, p_hi = np.percentile(d, [1.0, 99.0])
+    return min(d_range[0], float(p_lo) - f), max(d_range[1], float(p_hi) + f)
+
+
 def stereo_dem(
     pair: EpipolarPair,
     d_range: tuple[float, float],
@@ -585,16 +690,17 @@ def stereo_dem(
     left, right = pair.image(0), pair.image(1)
     t["resample"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    d_range = coarse_range(left, right, d_range)
     disparity = match(left, right, *d_range)
     t["match"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    points = triangulate(pair, disparity, stride)
+    points, anchor_error = triangulate(pair, disparity, d_range, stride)
     t["triangulate"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     grid = _dem_grid(points, pair.frame.crs_wkt, cell_px * pair.frame.pixel_m)
     h, n, sigma = grid_points(points, grid)
     t["grid"] = time.perf_counter() - t0
-    return StereoDem(grid, h, n, sigma, pair, disparity, points, d_range, t)
+    return StereoDem(grid, h, n, sigma, pair, disparity, points, d_range, t, anchor_error)
 
 
 def _dem_grid(points: StereoPoints, crs_wkt: str, cell_m: float) -> MapGrid:
@@ -646,6 +752,7 @@ def dem_product(
         "matching": dict(dem.disparity.counts),
         "disparity_range_px": np.array(dem.disparity_range_px),
         "ray_miss": _miss_stats(dem.points),
+        "triangulation_anchor_error_m": dem.anchor_error_m,
         "valid_cell_fraction": float(valid.mean()),
         "predicted_sigma_rms_m": float(np.sqrt(np.nanmean(dem.sigma_m.astype(np.float64) ** 2))),
         "timings_s": dict(dem.timings_s),

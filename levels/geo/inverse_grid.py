@@ -261,8 +261,9 @@ def bilinear_grid(
     checks and products agree to the last bit."""
     i_a, j_a = np.broadcast_arrays(np.asarray(i, dtype=np.float64), np.asarray(j, dtype=np.float64))
     step_i, step_j = rows[1] - rows[0], cols[1] - cols[0]
-    a = np.clip(np.floor(i_a / step_i).astype(np.int64), 0, rows.size - 2)
-    b = np.clip(np.floor(j_a / step_j).astype(np.int64), 0, cols.size - 2)
+    # a NaN position (a point over a DEM void) gives NaN: its node is any, its weight NaN
+    a = np.clip(np.floor(np.nan_to_num(i_a / step_i)).astype(np.int64), 0, rows.size - 2)
+    b = np.clip(np.floor(np.nan_to_num(j_a / step_j)).astype(np.int64), 0, cols.size - 2)
     u = (i_a - a * step_i) * (1.0 / step_i)
     v = (j_a - b * step_j) * (1.0 / step_j)
     at_b = (1.0 - u) * z[a, b] + u * z[a + 1, b]
