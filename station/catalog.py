@@ -137,8 +137,8 @@ def _quality(product: Product, path: Path) -> dict[str, Any]:
 def _pair_item(product: Product, path: Path) -> Any:
     """The STAC Item of a pair's product (a stereo DEM, :mod:`levels.stereo`): its map
     grid's footprint, the pair's two dates."""
-    import pystac
     import pyproj
+    import pystac
 
     grid = product.map_grid
     if grid is None:
