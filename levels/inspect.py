@@ -31,12 +31,13 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
     bands = {}
     for name, b in product.bands.items():
         v = b.image[b.valid]
+        number = float if v.dtype.kind == "f" else int  # a DEM's heights, or counts
         bands[name] = {
             "shape": list(b.image.shape),
             "dtype": str(b.image.dtype),
             "valid_fraction": round(float(b.valid.mean()), 6),
-            "min": int(v.min()) if v.size else None,
-            "max": int(v.max()) if v.size else None,
+            "min": number(v.min()) if v.size else None,
+            "max": number(v.max()) if v.size else None,
             "mean": round(float(v.mean()), 3) if v.size else None,
         }
     out: dict[str, Any] = {
@@ -79,6 +80,14 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
                 default=None,
             ),
         }
+    pair = product.geometry.get("stereo")
+    if pair:  # a stereo pair's DEM (levels.stereo)
+        out["stereo"] = {
+            "views": [str(pair["view_a"]), str(pair["view_b"])],
+            "base_to_height": round(float(pair["base_to_height"]), 4),
+            "epipolar_error_px": round(float(pair["epipolar_error_px"]), 4),
+            "cell_m": float(product.geometry.get("dem", {}).get("cell_m", np.nan)),
+        }
     rpcs = product.geometry.get("rpc")
     if rpcs:
         out["rpc"] = {
@@ -98,16 +107,26 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
 
 def summary_text(s: dict[str, Any]) -> str:
     a = s["attrs"]
-    lines = [
-        f"{s['file']} ({s['size_mb']:.1f} MB): level {a.get('level')} of "
-        f"{a.get('name')} scene {a.get('scene_index')}, HRV{a.get('hrv')} {a.get('mode')}, "
-        f"mirror step {a.get('mirror_step')}, {a.get('n_rows')} × {a.get('n_cols')} px"
-        + (f" of {a['pixel_size_m']:g} m" if a.get("pixel_size_m") else "")
-    ]
+    if "stereo" in s:
+        st = s["stereo"]
+        lines = [
+            f"{s['file']} ({s['size_mb']:.1f} MB): level {a.get('level')} of the pair "
+            f"{' + '.join(st['views'])}, B/H {st['base_to_height']:.2f}, epipolar error "
+            f"{st['epipolar_error_px']:.3f} px, {a.get('n_rows')} × {a.get('n_cols')} cells "
+            f"of {st['cell_m']:g} m, heights above the {a.get('vertical', 'ellipsoid')}"
+        ]
+    else:
+        lines = [
+            f"{s['file']} ({s['size_mb']:.1f} MB): level {a.get('level')} of "
+            f"{a.get('name')} scene {a.get('scene_index')}, HRV{a.get('hrv')} {a.get('mode')}, "
+            f"mirror step {a.get('mirror_step')}, {a.get('n_rows')} × {a.get('n_cols')} px"
+            + (f" of {a['pixel_size_m']:g} m" if a.get("pixel_size_m") else "")
+        ]
     for name, b in s["bands"].items():
+        what = "values" if b["dtype"].startswith("float") else "counts"
         lines.append(
             f"  band {name}: {b['shape'][0]} × {b['shape'][1]} {b['dtype']}, valid "
-            f"{b['valid_fraction']:.3f}, counts {b['min']}–{b['max']} (mean "
+            f"{b['valid_fraction']:.3f}, {what} {b['min']:.6g}–{b['max']:.6g} (mean "
             f"{b['mean']})"
         )
     if "scene" in s:

@@ -38,6 +38,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numba as nb
 import numpy as np
 import pyproj
 from numpy.typing import NDArray
@@ -50,6 +51,7 @@ from levels.geo.maps import MapGrid
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.model import PushbroomModel
 from levels.readers.gcp import ControlPointSet
+from levels.threads import over_blocks
 
 __all__ = [
     "MAX_REFINE_PX",
@@ -189,6 +191,7 @@ class EpipolarPair:
     base_to_height: float  # |a_b − a_a|: B/H
     epipolar_error_px: float  # the most v-parallax over TILT_SPAN_M, over the frame
     convergence_deg: float
+    tan_incidence: tuple[float, float]  # each view's: its tilt's length
 
     def raw_of(self, which: int, u: NDArray, v: NDArray) -> tuple[NDArray, NDArray]:
         """Raw (line, column) of view ``which`` (0: a, 1: b) at epipolar ``(u, v)``."""
@@ -216,7 +219,8 @@ class EpipolarPair:
         """What a DEM product keeps of the pair's geometry."""
         f = self.frame
         return {
-            "views": [f"{self.a.name}_s{self.a.scene:03d}", f"{self.b.name}_s{self.b.scene:03d}"],
+            "view_a": f"{self.a.name}_s{self.a.scene:03d}",
+            "view_b": f"{self.b.name}_s{self.b.scene:03d}",
             "reference_height_m": self.a.reference_height_m,
             "epipolar_origin_m": np.array(f.origin_m),
             "epipolar_direction": np.array(f.ex),
@@ -224,6 +228,7 @@ class EpipolarPair:
             "epipolar_shape": np.array(f.shape),
             "base_to_height": self.base_to_height,
             "convergence_deg": self.convergence_deg,
+            "tan_incidence": np.array(self.tan_incidence),
             "height_per_disparity_px_m": self.height_per_px_m,
             "epipolar_error_px": self.epipolar_error_px,
         }
@@ -283,7 +288,8 @@ def epipolar_pair(a: StereoView, b: StereoView, step: int = NODE_STEP_PX) -> Epi
         pyproj.CRS.from_wkt(ga.crs_wkt), pyproj.CRS.from_epsg(4326), always_xy=True
     ).transform(gx.ravel(), gy.ravel())
     lat, lon = np.radians(lat), np.radians(lon)
-    tilt = _tilts(b, lat, lon, to_map) - _tilts(a, lat, lon, to_map)
+    tilt_a, tilt_b = _tilts(a, lat, lon, to_map), _tilts(b, lat, lon, to_map)
+    tilt = tilt_b - tilt_a
     mean = np.nanmean(tilt, axis=0)
     base_to_height = float(np.hypot(*mean))
     if not base_to_height > 0.05:
@@ -308,7 +314,13 @@ def epipolar_pair(a: StereoView, b: StereoView, step: int = NODE_STEP_PX) -> Epi
     u0, v0 = np.floor(u_lo), np.floor(v_lo)
     origin = tuple(pixel * (u0 * ex + v0 * ey))
     shape = (int(np.ceil(v_hi - v0)) + 1, int(np.ceil(u_hi - u0)) + 1)
-    frame = EpipolarFrame(ga.crs_wkt, (float(origin[0]), float(origin[1])), tuple(ex), pixel, shape)  # type: ignore[arg-type]
+    frame = EpipolarFrame(
+        ga.crs_wkt,
+        (float(origin[0]), float(origin[1])),
+        (float(ex[0]), float(ex[1])),
+        pixel,
+        shape,
+    )
     nodes = tuple(_nodes(view, frame, step) for view in (a, b))
     return EpipolarPair(
         a=a,
@@ -320,6 +332,10 @@ def epipolar_pair(a: StereoView, b: StereoView, step: int = NODE_STEP_PX) -> Epi
         base_to_height=base_to_height,
         epipolar_error_px=epipolar_error,
         convergence_deg=float(np.degrees(2 * np.arctan(base_to_height / 2))),
+        tan_incidence=(
+            float(np.nanmean(np.hypot(*tilt_a.T))),
+            float(np.nanmean(np.hypot(*tilt_b.T))),
+        ),
     )
 
 
@@ -418,7 +434,7 @@ def match(
     rw0 = np.nan_to_num(shift_rows(right, d))
     res = lc - (rw0 - _box(rw0, w))
     n = w * w
-    s2 = _box(res * res, w) * n / (n - 2)
+    s2 = np.maximum(_box(res * res, w), 0.0) * n / (n - 2)  # the box sum's round-off
     sigma = np.sqrt(s2 / (n * np.maximum(den, 1e-6))).astype(np.float32)
     moved = np.abs(d - d0)
     refused = [
@@ -525,10 +541,39 @@ def _anchor_fit(
     return coef.T.reshape(4, nv, nu, 4).transpose(0, 3, 1, 2), v_n, u_n, c, half
 
 
+@nb.njit(cache=True, nogil=True)
+def _kernel_anchor(lo, hi, d, stride, coef, step, c, half, index, out):
+    """Rows ``lo … hi − 1`` of the strided disparity field: each valid pixel's x, y, h and
+    miss from the anchor fit (Horner in the disparity, coefficients bilinear between
+    nodes), stored at its rank ``index[row]`` + its count along the row."""
+    nv, nu = coef.shape[2], coef.shape[3]
+    for r in range(lo, hi):
+        v = r * stride
+        a = min(v // step, nv - 2)
+        fv = (v - a * step) / step
+        k = index[r]
+        for q in range(0, d.shape[1], stride):
+            dd = d[v, q]
+            if not (dd == dd):
+                continue
+            b = min(q // step, nu - 2)
+            fu = (q - b * step) / step
+            t = (dd - c) / half
+            for m in range(4):
+                acc = 0.0
+                for p in range(3, -1, -1):
+                    z = coef[m, p]
+                    at_b = (1.0 - fv) * z[a, b] + fv * z[a + 1, b]
+                    at_b1 = (1.0 - fv) * z[a, b + 1] + fv * z[a + 1, b + 1]
+                    acc = acc * t + ((1.0 - fu) * at_b + fu * at_b1)
+                out[m, k] = acc
+            k += 1
+
+
 def _anchor_eval(
     fit: tuple[NDArray, NDArray, NDArray, float, float], u: NDArray, v: NDArray, d: NDArray
 ) -> NDArray:
-    """x, y, h, miss ``(4, N)`` from the anchor fit."""
+    """x, y, h, miss ``(4, N)`` from the anchor fit at scattered points (the checks)."""
     coef, v_n, u_n, c, half = fit
     t = (d - c) / half
     out = np.zeros((4, u.size))
@@ -548,10 +593,22 @@ def triangulate(
     d = disparity.d[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
     sig = disparity.sigma[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
     fit = _anchor_fit(pair, d_range)
+    per_row = np.bincount(vv, minlength=disparity.d[::stride].shape[0])
+    index = np.concatenate([[0], np.cumsum(per_row)[:-1]]).astype(np.int64)
     out = np.empty((4, u.size))
-    for k in range(0, u.size, _CHUNK):
-        s = slice(k, k + _CHUNK)
-        out[:, s] = _anchor_eval(fit, u[s], v[s], d[s])
+    coef, v_n, _, c, half = fit
+    over_blocks(
+        _kernel_anchor,
+        per_row.size,
+        disparity.d,
+        stride,
+        np.ascontiguousarray(coef),
+        int(v_n[1] - v_n[0]),
+        float(c),
+        float(half),
+        index,
+        out,
+    )
     check = np.random.default_rng(0).choice(u.size, min(ANCHOR_CHECKS, u.size), replace=False)
     exact = np.stack(_triangulate_exact(pair, u[check], v[check], d[check]))
     error = float(np.max(np.abs(exact[:3] - out[:3, check]))) if check.size else 0.0

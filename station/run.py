@@ -578,6 +578,8 @@ def run_block(
         for s in scns:
             (stage / s.name).mkdir()
             reports.append(_run(s, stage / s.name, quicklooks, progress, runner, False))
+        if scns[0].gcps.shared:
+            _share_control_points(stage, scns)
         ties = _block_ties(stage, scns)
         block: dict[str, Any] = {}
         stereo: dict[str, Any] = {}
@@ -722,3 +724,55 @@ def _block_stereo(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
         tif = write_geotiff(product, out / name.replace(".nc", ".tif"))
         dems.append({"file": f"stereo/{name}", "geotiff": tif.name, "quality": quality})
     return {"dems": dems}
+
+
+def _share_control_points(stage: Path, scns: list[Scenario]) -> None:
+    """``[gcps] shared``: the first pass's control points measured in every other pass's
+    image where it sees them (their true ground, by that pass's true model, with its
+    pointing error), added to its ``<pass>.gcp.csv`` under the first pass's ids and map
+    positions: the same ground points in every image, as a photogrammetrist's."""
+    import numpy as np
+
+    from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
+    from levels.readers.l0 import read_l0
+    from station.sipc.process import truth_for
+
+    first = scns[0]
+    l0 = read_l0(stage / first.name / f"{first.name}.l0.h5", lazy=True)
+    acq = truth_for(first, l0).acq
+    g = acq.gcps
+    mine = read_gcps(stage / first.name / f"{first.name}.gcp.csv")
+    for k, s in enumerate(scns[1:], start=1):
+        path = stage / s.name / f"{s.name}.gcp.csv"
+        archive = read_l0(stage / s.name / f"{s.name}.l0.h5", lazy=True)
+        truth = truth_for(s, archive)
+        seen = truth.model(0).ground_to_image(g.true_lat_rad, g.true_lon_rad, g.true_h_m)
+        line = seen.line - truth.row_offset
+        rng = np.random.default_rng([s.seed, k, 37])
+        sigma = s.gcps.pointing_error_px
+        line = line + sigma * rng.standard_normal(line.size)
+        col = seen.column + sigma * rng.standard_normal(line.size)
+        inside = (
+            seen.converged
+            & (line >= 0)
+            & (line <= archive.n_lines - 1)
+            & (col >= 0)
+            & (col <= archive.n_columns - 1)
+        )
+        i = np.flatnonzero(inside)
+        shared = ControlPointSet(
+            tuple(f"{first.name}_{mine.id[j]}" for j in i),
+            mine.lon_rad[i],
+            mine.lat_rad[i],
+            mine.h_m[i],
+            line[i],
+            col[i],
+            mine.sigma_ground_m[i],
+            mine.sigma_h_m[i],
+            np.full(i.size, max(sigma, 0.01)),
+            np.full(i.size, archive.hrv, dtype=np.int64),
+        )
+        own = read_gcps(path)
+        write_gcps(
+            path, own + shared, f"control points of {s.name}, {i.size} shared with {first.name}"
+        )

@@ -404,6 +404,13 @@ class GcpConfig:
         1.0,
         2.0,
     )
+    shared: bool = option(
+        False,
+        "shared",
+        "a block: the first pass's points are also measured in every other pass's images "
+        "where they see them (stereo control points, as PHOTOMOD's: one map position, "
+        "pointed in both images), beside that pass's own",
+    )
 
     def __post_init__(self) -> None:
         if any(h not in (1.0, 2.0) for h in self.hrvs):
