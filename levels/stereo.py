@@ -476,9 +476,9 @@ class StereoPoints:
 
     x_m: NDArray[np.float64]
     y_m: NDArray[np.float64]
-    h_m: NDArray[np.float64]
-    miss_m: NDArray[np.float64]
-    sigma_h_m: NDArray[np.float64]
+    h_m: NDArray[np.float32]
+    miss_m: NDArray[np.float32]
+    sigma_h_m: NDArray[np.float32]
     pixel_m: float  # the epipolar pixel they were triangulated on
     stride: int  # every stride-th pixel of it
 
@@ -588,14 +588,12 @@ def triangulate(
 ) -> tuple[StereoPoints, float]:
     """Every ``stride``-th valid pixel of the disparity field, triangulated through the
     anchor grid (step 3); and the grid's largest height error on the checks (m)."""
-    vv, uu = np.nonzero(disparity.valid[::stride, ::stride])
-    v, u = (vv * stride).astype(np.float64), (uu * stride).astype(np.float64)
-    d = disparity.d[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
-    sig = disparity.sigma[v.astype(np.int64), u.astype(np.int64)].astype(np.float64)
-    fit = _anchor_fit(pair, d_range)
-    per_row = np.bincount(vv, minlength=disparity.d[::stride].shape[0])
+    valid = disparity.valid[::stride, ::stride]
+    per_row = np.count_nonzero(valid, axis=1)
     index = np.concatenate([[0], np.cumsum(per_row)[:-1]]).astype(np.int64)
-    out = np.empty((4, u.size))
+    n = int(per_row.sum())
+    fit = _anchor_fit(pair, d_range)
+    out = np.empty((4, n))
     coef, v_n, _, c, half = fit
     over_blocks(
         _kernel_anchor,
@@ -609,11 +607,26 @@ def triangulate(
         index,
         out,
     )
-    check = np.random.default_rng(0).choice(u.size, min(ANCHOR_CHECKS, u.size), replace=False)
-    exact = np.stack(_triangulate_exact(pair, u[check], v[check], d[check]))
+    # the checks: a random draw of the points, their pixels found from their ranks
+    check = np.sort(np.random.default_rng(0).choice(n, min(ANCHOR_CHECKS, n), replace=False))
+    row = np.searchsorted(index, check, side="right") - 1
+    col = np.array(
+        [np.flatnonzero(valid[r])[k - index[r]] for r, k in zip(row, check, strict=True)],
+        dtype=np.int64,
+    )
+    v, u = (row * stride).astype(np.float64), (col * stride).astype(np.float64)
+    d = disparity.d[row * stride, col * stride].astype(np.float64)
+    exact = np.stack(_triangulate_exact(pair, u, v, d))
     error = float(np.max(np.abs(exact[:3] - out[:3, check]))) if check.size else 0.0
+    sigma = disparity.sigma[::stride, ::stride][valid].astype(np.float32) * pair.height_per_px_m
     points = StereoPoints(
-        out[0], out[1], out[2], out[3], sig * pair.height_per_px_m, pair.frame.pixel_m, stride
+        out[0],
+        out[1],
+        out[2].astype(np.float32),
+        out[3].astype(np.float32),
+        sigma,
+        pair.frame.pixel_m,
+        stride,
     )
     return points, error
 
