@@ -769,8 +769,56 @@ def stereo_dem(
     t0 = time.perf_counter()
     grid = _dem_grid(points, pair.frame.crs_wkt, cell_px * pair.frame.pixel_m)
     h, n, sigma = grid_points(points, grid)
+    wild = blunder_cells(h, BLUNDER_FLOOR_PX * pair.height_per_px_m)
+    h[wild], sigma[wild], n[wild] = np.nan, np.nan, 0
+    disparity.counts["blunder_cells"] = int(wild.sum())
     t["grid"] = time.perf_counter() - t0
     return StereoDem(grid, h, n, sigma, pair, disparity, points, d_range, t, anchor_error)
+
+
+#: Blunder cells (:func:`blunder_cells`): the reference surface's block (cells), and how far
+#: from it a cell may lie, in robust σ of all cells' deviations, and at least in pixels of
+#: disparity.
+BLUNDER_BLOCK = 8
+BLUNDER_SIGMAS = 6.0
+BLUNDER_FLOOR_PX = 3.0
+
+
+def blunder_cells(h: NDArray[np.float32], floor_m: float) -> NDArray[np.bool_]:
+    """Cells of a gridded DEM far off the surface of their neighbourhood: wrong matches that
+    survived the matcher's tests (a patch matched at the end of the search range). The
+    surface: the median of each ``BLUNDER_BLOCK``² block's valid cells, bilinear between
+    blocks; a cell is a blunder beyond ``BLUNDER_SIGMAS`` robust σ of every cell's
+    deviation from it, and beyond ``floor_m``."""
+    from scipy import ndimage
+
+    b = BLUNDER_BLOCK
+    rows, cols = h.shape
+    pad = np.full((-(-rows // b) * b, -(-cols // b) * b), np.nan, dtype=np.float32)
+    pad[:rows, :cols] = h
+    blocks = pad.reshape(pad.shape[0] // b, b, pad.shape[1] // b, b).transpose(0, 2, 1, 3)
+    with np.errstate(all="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN blocks
+            med = np.nanmedian(blocks.reshape(*blocks.shape[:2], -1), axis=2)
+    have = np.isfinite(med)
+    if not have.any():
+        return np.zeros(h.shape, dtype=bool)
+    # empty blocks take their nearest block's median
+    near = ndimage.distance_transform_edt(~have, return_distances=False, return_indices=True)
+    med = med[tuple(near)]
+    r = (np.arange(rows) + 0.5) / b - 0.5
+    c = (np.arange(cols) + 0.5) / b - 0.5
+    rr, cc = np.meshgrid(r, c, indexing="ij")
+    surface = ndimage.map_coordinates(med, [rr, cc], order=1, mode="nearest")
+    dev = h - surface
+    ok = np.isfinite(dev)
+    if not ok.any():
+        return np.zeros(h.shape, dtype=bool)
+    spread = 1.4826 * float(np.median(np.abs(dev[ok])))
+    return ok & (np.abs(dev) > max(BLUNDER_SIGMAS * spread, floor_m))
 
 
 def _dem_grid(points: StereoPoints, crs_wkt: str, cell_m: float) -> MapGrid:

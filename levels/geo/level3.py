@@ -65,6 +65,8 @@ __all__ = [
 HEIGHT_LEVELS = 3
 #: The anchor grid's error against the rigorous model must not exceed this (raw pixels).
 ANCHOR_TOLERANCE_PX = 0.05
+#: Halving the anchor spacing goes on while it cuts the error to this share at least.
+ANCHOR_GAIN = 0.9
 #: Height margin (m) of the anchor levels beyond the DEM's range over the scene.
 HEIGHT_MARGIN_M = 50.0
 #: A ground point more than this many raw pixels of line of sight below the highest point
@@ -402,6 +404,7 @@ def level3_geometry(
     window = _dem_window(dem, template.map_grid)
     ellipsoidal = _ellipsoidal(window)
     coordinates = _dem_coordinates(window, template.map_grid, DEM_COORD_STEP)
+    best: tuple[Level3Geometry, dict[str, float]] | None = None
     while True:
         levels = tuple(
             level2a_geometry(
@@ -428,6 +431,13 @@ def level3_geometry(
         current = template.inverse_step[0]
         if err["max_px"] <= ANCHOR_TOLERANCE_PX or inverse_step_px or current <= 1 or like:
             return replace(geom, anchor_error_px=err)
+        if best is not None and err["max_px"] >= ANCHOR_GAIN * best[1]["max_px"]:
+            # halving no longer helps: the error is the heights' interpolation between the
+            # levels (a DEM spanning kilometres), which no finer grid removes; the coarser
+            # grid is kept, its error stored (a grid of 1 px would take tens of GB)
+            return replace(best[0], anchor_error_px=best[1])
+        if best is None or err["max_px"] < best[1]["max_px"]:
+            best = (geom, err)
         half = max(1, current // 2)
         template = replace(
             template,
