@@ -428,8 +428,15 @@ def match(
         rc = rw0 - _box(rw0, w)
         gm = _box(g0, w)
         den = _box(g0 * g0, w) - gm * gm
-        step = _box((g0 - gm) * (lc - rc), w) / np.maximum(den, 1e-6)
-        d = (d + np.clip(step, -0.5, 0.5)).astype(np.float32)
+        # each window solved for one shift of its own: its pixels were warped by their own
+        # disparities, so R(q + d_p) ≈ R(q + d_q) + g(q)·(d_p − d_q) (first order): the
+        # new d_p is the neighbours' d weighted by their centred gradient energy, plus the
+        # correction (without that term the windows' updates couple and oscillate)
+        dz = np.nan_to_num(d)
+        e = lc - rc
+        energy_d = _box(g0 * g0 * dz, w) - 2 * gm * _box(g0 * dz, w) + gm * gm * _box(dz, w)
+        new = (_box(g0 * e, w) - gm * _box(e, w) + energy_d) / np.maximum(den, 1e-6)
+        d = (d + np.clip(new - d, -0.5, 0.5)).astype(np.float32)
         d[~np.isfinite(rw)] = np.nan
     rw0 = np.nan_to_num(shift_rows(right, d))
     res = lc - (rw0 - _box(rw0, w))

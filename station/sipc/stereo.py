@@ -192,9 +192,11 @@ def dem_errors(dem: StereoDem, truth: StereoTruth, world: Any) -> dict[str, Any]
         "predicted_rms_m": float(np.sqrt(np.mean(sigma**2))),
         "predicted_median_m": float(np.median(sigma)),
         "std_m": float(np.std(e)),
-        # the precision: the robust spread (blunders and the model's bias left out) against
-        # the cells' typical predicted σ
-        "measured_over_predicted": float(stats["nmad"] / np.median(sigma)),
+        # the precision: each cell's error (the model's bias, the median, left out) in its
+        # own predicted σ; their robust spread is 1 if every σ is right (blunders left out)
+        "measured_over_predicted": float(
+            1.4826 * np.median(np.abs((e - stats["median"]) / sigma))
+        ),
         "_error": err,
         "_slope": slope,
         "_h_true": h_true,
