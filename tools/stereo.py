@@ -104,6 +104,9 @@ def _xdem_nmad(run: Path, dem_file: str, truth: Any) -> dict[str, float] | None:
         profile = ds.profile
     with rasterio.open(true_tif, "w", **profile) as ds:
         ds.write(h_true.astype(np.float32), 1)
+    import warnings
+
+    warnings.filterwarnings("ignore", category=RuntimeWarning)  # xdem on NaN cells
     dem = xdem.DEM(str(run / "stereo" / Path(dem_file).name.replace(".nc", ".tif")))
     ref = xdem.DEM(str(true_tif))
     diff = (dem - ref).data.filled(np.nan)
