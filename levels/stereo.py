@@ -405,6 +405,34 @@ def _sgbm(left: NDArray, right: NDArray, d_lo: float, d_hi: float) -> NDArray[np
     return d
 
 
+#: Lags over which the residual's correlation is measured (pixels, each axis).
+CORRELATION_LAGS = 4
+
+
+def _correlation_factor(res: NDArray, d: NDArray, w: int) -> float:
+    """How much the window's residuals' correlation inflates Förstner's variance: the
+    residual (what the two images still differ by once aligned: blur, aliasing, relief) is
+    not white, and the variance of a least-squares shift over ``w`` pixels of correlated
+    residuals is the white one times ``Σ (1 − |k|/w) ρ(k)`` along each axis (the variance of
+    a mean of correlated samples); ``ρ`` measured over the whole image at lags up to
+    ``CORRELATION_LAGS``."""
+    ok = np.isfinite(d) & (res != 0)
+    r = np.where(ok, res, 0.0).astype(np.float64)
+    var = float(np.sum(r * r))
+    if var <= 0:
+        return 1.0
+    factor = 1.0
+    for axis in (0, 1):
+        total = 1.0
+        for k in range(1, CORRELATION_LAGS + 1):
+            a = np.take(r, np.arange(r.shape[axis] - k), axis=axis)
+            b = np.take(r, np.arange(k, r.shape[axis]), axis=axis)
+            rho = float(np.sum(a * b)) / var
+            total += 2.0 * (1.0 - k / w) * rho
+        factor *= max(total, 1.0)
+    return factor
+
+
 def match(
     left: NDArray[np.float32], right: NDArray[np.float32], d_lo: float, d_hi: float
 ) -> Disparity:
@@ -442,7 +470,8 @@ def match(
     res = lc - (rw0 - _box(rw0, w))
     n = w * w
     s2 = np.maximum(_box(res * res, w), 0.0) * n / (n - 2)  # the box sum's round-off
-    sigma = np.sqrt(s2 / (n * np.maximum(den, 1e-6))).astype(np.float32)
+    sigma = np.sqrt(s2 / (n * np.maximum(den, 1e-6)) * _correlation_factor(res, d, w))
+    sigma = sigma.astype(np.float32)
     moved = np.abs(d - d0)
     refused = [
         ("refinement_moved", np.isfinite(d0) & ~(moved <= MAX_REFINE_PX)),
