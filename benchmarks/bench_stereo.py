@@ -34,7 +34,15 @@ TILE_PX = 1024
 
 
 def _stages(pair, d_range):
-    from levels.stereo import coarse_range, match, triangulate
+    from levels.stereo import (
+        BLUNDER_FLOOR_PX,
+        blunder_cells,
+        coarse_range,
+        dem_grid,
+        grid_points,
+        match,
+        triangulate,
+    )
 
     t = {}
     t0 = time.perf_counter()
@@ -47,8 +55,13 @@ def _stages(pair, d_range):
     disparity = match(left, right, *rng)
     t["matching"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    triangulate(pair, disparity, rng, 1)
+    points, _ = triangulate(pair, disparity, rng, 1)
     t["triangulation"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    grid = dem_grid(points, pair.frame.crs_wkt, 2 * pair.frame.pixel_m)
+    h, _, _ = grid_points(points, grid)
+    blunder_cells(h, BLUNDER_FLOOR_PX * pair.height_per_px_m)
+    t["gridding"] = time.perf_counter() - t0
     return t, left, right, rng
 
 
@@ -74,8 +87,11 @@ def _pandora(left: np.ndarray, right: np.ndarray, d_lo: float, d_hi: float) -> n
             paths.append(str(p))
         cfg = {
             "input": {
-                "left": {"img": paths[0], "disp": [int(np.floor(d_lo)), int(np.ceil(d_hi))],
-                         "nodata": -9999},
+                "left": {
+                    "img": paths[0],
+                    "disp": [int(np.floor(d_lo)), int(np.ceil(d_hi))],
+                    "nodata": -9999,
+                },
                 "right": {"img": paths[1], "nodata": -9999},
             },
             "pipeline": {
@@ -93,8 +109,10 @@ def _pandora(left: np.ndarray, right: np.ndarray, d_lo: float, d_hi: float) -> n
         machine = PandoraMachine()
         cfg = check_conf(cfg, machine)
         img_l = create_dataset_from_inputs(input_config=cfg["input"]["left"])
-        cfg["input"]["right"]["disp"] = [-cfg["input"]["left"]["disp"][1],
-                                         -cfg["input"]["left"]["disp"][0]]
+        cfg["input"]["right"]["disp"] = [
+            -cfg["input"]["left"]["disp"][1],
+            -cfg["input"]["left"]["disp"][0],
+        ]
         img_r = create_dataset_from_inputs(input_config=cfg["input"]["right"])
         out, _ = pandora.run(machine, img_l, img_r, cfg)
     d = out["disparity_map"].values.astype(np.float64)
@@ -132,17 +150,21 @@ def main(argv: list[str]) -> int:
         t, left, right, rng = _stages(pair, d_range)
         best = {k: min(v, best.get(k, np.inf)) for k, v in t.items()}
     total = sum(best.values())
-    print(f"full P pair {pair.frame.shape[1]} × {pair.frame.shape[0]} epipolar px, B/H "
-          f"{pair.base_to_height:.2f}, disparities {rng[0]:.0f} … {rng[1]:.0f} px")
-    print(f"  the pair's grids and views, read once: {t_pair:.1f} s (products read, GEO)")
+    print(
+        f"full P pair {pair.frame.shape[1]} × {pair.frame.shape[0]} epipolar px, B/H "
+        f"{pair.base_to_height:.2f}, disparities {rng[0]:.0f} … {rng[1]:.0f} px"
+    )
+    print(f"  the pair's products read, the truth, the epipolar grids: {t_pair:.1f} s")
     for k, v in best.items():
         print(f"  {k:14s} {v:6.1f} s")
-    print(f"  total          {total:6.1f} s   target ≤ {TARGET_S:.0f} s: "
-          f"{'met' if total <= TARGET_S else 'NOT met'} ({total / TARGET_S:.2f} of it)")
+    print(
+        f"  total          {total:6.1f} s   target ≤ {TARGET_S:.0f} s: "
+        f"{'met' if total <= TARGET_S else 'NOT met'} ({total / TARGET_S:.2f} of it)"
+    )
     # the peer, on one tile of the same epipolar images
-    exact = exact_disparity(pair, truth, 2)
     rows, cols = left.shape
     r0, c0 = (rows - TILE_PX) // 2, (cols - TILE_PX) // 2
+    exact = exact_disparity(pair, truth, 2, (r0, r0 + TILE_PX, c0, c0 + TILE_PX))
     tl = left[r0 : r0 + TILE_PX, c0 : c0 + TILE_PX]
     tr = right[r0 : r0 + TILE_PX, c0 : c0 + TILE_PX]
     lo, hi = float(np.nanmin(exact["d"])) - 8, float(np.nanmax(exact["d"])) + 8

@@ -61,7 +61,9 @@ __all__ = [
     "EpipolarPair",
     "StereoDem",
     "StereoView",
+    "blunder_cells",
     "closest_approach",
+    "dem_grid",
     "epipolar_pair",
     "grid_points",
     "match",
@@ -803,7 +805,7 @@ def stereo_dem(
     points, anchor_error = triangulate(pair, disparity, d_range, stride)
     t["triangulate"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    grid = _dem_grid(points, pair.frame.crs_wkt, cell_px * pair.frame.pixel_m)
+    grid = dem_grid(points, pair.frame.crs_wkt, cell_px * pair.frame.pixel_m)
     h, n, sigma = grid_points(points, grid)
     wild = blunder_cells(h, BLUNDER_FLOOR_PX * pair.height_per_px_m)
     h[wild], sigma[wild], n[wild] = np.nan, np.nan, 0
@@ -857,7 +859,7 @@ def blunder_cells(h: NDArray[np.float32], floor_m: float) -> NDArray[np.bool_]:
     return ok & (np.abs(dev) > max(BLUNDER_SIGMAS * spread, floor_m))
 
 
-def _dem_grid(points: StereoPoints, crs_wkt: str, cell_m: float) -> MapGrid:
+def dem_grid(points: StereoPoints, crs_wkt: str, cell_m: float) -> MapGrid:
     """A north-up grid of ``cell_m`` over the points, its nodes on multiples of it."""
     x0 = np.floor(np.nanmin(points.x_m) / cell_m) * cell_m
     x1 = np.ceil(np.nanmax(points.x_m) / cell_m) * cell_m

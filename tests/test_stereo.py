@@ -18,7 +18,7 @@ import pytest
 from scipy import ndimage
 
 from levels.cor.epipolar import resample_epipolar, shift_rows
-from levels.stereo import closest_approach
+from levels.stereo import blunder_cells, closest_approach
 
 #: The exact disparity's v-parallax on the reduced pair: the epipolar grid's own error plus
 #: the adjusted models' relative error across the rows (measured 0.012 px; 0.11 px at full
@@ -82,6 +82,19 @@ def test_the_common_perpendicular_of_lines_that_meet_is_their_meeting_point() ->
     np.testing.assert_allclose(np.abs(miss), 2.0, atol=1e-6)
 
 
+def test_a_spike_in_a_dem_is_a_blunder_and_the_relief_is_not() -> None:
+    """A planted patch 300 m off a sloping, rough surface is found, and only it."""
+    rng = np.random.default_rng(3)
+    rows, cols = np.mgrid[0:200, 0:240].astype(np.float64)
+    h = 400.0 + 2.0 * rows + 40.0 * np.sin(cols / 15.0) + rng.normal(0, 3.0, rows.shape)
+    h = h.astype(np.float32)
+    h[50:53, 60:63] += 300.0
+    h[120:140, 10:30] = np.nan  # a hole stays a hole, and does not count
+    wild = blunder_cells(h, floor_m=30.0)
+    assert wild[50:53, 60:63].all()
+    assert wild.sum() == 9
+
+
 @pytest.fixture(scope="module")
 def stereo_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from station.cli import main
@@ -108,6 +121,11 @@ def test_the_pair_makes_a_dem_measured_against_the_terrain(stereo_run: Path) -> 
     assert q["disparity"]["valid_fraction"] >= VALID_SHARE
     assert q["heights"]["nmad"] <= DEM_NMAD_PX * pixel
     assert q["heights"]["coverage_of_seen"] >= COVERAGE
+    # the five control points of pass a, measured in b's image too ([gcps] shared)
+    from levels.readers.gcp import read_gcps
+
+    shared = read_gcps(stereo_run / "stereo_pair_b" / "stereo_pair_b.gcp.csv")
+    assert len(shared) == 5 and all(i.startswith("stereo_pair_a_") for i in shared.id)
     # holes are holes: no height where no point was triangulated
     h, n = dem.bands["height_m"], dem.bands["points"]
     assert np.all(np.isnan(h.image[n.image == 0]))

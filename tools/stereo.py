@@ -106,16 +106,17 @@ def _xdem_nmad(run: Path, dem_file: str, truth: Any) -> dict[str, float] | None:
         ds.write(h_true.astype(np.float32), 1)
     import warnings
 
-    warnings.filterwarnings("ignore", category=RuntimeWarning)  # xdem on NaN cells
-    dem = xdem.DEM(str(run / "stereo" / Path(dem_file).name.replace(".nc", ".tif")))
-    ref = xdem.DEM(str(true_tif))
-    diff = (dem - ref).data.filled(np.nan)
-    slope = np.asarray(xdem.terrain.slope(ref).data.filled(np.nan))
-    out = {"all": float(xdem.spatialstats.nmad(diff[np.isfinite(diff)]))}
-    for lo, hi in SLOPE_CLASSES_DEG:
-        k = np.isfinite(diff) & (slope >= lo) & (slope < hi)
-        if k.sum() > 100:
-            out[f"{lo:g}-{hi:g}deg"] = float(xdem.spatialstats.nmad(diff[k]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # xdem's numpy on masked and NaN cells
+        dem = xdem.DEM(str(run / "stereo" / Path(dem_file).name.replace(".nc", ".tif")))
+        ref = xdem.DEM(str(true_tif))
+        diff = (dem - ref).data.filled(np.nan)
+        slope = np.asarray(xdem.terrain.slope(ref).data.filled(np.nan))
+        out = {"all": float(xdem.spatialstats.nmad(diff[np.isfinite(diff)]))}
+        for lo, hi in SLOPE_CLASSES_DEG:
+            k = np.isfinite(diff) & (slope >= lo) & (slope < hi)
+            if k.sum() > 100:
+                out[f"{lo:g}-{hi:g}deg"] = float(xdem.spatialstats.nmad(diff[k]))
     return out
 
 
@@ -143,8 +144,10 @@ def main(argv: list[str]) -> int:
         f"see {h['coverage_of_seen']:.1%} (≥ 95 %)"
     )
     for k, s in h["by_slope"].items():
-        print(f"    slope {k:9s} {s['count']:9d} cells: NMAD {s['nmad']:.2f} m, LE90 "
-              f"{s['le90']:.2f} m, mean {s['mean']:+.2f} m")
+        print(
+            f"    slope {k:9s} {s['count']:9d} cells: NMAD {s['nmad']:.2f} m, LE90 "
+            f"{s['le90']:.2f} m, mean {s['mean']:+.2f} m"
+        )
     print(
         f"  predicted σ (median) {h['predicted_median_m']:.2f} m, measured NMAD "
         f"{h['nmad']:.2f} m: measured / predicted {h['measured_over_predicted']:.2f} "

@@ -66,14 +66,18 @@ def _inside(view: StereoView, line: NDArray, col: NDArray) -> NDArray[np.bool_]:
 
 
 def exact_disparity(
-    pair: EpipolarPair, truth: StereoTruth, step: int = 4
+    pair: EpipolarPair,
+    truth: StereoTruth,
+    step: int = 4,
+    box: tuple[int, int, int, int] | None = None,
 ) -> dict[str, NDArray[np.float64]]:
     """The exact disparity and ``v``-parallax at every ``step``-th epipolar pixel that
-    both raw images see: ``u``, ``v`` (whole pixels), ``d`` and ``dv`` (module docstring)."""
-    rows, cols = pair.frame.shape
+    both raw images see (of rows ``box[0]:box[1]`` and columns ``box[2]:box[3]``, default
+    all): ``u``, ``v`` (whole pixels), ``d`` and ``dv`` (module docstring)."""
+    r0, r1, c0, c1 = box or (0, pair.frame.shape[0], 0, pair.frame.shape[1])
     v, u = (
         x.ravel().astype(np.float64)
-        for x in np.meshgrid(np.arange(0, rows, step), np.arange(0, cols, step), indexing="ij")
+        for x in np.meshgrid(np.arange(r0, r1, step), np.arange(c0, c1, step), indexing="ij")
     )
     la, ca = pair.raw_of(0, u, v)
     k = _inside(pair.a, la, ca)
@@ -185,18 +189,14 @@ def dem_errors(dem: StereoDem, truth: StereoTruth, world: Any) -> dict[str, Any]
     return {
         **stats,
         "by_slope": by_slope,
-        "coverage_of_seen": float(
-            np.sum(valid[::every, ::every] & seen) / max(1, int(seen.sum()))
-        ),
+        "coverage_of_seen": float(np.sum(valid[::every, ::every] & seen) / max(1, int(seen.sum()))),
         "coverage_lattice_every": every,
         "predicted_rms_m": float(np.sqrt(np.mean(sigma**2))),
         "predicted_median_m": float(np.median(sigma)),
         "std_m": float(np.std(e)),
         # the precision: each cell's error (the model's bias, the median, left out) in its
         # own predicted σ; their robust spread is 1 if every σ is right (blunders left out)
-        "measured_over_predicted": float(
-            1.4826 * np.median(np.abs((e - stats["median"]) / sigma))
-        ),
+        "measured_over_predicted": float(1.4826 * np.median(np.abs((e - stats["median"]) / sigma))),
         "_error": err,
         "_slope": slope,
         "_h_true": h_true,
