@@ -388,6 +388,11 @@ def _sgbm(left: NDArray, right: NDArray, d_lo: float, d_hi: float) -> NDArray[np
 
     lo = int(np.floor(-d_hi - DISPARITY_MARGIN_PX))
     n = int(np.ceil((d_hi - d_lo + 2 * DISPARITY_MARGIN_PX) / 16.0)) * 16
+    if n + SGBM_BLOCK_PX >= left.shape[1]:
+        raise GeometryError(
+            f"a disparity search of {n} px over epipolar images {left.shape[1]} px wide: the "
+            "pair overlaps too little for its relief"
+        )
     cn = 1
     sgbm = cv2.StereoSGBM.create(
         minDisparity=lo,
@@ -769,7 +774,10 @@ def coarse_range(
 
     small = [reduce(x) for x in (left, right)]
     lo, hi = d_range[0] / f - COARSE_MARGIN_PX, d_range[1] / f + COARSE_MARGIN_PX
-    d = _sgbm(np.nan_to_num(small[0]), np.nan_to_num(small[1]), lo, hi)
+    try:
+        d = _sgbm(np.nan_to_num(small[0]), np.nan_to_num(small[1]), lo, hi)
+    except GeometryError:  # a pair too small to be reduced that much: the tie points' range
+        return d_range
     # only where the left pixel and its match on the right are valid
     rows, cols = np.nonzero(np.isfinite(d) & np.isfinite(small[0]))
     at = np.rint(cols + d[rows, cols]).astype(np.int64)
