@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -148,9 +149,24 @@ def truth_for(scn: Scenario, archive: L0Archive) -> Truth:
         raise ScenarioError(
             f"{archive.path} holds HRV{archive.hrv}; scenario {scn.name!r} images with HRV{numbers}"
         )
-    # geometry only: the truth of a checkpoint is where its pixel looks, not what it saw
-    acq = emulate(scn, render=False, instrument=numbers.index(archive.hrv))
+    # geometry only: the truth of a checkpoint is where its pixel looks, not what it saw;
+    # emulated once per scenario and HRV (a block run asks for it at each of its stages)
+    key = (scn.name, scn.source_sha256, scn.seed, archive.hrv)
+    if scn.source_sha256 and key in _TRUTHS:
+        acq = _TRUTHS[key]
+    else:
+        acq = emulate(scn, render=False, instrument=numbers.index(archive.hrv))
+        if scn.source_sha256:
+            _TRUTHS[key] = acq
+            while len(_TRUTHS) > _TRUTHS_KEPT:
+                _TRUTHS.pop(next(iter(_TRUTHS)))
     return Truth.of(acq, archive)
+
+
+#: Geometry-only acquisitions emulated for the truth, by scenario (its file's SHA-256) and
+#: HRV; the last few kept (a full pass's geometry is a few MB).
+_TRUTHS: dict[tuple[str, str, int, int], Any] = {}
+_TRUTHS_KEPT = 8
 
 
 def reprocess_l0(
