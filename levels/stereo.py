@@ -527,12 +527,17 @@ class StereoPoints:
 
 
 def triangulate_raw(
-    a: StereoView, b: StereoView, la: NDArray, ca: NDArray, lb: NDArray, cb: NDArray
+    a: PushbroomModel,
+    b: PushbroomModel,
+    la: NDArray,
+    ca: NDArray,
+    lb: NDArray,
+    cb: NDArray,
 ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """Latitude, longitude (rad), height (m) and miss (m) of points measured at raw
-    ``(la, ca)`` in ``a`` and ``(lb, cb)`` in ``b``."""
-    r1, u1 = a.model.sight(la, ca)
-    r2, u2 = b.model.sight(lb, cb)
+    ``(la, ca)`` in the image of model ``a`` and ``(lb, cb)`` in that of ``b``."""
+    r1, u1 = a.sight(la, ca)
+    r2, u2 = b.sight(lb, cb)
     mid, miss = closest_approach(r1, u1, r2, u2)
     lat, lon, h = WGS84.to_geodetic(mid)
     return lat, lon, h, miss
@@ -548,7 +553,7 @@ def _triangulate_exact(
         s = slice(k, k + _CHUNK)
         la, ca = pair.raw_of(0, u[s], v[s])
         lb, cb = pair.raw_of(1, u[s] + d[s], v[s])
-        lat, lon, h, miss = triangulate_raw(pair.a, pair.b, la, ca, lb, cb)
+        lat, lon, h, miss = triangulate_raw(pair.a.model, pair.b.model, la, ca, lb, cb)
         x, y = to_map.transform(np.degrees(lon), np.degrees(lat))
         out[0][s], out[1][s], out[2][s], out[3][s] = x, y, h, miss
     return out[0], out[1], out[2], out[3]

@@ -44,6 +44,7 @@ from levels.geo.level2a import Level2AGeometry
 from levels.geometry.model import PushbroomModel
 from levels.readers.dem import EARTH_HEIGHTS_M
 from levels.readers.gcp import ControlPointSet
+from levels.stereo import closest_approach
 
 __all__ = [
     "BACK_MATCH_PX",
@@ -291,23 +292,6 @@ def _lucas_kanade(
     return r, c
 
 
-def _closest(
-    r1: NDArray, u1: NDArray, r2: NDArray, u2: NDArray
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Mid-point of the common perpendicular of two lines (PHOTOMOD's triangulation) and
-    their signed miss along it (m)."""
-    w = r1 - r2
-    b = np.sum(u1 * u2, axis=1)
-    d, e = np.sum(u1 * w, axis=1), np.sum(u2 * w, axis=1)
-    den = 1.0 - b**2
-    s = (b * e - d) / den
-    t = (e - b * d) / den
-    p1, p2 = r1 + s[:, None] * u1, r2 + t[:, None] * u2
-    n = np.cross(u1, u2)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    return 0.5 * (p1 + p2), np.sum((p2 - p1) * n, axis=1)
-
-
 def _sampler(b: MapView, to_b: Any) -> Any:
     """``sample_b(rows, cols, h, order)``: windows of ``b`` on ``a``'s grid around
     positions of ``a``'s grid (``to_b``: :func:`_b_of_a`); ``b``'s cubic B-spline
@@ -399,7 +383,7 @@ def _approximate_ground(
 
     r1, u1 = a.model.sight(la, cola)
     r2, u2 = b.model.sight(lb, colb)
-    mid, ypar = _closest(r1, u1, r2, u2)
+    mid, ypar = closest_approach(r1, u1, r2, u2)
     lat, lon, h = WGS84.to_geodetic(mid)
     h_lo, h_hi = EARTH_HEIGHTS_M
     wild = np.isfinite(h) & ((h < h_lo) | (h > h_hi))

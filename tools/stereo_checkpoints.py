@@ -23,6 +23,7 @@ from levels.adjust import Strip, adjust_block
 from levels.geometry.ellipsoid import WGS84
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
+from levels.stereo import triangulate_raw
 from station.scenario import merge_tables, scenario_from_dict
 from station.sipc.process import control_points, emulated_pass
 from station.sipc.truth import Truth, true_tie_points
@@ -94,13 +95,13 @@ def _checkpoints(a, b, models, rng: np.random.Generator) -> tuple[np.ndarray, np
     ok &= (seen.column > 0) & (seen.column < SCENE - 1) & np.isfinite(h)
     k = np.flatnonzero(ok)[:25]
     noise = POINTING_PX * rng.standard_normal((4, k.size))
-    ma, mb = models
-    r1, u1 = ma.sight(line[k] + noise[0], col[k] + noise[1])
-    r2, u2 = mb.sight(seen.line[k] + noise[2], seen.column[k] + noise[3])
-    from levels.stereo import closest_approach
-
-    mid, _ = closest_approach(r1, u1, r2, u2)
-    plat, plon, ph = WGS84.to_geodetic(mid)
+    plat, plon, ph, _ = triangulate_raw(
+        *models,
+        line[k] + noise[0],
+        col[k] + noise[1],
+        seen.line[k] + noise[2],
+        seen.column[k] + noise[3],
+    )
     north = (plat - lat[k]) * WGS84.a_m
     east = (plon - lon[k]) * WGS84.a_m * np.cos(lat[k])
     return np.hypot(east, north), ph - h[k]

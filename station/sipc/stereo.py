@@ -197,9 +197,6 @@ def dem_errors(dem: StereoDem, truth: StereoTruth, world: Any) -> dict[str, Any]
         # the precision: each cell's error (the model's bias, the median, left out) in its
         # own predicted σ; their robust spread is 1 if every σ is right (blunders left out)
         "measured_over_predicted": float(1.4826 * np.median(np.abs((e - stats["median"]) / sigma))),
-        "_error": err,
-        "_slope": slope,
-        "_h_true": h_true,
     }
 
 
@@ -240,7 +237,9 @@ def checkpoints(
         measured.append((line, col, img.converged & _inside(view, line, col)))
     ok = measured[0][2] & measured[1][2] & np.isfinite(h)
     (la2, ca2, _), (lb2, cb2, _) = measured
-    plat, plon, ph, miss = triangulate_raw(pair.a, pair.b, la2[ok], ca2[ok], lb2[ok], cb2[ok])
+    plat, plon, ph, miss = triangulate_raw(
+        pair.a.model, pair.b.model, la2[ok], ca2[ok], lb2[ok], cb2[ok]
+    )
     north = (plat - lat[ok]) * WGS84.a_m
     east = (plon - lon[ok]) * WGS84.a_m * np.cos(lat[ok])
     dh = ph - h[ok]
@@ -267,7 +266,7 @@ def stereo_quality(
     errors = dem_errors(dem, truth, world)
     return {
         "disparity": disparity_errors(dem, exact),
-        "heights": {k: v for k, v in errors.items() if not k.startswith("_")},
+        "heights": errors,
         "checkpoints": {
             k: v for k, v in checkpoints(dem.pair, truth, world).items() if k != "stats"
         },
