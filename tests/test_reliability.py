@@ -150,7 +150,15 @@ def test_a_sigint_in_a_rerun_leaves_the_previous_run_whole(run_dir, tmp_path) ->
     shutil.copytree(run_dir, out)
     before = tree(out)
     cmd = [sys.executable, "-m", "station.cli", "run", str(SMALL), "--out", str(out), "-q"]
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    # a suite started in the background by a shell without job control (`pytest &`) runs with
+    # SIGINT ignored, and a child inherits that: it would never see the Ctrl-C. The child is
+    # given Python's own handler, which exec resets to the default and Python maps to
+    # KeyboardInterrupt, as in a terminal.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     try:
         deadline = time.monotonic() + 120
         while not list(tmp_path.glob(".run.*.staging/small_test.gcp.csv")):
