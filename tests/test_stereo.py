@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from levels.cor.epipolar import resample_epipolar, shift_rows
-from levels.stereo import blunder_cells, closest_approach
+from levels.cor.epipolar import WINDOW_SUMS, resample_epipolar, shift_rows, window_solve
+from levels.stereo import _window_sums, blunder_cells, closest_approach, match
 
 #: The exact disparity's v-parallax on the reduced pair: the epipolar grid's own error plus
 #: the adjusted models' relative error across the rows (measured 0.012 px; 0.11 px at full
@@ -65,6 +65,63 @@ def test_a_shift_along_the_rows_is_cubic_convolution() -> None:
     out = shift_rows(image, shift)
     np.testing.assert_allclose(out[:, 1:45], image[:, 1:45] + 1.5 * 2.25, atol=1e-4)
     assert np.isnan(out[:, -1]).all()
+
+
+def test_each_window_is_the_least_squares_solution_of_its_pixels() -> None:
+    """``window_solve`` from the window sums equals numpy's least squares of each window's
+    pixels (``y = c + g·(θ₃ + θ₀·x + θ₁·z) + θ₂·gv``, left-out pixels dropped): the shift,
+    its variance per unit weight and the residual variance."""
+    rng = np.random.default_rng(3)
+    w, shape = 7, (20, 24)
+    g, gv, y = (rng.normal(size=shape).astype(np.float32) for _ in range(3))
+    kept = rng.uniform(size=shape) > 0.2
+    g, gv, y = (np.where(kept, x, 0.0).astype(np.float32) for x in (g, gv, y))
+    sums = _window_sums(g, gv, y, kept.astype(np.float32), w)
+    assert sums.shape[0] == len(WINDOW_SUMS)
+    shift, var, s2 = window_solve(sums, w * w // 2)
+    h = w // 2
+    z, x = np.mgrid[-h : h + 1, -h : h + 1]
+    for i, j in [(5, 5), (10, 12), (14, 17)]:
+        win = (slice(i - h, i + h + 1), slice(j - h, j + h + 1))
+        k = kept[win]
+        a = np.column_stack(
+            [np.ones(k.sum()), (g[win] * x)[k], (g[win] * z)[k], gv[win][k], g[win][k]]
+        )
+        theta, sse, *_ = np.linalg.lstsq(a.astype(np.float64), y[win][k], rcond=None)
+        n = int(k.sum())
+        cov = np.linalg.inv(a.T @ a)
+        np.testing.assert_allclose(shift[i, j], theta[4], rtol=1e-3, atol=1e-4)
+        np.testing.assert_allclose(var[i, j], cov[4, 4], rtol=1e-3)
+        np.testing.assert_allclose(s2[i, j], sse[0] / (n - 5), rtol=1e-3)
+
+
+#: A sloping disparity (0.15 px per px, as on the full pair's steepest slopes) with a
+#: v-parallax of 0.1 px, matched on a band-limited texture without noise: measured 0.003 px
+#: RMS (0.013 px at most); a window solving for one shift was off by 0.081 px RMS (0.34 at
+#: most: the slope times where the texture lies in the window), 0.023 px with the
+#: v-parallax alone.
+SLOPE_MATCH_PX = 0.01
+
+
+def test_a_sloping_disparity_is_matched_at_each_pixel_not_averaged_over_its_window() -> None:
+    rng = np.random.default_rng(7)
+    n_k = 40
+    k = rng.uniform(0.05, 1.6, n_k) * np.exp(1j * rng.uniform(0, 2 * np.pi, n_k))
+    amp, phase = rng.uniform(4, 10, n_k) / np.sqrt(n_k / 10), rng.uniform(0, 2 * np.pi, n_k)
+
+    def texture(xx: np.ndarray, yy: np.ndarray) -> np.ndarray:
+        f = xx[..., None] * k.real + yy[..., None] * k.imag + phase
+        return (128 + np.sum(amp * np.sin(f), axis=-1)).astype(np.float32)
+
+    v, u = np.mgrid[0:160, 0:320].astype(np.float64)
+    a, b, dv = -6.0, 0.15, 0.1
+    left = texture(u, v)
+    right = texture((u - a) / (1 + b), v - dv)  # right(u + a + b·u, v + dv) = left(u, v)
+    got = match(left, right, -10.0, 40.0)
+    inner = (slice(20, -20), slice(100, -60))  # SGBM leaves its search's width on the left
+    e = (got.d - (a + b * u))[inner]
+    assert np.isfinite(e).mean() > 0.95
+    assert np.sqrt(np.nanmean(e**2)) < SLOPE_MATCH_PX
 
 
 def test_the_common_perpendicular_of_lines_that_meet_is_their_meeting_point() -> None:

@@ -8,7 +8,9 @@ convolution (``a = −½``), as the 2A kernel (:mod:`levels.cor.resample`):
   columns, then, for each of the four columns of the cubic window, its raw line from the
   node grid of that column's CCD segment (the line seen at a ground point jumps across a
   butting): the 2A kernel's arithmetic on the epipolar grid's nodes;
-* :func:`shift_rows`: ``out[v, u] = image[v, u + d[v, u]]``, cubic along the row.
+* :func:`shift_rows`: ``out[v, u] = image[v, u + d[v, u]]``, cubic along the row;
+* :func:`window_solve`: each pixel's least-squares window, from the window sums of its
+  regressors' products (:data:`WINDOW_SUMS`), solved by a 4 × 4 Cholesky.
 
 A pixel is NaN (not valid) when any raw pixel it reads is NaN or outside the image.
 """
@@ -24,7 +26,7 @@ from numpy.typing import NDArray
 from levels.cor.resample import _FAST, _keys
 from levels.threads import over_blocks
 
-__all__ = ["resample_epipolar", "shift_rows"]
+__all__ = ["WINDOW_SUMS", "resample_epipolar", "shift_rows", "window_solve"]
 
 #: Rows a thread takes at once.
 _BLOCK_ROWS = 32
@@ -144,3 +146,114 @@ def shift_rows(image: NDArray[np.float32], shift: NDArray[np.float32]) -> NDArra
         out,
     )
     return out
+
+
+#: The window sums :func:`window_solve` takes, in its order: ``g`` the row gradient and
+#: ``gv`` the column gradient of the warped right image, ``y`` the observation, ``x`` and
+#: ``z`` a pixel's column and row offsets from the window's centre; all zero on the pixels
+#: the window leaves out, and ``"yy"`` is followed by ``"n"``, the pixels it keeps.
+WINDOW_SUMS = (
+    "g", "gx", "gz", "gv", "y",
+    "gg", "ggx", "ggz", "ggxx", "ggxz", "ggzz",
+    "ggv", "ggvx", "ggvz", "gvgv",
+    "gy", "gyx", "gyz", "gvy", "yy", "n",
+)  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True, fastmath=_FAST)
+def _kernel_window(lo, hi, s, least, out, var, s2):
+    nn = np.empty((4, 4))
+    r = np.empty(4)
+    m = np.empty(4)
+    low = np.empty((4, 4))
+    w = np.empty(4)
+    for bk in range(lo, hi):
+        for i in range(bk * _BLOCK_ROWS, min((bk + 1) * _BLOCK_ROWS, out.shape[0])):
+            for j in range(out.shape[1]):
+                n = s[20, i, j]
+                if n < least:
+                    out[i, j] = np.nan
+                    var[i, j] = np.nan
+                    s2[i, j] = np.nan
+                    continue
+                # regressors, the shift's last: g·x, g·z, gv, g (its Cholesky pivot is then
+                # the shift's own: θ₃ = w₃ / L₃₃, var(θ₃) = 1 / L₃₃²)
+                m[0] = s[1, i, j]
+                m[1] = s[2, i, j]
+                m[2] = s[3, i, j]
+                m[3] = s[0, i, j]
+                sy = s[4, i, j]
+                nn[0, 0] = s[8, i, j]
+                nn[0, 1] = s[9, i, j]
+                nn[0, 2] = s[12, i, j]
+                nn[0, 3] = s[6, i, j]
+                nn[1, 1] = s[10, i, j]
+                nn[1, 2] = s[13, i, j]
+                nn[1, 3] = s[7, i, j]
+                nn[2, 2] = s[14, i, j]
+                nn[2, 3] = s[11, i, j]
+                nn[3, 3] = s[5, i, j]
+                r[0] = s[16, i, j]
+                r[1] = s[17, i, j]
+                r[2] = s[18, i, j]
+                r[3] = s[15, i, j]
+                ok = True
+                for a in range(4):
+                    r[a] -= m[a] * sy / n
+                    for b in range(a, 4):
+                        nn[a, b] -= m[a] * m[b] / n
+                for a in range(4):  # Cholesky, lower
+                    for b in range(a + 1):
+                        acc = nn[b, a]
+                        for k in range(b):
+                            acc -= low[a, k] * low[b, k]
+                        if a == b:
+                            if acc <= 1e-9 * max(nn[a, a], 1e-30):
+                                ok = False
+                                break
+                            low[a, a] = math.sqrt(acc)
+                        else:
+                            low[a, b] = acc / low[b, b]
+                    if not ok:
+                        break
+                if not ok:
+                    out[i, j] = np.nan
+                    var[i, j] = np.nan
+                    s2[i, j] = np.nan
+                    continue
+                ww = 0.0
+                for a in range(4):
+                    acc = r[a]
+                    for k in range(a):
+                        acc -= low[a, k] * w[k]
+                    w[a] = acc / low[a, a]
+                    ww += w[a] * w[a]
+                out[i, j] = w[3] / low[3, 3]
+                var[i, j] = 1.0 / (low[3, 3] * low[3, 3])
+                s2[i, j] = max(s[19, i, j] - sy * sy / n - ww, 0.0) / (n - 5.0)
+
+
+def window_solve(
+    sums: NDArray[np.float32], least: int
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """Each pixel's window solved by least squares: ``y = c + g·(θ₃ + θ₀·x + θ₁·z) + θ₂·gv``
+    (an offset, an affine shift along the row, a shift across it), from the window sums
+    ``sums[k]`` of :data:`WINDOW_SUMS`. Returns the shift at the centre ``θ₃``, its
+    variance per unit weight (``(N⁻¹)₃₃``, the offset eliminated) and the residual variance
+    (``n − 5`` degrees of freedom); NaN where the window is singular or keeps fewer than
+    ``least`` pixels."""
+    if sums.shape[0] != len(WINDOW_SUMS):
+        raise ValueError(f"{sums.shape[0]} window sums, not {len(WINDOW_SUMS)}")
+    out = np.empty(sums.shape[1:], dtype=np.float32)
+    var = np.empty_like(out)
+    s2 = np.empty_like(out)
+    over_blocks(
+        _kernel_window,
+        -(-out.shape[0] // _BLOCK_ROWS),
+        np.ascontiguousarray(sums, dtype=np.float32),
+        float(max(least, 6)),
+        out,
+        var,
+        s2,
+    )
+    return out, var, s2
