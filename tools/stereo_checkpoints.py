@@ -2,14 +2,20 @@
 
 The pair of ``scenarios/stereo/stereo_pair.toml`` at full size (6000 × 6000, mirror −22.8°
 and +27°, 400 m of relief), the default errors drawn anew per draw: five control points of
-the first pass, each also measured in the second's image (``[gcps] shared``), tie points
-from the truth (``station.sipc.truth.true_tie_points``: a 10 × 10 lattice, 0.2 px of noise,
-the matcher's figure), one block adjustment; then 25 checkpoints of the terrain, their true
-image positions in both scenes with 0.3 px of pointing error, triangulated on the adjusted
-models (``levels.stereo.triangulate_raw``: the middle of the common perpendicular).
-Printed per draw and over all: plan and height RMS, and the height bias.
+the first pass, each also measured in the second's image with the scenario's pointing
+error (``[gcps] shared``), tie points from the truth
+(``station.sipc.truth.true_tie_points``: a 10 × 10 lattice, 0.2 px of noise, the
+matcher's figure), one block adjustment; then 25 checkpoints of the terrain, their true
+image positions in both scenes with ``--pointing`` px of error (default 0.3, the control
+points'), triangulated on the adjusted models (``levels.stereo.triangulate_raw``: the
+middle of the common perpendicular). Printed per draw and over all: plan and height RMS,
+and the height bias.
 
-    python tools/stereo_checkpoints.py [--draws 10] [--set gcps.count=15]
+    python tools/stereo_checkpoints.py [--draws 10] [--pointing 0.3] [--set gcps.count=15]
+
+Where the height error comes from (``docs/stereo.md``): switch one error on at a time,
+e.g. ``--pointing 0 --set gcps.horizontal_error_m=0.1 --set gcps.pointing_error_px=0.02``
+leaves the control points' heights alone.
 """
 
 from __future__ import annotations
@@ -31,7 +37,6 @@ from station.spacecraft.emulator import emulate, truth_model
 
 SCENE = 6000
 TIE_SIGMA_PX = 0.2
-POINTING_PX = 0.3
 PASSES = (("1998-02-20", 10, 5), ("1998-02-23", 93, 0))
 
 
@@ -56,11 +61,13 @@ def _pass(seed: int, k: int, changes: dict):
 
 
 def _shared(acq_a, acq_b, rng: np.random.Generator) -> ControlPointSet:
-    """``acq_a``'s control points measured in ``acq_b``'s image (its true model)."""
+    """``acq_a``'s control points measured in ``acq_b``'s image (its true model), with the
+    control points' pointing error."""
     cp, g = control_points(acq_a), acq_a.gcps
     seen = truth_model(acq_b).ground_to_image(g.true_lat_rad, g.true_lon_rad, g.true_h_m)
-    line = seen.line + POINTING_PX * rng.standard_normal(seen.line.size)
-    col = seen.column + POINTING_PX * rng.standard_normal(seen.line.size)
+    pointing = acq_a.scenario.gcps.pointing_error_px
+    line = seen.line + pointing * rng.standard_normal(seen.line.size)
+    col = seen.column + pointing * rng.standard_normal(seen.line.size)
     k = np.flatnonzero(
         seen.converged & (line > 0) & (line < SCENE - 1) & (col > 0) & (col < SCENE - 1)
     )
@@ -78,7 +85,9 @@ def _shared(acq_a, acq_b, rng: np.random.Generator) -> ControlPointSet:
     )
 
 
-def _checkpoints(a, b, models, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def _checkpoints(
+    a, b, models, pointing: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """Plan and height errors (m) of checkpoints triangulated on ``models``."""
     (acq_a, _, _), (acq_b, _, _) = a, b
     line, col = (
@@ -94,7 +103,7 @@ def _checkpoints(a, b, models, rng: np.random.Generator) -> tuple[np.ndarray, np
     ok = seen.converged & (seen.line > 0) & (seen.line < SCENE - 1)
     ok &= (seen.column > 0) & (seen.column < SCENE - 1) & np.isfinite(h)
     k = np.flatnonzero(ok)[:25]
-    noise = POINTING_PX * rng.standard_normal((4, k.size))
+    noise = pointing * rng.standard_normal((4, k.size))
     plat, plon, ph, _ = triangulate_raw(
         *models,
         line[k] + noise[0],
@@ -110,6 +119,7 @@ def _checkpoints(a, b, models, rng: np.random.Generator) -> tuple[np.ndarray, np
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--draws", type=int, default=10)
+    ap.add_argument("--pointing", type=float, default=0.3, help="checkpoints' pointing, px")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE")
     args = ap.parse_args()
     changes: dict = {}
@@ -127,7 +137,7 @@ def main() -> None:
         sb = Strip(b[1], b[2], _shared(a[0], b[0], rng))
         res = adjust_block([[sa], [sb]], [[ta], [tb]], opts)
         models = (res[0][0].refine(a[1], a[2][0]).model, res[1][0].refine(b[1], b[2][0]).model)
-        plan, dh = _checkpoints(a, b, models, rng)
+        plan, dh = _checkpoints(a, b, models, args.pointing, rng)
         plans.append(plan)
         heights.append(dh)
         biases.append(float(np.mean(dh)))
