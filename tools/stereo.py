@@ -9,9 +9,11 @@ points, the block, the pair's DEM, level 3 over it) is made once by ``station ru
 * the disparity against the exact one; the checkpoints (PHOTOMOD's Table 1: 8.7 m plan,
   2.9 m height with 5 GCPs); the DEM against the terrain, NMAD and LE90 by slope class,
   the same NMAD by xdem (the peer: its ``nmad`` and its slope, on the DEM's GeoTIFF and the
-  true terrain written beside it); coverage; the predicted precision against the measured;
+  true terrain written beside it); the plane the error leans on (the control points'
+  absolute orientation) and the error without it, beside xdem's own deramping; coverage;
+  the predicted precision against the measured;
 * level 3 over the pair's DEM: its ground error against what the DEM's error predicts
-  (``σh · tan θ`` beside level 2's own error).
+  (``σh · tan θ`` along each view's tilt, added to level 2's own error).
 
     python tools/stereo.py [DIR]          # DIR default: runs/stereo_full
 """
@@ -117,6 +119,12 @@ def _xdem_nmad(run: Path, dem_file: str, truth: Any) -> dict[str, float] | None:
             k = np.isfinite(diff) & (slope >= lo) & (slope < hi)
             if k.sum() > 100:
                 out[f"{lo:g}-{hi:g}deg"] = float(xdem.spatialstats.nmad(diff[k]))
+        # xdem's own coregistration of the DEM onto the terrain, bias and tilt (Deramp of
+        # order 1): what is left against ours without the plane
+        deramp = xdem.coreg.Deramp(poly_order=1)
+        deramp.fit(ref, dem)
+        left = (deramp.apply(dem) - ref).data.filled(np.nan)
+        out["deramped_rmse"] = float(np.sqrt(np.nanmean(left**2)))
     return out
 
 
@@ -148,41 +156,66 @@ def main(argv: list[str]) -> int:
             f"    slope {k:9s} {s['count']:9d} cells: NMAD {s['nmad']:.2f} m, LE90 "
             f"{s['le90']:.2f} m, mean {s['mean']:+.2f} m"
         )
+    datum, rest = h["datum"], h["datum_removed"]
+    print(
+        f"  the plane it leans on (the control points' absolute orientation): bias "
+        f"{datum['bias_m']:+.2f} m, tilt {datum['tilt_east_m_per_km']:+.3f} m/km east, "
+        f"{datum['tilt_north_m_per_km']:+.3f} m/km north; without it: RMSE {rest['rmse']:.2f}"
+        f" m, NMAD {rest['nmad']:.2f} m, LE90 {rest['le90']:.2f} m (target RMSE ≤ 3 m)"
+    )
     print(
         f"  predicted σ (median) {h['predicted_median_m']:.2f} m, measured NMAD "
-        f"{h['nmad']:.2f} m: measured / predicted {h['measured_over_predicted']:.2f} "
-        "(target [0.7, 1.5])"
+        f"{h['nmad']:.2f} m: measured / predicted {h['measured_over_predicted']:.2f}, the "
+        f"plane taken out {rest['measured_over_predicted']:.2f} (target [0.7, 1.5])"
     )
     _, truth, _ = pair_and_truth(where)
     peer = _xdem_nmad(run, entry["file"], truth)
     if peer is None:
         print("  xdem not installed (pip install xdem): no peer figures")
     else:
-        ours = {"all": h["nmad"], **{k: s["nmad"] for k, s in h["by_slope"].items()}}
+        ours = {
+            "all": h["nmad"],
+            **{k: s["nmad"] for k, s in h["by_slope"].items()},
+            "deramped_rmse": rest["rmse"],
+        }
         for k, v in peer.items():
-            print(f"    xdem NMAD {k:9s} {v:.3f} m, ours {ours.get(k, float('nan')):.3f} m")
+            print(f"    xdem {k:13s} {v:.3f} m, ours {ours.get(k, float('nan')):.3f} m")
+    _level3(report, run / entry["file"], h)
+    return 0
+
+
+def _level3(report: dict, dem_file: Path, h: dict) -> None:
+    """Level 3 of each view over the pair's DEM against what the DEM's error predicts: the
+    view's level 2 error plus the DEM's height error carried along its tilt, the systematic
+    parts as vectors (the DEM's bias moves every pixel of a view the same way, −Δh·a, the
+    tilt ``a`` pointing away from the satellite: ``−tanθ_a·e`` and ``+tanθ_b·e``, ``e`` the
+    epipolar direction) and the random parts in quadrature."""
     from levels.products import read_product
 
-    tan = read_product(run / entry["file"], images=False).geometry["stereo"]["tan_incidence"]
-    los = {
-        p["pass"]: p["quality"]["checkpoints/P/line_of_sight/rms_m"]
-        for p in report["block"]["products"]
-        if p["level"] == "2"
-    }
+    stereo = read_product(dem_file, images=False).geometry["stereo"]
+    tan, ex = stereo["tan_incidence"], np.asarray(stereo["epipolar_direction"], dtype=float)
+    level2 = {p["pass"]: p["quality"] for p in report["block"]["products"] if p["level"] == "2"}
     for p in report["block"]["products"]:
         if p["level"] != "3":
             continue
-        ground = p["quality"]["checkpoints/P/ground/rms_m"]
-        k = list(los).index(p["pass"])
-        relief = h["rmse"] * tan[k]
-        predicted = float(np.hypot(los[p["pass"]], relief))
+        q, l2 = p["quality"], level2[p["pass"]]
+        k = list(level2).index(p["pass"])
+        los_mean = np.array([l2[f"checkpoints/P/line_of_sight/mean_{i}_m"] for i in (1, 2)])
+        los_rms = l2["checkpoints/P/line_of_sight/rms_m"]
+        dh_mean, dh_rms = h["mean"], q["checkpoints/P/dem_error/rms_m"]
+        mean = los_mean + (1.0 if k == 0 else -1.0) * dh_mean * tan[k] * ex
+        random2 = max(los_rms**2 - los_mean @ los_mean, 0.0)
+        random2 += max(dh_rms**2 - dh_mean**2, 0.0) * tan[k] ** 2
+        predicted = float(np.sqrt(mean @ mean + random2))
+        ground = q["checkpoints/P/ground/rms_m"]
+        got = np.array([q[f"checkpoints/P/ground/mean_{i}_m"] for i in (1, 2)])
         print(
-            f"  level 3 {p['pass']} over the pair's DEM: on the terrain {ground:.1f} m; "
-            f"predicted {predicted:.1f} m (level 2 {los[p['pass']]:.1f} m ⊕ σh·tanθ = "
-            f"{h['rmse']:.1f} × {tan[k]:.3f} = {relief:.1f} m): ratio {ground / predicted:.2f}"
-            " (target within 20 %)"
+            f"  level 3 {p['pass']} over the pair's DEM: on the terrain {ground:.1f} m RMS, "
+            f"mean ({got[0]:+.1f}, {got[1]:+.1f}) m; predicted {predicted:.1f} m, mean "
+            f"({mean[0]:+.1f}, {mean[1]:+.1f}) m (level 2's ({los_mean[0]:+.1f}, "
+            f"{los_mean[1]:+.1f}) m, {los_rms:.1f} m RMS, and Δh {dh_mean:+.1f} m × tanθ "
+            f"{tan[k]:.3f} along its tilt): ratio {ground / predicted:.2f} (target within 20 %)"
         )
-    return 0
 
 
 if __name__ == "__main__":

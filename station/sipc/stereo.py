@@ -8,7 +8,9 @@ terrain under the DEM, and checkpoints measured in both images.
   perfect matcher finds, and the ``v``-parallax it must tolerate;
 * **the DEM against the terrain**: each valid cell's height minus the world's at the cell
   centre; NMAD and LE90 by slope class (the true terrain's slope); the cells both images
-  see (the true terrain there imaged inside both raw images);
+  see (the true terrain there imaged inside both raw images); the plane the error leans on
+  (bias and tilt: the absolute orientation from the control points) and the error without
+  it (the DEM's relative error, as a DEM comparison coregisters first);
 * **checkpoints** (PHOTOMOD's Table 1): ground points of the terrain, their true image
   positions in both scenes with a pointing error, triangulated on the adjusted models.
 """
@@ -186,6 +188,7 @@ def dem_errors(dem: StereoDem, truth: StereoTruth, world: Any) -> dict[str, Any]
     e = err[valid]
     sigma = dem.sigma_m[valid].astype(np.float64)
     stats = robust_stats(e)
+    datum, rest = _datum_plane(dem, err, valid)
     return {
         **stats,
         "by_slope": by_slope,
@@ -197,7 +200,34 @@ def dem_errors(dem: StereoDem, truth: StereoTruth, world: Any) -> dict[str, Any]
         # the precision: each cell's error (the model's bias, the median, left out) in its
         # own predicted σ; their robust spread is 1 if every σ is right (blunders left out)
         "measured_over_predicted": float(1.4826 * np.median(np.abs((e - stats["median"]) / sigma))),
+        "datum": datum,
+        "datum_removed": {
+            **robust_stats(rest),
+            # the matching's own σ against what is left of the matching
+            "measured_over_predicted": float(1.4826 * np.median(np.abs(rest / sigma))),
+        },
     }
+
+
+def _datum_plane(
+    dem: StereoDem, err: NDArray[np.float64], valid: NDArray[np.bool_]
+) -> tuple[dict[str, float], NDArray[np.float64]]:
+    """The plane the DEM's error leans on (its bias at the centre, m, and its tilt east
+    and north, m per km: the absolute orientation the control points gave the pair, the
+    same under every cell) and the error without it (the DEM's own, the matching's): what
+    a DEM comparison takes out first (demcompare and xdem coregister, bias and tilt)."""
+    grid = dem.grid
+    x = (grid.x_m() - np.mean(grid.x_m())) / 1000.0
+    y = (grid.y_m() - np.mean(grid.y_m())) / 1000.0
+    xx, yy = np.meshgrid(x, y)
+    a = np.column_stack([np.ones(int(valid.sum())), xx[valid], yy[valid]])
+    coef, *_ = np.linalg.lstsq(a, err[valid], rcond=None)
+    plane = {
+        "bias_m": float(coef[0]),
+        "tilt_east_m_per_km": float(coef[1]),
+        "tilt_north_m_per_km": float(coef[2]),
+    }
+    return plane, err[valid] - a @ coef
 
 
 def checkpoints(
