@@ -6,7 +6,9 @@ tolerance):
 - **metadata**: the product attributes (level, sizes, instrument, pixel size) and the map
   CRS must be equal;
 - **pixels**, per band, over the pixels valid in both: max |Δ| and RMS in counts, PSNR
-  (peak 255), the fraction of pixels changed; and the fraction whose validity changed;
+  (peak 255), the fraction of pixels changed; and the fraction whose validity changed; a
+  band of a quantity (a DEM's heights, their σ, the points per cell) in its own units:
+  max |Δ|, RMS and mean difference, the fraction changed reported;
 - **geometry**: the shift of the scene centre and corners on the ellipsoid (m); for 2A the
   shift of the map grid's origin (m) and, per band, the difference of the inverse grids
   (raw pixels); for 1B the difference of the polynomials f, g, h over the image (pixels);
@@ -64,6 +66,8 @@ DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
         "rms_counts": 0.01,
         "fraction_changed": 1e-4,
         "mask_fraction_changed": 0.0,
+        "quantity_max_abs": 0.01,
+        "quantity_rms": 0.001,
     },
     "geometry": {"corner_shift_m": 0.01, "grid_px": 1e-4, "rel": 1e-9},
     "quality": {"abs": 1e-6, "rel": 1e-4},
@@ -338,6 +342,9 @@ def _pixels(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
             )
             continue
         both = ia.valid & ib.valid
+        if ia.image.dtype != np.uint8 or ib.image.dtype != np.uint8:
+            out += _quantities(name, ia, ib, both, tol)
+            continue
         d = ia.image[both].astype(np.int16) - ib.image[both].astype(np.int16)
         n = max(int(both.sum()), 1)
         max_abs = float(np.abs(d).max()) if d.size else 0.0
@@ -372,6 +379,40 @@ def _pixels(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
             Finding("pixels", f"{p}/psnr_db", psnr),
         ]
     return out
+
+
+def _quantities(name: str, ia: Any, ib: Any, both: Any, tol: dict[str, float]) -> list[Finding]:
+    """A band of a quantity in its own units (a DEM's heights, σ and counts,
+    :data:`levels.products.QUANTITY_BANDS`), compared as numbers, not counts: max |Δ| and
+    RMS in the band's units within ``quantity_max_abs`` and ``quantity_rms``; the share
+    of pixels changed at all is reported (another CPU changes the last bits of many)."""
+    a = ia.image[both].astype(np.float64)
+    b = ib.image[both].astype(np.float64)
+    d = a - b
+    max_abs = float(np.max(np.abs(d))) if d.size else 0.0
+    rms = float(np.sqrt(np.mean(d**2))) if d.size else 0.0
+    changed = float(np.count_nonzero(d)) / max(int(both.sum()), 1)
+    mask = float(np.count_nonzero(ia.valid != ib.valid)) / ia.valid.size
+    p = f"bands/{name}"
+    return [
+        Finding(
+            "pixels",
+            f"{p}/max_abs",
+            max_abs,
+            tol["quantity_max_abs"],
+            max_abs <= tol["quantity_max_abs"],
+        ),
+        Finding("pixels", f"{p}/rms", rms, tol["quantity_rms"], rms <= tol["quantity_rms"]),
+        Finding("pixels", f"{p}/mean_difference", float(np.mean(d)) if d.size else 0.0),
+        Finding("pixels", f"{p}/fraction_changed", changed),
+        Finding(
+            "pixels",
+            f"{p}/mask_fraction_changed",
+            mask,
+            tol["mask_fraction_changed"],
+            mask <= tol["mask_fraction_changed"],
+        ),
+    ]
 
 
 _GEOD = pyproj.Geod(ellps="WGS84")

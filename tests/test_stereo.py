@@ -222,3 +222,26 @@ def test_level_3_over_the_pairs_own_dem(stereo_run: Path) -> None:
         assert level3.quality["dem"]["source"].endswith("_DEM.tif")
         ground = level3.quality["checkpoints"]["P"]["ground"]["rms_m"]
         assert ground <= LEVEL3_PX * level3.attrs["pixel_size_m"]
+
+
+def test_compare_sees_a_dems_heights_in_metres(stereo_run: Path) -> None:
+    """`compare` of two DEMs: their heights compared in metres, not as counts (a float band
+    cast to integers hid half a metre everywhere); the same DEM is within tolerance."""
+    from dataclasses import replace
+
+    from levels.compare import compare_products
+    from levels.products import BandImage, read_product
+
+    report = json.loads((stereo_run / "report.json").read_text())
+    (entry,) = report["stereo"]["dems"]
+    dem = read_product(stereo_run / entry["file"])
+    same = compare_products(dem, dem)
+    assert not [f for f in same if f.ok is False]
+    h = dem.bands["height_m"]
+    raised = replace(
+        dem, bands={**dem.bands, "height_m": BandImage(h.image + np.float32(0.5), h.valid)}
+    )
+    found = {f.what: f for f in compare_products(dem, raised)}
+    assert found["bands/height_m/max_abs"].ok is False
+    assert found["bands/height_m/mean_difference"].value == pytest.approx(-0.5, abs=1e-4)
+    assert found["bands/sigma_m/max_abs"].ok is True
