@@ -244,12 +244,13 @@ def window_solve(
     ``least`` pixels."""
     if sums.shape[0] != len(WINDOW_SUMS):
         raise ValueError(f"{sums.shape[0]} window sums, not {len(WINDOW_SUMS)}")
-    out = np.empty(sums.shape[1:], dtype=np.float32)
+    rows, cols = int(sums.shape[1]), int(sums.shape[2])
+    out = np.empty((rows, cols), dtype=np.float32)
     var = np.empty_like(out)
     s2 = np.empty_like(out)
     over_blocks(
         _kernel_window,
-        -(-out.shape[0] // _BLOCK_ROWS),
+        -(-rows // _BLOCK_ROWS),
         np.ascontiguousarray(sums, dtype=np.float32),
         float(max(least, 6)),
         out,
