@@ -53,6 +53,7 @@ __all__ = [
     "SarImage",
     "frame_grid",
     "geocode",
+    "layover_and_shadow",
 ]
 
 SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
@@ -60,6 +61,9 @@ SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
 ANCHOR_STEP_PX = 16
 #: Heights of the anchors over a DEM (Lagrange in height through them).
 HEIGHT_LEVELS = 3
+#: Slant range a profile may lose before its pixels are in layover (range samples): the
+#: anchors' own error is a thousandth of a sample.
+MASK_TOLERANCE_PX = 0.05
 #: Newton's steps at most, and the time step at which it stops (s).
 _ITERATIONS, _T_TOL_S = 12, 1e-10
 #: Points located at once (memory).
@@ -234,8 +238,9 @@ class SarImage:
 @dataclass(frozen=True, eq=False)
 class Geocoded:
     """A geocoded SAR image: intensity on a map grid (NaN outside the frame or over a
-    void), each pixel's (line, column) in the slant image, its height, and the anchor
-    grid's error (slant pixels)."""
+    void), each pixel's (line, column) in the slant image, its height, the anchor grid's
+    error (slant pixels), and the layover and shadow masks of the terrain the DEM gives
+    (:func:`layover_and_shadow`; none on the ellipsoid)."""
 
     grid: MapGrid
     intensity: NDArray[np.float32]
@@ -244,6 +249,8 @@ class Geocoded:
     height_m: NDArray[np.float64]
     kind: str  # "GEC" or "GTC"
     anchor_error: dict[str, float]
+    layover: NDArray[np.bool_]
+    shadow: NDArray[np.bool_]
 
 
 def frame_grid(
@@ -275,12 +282,72 @@ def _to_geo(grid: MapGrid) -> pyproj.Transformer:
 
 def _exact(
     ann: SarAnnotation, grid: MapGrid, i: NDArray, j: NDArray, h: NDArray
-) -> tuple[NDArray, NDArray]:
-    """The exact (line, column) of output pixels ``(i, j)`` at heights ``h``."""
+) -> tuple[NDArray, NDArray, NDArray]:
+    """The exact (line, column) of output pixels ``(i, j)`` at heights ``h``, and the look
+    angle there (rad, at the antenna from its geocentric nadir)."""
     x, y = grid.map_of(i, j)
     lon, lat = _to_geo(grid).transform(np.ravel(x), np.ravel(y))
-    line, col = ann.image_of(np.radians(lat), np.radians(lon), np.ravel(h))
-    return line.reshape(np.shape(i)), col.reshape(np.shape(i))
+    p = WGS84.to_ecef(np.radians(lat), np.radians(lon), np.ravel(h))
+    t, r, ok = ann.locate(p)
+    s, _ = ann.ephemeris.interpolate(t)
+    cos_look = np.sum(-s * (p - s), axis=1) / (np.linalg.norm(s, axis=1) * r)
+    look = np.arccos(np.clip(cos_look, -1.0, 1.0))
+    shape = np.shape(i)
+    line = np.where(ok, ann.line_of(t), np.nan).reshape(shape)
+    col = np.where(ok, ann.column_of(r), np.nan).reshape(shape)
+    return line, col, np.where(ok, look, np.nan).reshape(shape)
+
+
+def _before_max(v: NDArray, seg: NDArray) -> NDArray:
+    """The largest ``v`` of the points before each in its segment (−inf for a segment's
+    first; ``seg`` numbers the segments upward): a cumulative maximum made segment-wise by
+    lifting each segment above all before it."""
+    lift = (float(np.max(v) - np.min(v)) + 1.0) * seg
+    run = np.maximum.accumulate(v + lift) - lift
+    out = np.r_[-np.inf, run[:-1]]
+    out[np.r_[True, seg[1:] != seg[:-1]]] = -np.inf
+    return out
+
+
+def layover_and_shadow(
+    line: NDArray,
+    range_m: NDArray,
+    look_rad: NDArray,
+    ground_range: NDArray,
+    line_bin: float,
+    range_tolerance_m: float,
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Layover and shadow of terrain points from their image line, slant range, look angle
+    and a ground-range coordinate (any that grows away from the track: the column at a
+    fixed height), all of one shape. Points are grouped by line (bins of ``line_bin``
+    lines) and ordered by ground range; along each such profile
+
+    * a point is in **shadow** if a nearer point is seen at a larger look angle (the ray
+      to it passes under that point);
+    * a point is in **layover** if a nearer point is as far in slant range or a farther
+      point as near (beyond ``range_tolerance_m``): its echo arrives with another
+      patch's, the slant range not growing with the ground range."""
+    ok = np.isfinite(line) & np.isfinite(range_m) & np.isfinite(look_rad)
+    ok &= np.isfinite(ground_range)
+    idx = np.flatnonzero(ok.ravel())
+    if idx.size == 0:
+        return np.zeros(line.shape, dtype=bool), np.zeros(line.shape, dtype=bool)
+    b = np.floor(line.ravel()[idx] / line_bin).astype(np.int64)
+    order = idx[np.lexsort((ground_range.ravel()[idx], b))]
+    bins = np.floor(line.ravel()[order] / line_bin).astype(np.int64)
+    seg = np.r_[0, np.cumsum(bins[1:] != bins[:-1])]
+    r, a = range_m.ravel()[order], look_rad.ravel()[order]
+
+    rev = seg[-1] - seg[::-1]  # the profiles in reverse, numbered upward again
+    shadow_s = a < _before_max(a, seg) - range_tolerance_m / r
+    near = r < _before_max(r, seg) - range_tolerance_m  # a nearer point as far
+    far = -r < _before_max(-r[::-1], rev)[::-1] - range_tolerance_m  # a farther one as near
+    layover_s = near | far
+    shadow = np.zeros(line.size, dtype=bool)
+    layover = np.zeros(line.size, dtype=bool)
+    shadow[order] = shadow_s
+    layover[order] = layover_s
+    return layover.reshape(line.shape), shadow.reshape(line.shape)
 
 
 def _lagrange(nodes: NDArray, x: NDArray) -> NDArray:
@@ -344,21 +411,22 @@ def geocode(
     anchors = [_exact(ann, grid, ai, aj, np.full(ai.shape, h)) for h in levels]
     rows, cols = ai[:, 0], aj[0]
 
-    def at(i: NDArray, j: NDArray, h: NDArray) -> tuple[NDArray, NDArray]:
-        if levels.size == 1:
-            w = np.ones((1, *np.shape(i)))
-        else:
-            w = _lagrange(levels, h)
-        line = sum(w[k] * bilinear_grid(rows, cols, a[0], i, j) for k, a in enumerate(anchors))
-        col = sum(w[k] * bilinear_grid(rows, cols, a[1], i, j) for k, a in enumerate(anchors))
-        return np.asarray(line), np.asarray(col)
+    def at(i: NDArray, j: NDArray, h: NDArray, which: int = 2) -> list[NDArray]:
+        """(line, column[, look]) of output pixels at heights ``h`` through the anchors."""
+        w = np.ones((1, *np.shape(i))) if levels.size == 1 else _lagrange(levels, h)
+        return [
+            np.asarray(
+                sum(w[k] * bilinear_grid(rows, cols, a[q], i, j) for k, a in enumerate(anchors))
+            )
+            for q in range(which)
+        ]
 
     i, j = np.meshgrid(
         np.arange(grid.n_rows, dtype=np.float64),
         np.arange(grid.n_cols, dtype=np.float64),
         indexing="ij",
     )
-    line, col = at(i, j, height)
+    line, col, look = at(i, j, height, 3)
     n_l, n_s = ann.shape
     inside = (line >= 0) & (line <= n_l - 1) & (col >= 0) & (col <= n_s - 1) & np.isfinite(height)
     values = ndimage.map_coordinates(
@@ -368,6 +436,25 @@ def geocode(
         mode="nearest",
     )
     intensity = np.where(inside, values, np.nan).astype(np.float32)
+    # layover and shadow along each line's ground-range profile: the column at one height
+    # orders the pixels away from the track; the line bins hold about a pixel along it
+    _, across = at(i, j, np.full(i.shape, float(np.mean(levels))))
+    per_px = (
+        max(
+            float(np.nanmax(np.abs(np.diff(anchors[0][0], axis=0)))),
+            float(np.nanmax(np.abs(np.diff(anchors[0][0], axis=1)))),
+        )
+        / step_px
+    )
+    where = np.where(inside, line, np.nan)
+    layover, shadow = layover_and_shadow(
+        where,
+        ann.near_range_m + col * ann.range_spacing_m,
+        look,
+        across,
+        max(1.0, per_px),
+        MASK_TOLERANCE_PX * ann.range_spacing_m,
+    )
     # the anchor grid's error: a lattice between the anchors, at each pixel's height
     ci, cj = np.meshgrid(
         np.linspace(0.5 * step_px, grid.n_rows - 1, 23),
@@ -382,7 +469,7 @@ def geocode(
         cj,
     )
     gl, gc = at(ci, cj, ch)
-    el, ec = _exact(ann, grid, ci, cj, ch)
+    el, ec, _ = _exact(ann, grid, ci, cj, ch)
     e = np.hypot(gl - el, gc - ec)
     e = e[np.isfinite(e)]
     err: dict[str, Any] = {
@@ -390,4 +477,4 @@ def geocode(
         "rms_px": float(np.sqrt(np.mean(e**2))) if e.size else float("nan"),
         "max_px": float(np.max(e)) if e.size else float("nan"),
     }
-    return Geocoded(grid, intensity, line, col, height, kind, err)
+    return Geocoded(grid, intensity, line, col, height, kind, err, layover, shadow)

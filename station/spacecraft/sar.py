@@ -31,6 +31,7 @@ centroid and the wavelength.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import pyproj
@@ -67,6 +68,10 @@ class SarInstrument:
 
 
 ERS1 = SarInstrument()
+
+#: A slant-range cell whose visible facets' look angles leave a gap of more than this many
+#: facets' worth receives two separate patches of terrain: layover.
+LAYOVER_GAP = 3.0
 
 
 @dataclass(frozen=True)
@@ -162,6 +167,52 @@ class SarTruth:
                 break
         s, _ = self.orbit.state_ecef(t)
         return t, np.linalg.norm(p - s, axis=1)
+
+    def masks(self, grid: Any, oversample: int = 3) -> tuple[NDArray, NDArray]:
+        """The true layover and shadow of the terrain under every pixel of a map grid:
+        each pixel's terrain sampled by ``oversample²`` facets of the world, each facet's
+        line, range and look angle by the truth; a facet is in shadow if the z-buffer of
+        the rendering hides it (:func:`_visible`), in layover if its slant-range cell also
+        receives visible facets of another patch (their look angles apart by a gap of
+        ``LAYOVER_GAP`` facets or more); a pixel is what most of its facets are."""
+        ann = self.annotation
+        k = (np.arange(oversample) + 0.5) / oversample - 0.5
+        di, dj = (x.ravel() for x in np.meshgrid(k, k, indexing="ij"))
+        i, j = np.meshgrid(np.arange(grid.n_rows), np.arange(grid.n_cols), indexing="ij")
+        ii = (i.ravel()[:, None] + di[None, :]).ravel()
+        jj = (j.ravel()[:, None] + dj[None, :]).ravel()
+        x, y = grid.map_of(ii, jj)
+        to_geo = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True)
+        lon, lat = (np.radians(a) for a in to_geo.transform(x, y))
+        h, _, _ = self.world.height(lat, lon)
+        p = WGS84.to_ecef(lat, lon, h)
+        t, r = self.zero_doppler(p)
+        s, _ = self.orbit.state_ecef(t)
+        line = ann.line_of(t)
+        facet = grid.pixel_size_m / oversample
+        seen = _visible(line, s, p, r, ann.range_spacing_m, facet)
+        down = -s / np.linalg.norm(s, axis=1, keepdims=True)
+        look = np.arccos(np.clip(np.sum(down * (p - s), axis=1) / r, -1.0, 1.0))
+        cell = np.rint(line).astype(np.int64) * (1 << 32) + np.rint(ann.column_of(r)).astype(
+            np.int64
+        )
+        # the visible facets of each cell in look angle: a gap of LAYOVER_GAP facets'
+        # worth between two of them is terrain of another patch at the same range
+        vis = np.flatnonzero(seen)
+        order = vis[np.lexsort((look[vis], cell[vis]))]
+        c, a = cell[order], look[order]
+        same = c[1:] == c[:-1]
+        gap = np.where(same, np.diff(a), 0.0) > LAYOVER_GAP * facet / float(np.median(r))
+        start = np.r_[True, ~same]
+        group = np.cumsum(start) - 1
+        hit = np.zeros(group[-1] + 1, dtype=bool)
+        hit[group[1:][gap]] = True
+        layover_f = np.zeros(r.size, dtype=bool)
+        layover_f[order] = hit[group]
+        n = oversample * oversample
+        layover = layover_f.reshape(-1, n).mean(axis=1) > 0.5
+        shadow = (~seen).reshape(-1, n).mean(axis=1) > 0.5
+        return layover.reshape(grid.shape), shadow.reshape(grid.shape)
 
     def image_of(
         self, lat_rad: NDArray, lon_rad: NDArray, h_m: NDArray
@@ -272,7 +323,7 @@ def _render(
         rho = truth.world.reflectance(lat[k], lon[k], "P")
         area = spacing**2 * np.sqrt(1.0 + gx[k] ** 2 + gy[k] ** 2)
         power = rho * np.clip(cos_loc, 0.0, None) ** 2 * area
-        seen = _visible(line[k], s, p[k], r[k], ann.range_spacing_m)
+        seen = _visible(line[k], s, p[k], r[k], ann.range_spacing_m, spacing)
         _splat(out, hits, line[k][seen], col[k][seen], power[seen], n_l, n_s)
     cell = ann.range_spacing_m / np.sin(_incidence_of_columns(truth)) * _line_spacing_m(truth)
     intensity = out.reshape(n_l, n_s) / cell[None, :]
@@ -306,13 +357,15 @@ def _incidence_of_columns(truth: SarTruth) -> NDArray[np.float64]:
 
 
 def _visible(
-    line: NDArray, s: NDArray, p: NDArray, r: NDArray, range_spacing_m: float
+    line: NDArray, s: NDArray, p: NDArray, r: NDArray, range_spacing_m: float, facet_m: float
 ) -> NDArray[np.bool_]:
-    """Which facets the antenna sees: on one line, at one look angle (bins of a tenth of
-    a range sample at the range), only the nearest (and those within a range sample of it)."""
+    """Which facets (``facet_m`` apart on the map) the antenna sees: on one line, at one look
+    angle, only the nearest (and those within a range sample of it)."""
     down = -s / np.linalg.norm(s, axis=1, keepdims=True)
     look = np.arccos(np.clip(np.sum(down * (p - s), axis=1) / r, -1.0, 1.0))
-    d_look = 0.1 * range_spacing_m / float(np.median(r))
+    # bins a facet and a half wide as the antenna sees them: an occluding ridge has a facet
+    # in the bin of every facet it hides, and neighbours on open ground share bins
+    d_look = 1.5 * facet_m / float(np.median(r))
     key = np.rint(line).astype(np.int64) * (1 << 32) + np.rint(look / d_look).astype(np.int64)
     order = np.lexsort((r, key))
     ks, rs = key[order], r[order]
