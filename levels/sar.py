@@ -61,9 +61,13 @@ SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
 ANCHOR_STEP_PX = 16
 #: Heights of the anchors over a DEM (Lagrange in height through them).
 HEIGHT_LEVELS = 3
-#: Slant range a profile may lose before its pixels are in layover (range samples): the
-#: anchors' own error is a thousandth of a sample.
+#: Look angle a profile may lose before its pixels are in shadow, in range samples at the
+#: near range: the anchors' own error is a thousandth of a sample.
 MASK_TOLERANCE_PX = 0.05
+#: A gap in look angle within a slant-range cell wider than this many metres at the range
+#: separates two patches of terrain: layover (the truth's own, and more than two output
+#: pixels of the finest grid a frame is geocoded on).
+LAYOVER_GAP_M = 60.0
 #: Newton's steps at most, and the time step at which it stops (s).
 _ITERATIONS, _T_TOL_S = 12, 1e-10
 #: Points located at once (memory).
@@ -311,42 +315,51 @@ def _before_max(v: NDArray, seg: NDArray) -> NDArray:
 
 def layover_and_shadow(
     line: NDArray,
-    range_m: NDArray,
+    column: NDArray,
     look_rad: NDArray,
     ground_range: NDArray,
     line_bin: float,
-    range_tolerance_m: float,
+    look_tolerance_rad: float,
+    gap_rad: float,
 ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-    """Layover and shadow of terrain points from their image line, slant range, look angle
+    """Layover and shadow of terrain points from their image line and column, look angle
     and a ground-range coordinate (any that grows away from the track: the column at a
     fixed height), all of one shape. Points are grouped by line (bins of ``line_bin``
     lines) and ordered by ground range; along each such profile
 
-    * a point is in **shadow** if a nearer point is seen at a larger look angle (the ray
-      to it passes under that point);
-    * a point is in **layover** if a nearer point is as far in slant range or a farther
-      point as near (beyond ``range_tolerance_m``): its echo arrives with another
-      patch's, the slant range not growing with the ground range."""
-    ok = np.isfinite(line) & np.isfinite(range_m) & np.isfinite(look_rad)
+    * a point is in **shadow** if a nearer point is seen at a larger look angle (beyond
+      ``look_tolerance_rad``): the ray to it passes under that point;
+    * a point is in **layover** if the seen points of its slant-range cell (its profile,
+      its column rounded) leave a gap of more than ``gap_rad`` in look angle: two patches
+      of terrain at one range (a slope steeper than the incidence folds the profile back
+      in range), as the truth defines it."""
+    ok = np.isfinite(line) & np.isfinite(column) & np.isfinite(look_rad)
     ok &= np.isfinite(ground_range)
     idx = np.flatnonzero(ok.ravel())
+    layover = np.zeros(line.size, dtype=bool)
+    shadow = np.zeros(line.size, dtype=bool)
     if idx.size == 0:
-        return np.zeros(line.shape, dtype=bool), np.zeros(line.shape, dtype=bool)
+        return layover.reshape(line.shape), shadow.reshape(line.shape)
     b = np.floor(line.ravel()[idx] / line_bin).astype(np.int64)
     order = idx[np.lexsort((ground_range.ravel()[idx], b))]
     bins = np.floor(line.ravel()[order] / line_bin).astype(np.int64)
-    seg = np.r_[0, np.cumsum(bins[1:] != bins[:-1])]
-    r, a = range_m.ravel()[order], look_rad.ravel()[order]
-
-    rev = seg[-1] - seg[::-1]  # the profiles in reverse, numbered upward again
-    shadow_s = a < _before_max(a, seg) - range_tolerance_m / r
-    near = r < _before_max(r, seg) - range_tolerance_m  # a nearer point as far
-    far = -r < _before_max(-r[::-1], rev)[::-1] - range_tolerance_m  # a farther one as near
-    layover_s = near | far
-    shadow = np.zeros(line.size, dtype=bool)
-    layover = np.zeros(line.size, dtype=bool)
-    shadow[order] = shadow_s
-    layover[order] = layover_s
+    first = np.r_[True, bins[1:] != bins[:-1]]
+    seg = np.cumsum(first) - 1
+    a = look_rad.ravel()[order]
+    shadow[order] = a < _before_max(a, seg) - look_tolerance_rad
+    # the seen points of a cell (profile, column rounded) in look angle: a gap of more
+    # than ``gap_rad`` between two of them is terrain of another patch at the same range
+    seen = ~shadow[order]
+    pts, sg = order[seen], seg[seen]
+    cell = np.rint(column.ravel()[pts]).astype(np.int64)
+    look = look_rad.ravel()[pts]
+    o = np.lexsort((look, cell, sg))
+    same = (sg[o][1:] == sg[o][:-1]) & (cell[o][1:] == cell[o][:-1])
+    gap = same & (np.diff(look[o]) > gap_rad)
+    group = np.cumsum(np.r_[True, ~same]) - 1
+    hit = np.zeros(group[-1] + 1, dtype=bool)
+    hit[group[1:][gap]] = True
+    layover[pts[o]] = hit[group]
     return layover.reshape(line.shape), shadow.reshape(line.shape)
 
 
@@ -449,11 +462,12 @@ def geocode(
     where = np.where(inside, line, np.nan)
     layover, shadow = layover_and_shadow(
         where,
-        ann.near_range_m + col * ann.range_spacing_m,
+        col,
         look,
         across,
         max(1.0, per_px),
-        MASK_TOLERANCE_PX * ann.range_spacing_m,
+        MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m,
+        LAYOVER_GAP_M / ann.near_range_m,
     )
     # the anchor grid's error: a lattice between the anchors, at each pixel's height
     ci, cj = np.meshgrid(

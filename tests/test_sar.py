@@ -1,9 +1,9 @@
 """SAR geocoding (issue 38): an ERS-1 frame emulated in slant range (``station.spacecraft.
 sar``), located and geocoded by range–Doppler (``levels.sar``), against the truth.
 
-The frames are reduced (200 × 200 samples of 5 azimuth and 2 range looks: about 12 m ×
-16 m in slant range, the swath's true geometry), over a flat world and over 400 m of
-fractal relief. Tolerances are named below with what was measured.
+The frames are reduced (150 × 150 samples of 5 azimuth and 2 range looks: about 20 m ×
+16 m in slant range, the swath's true geometry), over a flat world and over the fractal
+world's relief (700 m RMS). Tolerances are named below with what was measured.
 """
 
 from __future__ import annotations
@@ -27,6 +27,8 @@ CHECKPOINT_PX = 0.1
 #: GEC over relief: each checkpoint's displacement against Δh / tan θ (measured within
 #: 0.3 %: the rest is the Earth's curvature over the displacement).
 RELIEF_DISPLACEMENT_REL = 0.01
+#: The reduced frames' lines and samples.
+FRAME = 150
 #: The output grid's pixel (m): about the reduced frame's ground range sample.
 PIXEL_M = 25.0
 LON0 = np.radians(-56.1)
@@ -35,14 +37,14 @@ LON0 = np.radians(-56.1)
 @pytest.fixture(scope="module")
 def flat() -> tuple:
     world = World(lon0_rad=LON0, base_height_m=200.0, relief_m=0.0, seed=3)
-    image, truth = emulate_frame(ErsFrame(n_lines=200, n_samples=200), world)
+    image, truth = emulate_frame(ErsFrame(n_lines=FRAME, n_samples=FRAME), world)
     return image, truth, world
 
 
 @pytest.fixture(scope="module")
 def rugged() -> tuple:
     world = World(lon0_rad=LON0, base_height_m=200.0, relief_m=400.0, seed=3)
-    image, truth = emulate_frame(ErsFrame(n_lines=200, n_samples=200), world)
+    image, truth = emulate_frame(ErsFrame(n_lines=FRAME, n_samples=FRAME), world)
     return image, truth, world
 
 
@@ -84,7 +86,7 @@ def test_pixel_location_is_the_truths(rugged) -> None:
     image, truth, _ = rugged
     ann = image.annotation
     rng = np.random.default_rng(0)
-    line, col = rng.uniform(0, 199, 300), rng.uniform(0, 199, 300)
+    line, col = rng.uniform(0, FRAME - 1, 300), rng.uniform(0, FRAME - 1, 300)
     h = rng.uniform(-200.0, 1500.0, 300)
     lat, lon = ann.ground_of_image(line, col, h)
     back_l, back_c = ann.image_of(lat, lon, h)
@@ -103,6 +105,7 @@ def test_gec_on_a_flat_world_lands_on_the_truth(flat) -> None:
     assert di.size > 100
     assert np.sqrt(np.mean(di**2 + dj**2)) <= CHECKPOINT_PX
     assert np.isfinite(gec.intensity).mean() > 0.5
+    assert not gec.layover.any() and not gec.shadow.any()  # the ellipsoid folds nowhere
 
 
 def test_gtc_with_the_exact_dem_lands_on_the_truth_and_gec_moves_by_the_relief(rugged) -> None:
@@ -126,3 +129,26 @@ def test_gtc_with_the_exact_dem_lands_on_the_truth_and_gec_moves_by_the_relief(r
     big = predicted_m > 10 * PIXEL_M
     assert big.sum() > 20
     np.testing.assert_allclose(moved_m[big], predicted_m[big], rtol=RELIEF_DISPLACEMENT_REL)
+
+
+def test_a_fold_in_range_is_layover_and_a_ridge_casts_shadow() -> None:
+    """``layover_and_shadow`` on one profile of 40 points 25 m apart: the slant range grows
+    with the ground range except over a slope steeper than the incidence, where it folds
+    back (points 10–14): the cells it folds over hold two patches; the look angle drops
+    behind a ridge (points 30–32): shadow. A flat profile has neither."""
+    from levels.sar import layover_and_shadow
+
+    g = np.arange(40, dtype=np.float64)
+    col = g * 1.6  # 1.6 range samples a point on open ground
+    col[10:15] = col[9] - np.arange(1, 6) * 0.9  # folds back over samples of points 6–9
+    col[15:] -= 9.0
+    look = 0.4 + g * 1e-5
+    look[30:33] = look[29] - 2e-5
+    line = np.zeros(40)
+    gap = 60.0 / 840e3
+    layover, shadow = layover_and_shadow(line, col, look, g, 1.0, 1e-9, gap)
+    assert shadow[30:33].all() and shadow.sum() == 3
+    assert layover[10:15].any() and layover[5:10].any()  # both patches of a folded cell
+    assert not layover[:4].any() and not layover[20:].any()
+    flat_l, flat_s = layover_and_shadow(line, g * 1.6, 0.4 + g * 1e-5, g, 1.0, 1e-9, gap)
+    assert not flat_l.any() and not flat_s.any()

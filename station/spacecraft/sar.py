@@ -70,8 +70,8 @@ class SarInstrument:
 ERS1 = SarInstrument()
 
 #: A slant-range cell whose visible facets' look angles leave a gap of more than this many
-#: facets' worth receives two separate patches of terrain: layover.
-LAYOVER_GAP = 3.0
+#: metres at the range receives two separate patches of terrain: layover.
+LAYOVER_GAP_M = 60.0
 
 
 @dataclass(frozen=True)
@@ -174,7 +174,7 @@ class SarTruth:
         line, range and look angle by the truth; a facet is in shadow if the z-buffer of
         the rendering hides it (:func:`_visible`), in layover if its slant-range cell also
         receives visible facets of another patch (their look angles apart by a gap of
-        ``LAYOVER_GAP`` facets or more); a pixel is what most of its facets are."""
+        ``LAYOVER_GAP_M`` or more); a pixel is what most of its facets are."""
         ann = self.annotation
         k = (np.arange(oversample) + 0.5) / oversample - 0.5
         di, dj = (x.ravel() for x in np.meshgrid(k, k, indexing="ij"))
@@ -196,13 +196,13 @@ class SarTruth:
         cell = np.rint(line).astype(np.int64) * (1 << 32) + np.rint(ann.column_of(r)).astype(
             np.int64
         )
-        # the visible facets of each cell in look angle: a gap of LAYOVER_GAP facets'
-        # worth between two of them is terrain of another patch at the same range
+        # the visible facets of each cell in look angle: a gap of LAYOVER_GAP_M between two
+        # of them is terrain of another patch at the same range
         vis = np.flatnonzero(seen)
         order = vis[np.lexsort((look[vis], cell[vis]))]
         c, a = cell[order], look[order]
         same = c[1:] == c[:-1]
-        gap = np.where(same, np.diff(a), 0.0) > LAYOVER_GAP * facet / float(np.median(r))
+        gap = np.where(same, np.diff(a), 0.0) > LAYOVER_GAP_M / float(np.median(r))
         start = np.r_[True, ~same]
         group = np.cumsum(start) - 1
         hit = np.zeros(group[-1] + 1, dtype=bool)
