@@ -29,7 +29,7 @@ from levels.products import Product
 __all__ = ["MAP_LEVELS", "RPC_LEVELS", "write_geotiff", "write_rpc_sidecar"]
 
 #: Levels on a map grid, which a GeoTIFF's geotransform can describe.
-MAP_LEVELS = ("2A", "2", "3", "DEM")
+MAP_LEVELS = ("2A", "2", "3", "DEM", "GEC", "GTC")
 #: A DEM product (:mod:`levels.stereo`) is exported as its heights alone, float32, NaN
 #: where it has none (GDAL's nodata): the raster level 3 and any GIS read as a DEM.
 DEM_EXPORT_BAND = "height_m"

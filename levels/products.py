@@ -109,6 +109,9 @@ QUANTITY_BANDS: dict[str, tuple[str, str | None]] = {
     "height_m": ("height above the WGS84 ellipsoid", "height_above_reference_ellipsoid"),
     "points": ("points triangulated in the cell", None),
     "sigma_m": ("predicted 1 sigma of the cell's height", None),
+    "intensity": ("SAR backscattered intensity, linear (the image's calibration)", None),
+    "layover": ("pixel in SAR layover: 1, or not: 0", None),
+    "shadow": ("pixel in SAR shadow: 1, or not: 0", None),
 }
 
 
@@ -272,6 +275,7 @@ def cf_global_attrs(product: Product) -> dict[str, str]:
     what = f"level {a.get('level')}"
     scene = f", scene {a['scene_index']}" if "scene_index" in a else ""
     hrv = f"SPOT HRV{a['hrv']} {a.get('mode', '')}".strip() if "hrv" in a else "SPOT HRV"
+    hrv = str(a.get("instrument", hrv))  # another sensor's product names its own
     return {
         "Conventions": CF_CONVENTIONS,
         "title": f"{hrv} {what} product{scene} of {a.get('name', 'a pass')}",

@@ -54,6 +54,7 @@ __all__ = [
     "frame_grid",
     "geocode",
     "layover_and_shadow",
+    "sar_product",
 ]
 
 SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
@@ -492,3 +493,67 @@ def geocode(
         "max_px": float(np.max(e)) if e.size else float("nan"),
     }
     return Geocoded(grid, intensity, line, col, height, kind, err, layover, shadow)
+
+
+def sar_product(
+    geocoded: Geocoded,
+    image: SarImage,
+    name: str,
+    quality: dict[str, Any] | None = None,
+    dem_source: str = "",
+) -> Any:
+    """A geocoded frame as a map product of the house format (level ``GEC`` or ``GTC``):
+    bands ``intensity`` (NaN outside the frame), ``layover`` and ``shadow`` (1 or 0),
+    float32; the annotation and the anchors' error in ``geometry/sar``; ``quality``."""
+    from levels import __version__
+    from levels.products import BandImage, Product
+
+    g, ann = geocoded, image.annotation
+    valid = np.isfinite(g.intensity)
+    bands = {
+        "intensity": BandImage(g.intensity, valid),  # type: ignore[arg-type]
+        "layover": BandImage(g.layover.astype(np.float32), valid),  # type: ignore[arg-type]
+        "shadow": BandImage(g.shadow.astype(np.float32), valid),  # type: ignore[arg-type]
+    }
+    t_mid = ann.first_line_s + 0.5 * ann.shape[0] * ann.line_interval_s
+    sar = {
+        "kind": g.kind,
+        "epoch_utc": str(ann.epoch.t0_utc),
+        "state_t_s": np.asarray(ann.state_t_s),
+        "state_r_m": np.asarray(ann.state_r_m),
+        "state_v_m_per_s": np.asarray(ann.state_v_m_per_s),
+        "first_line_s": ann.first_line_s,
+        "line_interval_s": ann.line_interval_s,
+        "near_range_m": ann.near_range_m,
+        "range_spacing_m": ann.range_spacing_m,
+        "wavelength_m": ann.wavelength_m,
+        "doppler_hz": np.asarray(ann.doppler_hz, dtype=np.float64),
+        "image_shape": np.asarray(ann.shape),
+        "looks": ann.looks,
+        "right_looking": int(ann.right_looking),
+        "anchor_step_px": ANCHOR_STEP_PX,
+        "height_range_m": np.array([np.nanmin(g.height_m), np.nanmax(g.height_m)]),
+        "dem_source": dem_source,
+    }
+    return Product(
+        attrs={
+            "level": g.kind,
+            "name": name,
+            "instrument": "ERS-1 AMI SAR",
+            "time_utc": str(ann.epoch.utc(np.array([t_mid]))[0]),
+            "n_rows": g.grid.n_rows,
+            "n_cols": g.grid.n_cols,
+            "pixel_size_m": float(g.grid.geotransform[1]),
+        },
+        bands=bands,
+        geometry={"sar": sar},
+        quality={
+            "anchor_error_px": dict(g.anchor_error),
+            "valid_fraction": float(valid.mean()),
+            "layover_fraction": float(g.layover[valid].mean()) if valid.any() else 0.0,
+            "shadow_fraction": float(g.shadow[valid].mean()) if valid.any() else 0.0,
+            **(quality or {}),
+        },
+        provenance={"software": f"levels {__version__}"},
+        map_grid=g.grid,
+    )

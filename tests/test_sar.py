@@ -152,3 +152,38 @@ def test_a_fold_in_range_is_layover_and_a_ridge_casts_shadow() -> None:
     assert not layover[:4].any() and not layover[20:].any()
     flat_l, flat_s = layover_and_shadow(line, g * 1.6, 0.4 + g * 1e-5, g, 1.0, 1e-9, gap)
     assert not flat_l.any() and not flat_s.any()
+
+
+def test_a_gtc_product_opens_georeferenced_in_gdal(rugged, tmp_path) -> None:
+    """The GTC as a product of the house format: read back equal, compared with itself
+    within every tolerance, opened by GDAL with its CRS and transform, as written and as
+    its GeoTIFF export."""
+    import rasterio
+
+    from levels.compare import compare_products
+    from levels.export import write_geotiff
+    from levels.products import read_product, write_product
+    from levels.sar import sar_product
+
+    image, _, world = rugged
+    lat0 = np.radians(-15.6)
+    dem = world_dem(
+        world, (lat0 - 0.003, lat0 + 0.003), (LON0 - 0.004, LON0 + 0.004), 2e-4, 0.0,
+        np.random.default_rng(0),
+    )  # fmt: skip
+    grid = frame_grid(image.annotation, PIXEL_M, world.base_height_m)
+    product = sar_product(geocode(image, grid, dem=dem), image, "ers_test", dem_source="world")
+    path = write_product(tmp_path / "ers_test_GTC.nc", product)
+    back = read_product(path)
+    assert back.level == "GTC" and set(back.bands) == {"intensity", "layover", "shadow"}
+    np.testing.assert_array_equal(back.bands["intensity"].image, product.bands["intensity"].image)
+    assert "ERS-1" in back.attrs["title"]
+    again = write_product(tmp_path / "again_GTC.nc", product)
+    assert not [f for f in compare_products(back, read_product(again)) if f.ok is False]
+    with rasterio.open(f'NETCDF:"{path}":intensity') as ds:
+        assert ds.crs is not None and ds.crs.to_wkt()
+        assert ds.transform.to_gdal() == pytest.approx(grid.geotransform)
+    tif = write_geotiff(back, tmp_path / "ers_test_GTC.tif")
+    with rasterio.open(tif) as ds:
+        assert ds.count == 3 and ds.transform.to_gdal() == pytest.approx(grid.geotransform)
+        np.testing.assert_array_equal(ds.read(1), product.bands["intensity"].image)
