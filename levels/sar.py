@@ -512,8 +512,8 @@ def sar_product(
     valid = np.isfinite(g.intensity)
     bands = {
         "intensity": BandImage(g.intensity, valid),  # type: ignore[arg-type]
-        "layover": BandImage(g.layover.astype(np.float32), valid),  # type: ignore[arg-type]
-        "shadow": BandImage(g.shadow.astype(np.float32), valid),  # type: ignore[arg-type]
+        "layover": BandImage(g.layover.astype(np.float32), valid),
+        "shadow": BandImage(g.shadow.astype(np.float32), valid),
     }
     t_mid = ann.first_line_s + 0.5 * ann.shape[0] * ann.line_interval_s
     sar = {
