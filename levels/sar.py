@@ -32,6 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numba as nb
 import numpy as np
 import pyproj
 from numpy.typing import ArrayLike, NDArray
@@ -39,10 +40,11 @@ from numpy.typing import ArrayLike, NDArray
 from levels.errors import GeometryError
 from levels.geo.inverse_grid import bilinear_grid
 from levels.geo.maps import MapGrid, map_crs
-from levels.geometry.dem import Dem, bilinear_surface
+from levels.geometry.dem import Dem
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.times import Epoch
+from levels.threads import over_blocks
 
 __all__ = [
     "ANCHOR_STEP_PX",
@@ -303,15 +305,52 @@ def _exact(
     return line, col, np.where(ok, look, np.nan).reshape(shape)
 
 
-def _before_max(v: NDArray, seg: NDArray) -> NDArray:
-    """The largest ``v`` of the points before each in its segment (−inf for a segment's
-    first; ``seg`` numbers the segments upward): a cumulative maximum made segment-wise by
-    lifting each segment above all before it."""
-    lift = (float(np.max(v) - np.min(v)) + 1.0) * seg
-    run = np.maximum.accumulate(v + lift) - lift
-    out = np.r_[-np.inf, run[:-1]]
-    out[np.r_[True, seg[1:] != seg[:-1]]] = -np.inf
-    return out
+@nb.njit(cache=True, nogil=True)
+def _kernel_masks(lo, hi, offsets, members, across, look, column, look_tol, gap, layover, shadow):
+    """Profiles ``lo … hi − 1`` (their points ``members[offsets[k]:offsets[k + 1]]``): shadow
+    along the ground range, then layover among the seen points of each cell."""
+    for k in range(lo, hi):
+        idx = members[offsets[k] : offsets[k + 1]]
+        n = idx.size
+        if n == 0:
+            continue
+        o = idx[np.argsort(across[idx])]
+        top = -np.inf
+        n_seen = 0
+        seen = np.empty(n, dtype=np.int64)
+        for m in range(n):
+            q = o[m]
+            shadow[q] = look[q] < top - look_tol
+            if look[q] > top:
+                top = look[q]
+            if not shadow[q]:
+                seen[n_seen] = q
+                n_seen += 1
+        if n_seen < 2:
+            continue
+        seen = seen[:n_seen]
+        lmin, lmax = np.inf, -np.inf
+        for q in seen:
+            lmin = min(lmin, look[q])
+            lmax = max(lmax, look[q])
+        span = lmax - lmin + 1e-12
+        key = np.empty(n_seen)
+        for m in range(n_seen):
+            q = seen[m]
+            key[m] = np.rint(column[q]) + 0.999 * (look[q] - lmin) / span
+        s = seen[np.argsort(key)]
+        g0 = 0
+        hit = False
+        for m in range(1, n_seen + 1):
+            if m < n_seen and np.rint(column[s[m]]) == np.rint(column[s[m - 1]]):
+                if look[s[m]] - look[s[m - 1]] > gap:
+                    hit = True
+                continue
+            if hit:
+                for r in range(g0, m):
+                    layover[s[r]] = True
+            g0 = m
+            hit = False
 
 
 def layover_and_shadow(
@@ -333,34 +372,34 @@ def layover_and_shadow(
     * a point is in **layover** if the seen points of its slant-range cell (its profile,
       its column rounded) leave a gap of more than ``gap_rad`` in look angle: two patches
       of terrain at one range (a slope steeper than the incidence folds the profile back
-      in range), as the truth defines it."""
+      in range), as the truth defines it.
+
+    The profiles by a counting sort of the bins, each sorted and scanned by a numba
+    kernel on threads."""
     ok = np.isfinite(line) & np.isfinite(column) & np.isfinite(look_rad)
     ok &= np.isfinite(ground_range)
     idx = np.flatnonzero(ok.ravel())
-    layover = np.zeros(line.size, dtype=bool)
-    shadow = np.zeros(line.size, dtype=bool)
-    if idx.size == 0:
-        return layover.reshape(line.shape), shadow.reshape(line.shape)
-    b = np.floor(line.ravel()[idx] / line_bin).astype(np.int64)
-    order = idx[np.lexsort((ground_range.ravel()[idx], b))]
-    bins = np.floor(line.ravel()[order] / line_bin).astype(np.int64)
-    first = np.r_[True, bins[1:] != bins[:-1]]
-    seg = np.cumsum(first) - 1
-    a = look_rad.ravel()[order]
-    shadow[order] = a < _before_max(a, seg) - look_tolerance_rad
-    # the seen points of a cell (profile, column rounded) in look angle: a gap of more
-    # than ``gap_rad`` between two of them is terrain of another patch at the same range
-    seen = ~shadow[order]
-    pts, sg = order[seen], seg[seen]
-    cell = np.rint(column.ravel()[pts]).astype(np.int64)
-    look = look_rad.ravel()[pts]
-    o = np.lexsort((look, cell, sg))
-    same = (sg[o][1:] == sg[o][:-1]) & (cell[o][1:] == cell[o][:-1])
-    gap = same & (np.diff(look[o]) > gap_rad)
-    group = np.cumsum(np.r_[True, ~same]) - 1
-    hit = np.zeros(group[-1] + 1, dtype=bool)
-    hit[group[1:][gap]] = True
-    layover[pts[o]] = hit[group]
+    layover = np.zeros(line.size, dtype=np.bool_)
+    shadow = np.zeros(line.size, dtype=np.bool_)
+    if idx.size:
+        b = np.floor(line.ravel()[idx] / line_bin).astype(np.int64)
+        b -= b.min()
+        members = idx[np.argsort(b, kind="stable")]
+        offsets = np.r_[0, np.cumsum(np.bincount(b))].astype(np.int64)
+        over_blocks(
+            _kernel_masks,
+            offsets.size - 1,
+            offsets,
+            members,
+            np.ascontiguousarray(ground_range, dtype=np.float64).ravel(),
+            np.ascontiguousarray(look_rad, dtype=np.float64).ravel(),
+            np.ascontiguousarray(column, dtype=np.float64).ravel(),
+            float(look_tolerance_rad),
+            float(gap_rad),
+            layover,
+            shadow,
+            grain=16,
+        )
     return layover.reshape(line.shape), shadow.reshape(line.shape)
 
 
@@ -373,23 +412,106 @@ def _lagrange(nodes: NDArray, x: NDArray) -> NDArray:
     return w
 
 
+@nb.njit(cache=True, nogil=True)
+def _kernel_dem(lo, hi, step, nodes, z, out):
+    """Rows ``lo … hi − 1``: the DEM's (row, column) bilinearly from its nodes every
+    ``step`` output pixels, then its heights ``z`` bilinearly there (NaN outside or over a
+    void): :func:`levels.geometry.dem.bilinear_surface`'s arithmetic."""
+    na, nb_ = nodes.shape[1], nodes.shape[2]
+    nr, nc = z.shape
+    for i in range(lo, hi):
+        a = min(i // step, na - 2)
+        u = (i - a * step) * (1.0 / step)
+        for j in range(out.shape[1]):
+            b = min(j // step, nb_ - 2)
+            v = (j - b * step) * (1.0 / step)
+            at_b = (1.0 - u) * nodes[0, a, b] + u * nodes[0, a + 1, b]
+            at_b1 = (1.0 - u) * nodes[0, a, b + 1] + u * nodes[0, a + 1, b + 1]
+            row = (1.0 - v) * at_b + v * at_b1
+            at_b = (1.0 - u) * nodes[1, a, b] + u * nodes[1, a + 1, b]
+            at_b1 = (1.0 - u) * nodes[1, a, b + 1] + u * nodes[1, a + 1, b + 1]
+            col = (1.0 - v) * at_b + v * at_b1
+            if not (0.0 <= row <= nr - 1 and 0.0 <= col <= nc - 1):
+                out[i, j] = np.nan
+                continue
+            p0 = min(int(row), nr - 2)
+            q0 = min(int(col), nc - 2)
+            s, t = row - p0, col - q0
+            out[i, j] = (1 - s) * ((1 - t) * z[p0, q0] + t * z[p0, q0 + 1]) + s * (
+                (1 - t) * z[p0 + 1, q0] + t * z[p0 + 1, q0 + 1]
+            )
+
+
 def _dem_heights(dem: Dem, grid: MapGrid) -> NDArray[np.float64]:
     """The DEM's height above the ellipsoid under every output pixel: its (row, column)
     through PROJ every 16 pixels and bilinearly between, its heights bilinearly in its own
     grid (as level 3 samples a DEM)."""
     from levels.geo.level3 import DEM_COORD_STEP, _dem_coordinates, _ellipsoidal
 
-    nodes = _dem_coordinates(dem, grid, DEM_COORD_STEP)
-    rows = np.arange(nodes.shape[1], dtype=np.float64) * DEM_COORD_STEP
-    cols = np.arange(nodes.shape[2], dtype=np.float64) * DEM_COORD_STEP
-    i, j = np.meshgrid(
-        np.arange(grid.n_rows, dtype=np.float64),
-        np.arange(grid.n_cols, dtype=np.float64),
-        indexing="ij",
-    )
-    r = bilinear_grid(rows, cols, nodes[0], i, j)
-    c = bilinear_grid(rows, cols, nodes[1], i, j)
-    return bilinear_surface(_ellipsoidal(dem), r, c)
+    nodes = np.ascontiguousarray(_dem_coordinates(dem, grid, DEM_COORD_STEP), dtype=np.float64)
+    out = np.empty(grid.shape, dtype=np.float64)
+    z = np.ascontiguousarray(_ellipsoidal(dem), dtype=np.float64)
+    over_blocks(_kernel_dem, grid.n_rows, DEM_COORD_STEP, nodes, z, out, grain=64)
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _kernel_geocode(
+    lo, hi, step, anchors, levels, w_mid, height, image, out, line, col, look, across
+):
+    """Rows ``lo … hi − 1`` of the output: each pixel's (line, column, look) from the
+    anchors (bilinear, then Lagrange through the height levels at its height), the slant
+    image bilinearly there (NaN outside it or over a void), and its column at the middle
+    height (Lagrange weights ``w_mid``: a ground-range coordinate)."""
+    n_lev, _, na, nb = anchors.shape
+    n_l, n_s = image.shape
+    w = np.empty(n_lev)
+    for i in range(lo, hi):
+        a = min(i // step, na - 2)
+        fu = (i - a * step) / step
+        for j in range(out.shape[1]):
+            h = height[i, j]
+            b = min(j // step, nb - 2)
+            fv = (j - b * step) / step
+            if not (h == h):
+                out[i, j] = np.nan
+                line[i, j] = np.nan
+                col[i, j] = np.nan
+                look[i, j] = np.nan
+                across[i, j] = np.nan
+                continue
+            for k in range(n_lev):  # Lagrange weights at h
+                w[k] = 1.0
+                for m in range(n_lev):
+                    if m != k:
+                        w[k] *= (h - levels[m]) / (levels[k] - levels[m])
+            q0 = q1 = q2 = mid = 0.0
+            for k in range(n_lev):
+                for c in range(3):
+                    z = anchors[k, c]
+                    at_b = (1.0 - fu) * z[a, b] + fu * z[a + 1, b]
+                    at_b1 = (1.0 - fu) * z[a, b + 1] + fu * z[a + 1, b + 1]
+                    v = (1.0 - fv) * at_b + fv * at_b1
+                    if c == 0:
+                        q0 += w[k] * v
+                    elif c == 1:
+                        q1 += w[k] * v
+                        mid += w_mid[k] * v
+                    else:
+                        q2 += w[k] * v
+            line[i, j] = q0
+            col[i, j] = q1
+            look[i, j] = q2
+            across[i, j] = mid
+            if not (0.0 <= q0 <= n_l - 1 and 0.0 <= q1 <= n_s - 1):
+                out[i, j] = np.nan
+                continue
+            l0 = min(int(q0), n_l - 2)
+            c0 = min(int(q1), n_s - 2)
+            fl, fc = q0 - l0, q1 - c0
+            out[i, j] = (1.0 - fl) * ((1.0 - fc) * image[l0, c0] + fc * image[l0, c0 + 1]) + fl * (
+                (1.0 - fc) * image[l0 + 1, c0] + fc * image[l0 + 1, c0 + 1]
+            )
 
 
 def geocode(
@@ -401,8 +523,6 @@ def geocode(
 ) -> Geocoded:
     """``image`` on ``grid``: over ``dem`` (GTC), or on the ellipsoid raised to
     ``reference_height_m`` (GEC) (module docstring)."""
-    from scipy import ndimage
-
     ann = image.annotation
     if dem is None:
         height = np.full(grid.shape, float(reference_height_m))
@@ -435,24 +555,28 @@ def geocode(
             for q in range(which)
         ]
 
-    i, j = np.meshgrid(
-        np.arange(grid.n_rows, dtype=np.float64),
-        np.arange(grid.n_cols, dtype=np.float64),
-        indexing="ij",
+    stack = np.ascontiguousarray(np.array(anchors, dtype=np.float64))  # (levels, 3, na, nb)
+    intensity = np.empty(grid.shape, dtype=np.float32)
+    line, col, look, across = (np.empty(grid.shape, dtype=np.float64) for _ in range(4))
+    # layover and shadow (below) order each line's pixels by their column at one height
+    w_mid = _lagrange(levels, np.array(float(np.mean(levels)))).reshape(-1)
+    over_blocks(
+        _kernel_geocode,
+        grid.n_rows,
+        int(step_px),
+        stack,
+        levels.astype(np.float64),
+        w_mid,
+        np.ascontiguousarray(height, dtype=np.float64),
+        np.ascontiguousarray(image.intensity, dtype=np.float32),
+        intensity,
+        line,
+        col,
+        look,
+        across,
+        grain=64,
     )
-    line, col, look = at(i, j, height, 3)
-    n_l, n_s = ann.shape
-    inside = (line >= 0) & (line <= n_l - 1) & (col >= 0) & (col <= n_s - 1) & np.isfinite(height)
-    values = ndimage.map_coordinates(
-        image.intensity.astype(np.float64),
-        [np.where(inside, line, 0.0), np.where(inside, col, 0.0)],
-        order=1,
-        mode="nearest",
-    )
-    intensity = np.where(inside, values, np.nan).astype(np.float32)
-    # layover and shadow along each line's ground-range profile: the column at one height
-    # orders the pixels away from the track; the line bins hold about a pixel along it
-    _, across = at(i, j, np.full(i.shape, float(np.mean(levels))))
+    inside = np.isfinite(intensity)
     per_px = (
         max(
             float(np.nanmax(np.abs(np.diff(anchors[0][0], axis=0)))),

@@ -238,10 +238,10 @@ def _enu_normal(lat: NDArray, lon: NDArray, gx: NDArray, gy: NDArray) -> NDArray
 
 
 def emulate_frame(
-    frame: ErsFrame, world: World, instrument: SarInstrument = ERS1
+    frame: ErsFrame, world: World, instrument: SarInstrument = ERS1, render: bool = True
 ) -> tuple[SarImage, SarTruth]:
     """A frame's detected slant-range image with its annotation, and the truth behind it
-    (module docstring)."""
+    (module docstring); ``render=False``: the geometry alone, the image zero."""
     epoch = Epoch(f"{frame.date_utc}T00:00:00", "frame day")
     inc_mid = np.radians(0.5 * sum(instrument.incidence_deg))
     look = _look_of_incidence(inc_mid, instrument.altitude_m)
@@ -289,6 +289,8 @@ def emulate_frame(
     )
     r_true, v_true = orbit.state_ecef(t_sv)
     truth = SarTruth(orbit, world, replace(ann, state_r_m=r_true, state_v_m_per_s=v_true))
+    if not render:
+        return SarImage(ann, np.zeros(ann.shape, dtype=np.float32)), truth
     intensity = _render(truth, frame, instrument, rng)
     return SarImage(ann, intensity), truth
 
