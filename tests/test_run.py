@@ -305,9 +305,9 @@ def test_a_pass_of_both_hrvs_with_a_gap(tmp_path: Path, capsys) -> None:
     two such runs apart HRV by HRV."""
     text = (
         'name = "both"\nseed = 8\n'
-        "[[instrument]]\nhrv = 1\ntwin = true\nn_detectors = 300\nn_lines = 1200\n"
+        "[[instrument]]\nhrv = 1\ntwin = true\nn_detectors = 300\nn_lines = 900\n"
         '[[instrument]]\nhrv = 2\nmode = "XS"\ntwin = true\nn_detectors = 150\n'
-        "n_lines = 600\n[downlink]\nbit_rate_mbps = 1.25\npreamble_s = 0.1\n"
+        "n_lines = 450\n[downlink]\nbit_rate_mbps = 1.25\npreamble_s = 0.1\n"
         "postamble_s = 0.1\n[channel]\noutage_start_s = 10.5\n"
         'outage_duration_s = {}\n[processing]\nlevels = ["1A", "2A"]\n'
     )
@@ -328,7 +328,7 @@ def test_a_pass_of_both_hrvs_with_a_gap(tmp_path: Path, capsys) -> None:
         # after the first frame: the outage loses P lines 278–664 (XS 141–331): all of scene 1
         assert lost == [1], lost
         made = {p["scene"] for p in report["products"] if p["hrv"] == h["hrv"]}
-        assert made == {0, 2, 3}
+        assert made == {0, 2}
     xs = [p for p in report["products"] if p["hrv"] == 2 and p["level"] == "2A"]
     assert xs and all(p["bands"] == ["XS1", "XS2", "XS3"] for p in xs)
     assert all(p["quality"]["checkpoints/XS2/line_of_sight/rms_m"] < 500.0 for p in xs)

@@ -48,6 +48,19 @@ def rugged() -> tuple:
     return image, truth, world
 
 
+@pytest.fixture(scope="module")
+def gtc(rugged) -> tuple:
+    """GTC of the rugged frame over the world's own terrain (a 0.0001° DEM of it)."""
+    image, _, world = rugged
+    lat0 = np.radians(-15.6)
+    dem = world_dem(
+        world, (lat0 - 0.003, lat0 + 0.003), (LON0 - 0.004, LON0 + 0.004), 1e-4, 0.0,
+        np.random.default_rng(0),
+    )  # fmt: skip
+    grid = frame_grid(image.annotation, PIXEL_M, world.base_height_m)
+    return grid, geocode(image, grid, dem=dem)
+
+
 def _checkpoints(
     g: Geocoded, truth: SarTruth, world: World, n: int = 200
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -108,17 +121,11 @@ def test_gec_on_a_flat_world_lands_on_the_truth(flat) -> None:
     assert not gec.layover.any() and not gec.shadow.any()  # the ellipsoid folds nowhere
 
 
-def test_gtc_with_the_exact_dem_lands_on_the_truth_and_gec_moves_by_the_relief(rugged) -> None:
-    """GTC over the world's own terrain (a 0.0001° DEM of it) puts every checkpoint on the
-    truth; GEC at the reference height moves each by Δh / tan θ, toward the radar."""
+def test_gtc_with_the_exact_dem_lands_on_the_truth_and_gec_moves_by_the_relief(rugged, gtc) -> None:
+    """GTC over the world's own terrain puts every checkpoint on the truth; GEC at the
+    reference height moves each by Δh / tan θ, toward the radar."""
     image, truth, world = rugged
-    lat0, lon0 = np.radians(-15.6), LON0
-    dem = world_dem(
-        world, (lat0 - 0.003, lat0 + 0.003), (lon0 - 0.004, lon0 + 0.004), 1e-4, 0.0,
-        np.random.default_rng(0),
-    )  # fmt: skip
-    grid = frame_grid(image.annotation, PIXEL_M, world.base_height_m)
-    gtc = geocode(image, grid, dem=dem)
+    grid, gtc = gtc
     di, dj, _, _ = _checkpoints(gtc, truth, world)
     assert di.size > 100
     assert np.sqrt(np.mean(di**2 + dj**2)) <= CHECKPOINT_PX
@@ -154,7 +161,7 @@ def test_a_fold_in_range_is_layover_and_a_ridge_casts_shadow() -> None:
     assert not flat_l.any() and not flat_s.any()
 
 
-def test_a_gtc_product_opens_georeferenced_in_gdal(rugged, tmp_path) -> None:
+def test_a_gtc_product_opens_georeferenced_in_gdal(rugged, gtc, tmp_path) -> None:
     """The GTC as a product of the house format: read back equal, compared with itself
     within every tolerance, opened by GDAL with its CRS and transform, as written and as
     its GeoTIFF export."""
@@ -165,14 +172,9 @@ def test_a_gtc_product_opens_georeferenced_in_gdal(rugged, tmp_path) -> None:
     from levels.products import read_product, write_product
     from levels.sar import sar_product
 
-    image, _, world = rugged
-    lat0 = np.radians(-15.6)
-    dem = world_dem(
-        world, (lat0 - 0.003, lat0 + 0.003), (LON0 - 0.004, LON0 + 0.004), 2e-4, 0.0,
-        np.random.default_rng(0),
-    )  # fmt: skip
-    grid = frame_grid(image.annotation, PIXEL_M, world.base_height_m)
-    product = sar_product(geocode(image, grid, dem=dem), image, "ers_test", dem_source="world")
+    image = rugged[0]
+    grid, geocoded = gtc
+    product = sar_product(geocoded, image, "ers_test", dem_source="world")
     path = write_product(tmp_path / "ers_test_GTC.nc", product)
     back = read_product(path)
     assert back.level == "GTC" and set(back.bands) == {"intensity", "layover", "shadow"}
