@@ -37,7 +37,7 @@ LON0 = np.radians(-56.1)
 @pytest.fixture(scope="module")
 def flat() -> tuple:
     world = World(lon0_rad=LON0, base_height_m=200.0, relief_m=0.0, seed=3)
-    image, truth = emulate_frame(ErsFrame(n_lines=FRAME, n_samples=FRAME), world)
+    image, truth = emulate_frame(ErsFrame(n_lines=100, n_samples=100), world)
     return image, truth, world
 
 
