@@ -354,28 +354,10 @@ def _pixels(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
         psnr = math.inf if rms == 0 else 20.0 * math.log10(255.0 / rms)
         p = f"bands/{name}"
         out += [
-            Finding(
-                "pixels",
-                f"{p}/max_abs_counts",
-                max_abs,
-                tol["max_abs_counts"],
-                max_abs <= tol["max_abs_counts"],
-            ),
-            Finding("pixels", f"{p}/rms_counts", rms, tol["rms_counts"], rms <= tol["rms_counts"]),
-            Finding(
-                "pixels",
-                f"{p}/fraction_changed",
-                changed,
-                tol["fraction_changed"],
-                changed <= tol["fraction_changed"],
-            ),
-            Finding(
-                "pixels",
-                f"{p}/mask_fraction_changed",
-                mask,
-                tol["mask_fraction_changed"],
-                mask <= tol["mask_fraction_changed"],
-            ),
+            _within(f"{p}/max_abs_counts", max_abs, tol["max_abs_counts"]),
+            _within(f"{p}/rms_counts", rms, tol["rms_counts"]),
+            _within(f"{p}/fraction_changed", changed, tol["fraction_changed"]),
+            _within(f"{p}/mask_fraction_changed", mask, tol["mask_fraction_changed"]),
             Finding("pixels", f"{p}/psnr_db", psnr),
         ]
     return out
@@ -395,24 +377,17 @@ def _quantities(name: str, ia: Any, ib: Any, both: Any, tol: dict[str, float]) -
     mask = float(np.count_nonzero(ia.valid != ib.valid)) / ia.valid.size
     p = f"bands/{name}"
     return [
-        Finding(
-            "pixels",
-            f"{p}/max_abs",
-            max_abs,
-            tol["quantity_max_abs"],
-            max_abs <= tol["quantity_max_abs"],
-        ),
-        Finding("pixels", f"{p}/rms", rms, tol["quantity_rms"], rms <= tol["quantity_rms"]),
+        _within(f"{p}/max_abs", max_abs, tol["quantity_max_abs"]),
+        _within(f"{p}/rms", rms, tol["quantity_rms"]),
         Finding("pixels", f"{p}/mean_difference", float(np.mean(d)) if d.size else 0.0),
         Finding("pixels", f"{p}/fraction_changed", changed),
-        Finding(
-            "pixels",
-            f"{p}/mask_fraction_changed",
-            mask,
-            tol["mask_fraction_changed"],
-            mask <= tol["mask_fraction_changed"],
-        ),
+        _within(f"{p}/mask_fraction_changed", mask, tol["mask_fraction_changed"]),
     ]
+
+
+def _within(what: str, value: float, bound: float) -> Finding:
+    """A pixel figure against its tolerance."""
+    return Finding("pixels", what, value, bound, value <= bound)
 
 
 _GEOD = pyproj.Geod(ellps="WGS84")

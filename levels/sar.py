@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
 from levels.geo.inverse_grid import bilinear_grid
+from levels.geo.level3 import lagrange_weights
 from levels.geo.maps import MapGrid, map_crs
 from levels.geometry.dem import Dem
 from levels.geometry.ellipsoid import WGS84
@@ -403,15 +404,6 @@ def layover_and_shadow(
     return layover.reshape(line.shape), shadow.reshape(line.shape)
 
 
-def _lagrange(nodes: NDArray, x: NDArray) -> NDArray:
-    w = np.ones((nodes.size, *np.shape(x)))
-    for k in range(nodes.size):
-        for m in range(nodes.size):
-            if m != k:
-                w[k] *= (x - nodes[m]) / (nodes[k] - nodes[m])
-    return w
-
-
 @nb.njit(cache=True, nogil=True)
 def _kernel_dem(lo, hi, step, nodes, z, out):
     """Rows ``lo … hi − 1``: the DEM's (row, column) bilinearly from its nodes every
@@ -547,7 +539,7 @@ def geocode(
 
     def at(i: NDArray, j: NDArray, h: NDArray, which: int = 2) -> list[NDArray]:
         """(line, column[, look]) of output pixels at heights ``h`` through the anchors."""
-        w = np.ones((1, *np.shape(i))) if levels.size == 1 else _lagrange(levels, h)
+        w = np.ones((1, *np.shape(i))) if levels.size == 1 else lagrange_weights(levels, h)
         return [
             np.asarray(
                 sum(w[k] * bilinear_grid(rows, cols, a[q], i, j) for k, a in enumerate(anchors))
@@ -559,7 +551,7 @@ def geocode(
     intensity = np.empty(grid.shape, dtype=np.float32)
     line, col, look, across = (np.empty(grid.shape, dtype=np.float64) for _ in range(4))
     # layover and shadow (below) order each line's pixels by their column at one height
-    w_mid = _lagrange(levels, np.array(float(np.mean(levels)))).reshape(-1)
+    w_mid = lagrange_weights(levels, np.array(float(np.mean(levels)))).reshape(-1)
     over_blocks(
         _kernel_geocode,
         grid.n_rows,

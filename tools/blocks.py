@@ -24,10 +24,10 @@ ratio measured / predicted.
 from __future__ import annotations
 
 import argparse
-import json
 from typing import Any
 
 import numpy as np
+from overrides import scenario_changes  # tools/overrides.py
 
 from levels.adjust import Strip, adjust, adjust_block
 from levels.options import ProcessingOptions
@@ -113,11 +113,7 @@ def main() -> None:
         "--opposite", action="store_true", help="a second control point, in the opposite corner"
     )
     args = ap.parse_args()
-    changes: dict = {}
-    for item in args.set:
-        key, value = item.split("=", 1)
-        section, name = key.split(".", 1)
-        changes.setdefault(section, {})[name] = json.loads(value)
+    changes = scenario_changes(args.set)
     opts = ProcessingOptions()
     alone_all, block_all, pred_all = [], [], []
     for seed in range(args.blocks):

@@ -21,9 +21,9 @@ leaves the control points' heights alone.
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
+from overrides import scenario_changes  # tools/overrides.py
 
 from levels.adjust import Strip, adjust_block
 from levels.geometry.ellipsoid import WGS84
@@ -122,11 +122,7 @@ def main() -> None:
     ap.add_argument("--pointing", type=float, default=0.3, help="checkpoints' pointing, px")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE")
     args = ap.parse_args()
-    changes: dict = {}
-    for item in args.set:
-        key, value = item.split("=", 1)
-        section, name = key.split(".", 1)
-        changes.setdefault(section, {})[name] = json.loads(value)
+    changes = scenario_changes(args.set)
     opts = ProcessingOptions()
     plans, heights, biases = [], [], []
     for seed in range(args.draws):

@@ -189,10 +189,8 @@ class SarTruth:
         t, r = self.zero_doppler(p)
         s, _ = self.orbit.state_ecef(t)
         line = ann.line_of(t)
-        facet = grid.pixel_size_m / oversample
-        seen = _visible(line, s, p, r, ann.range_spacing_m, facet)
-        down = -s / np.linalg.norm(s, axis=1, keepdims=True)
-        look = np.arccos(np.clip(np.sum(down * (p - s), axis=1) / r, -1.0, 1.0))
+        look = _look_angle(s, p, r)
+        seen = _visible(line, look, r, ann.range_spacing_m, grid.pixel_size_m / oversample)
         cell = np.rint(line).astype(np.int64) * (1 << 32) + np.rint(ann.column_of(r)).astype(
             np.int64
         )
@@ -220,12 +218,6 @@ class SarTruth:
         """The (line, column) where the truth images geodetic points."""
         t, r = self.zero_doppler(WGS84.to_ecef(lat_rad, lon_rad, h_m))
         return self.annotation.line_of(t), self.annotation.column_of(r)
-
-
-def _frame_grid(truth: SarTruth, spacing_m: float, margin_m: float) -> tuple[str, NDArray, NDArray]:
-    """A UTM grid covering the frame's footprint on the terrain, ``spacing_m`` apart."""
-    grid = frame_grid(truth.annotation, spacing_m, truth.world.base_height_m, margin_m)
-    return grid.crs_wkt, grid.x_m(), grid.y_m()
 
 
 def _enu_normal(lat: NDArray, lon: NDArray, gx: NDArray, gy: NDArray) -> NDArray:
@@ -304,10 +296,11 @@ def _render(
     inc_near = np.radians(instrument.incidence_deg[0])
     ground_range_m = ann.range_spacing_m / np.sin(inc_near)
     spacing = min(ground_range_m, _line_spacing_m(truth)) / frame.oversample
-    crs_wkt, xs, ys = _frame_grid(truth, spacing, 2.0 * truth.world.relief_m + 500.0)
-    to_geo = pyproj.Transformer.from_crs(crs_wkt, "EPSG:4326", always_xy=True)
+    # the terrain under the frame, on a map grid finer than its samples
+    under = frame_grid(ann, spacing, truth.world.base_height_m, 2.0 * truth.world.relief_m + 500.0)
+    xs, ys = under.x_m(), under.y_m()
+    to_geo = pyproj.Transformer.from_crs(under.crs_wkt, "EPSG:4326", always_xy=True)
     out = np.zeros(n_l * n_s)
-    hits = np.zeros(n_l * n_s)
     for k0 in range(0, ys.size, 256):  # strips of map rows: bounded memory
         x, y = np.meshgrid(xs, ys[k0 : k0 + 256])
         lon, lat = (np.radians(a) for a in to_geo.transform(x.ravel(), y.ravel()))
@@ -325,8 +318,8 @@ def _render(
         rho = truth.world.reflectance(lat[k], lon[k], "P")
         area = spacing**2 * np.sqrt(1.0 + gx[k] ** 2 + gy[k] ** 2)
         power = rho * np.clip(cos_loc, 0.0, None) ** 2 * area
-        seen = _visible(line[k], s, p[k], r[k], ann.range_spacing_m, spacing)
-        _splat(out, hits, line[k][seen], col[k][seen], power[seen], n_l, n_s)
+        seen = _visible(line[k], _look_angle(s, p[k], r[k]), r[k], ann.range_spacing_m, spacing)
+        _splat(out, line[k][seen], col[k][seen], power[seen], n_l, n_s)
     cell = ann.range_spacing_m / np.sin(_incidence_of_columns(truth)) * _line_spacing_m(truth)
     intensity = out.reshape(n_l, n_s) / cell[None, :]
     if frame.speckle_looks > 0:
@@ -358,13 +351,18 @@ def _incidence_of_columns(truth: SarTruth) -> NDArray[np.float64]:
     return np.arccos(np.clip(np.sum(up * los, axis=1), -1.0, 1.0))
 
 
+def _look_angle(s: NDArray, p: NDArray, r: NDArray) -> NDArray:
+    """The look angle (rad) of ground points ``p`` from the antenna at ``s``, ``r`` apart:
+    from its geocentric nadir."""
+    down = -s / np.linalg.norm(s, axis=1, keepdims=True)
+    return np.arccos(np.clip(np.sum(down * (p - s), axis=1) / r, -1.0, 1.0))
+
+
 def _visible(
-    line: NDArray, s: NDArray, p: NDArray, r: NDArray, range_spacing_m: float, facet_m: float
+    line: NDArray, look: NDArray, r: NDArray, range_spacing_m: float, facet_m: float
 ) -> NDArray[np.bool_]:
     """Which facets (``facet_m`` apart on the map) the antenna sees: on one line, at one look
     angle, only the nearest (and those within a range sample of it)."""
-    down = -s / np.linalg.norm(s, axis=1, keepdims=True)
-    look = np.arccos(np.clip(np.sum(down * (p - s), axis=1) / r, -1.0, 1.0))
     # bins a facet and a half wide as the antenna sees them: an occluding ridge has a facet
     # in the bin of every facet it hides, and neighbours on open ground share bins
     d_look = 1.5 * facet_m / float(np.median(r))
@@ -378,9 +376,7 @@ def _visible(
     return seen
 
 
-def _splat(
-    out: NDArray, hits: NDArray, line: NDArray, col: NDArray, power: NDArray, n_l: int, n_s: int
-) -> None:
+def _splat(out: NDArray, line: NDArray, col: NDArray, power: NDArray, n_l: int, n_s: int) -> None:
     """Add each facet's power to the four cells around its (line, column), bilinearly."""
     l0, c0 = np.floor(line).astype(np.int64), np.floor(col).astype(np.int64)
     fl, fc = line - l0, col - c0
@@ -394,4 +390,3 @@ def _splat(
         ok = (ll >= 0) & (ll < n_l) & (cc >= 0) & (cc < n_s)
         idx = ll[ok] * n_s + cc[ok]
         out += np.bincount(idx, weights=(w * power)[ok], minlength=n_l * n_s)
-        hits += np.bincount(idx, weights=w[ok], minlength=n_l * n_s)
