@@ -41,6 +41,7 @@ __all__ = [
     "DEFLATE_LEVEL",
     "HDF5_FILE_OPTIONS",
     "ISAL_LEVELS",
+    "all_attrs",
     "attrs_digest",
     "check_attrs_digest",
     "checksummed",
@@ -191,33 +192,46 @@ def _attr_bytes(value: Any) -> bytes:
     return f"{a.dtype.str}{a.shape}".encode() + a.tobytes()
 
 
-def attrs_digest(f: h5py.File) -> bytes:
-    """SHA-256 of every attribute of the file but the digest itself (of the plumbing, its
-    presence), in the order of the objects' and the attributes' names."""
-    h = hashlib.sha256()
+def all_attrs(f: h5py.File) -> dict[str, dict[str, Any]]:
+    """Every object's attributes, read once: ``{"": the file's, "group/name": …}`` in the
+    order :func:`attrs_digest` visits them (the plumbing's values left as ``None``)."""
+    out: dict[str, dict[str, Any]] = {}
 
     def add(name: str, obj: Any) -> None:
-        for key in sorted(obj.attrs):
+        a = obj.attrs
+        out[name] = {k: (None if k in _PLUMBING else a[k]) for k in a}
+
+    add("", f)
+    f.visititems(add)
+    return out
+
+
+def attrs_digest(f: h5py.File, attrs: dict[str, dict[str, Any]] | None = None) -> bytes:
+    """SHA-256 of every attribute of the file but the digest itself (of the plumbing, its
+    presence), in the order of the objects' and the attributes' names; ``attrs``: what
+    :func:`all_attrs` read of ``f``, not read again."""
+    h = hashlib.sha256()
+    for name, values in (all_attrs(f) if attrs is None else attrs).items():
+        for key in sorted(values):
             if name == "" and key == ATTRS_DIGEST:
                 continue
             h.update(f"{name}/{key}=".encode())
             if key not in _PLUMBING:  # references and layout: their presence only
-                h.update(_attr_bytes(obj.attrs[key]))
-
-    add("", f)
-    f.visititems(add)
+                h.update(_attr_bytes(values[key]))
     return h.digest()
 
 
-def check_attrs_digest(f: h5py.File, required: bool) -> None:
+def check_attrs_digest(
+    f: h5py.File, required: bool, attrs: dict[str, dict[str, Any]] | None = None
+) -> None:
     """Raise ``ValueError`` if the attributes do not match their stored digest (or it is
-    missing where ``required``)."""
-    stored = f.attrs.get(ATTRS_DIGEST)
+    missing where ``required``); ``attrs`` as :func:`attrs_digest`'s."""
+    stored = (f.attrs if attrs is None else attrs[""]).get(ATTRS_DIGEST)
     if stored is None:
         if required:
             raise ValueError(f"the attribute digest '{ATTRS_DIGEST}' is missing")
         return
-    if np.asarray(stored, dtype=np.uint8).tobytes() != attrs_digest(f):
+    if np.asarray(stored, dtype=np.uint8).tobytes() != attrs_digest(f, attrs):
         raise ValueError(
             "the attributes do not match their stored digest: the file is damaged or was edited"
         )

@@ -39,6 +39,7 @@ from levels.geo.maps import MapGrid
 from levels.hdf5 import (
     ATTRS_DIGEST,
     DEFLATE_LEVEL,
+    all_attrs,
     check_attrs_digest,
     checksummed,
     damage_as,
@@ -229,14 +230,16 @@ def _metadata_chunks(shape: tuple[int, ...]) -> tuple[int, ...]:
     return (*(1 for _ in shape[:-2]), *(min(n, _CHUNK) for n in shape[-2:]))
 
 
-def _read_tree(group: h5py.Group) -> dict[str, Any]:
+def _read_tree(group: h5py.Group, attrs: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """A group's attributes (from ``attrs``, :func:`levels.hdf5.all_attrs` of its file) and
+    its members, as nested dicts."""
     out: dict[str, Any] = {}
-    for name, value in group.attrs.items():
+    for name, value in attrs[group.name[1:]].items():
         out[name] = value.item() if isinstance(value, np.generic) else value
     for name, item in group.items():
         if isinstance(item, h5py.Group):
-            out[name] = _read_tree(item)
-        elif item.attrs.get("CLASS") != b"DIMENSION_SCALE":  # a tree's named dimensions
+            out[name] = _read_tree(item, attrs)
+        elif attrs[item.name[1:]].get("CLASS") != b"DIMENSION_SCALE":  # named dimensions
             out[name] = item[()]
     return out
 
@@ -553,8 +556,11 @@ def _read_product(where: Path, images: bool) -> Product:
         if missing:
             raise ProductError(f"{where}: group '{missing[0]}' is missing; not a complete product")
         try:
-            attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
-            trees = {k: _read_tree(f[k]) for k in ("geometry", "quality", "provenance")}
+            every = all_attrs(f)  # read once: the trees, then their digest
+            attrs = {
+                k: (v.item() if isinstance(v, np.generic) else v) for k, v in every[""].items()
+            }
+            trees = {k: _read_tree(f[k], every) for k in ("geometry", "quality", "provenance")}
             level = str(attrs.get("level"))
             lacking = [k for k in REQUIRED_GEOMETRY.get(level, ()) if k not in trees["geometry"]]
             if lacking:
@@ -581,7 +587,7 @@ def _read_product(where: Path, images: bool) -> Product:
             if grid is not None and version >= 2:
                 _check_coordinates(f, grid)
             try:  # last: a missing part is named above, an edited value here
-                check_attrs_digest(f, required=version >= 2)
+                check_attrs_digest(f, required=version >= 2, attrs=every)
             except ValueError as exc:
                 raise ProductError(str(exc)) from None  # the path is added below
             return Product(attrs=attrs, bands=bands, map_grid=grid, **trees)
