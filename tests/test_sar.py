@@ -13,10 +13,11 @@ import pyproj
 import pytest
 
 from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
+from levels.geo.maps import MapGrid
 from levels.sar import Geocoded, frame_grid, geocode
 from station.spacecraft.dem import world_dem
 from station.spacecraft.sar import ErsFrame, SarTruth, emulate_frame
-from station.spacecraft.world import World
+from station.spacecraft.world import DemGrid, World
 
 #: Ground → image against the truth's own solution on the integrated orbit (the issue's
 #: 1e-3 px; measured 7e-9 px: the annotation's state vectors every 10 s, Lagrange).
@@ -27,6 +28,9 @@ CHECKPOINT_PX = 0.1
 #: GEC over relief: each checkpoint's displacement against Δh / tan θ (measured within
 #: 0.3 %: the rest is the Earth's curvature over the displacement).
 RELIEF_DISPLACEMENT_REL = 0.01
+#: Layover and shadow against the truth's (the issue's; measured 1.000 and 0.998 on the
+#: ridges world at 25 m).
+MASK_IOU = 0.95
 #: The reduced frames' lines and samples.
 FRAME = 150
 #: The output grid's pixel (m): about the reduced frame's ground range sample.
@@ -59,6 +63,31 @@ def gtc(rugged) -> tuple:
     )  # fmt: skip
     grid = frame_grid(image.annotation, PIXEL_M, world.base_height_m)
     return grid, geocode(image, grid, dem=dem)
+
+
+@pytest.fixture(scope="module")
+def cliffs() -> tuple:
+    """A 100 × 100 frame over ridges running north–south every 1.2 km (a 45° face towards
+    the radar, east; an 80° cliff away from it; tops 150–450 m), the world a DEM of them
+    every 0.0001°, and its GTC over that DEM on 25 m pixels."""
+    lat0 = np.radians(-15.6)
+    d = np.radians(1e-4)
+    lat, lon = lat0 + np.arange(-300, 301) * d, LON0 + np.arange(-400, 401) * d
+    x, y = np.meshgrid((lon - LON0) * 6.37e6 * np.cos(lat0), (lat - lat0) * 6.37e6)
+    s = np.mod(x, 1200.0)
+    face = np.clip((1200.0 - s) * np.tan(np.radians(45)), 0, None)
+    cliff = np.clip((s - 200.0) * np.tan(np.radians(80)), 0, None)
+    top = 300.0 + 150.0 * np.sin(y / 700.0)
+    h = 200.0 + np.minimum(np.minimum(face, cliff), top)
+    world = World(
+        lon0_rad=LON0, base_height_m=200.0, relief_m=0.0, terrain_grid=DemGrid(lat, lon, h, 0.0)
+    )
+    image, truth = emulate_frame(ErsFrame(n_lines=100, n_samples=100), world, render=False)
+    dem = world_dem(
+        world, (lat[0], lat[-1]), (lon[0], lon[-1]), 1e-4, 0.0, np.random.default_rng(0)
+    )
+    grid = frame_grid(image.annotation, PIXEL_M, 350.0, 500.0)
+    return image, truth, grid, geocode(image, grid, dem=dem)
 
 
 def _checkpoints(
@@ -138,27 +167,63 @@ def test_gtc_with_the_exact_dem_lands_on_the_truth_and_gec_moves_by_the_relief(r
     np.testing.assert_allclose(moved_m[big], predicted_m[big], rtol=RELIEF_DISPLACEMENT_REL)
 
 
-def test_a_fold_in_range_is_layover_and_a_ridge_casts_shadow() -> None:
-    """``layover_and_shadow`` on one profile of 40 points 25 m apart: the slant range grows
-    with the ground range except over a slope steeper than the incidence, where it folds
-    back (points 10–14): the cells it folds over hold two patches; the look angle drops
-    behind a ridge (points 30–32): shadow. A flat profile has neither."""
+def test_a_ridge_folds_in_range_and_casts_shadow_where_the_geometry_says() -> None:
+    """``layover_and_shadow`` on a ridge across a flat plain seen from 785 km (flat Earth,
+    the radar over x = 0, one profile per grid row): a 40° face towards the radar (steeper
+    than the incidence: it folds in range) and a 75° face away from it (steeper than the
+    complement: it hides the plain behind it). Layover is, in closed form, the points
+    whose range another point of the profile shares: the plain before the face down to
+    the top's range, the face, and the back face down to the foot's range; shadow the back
+    face and the plain behind it up to where the ray over the top lands."""
     from levels.sar import layover_and_shadow
 
-    g = np.arange(40, dtype=np.float64)
-    col = g * 1.6  # 1.6 range samples a point on open ground
-    col[10:15] = col[9] - np.arange(1, 6) * 0.9  # folds back over samples of points 6–9
-    col[15:] -= 9.0
-    look = 0.4 + g * 1e-5
-    look[30:33] = look[29] - 2e-5
-    line = np.zeros(40)
-    gap = 60.0 / 840e3
-    layover, shadow = layover_and_shadow(line, col, look, g, 1.0, 1e-9, gap)
-    assert shadow[30:33].all() and shadow.sum() == 3
-    assert layover[10:15].any() and layover[5:10].any()  # both patches of a folded cell
-    assert not layover[:4].any() and not layover[20:].any()
-    flat_l, flat_s = layover_and_shadow(line, g * 1.6, 0.4 + g * 1e-5, g, 1.0, 1e-9, gap)
-    assert not flat_l.any() and not flat_s.any()
+    height, x0, dx = 785e3, 330e3, 25.0
+    n = np.arange(400)
+    x = x0 + n * dx
+    top_m = 40 * dx * np.tan(np.radians(40))
+    h = np.where((n >= 100) & (n < 140), (n - 100) * dx * np.tan(np.radians(40)), 0.0)
+    h = np.where(n >= 140, np.maximum(top_m - (n - 140) * dx * np.tan(np.radians(75)), 0), h)
+    r, look = np.hypot(x, height - h), np.arctan2(x, height - h)
+    grid = [np.tile(a, (6, 1)) for a in (x / 20.0, r / 7.9, look)]
+    rows = np.repeat(np.arange(6.0)[:, None], x.size, axis=1)
+    tol_r, tol_look = 0.05, 0.05 * 7.9 / 850e3
+    layover, shadow = layover_and_shadow(rows, *grid, 0.5 * dx / 20.0, tol_r, tol_look)
+    r_top, r_foot = r[140], r[100]  # the face: points 100 to 140
+    want_layover = (r > r_top + tol_r * 7.9) & (r < r_foot - tol_r * 7.9)
+    # the ray over the top at its look angle: what lies behind it, lower, is hidden
+    behind = (n > 140) & (look < look[140] - tol_look)
+    for k in range(6):
+        # the face's foot and top themselves: their range is their own only (the closed
+        # form's strict inequality), and the profile sees them as fold's ends
+        assert set(np.flatnonzero(layover[k] != want_layover)) <= {100, 140}
+        np.testing.assert_array_equal(shadow[k], behind)
+    assert want_layover.sum() > 70 and behind.sum() > 10  # the ridge does fold and hide
+    flat = layover_and_shadow(
+        rows, grid[0], grid[0] * 0.39, 0.4 + grid[0] * 1e-6, 0.6, tol_r, tol_look
+    )
+    assert not flat[0].any() and not flat[1].any()
+
+
+def test_layover_and_shadow_are_the_truths(cliffs) -> None:
+    """GTC over a world of ridges (45° faces towards the radar, 80° cliffs away from it,
+    on the DEM the world is made of): the masks against the truth's, the same definitions
+    on the world's own terrain four times finer than the output and the truth's own
+    geometry: IoU ≥ 0.95 each (the issue's)."""
+    _, truth, grid, geocoded = cliffs
+    valid = np.isfinite(geocoded.intensity)
+    ii, jj = np.nonzero(valid)
+    i0, i1, j0, j1 = ii.min(), ii.max() + 1, jj.min(), jj.max() + 1
+    x0, y1 = grid.map_of(i0 - 0.5, j0 - 0.5)
+    crop = MapGrid.north_up(grid.crs_wkt, float(x0), float(y1), PIXEL_M, i1 - i0, j1 - j0)
+    true_layover, true_shadow = truth.masks(crop, oversample=4)
+    inside = valid[i0:i1, j0:j1]
+    for ours, true in (
+        (geocoded.layover[i0:i1, j0:j1], true_layover),
+        (geocoded.shadow[i0:i1, j0:j1], true_shadow),
+    ):
+        ours, true = ours & inside, true & inside
+        assert true.sum() > 500  # enough of each to be a figure
+        assert (ours & true).sum() / (ours | true).sum() >= MASK_IOU
 
 
 def test_a_gtc_product_opens_georeferenced_in_gdal(rugged, gtc, tmp_path) -> None:

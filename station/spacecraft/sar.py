@@ -39,7 +39,14 @@ from numpy.typing import NDArray
 
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.times import Epoch
-from levels.sar import SPEED_OF_LIGHT_M_PER_S, SarAnnotation, SarImage, frame_grid
+from levels.sar import (
+    MASK_TOLERANCE_PX,
+    SPEED_OF_LIGHT_M_PER_S,
+    SarAnnotation,
+    SarImage,
+    frame_grid,
+    layover_and_shadow,
+)
 from station.spacecraft.orbit import TruthOrbit, node_state, phased_targets
 from station.spacecraft.placement import place_orbit
 from station.spacecraft.world import World
@@ -68,10 +75,6 @@ class SarInstrument:
 
 
 ERS1 = SarInstrument()
-
-#: A slant-range cell whose visible facets' look angles leave a gap of more than this many
-#: metres at the range receives two separate patches of terrain: layover.
-LAYOVER_GAP_M = 60.0
 
 
 @dataclass(frozen=True)
@@ -168,48 +171,50 @@ class SarTruth:
         s, _ = self.orbit.state_ecef(t)
         return t, np.linalg.norm(p - s, axis=1)
 
-    def masks(self, grid: Any, oversample: int = 3) -> tuple[NDArray, NDArray]:
-        """The true layover and shadow of the terrain under every pixel of a map grid:
-        each pixel's terrain sampled by ``oversample²`` facets of the world, each facet's
-        line, range and look angle by the truth; a facet is in shadow if the z-buffer of
-        the rendering hides it (:func:`_visible`), in layover if its slant-range cell also
-        receives visible facets of another patch (their look angles apart by a gap of
-        ``LAYOVER_GAP_M`` or more); a pixel is what most of its facets are."""
+    def masks(self, grid: Any, oversample: int = 4) -> tuple[NDArray, NDArray]:
+        """The true layover and shadow at the centre of every pixel of a map grid: the
+        definitions of :func:`levels.sar.layover_and_shadow` on the world's own terrain,
+        sampled ``oversample`` times finer than the grid (a profile every fine node along
+        the track), each node's line, range, look angle and ground range (its column at
+        the map across the track) by the truth's own solution on the integrated orbit."""
         ann = self.annotation
-        k = (np.arange(oversample) + 0.5) / oversample - 0.5
-        di, dj = (x.ravel() for x in np.meshgrid(k, k, indexing="ij"))
-        i, j = np.meshgrid(np.arange(grid.n_rows), np.arange(grid.n_cols), indexing="ij")
-        ii = (i.ravel()[:, None] + di[None, :]).ravel()
-        jj = (j.ravel()[:, None] + dj[None, :]).ravel()
-        x, y = grid.map_of(ii, jj)
+        n_r = (grid.n_rows - 1) * oversample + 1
+        n_c = (grid.n_cols - 1) * oversample + 1
+        i, j = np.meshgrid(np.arange(n_r) / oversample, np.arange(n_c) / oversample, indexing="ij")
+        x, y = grid.map_of(i.ravel(), j.ravel())
         to_geo = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True)
         lon, lat = (np.radians(a) for a in to_geo.transform(x, y))
         h, _, _ = self.world.height(lat, lon)
         p = WGS84.to_ecef(lat, lon, h)
         t, r = self.zero_doppler(p)
         s, _ = self.orbit.state_ecef(t)
-        line = ann.line_of(t)
         look = _look_angle(s, p, r)
-        seen = _visible(line, look, r, ann.range_spacing_m, grid.pixel_size_m / oversample)
-        cell = np.rint(line).astype(np.int64) * (1 << 32) + np.rint(ann.column_of(r)).astype(
-            np.int64
+        line = ann.line_of(t).reshape(n_r, n_c)
+        col = ann.column_of(r).reshape(n_r, n_c)
+        look = look.reshape(n_r, n_c)
+        per_node = max(
+            float(np.median(np.abs(np.diff(line, axis=0)))),
+            float(np.median(np.abs(np.diff(line, axis=1)))),
         )
-        # the visible facets of each cell in look angle: a gap of LAYOVER_GAP_M between two
-        # of them is terrain of another patch at the same range
-        vis = np.flatnonzero(seen)
-        order = vis[np.lexsort((look[vis], cell[vis]))]
-        c, a = cell[order], look[order]
-        same = c[1:] == c[:-1]
-        gap = np.where(same, np.diff(a), 0.0) > LAYOVER_GAP_M / float(np.median(r))
-        start = np.r_[True, ~same]
-        group = np.cumsum(start) - 1
-        hit = np.zeros(group[-1] + 1, dtype=bool)
-        hit[group[1:][gap]] = True
-        layover_f = np.zeros(r.size, dtype=bool)
-        layover_f[order] = hit[group]
-        n = oversample * oversample
-        layover = layover_f.reshape(-1, n).mean(axis=1) > 0.5
-        shadow = (~seen).reshape(-1, n).mean(axis=1) > 0.5
+        # the ground range: the map across the lines' mean direction, away from the track
+        gl = np.array([np.mean(np.diff(line, axis=0)), np.mean(np.diff(line, axis=1))])
+        across = np.array([-gl[1], gl[0]]) / np.hypot(*gl)
+        if across @ [np.mean(np.diff(col, axis=0)), np.mean(np.diff(col, axis=1))] < 0:
+            across = -across
+        u = (i * across[0] + j * across[1]) * grid.pixel_size_m
+        du = grid.pixel_size_m / oversample
+        centre = (slice(None, None, oversample), slice(None, None, oversample))
+        layover, shadow = layover_and_shadow(
+            line,
+            u,
+            col,
+            look,
+            0.5 * float(du),
+            MASK_TOLERANCE_PX,
+            MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m,
+            queries=(line[centre], u[centre], col[centre], look[centre]),
+            lines_per_profile=per_node,
+        )
         return layover.reshape(grid.shape), shadow.reshape(grid.shape)
 
     def image_of(
