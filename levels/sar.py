@@ -715,7 +715,7 @@ def geocode(
     # the terrain's profiles: on the output grid, or on nodes finer by the DEM's own
     # resolution (a cliff narrower than an output pixel casts its shadow all the same)
     k = 1 if dem is None else mask_oversample(dem, grid)
-    nodes = (line, across, col, look)
+    nodes: list[NDArray[np.float64]] = [line, across, col, look]
     if k > 1:
         res = grid.pixel_size_m
         fine = MapGrid.north_up(
@@ -726,7 +726,7 @@ def geocode(
             (grid.n_rows - 1) * k + 1,
             (grid.n_cols - 1) * k + 1,
         )
-        nodes = tuple(np.empty(fine.shape) for _ in range(4))
+        nodes = [np.empty(fine.shape) for _ in range(4)]
         over_blocks(
             _kernel_geocode,
             fine.n_rows,
@@ -743,13 +743,13 @@ def geocode(
             nodes[1],
             grain=64,
         )
-    du = np.hypot(*(abs(_median_step(nodes[1], ax)) for ax in (0, 1)))
+    du = float(np.hypot(_median_step(nodes[1], 0), _median_step(nodes[1], 1)))
     layover, shadow = layover_and_shadow(
         nodes[0],
         nodes[1],
         nodes[2],
         nodes[3],
-        0.5 * float(du),  # bins of half a node across it
+        0.5 * du,  # bins of half a node across it
         MASK_TOLERANCE_PX,
         MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m,
         queries=None if k == 1 else (line, across, col, look),
