@@ -21,6 +21,9 @@ _HEADLINE_SUFFIXES = (
     "polynomials_vs_model/max_px",
     "raw_counts",
     "level_1a_counts",
+    "checkpoints/rms_m",
+    "checkpoints/rms_px",
+    "/iou",
 )
 
 
@@ -100,6 +103,17 @@ def product_summary(product: Product, path: str | Path) -> dict[str, Any]:
             "pixel_size_m": float(g1b["pixel_size_m"]),
             "origin_ecef_m": np.asarray(g1b["plane_ecef_m"])[0].tolist(),
         }
+    sar = product.geometry.get("sar")
+    if sar:
+        shape = np.asarray(sar["image_shape"]).tolist()
+        out["sar"] = {
+            "kind": str(sar["kind"]),
+            "image_shape": shape,
+            "range_spacing_m": float(sar["range_spacing_m"]),
+            "line_interval_s": float(sar["line_interval_s"]),
+            "height_range_m": np.asarray(sar["height_range_m"]).tolist(),
+            "dem_source": str(sar.get("dem_source", "")),
+        }
     out["quality"] = scalar_figures(product.quality)
     out["provenance"] = dict(product.provenance)
     return out
@@ -114,6 +128,16 @@ def summary_text(s: dict[str, Any]) -> str:
             f"{' + '.join(st['views'])}, B/H {st['base_to_height']:.2f}, epipolar error "
             f"{st['epipolar_error_px']:.3f} px, {a.get('n_rows')} × {a.get('n_cols')} cells "
             f"of {st['cell_m']:g} m, heights above the {a.get('vertical', 'ellipsoid')}"
+        ]
+    elif "sar" in s:
+        r = s["sar"]
+        lines = [
+            f"{s['file']} ({s['size_mb']:.1f} MB): level {a.get('level')} of "
+            f"{a.get('instrument')} frame {a.get('name')} ({r['image_shape'][0]} lines × "
+            f"{r['image_shape'][1]} samples of {r['range_spacing_m']:.1f} m), "
+            f"{a.get('n_rows')} × {a.get('n_cols')} px of {a.get('pixel_size_m'):g} m, "
+            + (f"over the DEM {r['dem_source']}" if r["kind"] == "GTC" else "on the ellipsoid")
+            + f" ({r['height_range_m'][0]:.0f}–{r['height_range_m'][1]:.0f} m)"
         ]
     else:
         lines = [

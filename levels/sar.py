@@ -786,6 +786,7 @@ def sar_product(
     name: str,
     quality: dict[str, Any] | None = None,
     dem_source: str = "",
+    provenance: dict[str, Any] | None = None,
 ) -> Any:
     """A geocoded frame as a map product of the house format (level ``GEC`` or ``GTC``):
     bands ``intensity`` (NaN outside the frame), ``layover`` and ``shadow`` (1 or 0),
@@ -839,6 +840,6 @@ def sar_product(
             "shadow_fraction": float(g.shadow[valid].mean()) if valid.any() else 0.0,
             **(quality or {}),
         },
-        provenance={"software": f"levels {__version__}"},
+        provenance={"software": f"levels {__version__}", **(provenance or {})},
         map_grid=g.grid,
     )

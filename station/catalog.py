@@ -135,8 +135,9 @@ def _quality(product: Product, path: Path) -> dict[str, Any]:
 
 
 def _pair_item(product: Product, path: Path) -> Any:
-    """The STAC Item of a pair's product (a stereo DEM, :mod:`levels.stereo`): its map
-    grid's footprint, the pair's two dates."""
+    """The STAC Item of a map product without a scene: a pair's (a stereo DEM,
+    :mod:`levels.stereo`; the pair's two dates) or a SAR frame's (GEC, GTC:
+    :mod:`levels.sar`; its middle line's time). The map grid's footprint."""
     import pyproj
     import pystac
 
@@ -150,19 +151,22 @@ def _pair_item(product: Product, path: Path) -> Any:
         pyproj.CRS.from_wkt(grid.crs_wkt), pyproj.CRS.from_epsg(4326), always_xy=True
     ).transform(x, y)
     geometry, bbox = footprint_geojson(np.asarray(lat), np.asarray(lon))
-    when = sorted(str(t) for t in product.attrs["datetimes_utc"].split())
-    start, end = (dt.datetime.fromisoformat(t[:26]).replace(tzinfo=dt.UTC) for t in when)
+    sar = "sar" in product.geometry
+    key = "time_utc" if sar else "datetimes_utc"
+    when = sorted(str(t) for t in str(product.attrs[key]).split())
+    times = [dt.datetime.fromisoformat(t[:26]).replace(tzinfo=dt.UTC) for t in when]
+    start, end = times[0], times[-1]
     epsg = pyproj.CRS.from_wkt(grid.crs_wkt).to_epsg()
     item = pystac.Item(
         id=path.stem,
         geometry=geometry,
         bbox=bbox,
-        datetime=None,
+        datetime=start if sar else None,  # a frame: one instant
         start_datetime=start,
         end_datetime=end,
         properties={
             "title": str(product.attrs.get("name", path.stem)),
-            "constellation": "spot",
+            "constellation": "ers" if sar else "spot",
             "processing:level": str(product.level),
             "proj:code": f"EPSG:{epsg}" if epsg else None,
             "proj:shape": [rows, cols],
@@ -177,7 +181,8 @@ def _pair_item(product: Product, path: Path) -> Any:
             href=str(path.resolve()),
             media_type=_MEDIA.get(path.suffix, "application/x-hdf5"),
             roles=["data"],
-            title=f"{product.level} product of a stereo pair",
+            title=f"{product.level} product of "
+            + ("an ERS-1 SAR frame" if sar else "a stereo pair"),
         ),
     )
     return item

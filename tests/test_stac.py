@@ -156,3 +156,19 @@ def test_the_validator_catches_an_invalid_item(run: Path, tmp_path: Path) -> Non
     bad.write_text(json.dumps(item))
     with pytest.raises(AssertionError):
         _valid(bad)
+
+
+def test_a_sar_runs_catalogue_is_valid(tmp_path: Path) -> None:
+    """A SAR frame's run (``scenarios/sar/ers_gec.toml``, reduced): its GEC an Item of a
+    valid catalogue, over the map grid's footprint, at the frame's time."""
+    import dataclasses
+
+    from station.run_sar import load_sar_scenario, run_sar
+
+    scn = load_sar_scenario(Path(__file__).resolve().parents[1] / "scenarios/sar/ers_gec.toml")
+    scn = dataclasses.replace(scn, sar=dataclasses.replace(scn.sar, lines=64, samples=64))
+    run_sar(scn, tmp_path / "run")
+    (item,) = _check_catalog(tmp_path / "run")
+    assert item.properties["processing:level"] == "GEC"
+    assert item.properties["constellation"] == "ers"
+    assert item.datetime is not None and item.datetime.year == 1995

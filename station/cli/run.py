@@ -58,9 +58,12 @@ def _run(args: argparse.Namespace) -> int:
             "the repository's scenarios/); give a scenario file"
         )
     from station.run import is_block_file
+    from station.run_sar import is_sar_file
 
     if is_block_file(path):
         return _run_block(path, args)
+    if is_sar_file(path):
+        return _run_sar(path, args)
     scn = load_scenario(path)
     out = Path(args.out) if args.out else Path("runs") / scn.name
     if args.check:
@@ -131,6 +134,23 @@ def _run_block(path: Path, args: argparse.Namespace) -> int:
         len(r["products"]) for r in report["passes"]
     )
     return exit_made(made, "the block")
+
+
+def _run_sar(path: Path, args: argparse.Namespace) -> int:
+    """A SAR frame's scenario (``[sar]``): the frame, its GEC and GTC, the truth's figures."""
+    import json
+
+    from station.run_sar import load_sar_scenario, run_sar, sar_summary
+
+    scn = load_sar_scenario(path)
+    out = Path(args.out) if args.out else Path("runs") / scn.name
+    if args.check:
+        raise StationError("--check: not available for a SAR scenario yet; run it")
+    if not args.json and not args.quiet:
+        print(f"running the SAR frame {path} into {out}/ ...", file=sys.stderr)
+    report = run_sar(scn, out)
+    print(json.dumps(report, indent=2) if args.json else sar_summary(report, out))
+    return exit_made(len(report["products"]), "the run")
 
 
 def _check(scn: Any, out: Path, args: argparse.Namespace) -> int:

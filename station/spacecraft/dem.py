@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from station.scenario import DemConfig
     from station.spacecraft.emulator import Acquisition
 
-__all__ = ["DemError", "export_dem", "footprint_rad", "read_hgt"]
+__all__ = ["DemError", "export_dem", "export_dem_over", "footprint_rad", "read_hgt"]
 
 _VOID = -32768
 _NAME = re.compile(r"^([NS])(\d{2})([EW])(\d{3})\.hgt$", re.IGNORECASE)
@@ -104,12 +104,24 @@ def export_dem(acqs: list[Acquisition], cfg: DemConfig, seed: int, path: str | P
     scenario's ``seed``. Voids of the world (outside a real tile) are no-data. Written
     atomically; returns the path.
     """
+    return export_dem_over(acqs[0].world, footprint_rad(acqs), cfg, seed, path)
+
+
+def export_dem_over(
+    world: Any,
+    footprint: tuple[float, float, float, float],
+    cfg: DemConfig,
+    seed: int,
+    path: str | Path,
+) -> Path:
+    """:func:`export_dem` over a footprint (south, north, west, east; radians) of ``world``:
+    a SAR frame's, or the pass's strips'."""
     import rasterio
     from rasterio.transform import Affine
 
     from levels.files import atomic_path
 
-    south, north, west, east = footprint_rad(acqs)
+    south, north, west, east = footprint
     margin = cfg.margin_km * 1e3 / _EARTH_RADIUS_M
     step = np.radians(cfg.spacing_arcsec / 3600.0)
     coslat = max(np.cos(max(abs(south), abs(north))), 1e-3)
@@ -122,7 +134,6 @@ def export_dem(acqs: list[Acquisition], cfg: DemConfig, seed: int, path: str | P
             f'[dem]: {n_lat} × {n_lon} nodes at {cfg.spacing_arcsec:g}" is too large a grid; '
             "take a coarser spacing_arcsec"
         )
-    world = acqs[0].world
     grid = world.dem((lat0, lat0 + (n_lat - 1) * step), (lon0, lon0 + (n_lon - 1) * step), step)
     h = grid.height_m
     if cfg.error_rms_m > 0:

@@ -1,0 +1,434 @@
+"""``station run`` of an ERS-1 SAR frame (issue 38; ADRIN, paper ``001_…`` §5): a scenario
+with a ``[sar]`` table emulates one frame in slant range over the world, geocodes it onto
+the ellipsoid (GEC) and over a DEM (GTC), and measures each product against the truth.
+
+A SAR scenario names the frame (``[sar]``: where, when, its size and looks, the state
+vectors' errors, the levels and their pixel), the world (``[world]``, as a pass's) and,
+for GTC, the DEM the station is handed (``[dem]``, as a pass's: the world's terrain with
+errors of a known size, written as ``<name>.dem.tif``). The run directory holds that
+DEM, the products (``<name>_GEC.nc``, ``<name>_GTC.nc``, the house format), their STAC
+catalogue and ``report.json``; it replaces an earlier run of the scenario whole, as a
+pass's run does. Each product's report row gives:
+
+* ``checkpoints``: terrain points across the frame, where the product puts them against
+  where they are (output pixels and metres; the truth's own (line, column) of each,
+  taken back through the product's per-pixel (line, column)), with the relief
+  displacement ``Δh / tan θ`` a GEC predicts for them;
+* ``masks``: layover and shadow against the truth's (IoU, and the pixels of each);
+* the anchor grid's error and the time each stage took.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyproj
+
+from levels.options import build_section, describe_section, option
+from station.errors import ScenarioError
+from station.scenario import DemConfig, WorldConfig, check_name, read_toml
+
+__all__ = [
+    "SAR_KEY",
+    "SarConfig",
+    "SarScenario",
+    "checkpoint_errors",
+    "is_sar_file",
+    "load_sar_scenario",
+    "run_sar",
+]
+
+#: The table that makes a scenario a SAR frame's.
+SAR_KEY = "sar"
+#: Report format of a SAR run (``report.json``).
+SAR_REPORT_FORMAT = "spot-station-sar-run"
+SAR_REPORT_VERSION = 1
+#: Checkpoints drawn across a product (the inner part: 5 % margin each side).
+CHECKPOINTS = 200
+#: Truth's terrain nodes per output pixel, each way, for the masks (converged at 4: 6
+#: gives the same pixels on the tests' worlds).
+TRUTH_MASK_OVERSAMPLE = 4
+
+
+@dataclass(frozen=True)
+class SarConfig:
+    """``[sar]``: one ERS-1 frame and what the processing centre makes of it."""
+
+    date_utc: str = option("1995-08-15", "date_utc", "day of the frame (UTC)")
+    target_lat_deg: float = option(
+        -15.6, "target_lat_deg", "latitude of the frame's centre", 1.0, -80.0, 80.0
+    )
+    target_lon_deg: float = option(
+        -56.1, "target_lon_deg", "longitude of the frame's centre", 1.0, -180.0, 180.0
+    )
+    lines: int = option(400, "lines", "lines of the detected image", lo=16, hi=40000)
+    samples: int = option(
+        400, "samples", "slant-range samples of the detected image", lo=16, hi=40000
+    )
+    azimuth_looks: int = option(
+        5, "azimuth_looks", "pulses a line (line interval = looks / PRF)", lo=1, hi=100
+    )
+    range_looks: int = option(
+        2, "range_looks", "range samples a sample (spacing = looks × 7.9 m)", lo=1, hi=100
+    )
+    speckle_looks: float = option(
+        3.0, "speckle_looks", "looks of the speckle (0: none)", 1.0, 0.0, 1000.0
+    )
+    state_error_m: float = option(
+        0.0, "state_error_m", "1σ error of the annotation's state vectors, per axis", 1.0, 0.0, 1e4
+    )
+    levels: tuple[str, ...] = option(("GEC",), "levels", "products to make", choices=("GEC", "GTC"))
+    pixel_size_m: float = option(25.0, "pixel_size_m", "output pixel (UTM)", 1.0, 1.0, 1000.0)
+    reference_height_m: float = option(
+        float("nan"),
+        "reference_height_m",
+        "GEC's height above the ellipsoid (default: the world's base height)",
+    )
+
+
+@dataclass(frozen=True)
+class SarScenario:
+    """A SAR frame's scenario: a name, a seed, the frame, the world and the DEM."""
+
+    name: str = "ers"
+    seed: int = 38
+    sar: SarConfig = field(default_factory=SarConfig)
+    world: WorldConfig = field(default_factory=WorldConfig)
+    dem: DemConfig | None = None
+    base_dir: str = "."
+    source: str = ""
+    source_sha256: str = ""
+
+    def __post_init__(self) -> None:
+        check_name(self.name)
+        if "GTC" in self.sar.levels and self.dem is None:
+            raise ScenarioError(
+                "[sar] levels has 'GTC': it needs the DEM the station is handed, a [dem] table"
+            )
+
+    def path(self, relative: str) -> Path:
+        p = Path(relative)
+        return p if p.is_absolute() else Path(self.base_dir) / p
+
+    def inputs(self) -> list[Path]:
+        """The files the scenario reads: itself and its world's DEM."""
+        given = [self.world.dem_path] if self.world.kind == "dem" else []
+        return [Path(self.source)] * bool(self.source) + [self.path(p) for p in given]
+
+    @property
+    def reference_height_m(self) -> float:
+        h = self.sar.reference_height_m
+        return self.world.base_height_m if np.isnan(h) else h
+
+
+_SECTIONS = {"sar": SarConfig, "world": WorldConfig, "dem": DemConfig}
+
+
+def is_sar_file(path: str | Path) -> bool:
+    """Whether a scenario file describes a SAR frame (a ``[sar]`` table)."""
+    data, _ = read_toml(path)
+    return SAR_KEY in data
+
+
+def load_sar_scenario(path: str | Path) -> SarScenario:
+    """Read and check a SAR scenario file; :class:`ScenarioError` says what is wrong."""
+    p = Path(path)
+    data, raw = read_toml(p)
+    kwargs: dict[str, Any] = {"base_dir": str(p.resolve().parent)}
+    for key, value in data.items():
+        if key in ("name", "seed"):
+            want = str if key == "name" else int
+            if not isinstance(value, want) or isinstance(value, bool):
+                raise ScenarioError(
+                    f"{key} = {value!r}: expected {'a string' if want is str else 'an integer'}"
+                )
+            kwargs[key] = value
+        elif key in _SECTIONS:
+            kwargs[key] = build_section(_SECTIONS[key], key, value, ScenarioError)
+        else:
+            allowed = ", ".join(["name", "seed", *_SECTIONS])
+            raise ScenarioError(f"{p}: unknown key {key!r} in a SAR scenario; allowed: {allowed}")
+    kwargs.setdefault("name", p.stem)
+    scn = SarScenario(**kwargs)
+    return dataclasses.replace(
+        scn, source=str(p.resolve()), source_sha256=hashlib.sha256(raw).hexdigest()
+    )
+
+
+def describe_sar_keys() -> str:
+    """Every key of ``[sar]``, with its default, range and meaning."""
+    return "\n".join(describe_section("sar", SarConfig))
+
+
+def _world(scn: SarScenario) -> Any:
+    from station.spacecraft.dem import read_hgt
+    from station.spacecraft.world import World
+
+    wc = scn.world
+    grid = read_hgt(scn.path(wc.dem_path)) if wc.kind == "dem" else None
+    return World(np.radians(scn.sar.target_lon_deg), wc.base_height_m, wc.relief_m, wc.seed, grid)
+
+
+def _frame(scn: SarScenario) -> Any:
+    from station.spacecraft.sar import ErsFrame
+
+    c = scn.sar
+    return ErsFrame(
+        date_utc=c.date_utc,
+        target_lat_deg=c.target_lat_deg,
+        target_lon_deg=c.target_lon_deg,
+        n_lines=c.lines,
+        n_samples=c.samples,
+        azimuth_looks=c.azimuth_looks,
+        range_looks=c.range_looks,
+        speckle_looks=c.speckle_looks,
+        state_error_m=c.state_error_m,
+        state_error_m_per_s=1e-3 * c.state_error_m,
+        seed=scn.seed,
+    )
+
+
+def _footprint_rad(ann: Any, heights: tuple[float, float]) -> tuple[float, float, float, float]:
+    """(south, north, west, east) of the frame's footprint over a span of heights."""
+    n_l, n_s = ann.shape
+    edge = np.linspace(0.0, 1.0, 9)
+    lines = np.concatenate([edge * (n_l - 1), edge * (n_l - 1), 0 * edge, 0 * edge + n_l - 1])
+    cols = np.concatenate([0 * edge, 0 * edge + n_s - 1, edge * (n_s - 1), edge * (n_s - 1)])
+    lat, lon = (
+        np.concatenate(a)
+        for a in zip(*(ann.ground_of_image(lines, cols, h) for h in heights), strict=True)
+    )
+    return float(lat.min()), float(lat.max()), float(lon.min()), float(lon.max())
+
+
+def checkpoint_errors(g: Any, truth: Any, n: int = CHECKPOINTS, seed: int = 1) -> dict[str, Any]:
+    """Where a geocoded frame puts terrain points against where they are: ``n`` points drawn
+    over the inner output grid, each at the world's height, the truth's (line, column) of
+    it taken back onto the output grid through the product's per-pixel (line, column)
+    (Newton). Returns the errors (rows, columns: output pixels), the points' heights and
+    incidence, and the summary figures."""
+    from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
+
+    rng = np.random.default_rng(seed)
+    grid = g.grid
+    i = rng.uniform(0.05, 0.95, n) * (grid.n_rows - 1)
+    j = rng.uniform(0.05, 0.95, n) * (grid.n_cols - 1)
+    x, y = grid.map_of(i, j)
+    lon, lat = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True).transform(
+        x, y
+    )
+    lat, lon = np.radians(lat), np.radians(lon)
+    h, _, _ = truth.world.height(lat, lon)
+    lt, ct = truth.image_of(lat, lon, h)
+    n_l, n_s = truth.annotation.shape
+    ok = (lt > 1) & (lt < n_l - 2) & (ct > 1) & (ct < n_s - 2) & np.isfinite(h)
+    rows = np.arange(grid.n_rows, dtype=np.float64)
+    cols = np.arange(grid.n_cols, dtype=np.float64)
+
+    def raw_of(ii: np.ndarray, jj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return bilinear_grid(rows, cols, g.line, ii, jj), bilinear_grid(
+            rows, cols, g.column, ii, jj
+        )
+
+    gi, gj = invert_by_newton(raw_of, lt[ok], ct[ok], (i[ok], j[ok]), 8)
+    di, dj = gi - i[ok], gj - j[ok]
+    inc = truth.annotation.incidence(lat[ok], lon[ok], h[ok])
+    px = grid.pixel_size_m
+    e = np.hypot(di, dj)
+    e = e[np.isfinite(e)]
+    figures = {
+        "points": int(e.size),
+        "rms_px": float(np.sqrt(np.mean(e**2))) if e.size else float("nan"),
+        "max_px": float(np.max(e)) if e.size else float("nan"),
+        "rms_m": float(np.sqrt(np.mean(e**2)) * px) if e.size else float("nan"),
+        # in map axes: easting (columns), northing (rows, down the grid)
+        "rms_east_m": float(np.sqrt(np.nanmean(dj**2)) * px) if e.size else float("nan"),
+        "rms_north_m": float(np.sqrt(np.nanmean(di**2)) * px) if e.size else float("nan"),
+    }
+    return {"di": di, "dj": dj, "height_m": h[ok], "incidence_rad": inc, "figures": figures}
+
+
+def _mask_figures(g: Any, truth: Any) -> dict[str, Any]:
+    """Layover and shadow against the truth's, over the frame (its valid pixels' box)."""
+    from levels.geo.maps import MapGrid
+
+    valid = np.isfinite(g.intensity)
+    if not valid.any():
+        return {}
+    ii, jj = np.nonzero(valid)
+    i0, i1, j0, j1 = ii.min(), ii.max() + 1, jj.min(), jj.max() + 1
+    grid = g.grid
+    x0, y1 = grid.map_of(i0 - 0.5, j0 - 0.5)
+    crop = MapGrid.north_up(
+        grid.crs_wkt, float(x0), float(y1), grid.pixel_size_m, int(i1 - i0), int(j1 - j0)
+    )
+    true = truth.masks(crop, oversample=TRUTH_MASK_OVERSAMPLE)
+    inside = valid[i0:i1, j0:j1]
+    out: dict[str, Any] = {}
+    for name, ours, theirs in (
+        ("layover", g.layover[i0:i1, j0:j1], true[0]),
+        ("shadow", g.shadow[i0:i1, j0:j1], true[1]),
+    ):
+        a, b = ours & inside, theirs & inside
+        union = int((a | b).sum())
+        out[name] = {
+            "pixels": int(a.sum()),
+            "truth_pixels": int(b.sum()),
+            "iou": float((a & b).sum() / union) if union else None,
+        }
+    return out
+
+
+def run_sar(scn: SarScenario, out_dir: str | Path) -> dict[str, Any]:
+    """Run a SAR scenario into ``out_dir`` (module docstring); returns the report (also in
+    ``report.json``). Built in a staging directory that replaces ``out_dir`` only when
+    complete: a failure leaves the previous run as it was."""
+    from levels.files import staged_dir
+    from station.run import prepare_run_dir
+
+    out = prepare_run_dir(out_dir, scn.name, scn.inputs())
+    for p in scn.inputs():
+        if not p.is_file():
+            raise ScenarioError(f"{scn.name}: {p} not found")
+    with staged_dir(out) as stage:
+        return _run(scn, stage)
+
+
+def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
+    from levels import __version__
+    from levels.files import write_json
+    from levels.products import write_product
+    from levels.readers.dem import read_dem
+    from levels.sar import frame_grid, geocode, sar_product
+    from station.catalog import CATALOG_FILE, write_catalog
+    from station.spacecraft.dem import export_dem_over
+    from station.spacecraft.sar import emulate_frame
+
+    clock = time.perf_counter
+    timings: dict[str, float] = {}
+    t = clock()
+    world = _world(scn)
+    image, truth = emulate_frame(_frame(scn), world)
+    timings["emulate"] = clock() - t
+    ann = image.annotation
+    ref = scn.reference_height_m
+    dem = None
+    dem_row: dict[str, Any] = {}
+    if scn.dem is not None:
+        t = clock()
+        lo, hi = (ref - 3.0 * world.relief_m - 500.0, ref + 3.0 * world.relief_m + 500.0)
+        dem_path = export_dem_over(
+            world, _footprint_rad(ann, (lo, hi)), scn.dem, scn.seed, out / f"{scn.name}.dem.tif"
+        )
+        dem = read_dem(dem_path, "ellipsoid")
+        dem_row = {"file": dem_path.name, **dataclasses.asdict(scn.dem)}
+        timings["dem_export"] = clock() - t
+    rows = []
+    for level in scn.sar.levels:
+        t = clock()
+        grid = frame_grid(ann, scn.sar.pixel_size_m, ref, 3.0 * world.relief_m)
+        g = geocode(image, grid, dem=dem if level == "GTC" else None, reference_height_m=ref)
+        timings[f"geocode_{level}"] = clock() - t
+        t = clock()
+        cp = checkpoint_errors(g, truth)
+        quality: dict[str, Any] = {"checkpoints": cp["figures"]}
+        if level == "GEC":  # what its height off the reference predicts: Δh / tan θ
+            moved = np.hypot(cp["di"], cp["dj"]) * grid.pixel_size_m
+            predicted = np.abs(cp["height_m"] - ref) / np.tan(cp["incidence_rad"])
+            big = predicted > 2.0 * grid.pixel_size_m
+            quality["relief_displacement"] = {
+                "points": int(big.sum()),
+                "predicted_rms_m": float(np.sqrt(np.mean(predicted**2))) if predicted.size else 0.0,
+                "worst_ratio_error": float(np.max(np.abs(moved[big] / predicted[big] - 1.0)))
+                if big.any()
+                else None,
+            }
+        if level == "GTC":
+            quality["masks"] = _mask_figures(g, truth)
+        timings[f"truth_{level}"] = clock() - t
+        product = sar_product(
+            g,
+            image,
+            f"{scn.name}_{level}",
+            quality=quality,
+            dem_source=dem_row.get("file", ""),
+            provenance={
+                "scenario": scn.name,
+                "scenario_file": Path(scn.source).name,
+                "scenario_sha256": scn.source_sha256,
+                "seed": scn.seed,
+                "inputs": dem_row.get("file", "") if level == "GTC" else "",
+            },
+        )
+        path = write_product(out / f"{scn.name}_{level}.nc", product)
+        rows.append(
+            {
+                "level": level,
+                "file": path.name,
+                "n_rows": grid.n_rows,
+                "n_cols": grid.n_cols,
+                "pixel_size_m": grid.pixel_size_m,
+                "valid_fraction": round(float(np.isfinite(g.intensity).mean()), 6),
+                "size_mb": round(path.stat().st_size / 1e6, 3),
+                "anchor_error_px": g.anchor_error,
+                "quality": quality,
+            }
+        )
+    t = clock()
+    write_catalog(out, scn.name, f"the products of a run of SAR scenario {scn.name} (spot-station)")
+    timings["catalog"] = clock() - t
+    report = {
+        "format": SAR_REPORT_FORMAT,
+        "format_version": SAR_REPORT_VERSION,
+        "software": f"spot-station {__version__}",
+        "scenario": {
+            "name": scn.name,
+            "file": Path(scn.source).name if scn.source else "",
+            "sha256": scn.source_sha256,
+            "seed": scn.seed,
+        },
+        "frame": {
+            "instrument": "ERS-1 AMI SAR",
+            "lines": ann.shape[0],
+            "samples": ann.shape[1],
+            "line_interval_s": ann.line_interval_s,
+            "range_spacing_m": ann.range_spacing_m,
+            "near_range_m": ann.near_range_m,
+            "state_error_m": scn.sar.state_error_m,
+            "reference_height_m": ref,
+        },
+        **({"dem": dem_row} if dem_row else {}),
+        "products": rows,
+        "catalog": CATALOG_FILE,
+        "timings_s": {k: round(v, 3) for k, v in timings.items()},
+    }
+    write_json(out / "report.json", report)
+    return report
+
+
+def sar_summary(report: dict[str, Any], out: Path) -> str:
+    """The run's table: each product, its checkpoints and masks against the truth."""
+    f = report["frame"]
+    lines = [f"SAR frame {f['lines']} × {f['samples']} ({f['instrument']}) → {out}/"]
+    for p in report["products"]:
+        cp = p["quality"]["checkpoints"]
+        line = (
+            f"  {p['level']}: {p['n_rows']} × {p['n_cols']} px of {p['pixel_size_m']:g} m; "
+            f"checkpoints RMS {cp['rms_px']:.3f} px ({cp['rms_east_m']:.1f} m E, "
+            f"{cp['rms_north_m']:.1f} m N, {cp['points']} points)"
+        )
+        masks = p["quality"].get("masks", {})
+        if masks:
+            line += "; " + ", ".join(
+                f"{k} {v['pixels']} px (truth {v['truth_pixels']}"
+                + (f", IoU {v['iou']:.3f})" if v["iou"] is not None else ")")
+                for k, v in masks.items()
+            )
+        lines.append(line + f": {p['file']}")
+    return "\n".join(lines)
