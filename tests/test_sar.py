@@ -14,9 +14,9 @@ import numpy as np
 import pyproj
 import pytest
 
-from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
 from levels.geo.maps import MapGrid
 from levels.sar import Geocoded, frame_grid, geocode
+from station.run_sar import checkpoint_errors
 from station.spacecraft.dem import world_dem
 from station.spacecraft.sar import ErsFrame, SarTruth, emulate_frame
 from station.spacecraft.world import DemGrid, World
@@ -93,36 +93,11 @@ def cliffs() -> tuple:
     return image, truth, grid, geocode(image, grid, dem=dem)
 
 
-def _checkpoints(
-    g: Geocoded, truth: SarTruth, world: World, n: int = 200
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Where the product puts terrain points (output pixels) minus where they are, and
-    their heights and incidence: the truth's (line, column) of each point taken back onto
-    the output grid through the product's own per-pixel (line, column)."""
-    rng = np.random.default_rng(1)
-    grid = g.grid
-    i = rng.uniform(20, grid.n_rows - 20, n)
-    j = rng.uniform(20, grid.n_cols - 20, n)
-    x, y = grid.map_of(i, j)
-    lon, lat = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True).transform(
-        x, y
-    )
-    lat, lon = np.radians(lat), np.radians(lon)
-    h, _, _ = world.height(lat, lon)
-    lt, ct = truth.image_of(lat, lon, h)
-    n_l, n_s = truth.annotation.shape
-    ok = (lt > 1) & (lt < n_l - 2) & (ct > 1) & (ct < n_s - 2)
-    rows = np.arange(grid.n_rows, dtype=np.float64)
-    cols = np.arange(grid.n_cols, dtype=np.float64)
-
-    def raw_of(ii: np.ndarray, jj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return bilinear_grid(rows, cols, g.line, ii, jj), bilinear_grid(
-            rows, cols, g.column, ii, jj
-        )
-
-    gi, gj = invert_by_newton(raw_of, lt[ok], ct[ok], (i[ok], j[ok]), 8)
-    inc = truth.annotation.incidence(lat[ok], lon[ok], h[ok])
-    return gi - i[ok], gj - j[ok], h[ok], inc
+def _checkpoints(g: Geocoded, truth: SarTruth) -> tuple:
+    """Where the product puts terrain points minus where they are (output pixels), their
+    heights and incidence (:func:`station.run_sar.checkpoint_errors`, what a run reports)."""
+    cp = checkpoint_errors(g, truth)
+    return cp["di"], cp["dj"], cp["height_m"], cp["incidence_rad"]
 
 
 def test_pixel_location_is_the_truths(rugged) -> None:
@@ -146,7 +121,7 @@ def test_gec_on_a_flat_world_lands_on_the_truth(flat) -> None:
     grid = frame_grid(image.annotation, PIXEL_M, world.base_height_m)
     gec = geocode(image, grid, reference_height_m=world.base_height_m)
     assert gec.kind == "GEC" and gec.anchor_error["max_px"] < 0.01
-    di, dj, _, _ = _checkpoints(gec, truth, world)
+    di, dj, _, _ = _checkpoints(gec, truth)
     assert di.size > 100
     assert np.sqrt(np.mean(di**2 + dj**2)) <= CHECKPOINT_PX
     assert np.isfinite(gec.intensity).mean() > 0.5
@@ -158,11 +133,11 @@ def test_gtc_with_the_exact_dem_lands_on_the_truth_and_gec_moves_by_the_relief(r
     reference height moves each by Δh / tan θ, toward the radar."""
     image, truth, world = rugged
     grid, gtc = gtc
-    di, dj, _, _ = _checkpoints(gtc, truth, world)
+    di, dj, _, _ = _checkpoints(gtc, truth)
     assert di.size > 100
     assert np.sqrt(np.mean(di**2 + dj**2)) <= CHECKPOINT_PX
     gec = geocode(image, grid, reference_height_m=world.base_height_m)
-    di, dj, h, inc = _checkpoints(gec, truth, world)
+    di, dj, h, inc = _checkpoints(gec, truth)
     moved_m = np.hypot(di, dj) * PIXEL_M
     predicted_m = np.abs(h - world.base_height_m) / np.tan(inc)
     big = predicted_m > 10 * PIXEL_M
@@ -330,6 +305,6 @@ def test_station_run_takes_a_sar_scenario_and_refuses_a_gtc_without_a_dem(tmp_pa
     bad = tmp_path / "bad.toml"
     bad.write_text('[sar]\nlevels = ["GTC"]\n')
     assert main(["run", str(bad), "--out", str(tmp_path / "out")]) == 2
-    bad.write_text('[sar]\nlines = 64\n[instrument]\nmirror_step = 48\n')
+    bad.write_text("[sar]\nlines = 64\n[instrument]\nmirror_step = 48\n")
     assert main(["run", str(bad), "--out", str(tmp_path / "out")]) == 2
     assert not (tmp_path / "out").exists()
