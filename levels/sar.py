@@ -649,9 +649,11 @@ def geocode(
     dem: Dem | None = None,
     reference_height_m: float = 0.0,
     step_px: int = ANCHOR_STEP_PX,
+    masks: bool = True,
 ) -> Geocoded:
     """``image`` on ``grid``: over ``dem`` (GTC), or on the ellipsoid raised to
-    ``reference_height_m`` (GEC) (module docstring)."""
+    ``reference_height_m`` (GEC) (module docstring); ``masks=False``: no layover and
+    shadow (all false), the geometry alone."""
     ann = image.annotation
     if dem is None:
         height = np.full(grid.shape, float(reference_height_m))
@@ -714,7 +716,7 @@ def geocode(
     )
     # the terrain's profiles: on the output grid, or on nodes finer by the DEM's own
     # resolution (a cliff narrower than an output pixel casts its shadow all the same)
-    k = 1 if dem is None else mask_oversample(dem, grid)
+    k = 1 if dem is None or not masks else mask_oversample(dem, grid)
     nodes: list[NDArray[np.float64]] = [line, across, col, look]
     if k > 1:
         res = grid.pixel_size_m
@@ -743,18 +745,21 @@ def geocode(
             nodes[1],
             grain=64,
         )
-    du = float(np.hypot(_median_step(nodes[1], 0), _median_step(nodes[1], 1)))
-    layover, shadow = layover_and_shadow(
-        nodes[0],
-        nodes[1],
-        nodes[2],
-        nodes[3],
-        0.5 * du,  # bins of half a node across it
-        MASK_TOLERANCE_PX,
-        MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m,
-        queries=None if k == 1 else (line, across, col, look),
-        lines_per_profile=max(per_px / k, 1e-3),  # one profile per node along the track
-    )
+    if masks:
+        du = float(np.hypot(_median_step(nodes[1], 0), _median_step(nodes[1], 1)))
+        layover, shadow = layover_and_shadow(
+            nodes[0],
+            nodes[1],
+            nodes[2],
+            nodes[3],
+            0.5 * du,  # bins of half a node across it
+            MASK_TOLERANCE_PX,
+            MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m,
+            queries=None if k == 1 else (line, across, col, look),
+            lines_per_profile=max(per_px / k, 1e-3),  # one profile per node along the track
+        )
+    else:
+        layover = shadow = np.zeros(grid.shape, dtype=np.bool_)
     # the anchor grid's error: a lattice between the anchors, at each pixel's height
     ci, cj = np.meshgrid(
         np.linspace(0.5 * step_px, grid.n_rows - 1, 23),
