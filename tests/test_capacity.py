@@ -228,6 +228,7 @@ def test_calibration_measures_this_code(tmp_path: Path, capsys) -> None:
         assert 0 < cor["1A"] < min(cor["1B"], cor["2A"])
         assert table["geo_s_per_scene"][mode] > 0 and table["archive_s"][mode]["2A"] > 0
     assert table["ingest_s_per_signal_s"] > 0
+    assert table["sar_gtc_s_per_frame"] > 0  # an ERS-1 frame's GTC (issue 38)
     assert "wrote" in capsys.readouterr().out
 
 
@@ -312,3 +313,39 @@ def test_cor_window_of_raw_lines() -> None:
     # a table that predates the measure falls back on INPE's own figures (950 / 475)
     old = Service(0.0, {}, {}, {})
     assert cor_window_s(old, ServiceConfig(cor_memory_mb=5.0), "P") == pytest.approx(36.0)
+
+
+def test_ers_takes_the_antenna_and_its_frames_load_cor(cuiaba) -> None:
+    """Issue 38: ERS-1's passes share the antenna as Landsat's do (tracked or finding it
+    taken, SPOT losing passes to them), and each tracked pass's frames to geocode take
+    COR for the GTC time measured on this code."""
+    from dataclasses import replace
+
+    from station.capacity.model import pass_patterns
+
+    base = _short(cuiaba, outage__days="0", failures__antenna_mtbf_h="0")
+    base = with_value(with_value(base, "landsat.antenna_share", "0"), "ers.antenna_share", "1")
+    service = load_service(base)
+    assert service.sar_gtc_s_per_frame > 0  # scenarios/capacity/service_times.json
+    patterns = pass_patterns(base)
+    ers = patterns[2]  # ERS-1's phased orbit: 501 revolutions in 35 days
+    assert ers is not None and ers.cycle_s == 35 * 86400.0
+    assert patterns[1] is None  # no Landsat
+    every = simulate(base, service, 0, patterns).station
+    no_ers = with_value(base, "ers.antenna_share", "0")
+    none = simulate(no_ers, service, 0, (patterns[0], None, None)).station
+    warmup = base.simulation.warmup_days * 86400.0
+    end = warmup + base.simulation.days * 86400.0
+    aos = np.concatenate([ers.aos_s + k * ers.cycle_s for k in range(4)])
+    expected = np.count_nonzero((aos >= warmup) & (aos < end))
+    assert every["ers_passes_tracked"] + every["ers_passes_missed"] == expected
+    assert none["ers_passes_tracked"] == 0 and none["sar_frames"] == 0
+    assert every["passes_lost"] > none["passes_lost"]
+    # frames: Poisson of mean frames_per_pass × gtc_fraction per tracked pass, within 4σ
+    mean = every["ers_passes_tracked"] * base.ers.frames_per_pass * base.ers.gtc_fraction
+    assert abs(every["sar_frames_recorded"] - mean) < 4 * math.sqrt(mean)
+    # at 1990's speed (scale_cor) a frame takes COR for a day and more: they pile up
+    assert 0 < every["sar_frames"] < every["sar_frames_recorded"]
+    assert every["cor_backlog_growth_per_day"] > none["cor_backlog_growth_per_day"]
+    with pytest.raises(ScenarioError, match="calibrate"):  # a file from before SAR's figure
+        simulate(base, replace(service, sar_gtc_s_per_frame=0.0), 0, patterns)

@@ -14,7 +14,12 @@ scene and channel:
   deconvolution, 1B resampling; 2A: 1A, deconvolution, 2A resampling), scaled by the
   pixels of a full scene over the reduced one (6000² in P, 3 × 3000² in XS). The quality
   figures against the truth are the emulator's business, not production: left out;
-- **archive**, per product: writing it, scaled by pixels likewise.
+- **archive**, per product: writing it, scaled by pixels likewise;
+- **SAR GTC**, per ERS-1 frame: a reduced frame (300 × 300 samples of 5 azimuth and 2
+  range looks) geocoded over a 1" DEM onto 12.5 m pixels with its masks
+  (:func:`levels.sar.geocode`), after an untimed one, scaled by the output pixels of a
+  full frame (the north-up grid of 12.5 m over its 100 km × 100 km: 9695 × 9825 pixels)
+  over the reduced one's.
 """
 
 from __future__ import annotations
@@ -31,7 +36,13 @@ from levels.files import write_json
 from levels.spot import MODES
 from station import __version__
 
-__all__ = ["FULL_BIT_RATE_BIT_PER_S", "calibrate", "raw_lines_per_2a_row", "write_service_times"]
+__all__ = [
+    "FULL_BIT_RATE_BIT_PER_S",
+    "calibrate",
+    "raw_lines_per_2a_row",
+    "sar_gtc_s_per_frame",
+    "write_service_times",
+]
 
 FULL_BIT_RATE_BIT_PER_S = 25e6  # one HRV channel (docs/telemetry.md)
 _REDUCED = {  # mode: detectors, lines, bit rate (a share of 25 Mbit/s like the detectors)
@@ -39,6 +50,9 @@ _REDUCED = {  # mode: detectors, lines, bit rate (a share of 25 Mbit/s like the 
     "XS": (500, 500, 4.0),
 }
 _FULL_PIXELS = {m: MODES[m].pixels_per_scene for m in _REDUCED}
+#: A full ERS-1 frame's output pixels: the north-up grid of 12.5 m covering its 100 km ×
+#: 100 km (benchmarks/bench_sar.py's, at Cuiabá).
+_SAR_FULL_PIXELS = 9695 * 9825
 
 
 #: A scene's timings that are GEO's (levels.makers.steps): its geometry and RPCs.
@@ -124,7 +138,31 @@ def calibrate() -> dict[str, Any]:
             for m, r in raw.items()
         },
         "raw_lines_per_2a_row": {m: raw_lines_per_2a_row(m) for m in _REDUCED},
+        "sar_gtc_s_per_frame": sar_gtc_s_per_frame(),
     }
+
+
+def sar_gtc_s_per_frame(n: int = 300) -> float:
+    """Seconds to geocode one full ERS-1 frame over a DEM (GTC with its masks), from a
+    reduced ``n`` × ``n`` frame (module docstring)."""
+    from levels.sar import frame_grid, geocode
+    from station.spacecraft.dem import world_dem
+    from station.spacecraft.sar import ErsFrame, emulate_frame
+    from station.spacecraft.world import World
+
+    world = World(lon0_rad=np.radians(-56.1), base_height_m=200.0, relief_m=250.0, seed=3)
+    image, _ = emulate_frame(ErsFrame(n_lines=n, n_samples=n), world, render=False)
+    lat0, lon0 = np.radians(-15.6), np.radians(-56.1)
+    span = 1e-5 * n + 0.003  # radians: the frame and the relief's displacement
+    dem = world_dem(
+        world, (lat0 - span, lat0 + span), (lon0 - span, lon0 + span), 1 / 3600, 0.0,
+        np.random.default_rng(0),
+    )  # fmt: skip
+    grid = frame_grid(image.annotation, 12.5, world.base_height_m)
+    geocode(image, grid, dem=dem)  # compiles the kernels; not timed
+    t = time.perf_counter()
+    geocode(image, grid, dem=dem)
+    return (time.perf_counter() - t) * _SAR_FULL_PIXELS / (grid.n_rows * grid.n_cols)
 
 
 def raw_lines_per_2a_row(mode: str) -> float:

@@ -292,6 +292,36 @@ class LandsatConfig:
 
 
 @dataclass(frozen=True)
+class ErsConfig:
+    """ERS-1 at the same station (issue 38: Cuiabá received ERS-1 as well as SPOT and
+    Landsat; ADRIN's geocoding, paper ``001_…`` §5).
+
+    Its passes take the antenna when tracked (a share of them), as Landsat's do; each
+    tracked pass records ``frames_per_pass`` frames on average (Poisson), of which
+    ``gtc_fraction`` are geocoded over a DEM (GTC) on the shared COR units, each for the
+    service time measured on this code (``service_times.json``: ``sar_gtc_s_per_frame``, a
+    full 100 km frame at 12.5 m) times ``[service] scale_cor``. The orbit is ERS-1's (501
+    revolutions in 35 days, 785 km, descending node at 10:30): the mission's published
+    facts, not a seed's.
+    """
+
+    antenna_share: float = option(
+        0.0, "antenna_share", "share of ERS-1 passes over the station tracked", 1.0, 0.0, 1.0
+    )
+    repeat_revs: int = option(501, "repeat_revs", "ERS-1 revolutions per cycle", lo=1, hi=10000)
+    repeat_days: int = option(35, "repeat_days", "ERS-1 repeat cycle", lo=1, hi=1000)
+    descending_node_local_time_h: float = option(
+        10.5, "descending_node_local_time_h", "ERS-1's descending node", 1.0, 0.0, 24.0
+    )
+    frames_per_pass: float = option(
+        4.0, "frames_per_pass", "frames recorded per tracked pass (mean)", 1.0, 0.0, 100.0
+    )
+    gtc_fraction: float = option(
+        0.5, "gtc_fraction", "share of the frames geocoded (GTC) on COR", 1.0, 0.0, 1.0
+    )
+
+
+@dataclass(frozen=True)
 class OutageConfig:
     """One stage entirely down for a while (all its units), to watch the backlog."""
 
@@ -311,6 +341,7 @@ _SECTIONS = {
     "service": ServiceConfig,
     "outage": OutageConfig,
     "landsat": LandsatConfig,
+    "ers": ErsConfig,
 }
 
 
@@ -331,6 +362,7 @@ class CapacityScenario:
     service: ServiceConfig = field(default_factory=ServiceConfig)
     outage: OutageConfig = field(default_factory=OutageConfig)
     landsat: LandsatConfig = field(default_factory=LandsatConfig)
+    ers: ErsConfig = field(default_factory=ErsConfig)
     base_dir: str = "."
     source: str = ""
     source_sha256: str = ""

@@ -35,6 +35,7 @@ from levels.spot import MODES
 from station.capacity.config import CapacityScenario, ServiceConfig
 from station.capacity.passes import PassPattern, pass_pattern
 from station.capacity.stage import Process, Shift, Stage
+from station.errors import ScenarioError
 from station.scenario import OrbitConfig
 
 __all__ = [
@@ -69,6 +70,8 @@ class Service:
     #: Raw lines one north-up 2A row reads, per mode, measured on this code's geometry at
     #: full size (INPE's 950 / 475 figure); empty in files that predate it.
     raw_lines_per_2a_row: dict[str, float] = field(default_factory=dict)
+    #: Geocoding one full ERS-1 frame over a DEM (GTC, 12.5 m); 0 in files that predate it.
+    sar_gtc_s_per_frame: float = 0.0
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Service:
@@ -79,6 +82,7 @@ class Service:
             {m: dict(v) for m, v in d["archive_s"].items()},
             str(d.get("machine", "")),
             {m: float(v) for m, v in d.get("raw_lines_per_2a_row", {}).items()},
+            float(d.get("sar_gtc_s_per_frame", 0.0)),
         )
 
 
@@ -108,7 +112,7 @@ class StationSimulation:
         scn: CapacityScenario,
         service: Service,
         replication: int = 0,
-        patterns: tuple[PassPattern, PassPattern | None] | None = None,
+        patterns: Patterns | None = None,
     ) -> None:
         rng = np.random.default_rng(np.random.SeedSequence(scn.seed, spawn_key=(replication,)))
         self.rng_plan, self.rng_service, rng_fail, self.rng_orders = rng.spawn(4)
@@ -116,7 +120,7 @@ class StationSimulation:
         sim, res = scn.simulation, scn.resources
         self.warmup = sim.warmup_days * _DAY
         self.t_end = self.warmup + sim.days * _DAY
-        spot, landsat = patterns or pass_patterns(scn)
+        spot, landsat, ers = patterns or pass_patterns(scn)
         self.pattern = spot
         self.env = env = simpy.Environment()
         sh = scn.shifts
@@ -170,6 +174,10 @@ class StationSimulation:
             "landsat_passes_tracked": 0,
             "landsat_passes_missed": 0,
             "tm_jobs": 0,
+            "ers_passes_tracked": 0,
+            "ers_passes_missed": 0,
+            "sar_frames_recorded": 0,
+            "sar_frames": 0,
         }
         self.mix = np.cumsum(scn.orders.mix)
         # streams of their own, after the first four: scenarios without Landsat or film
@@ -181,6 +189,14 @@ class StationSimulation:
             env.process(self.landsat_passes(landsat))
         if ls.tm_jobs_per_day > 0 and ls.tm_job_s > 0:
             env.process(self.tm_jobs())
+        self.rng_ers = rng.spawn(1)[0]  # after the others: runs without ERS draw as before
+        if ers is not None:
+            if scn.ers.gtc_fraction > 0 and service.sar_gtc_s_per_frame <= 0:
+                raise ScenarioError(
+                    "[ers]: the service-time file predates SAR geocoding's "
+                    "(no sar_gtc_s_per_frame); run `station capacity calibrate`"
+                )
+            env.process(self.ers_passes(ers))
 
     def _draw(self, mean_s: float, scale: float) -> float:
         """A service time: the calibrated mean times the scenario's factor, gamma law."""
@@ -302,6 +318,36 @@ class StationSimulation:
                         ] += 1
             k += 1
 
+    def ers_passes(self, pattern: PassPattern) -> Process:
+        """ERS-1's passes at their AOS: a tracked one takes the antenna (if free) for its
+        visibility, as Landsat's, and its frames to geocode go to COR."""
+        env, ers = self.env, self.scn.ers
+        k = 0
+        while True:
+            for t, d in zip(pattern.aos_s + k * pattern.cycle_s, pattern.duration_s, strict=True):
+                if t >= self.t_end:
+                    return
+                if t > env.now:
+                    yield env.timeout(t - env.now)
+                if self.rng_ers.random() < ers.antenna_share:
+                    got = self.stages["antenna"].take(d, count_loss=False)
+                    if t >= self.warmup:
+                        self.counts["ers_passes_tracked" if got else "ers_passes_missed"] += 1
+                    if got:
+                        n = int(self.rng_ers.poisson(ers.frames_per_pass * ers.gtc_fraction))
+                        self.counts["sar_frames_recorded"] += n if t >= self.warmup else 0
+                        for _ in range(n):
+                            env.process(self.sar_frame(t >= self.warmup))
+            k += 1
+
+    def sar_frame(self, counted: bool) -> Process:
+        """One ERS-1 frame geocoded (GTC) on a COR unit, after SPOT's urgent orders;
+        counted when done (``sar_frames``; ``sar_frames_recorded`` when its pass ends)."""
+        sv = self.scn.service
+        mean_s = self.service.sar_gtc_s_per_frame * sv.scale_cor
+        yield from self.stages["cor"].serve(_gamma(self.rng_ers, mean_s, sv.cv), priority=1)
+        self.counts["sar_frames"] += counted
+
     def tm_jobs(self) -> Process:
         """Landsat TM processing on the shared COR units: Poisson arrivals."""
         env, ls = self.env, self.scn.landsat
@@ -382,26 +428,32 @@ def cor_window_s(service: Service, cfg: ServiceConfig, mode: str) -> float:
     return (passes - 1) * m.detectors * line_mb / cfg.raw_read_mb_per_s
 
 
-def pass_patterns(scn: CapacityScenario) -> tuple[PassPattern, PassPattern | None]:
-    """The passes over the scenario's station of SPOT and, when it shares the antenna, of
-    Landsat (:func:`~station.capacity.passes.pass_pattern`)."""
-    ls = scn.landsat
-    landsat = None
-    if ls.antenna_share > 0:
-        orbit = OrbitConfig(
-            repeat_revs=ls.repeat_revs,
-            repeat_days=ls.repeat_days,
-            descending_node_local_time_h=ls.descending_node_local_time_h,
-        )
-        landsat = pass_pattern(scn.ground_station, orbit)
-    return pass_pattern(scn.ground_station), landsat
+#: The passes of SPOT, Landsat's and ERS-1's (None: the antenna is not shared with it).
+Patterns = tuple[PassPattern, PassPattern | None, PassPattern | None]
+
+
+def pass_patterns(scn: CapacityScenario) -> Patterns:
+    """The passes over the scenario's station of SPOT and, when they share the antenna, of
+    Landsat and ERS-1 (:func:`~station.capacity.passes.pass_pattern`)."""
+    others: list[PassPattern | None] = []
+    for other in (scn.landsat, scn.ers):
+        pattern = None
+        if other.antenna_share > 0:
+            orbit = OrbitConfig(
+                repeat_revs=other.repeat_revs,
+                repeat_days=other.repeat_days,
+                descending_node_local_time_h=other.descending_node_local_time_h,
+            )
+            pattern = pass_pattern(scn.ground_station, orbit)
+        others.append(pattern)
+    return pass_pattern(scn.ground_station), others[0], others[1]
 
 
 def simulate(
     scn: CapacityScenario,
     service: Service,
     replication: int = 0,
-    patterns: tuple[PassPattern, PassPattern | None] | None = None,
+    patterns: Patterns | None = None,
 ) -> Replication:
     """One replication of the scenario (module docstring); ``patterns``: its passes when
     already computed (:func:`pass_patterns`: 15 s of orbit propagation, which a task on
