@@ -83,6 +83,14 @@ class SarConfig:
     state_error_m: float = option(
         0.0, "state_error_m", "1σ error of the annotation's state vectors, per axis", 1.0, 0.0, 1e4
     )
+    state_bias_m: tuple[float, float, float] = option(
+        [0.0, 0.0, 0.0],
+        "state_bias_m",
+        "the post-facto orbit's offset along, across (left) and radial at the frame's centre",
+    )
+    state_drift_m_per_s: tuple[float, float, float] = option(
+        [0.0, 0.0, 0.0], "state_drift_m_per_s", "its drift, the same axes"
+    )
     levels: tuple[str, ...] = option(("GEC",), "levels", "products to make", choices=("GEC", "GTC"))
     pixel_size_m: float = option(25.0, "pixel_size_m", "output pixel (UTM)", 1.0, 1.0, 1000.0)
     reference_height_m: float = option(
@@ -190,6 +198,8 @@ def _frame(scn: SarScenario) -> Any:
         speckle_looks=c.speckle_looks,
         state_error_m=c.state_error_m,
         state_error_m_per_s=1e-3 * c.state_error_m,
+        state_bias_m=c.state_bias_m,
+        state_drift_m_per_s=c.state_drift_m_per_s,
         seed=scn.seed,
     )
 
@@ -401,6 +411,8 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
             "range_spacing_m": ann.range_spacing_m,
             "near_range_m": ann.near_range_m,
             "state_error_m": scn.sar.state_error_m,
+            "state_bias_m": list(scn.sar.state_bias_m),
+            "state_drift_m_per_s": list(scn.sar.state_drift_m_per_s),
             "reference_height_m": ref,
         },
         **({"dem": dem_row} if dem_row else {}),

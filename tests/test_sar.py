@@ -308,3 +308,25 @@ def test_station_run_takes_a_sar_scenario_and_refuses_a_gtc_without_a_dem(tmp_pa
     bad.write_text("[sar]\nlines = 64\n[instrument]\nmirror_step = 48\n")
     assert main(["run", str(bad), "--out", str(tmp_path / "out")]) == 2
     assert not (tmp_path / "out").exists()
+
+
+def test_a_smooth_orbit_error_moves_gec_as_the_geometry_says() -> None:
+    """The post-facto orbit's offset (``state_bias_m``) moves every GEC checkpoint alike, on
+    a flat world: along the track by the offset itself; radially by ``δ · cos α / sin θ``
+    across the track (α the look angle at the antenna, θ the incidence on the ground)."""
+    from levels.sar import frame_grid, geocode
+
+    world = World(lon0_rad=LON0, base_height_m=200.0, relief_m=0.0, seed=3)
+    moved = {}
+    for bias in ((50.0, 0.0, 0.0), (0.0, 0.0, 20.0)):
+        frame = ErsFrame(n_lines=100, n_samples=100, state_bias_m=bias)
+        image, truth = emulate_frame(frame, world, render=False)
+        grid = frame_grid(image.annotation, PIXEL_M, world.base_height_m, 300.0)
+        cp = checkpoint_errors(geocode(image, grid, reference_height_m=200.0), truth)
+        di, dj = cp["di"] * PIXEL_M, cp["dj"] * PIXEL_M
+        assert np.hypot(di - di.mean(), dj - dj.mean()).max() < 0.02 * np.hypot(di, dj).max()
+        moved[bias] = float(np.hypot(di.mean(), dj.mean()))
+        inc = float(np.mean(cp["incidence_rad"]))
+    assert moved[(50.0, 0.0, 0.0)] == pytest.approx(50.0, rel=0.01)
+    look = np.arcsin(np.sin(inc) * 6371e3 / (6371e3 + 785e3))  # the antenna's look angle
+    assert moved[(0.0, 0.0, 20.0)] == pytest.approx(20.0 * np.cos(look) / np.sin(inc), rel=0.02)

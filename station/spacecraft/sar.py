@@ -100,6 +100,10 @@ class ErsFrame:
     state_spacing_s: float = 10.0
     state_error_m: float = 0.0
     state_error_m_per_s: float = 0.0
+    #: The post-facto orbit's smooth error: an offset (m) and its drift (m/s) along the
+    #: track, across it (to the left) and radially, at the frame's centre time.
+    state_bias_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    state_drift_m_per_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #: Map sampling of the terrain under the frame, per image sample (finer = more facets).
     oversample: float = 2.0
     seed: int = 38
@@ -267,6 +271,15 @@ def emulate_frame(
     span = (t0 - 60.0, t0 + frame.n_lines * dt_line + 60.0)
     t_sv = np.arange(span[0], span[1] + frame.state_spacing_s / 2, frame.state_spacing_s)
     r_sv, v_sv = orbit.state_ecef(t_sv)
+    # the smooth error, in each state vector's local orbital frame (along, across, radial)
+    radial = r_sv / np.linalg.norm(r_sv, axis=1, keepdims=True)
+    along = v_sv - np.sum(v_sv * radial, axis=1, keepdims=True) * radial
+    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    axes = np.stack([along, np.cross(radial, along), radial], axis=1)  # (N, 3 axes, xyz)
+    bias, drift = np.asarray(frame.state_bias_m), np.asarray(frame.state_drift_m_per_s)
+    offset = bias[None, :] + drift[None, :] * (t_sv - t_c)[:, None]
+    r_sv = r_sv + np.einsum("na,nax->nx", offset, axes)
+    v_sv = v_sv + np.einsum("a,nax->nx", drift, axes)
     r_sv = r_sv + frame.state_error_m * rng.standard_normal(r_sv.shape)
     v_sv = v_sv + frame.state_error_m_per_s * rng.standard_normal(v_sv.shape)
     ann = SarAnnotation(
