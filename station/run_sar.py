@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import pyproj
 
-from levels.options import build_section, describe_section, option
+from levels.options import build_section, option
 from station.errors import ScenarioError
 from station.scenario import DemConfig, WorldConfig, check_name, read_toml
 
@@ -167,11 +167,6 @@ def load_sar_scenario(path: str | Path) -> SarScenario:
     return dataclasses.replace(
         scn, source=str(p.resolve()), source_sha256=hashlib.sha256(raw).hexdigest()
     )
-
-
-def describe_sar_keys() -> str:
-    """Every key of ``[sar]``, with its default, range and meaning."""
-    return "\n".join(describe_section("sar", SarConfig))
 
 
 def _world(scn: SarScenario) -> Any:
