@@ -50,6 +50,7 @@ from levels.threads import over_blocks
 __all__ = [
     "ANCHOR_STEP_PX",
     "HEIGHT_LEVELS",
+    "MASK_TOLERANCE_PX",
     "SPEED_OF_LIGHT_M_PER_S",
     "Geocoded",
     "SarAnnotation",
@@ -57,6 +58,7 @@ __all__ = [
     "frame_grid",
     "geocode",
     "layover_and_shadow",
+    "mask_oversample",
     "sar_product",
 ]
 
