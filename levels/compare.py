@@ -325,8 +325,11 @@ def _plain(x: Any) -> Any:
 
 
 def _differs(x: Any, y: Any) -> bool:
-    if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
-        return not np.array_equal(np.asarray(x), np.asarray(y))
+    """Whether two stored values differ (NaN equals NaN: a float band's fill value)."""
+    if isinstance(x, np.ndarray | np.floating) or isinstance(y, np.ndarray | np.floating):
+        ax, ay = np.asarray(x), np.asarray(y)
+        floats = ax.dtype.kind == "f" and ay.dtype.kind == "f"
+        return not np.array_equal(ax, ay, equal_nan=floats)
     return bool(x != y)
 
 

@@ -132,11 +132,13 @@ def deflated_dataset(
     chunks: tuple[int, ...],
     shuffle: bool = False,
     level: int = DEFLATE_LEVEL,
+    fillvalue: float | None = None,
 ) -> h5py.Dataset:
     """``group[name]``: ``data`` chunked, deflated at ``level`` (:func:`deflate`; shuffled
     first if asked) and checksummed, as ``create_dataset`` with those filters would store
     it, every chunk compressed by a pool of threads (numba's thread count) and written as
-    it is."""
+    it is; ``fillvalue``: the dataset's own (HDF5's; netCDF's ``_FillValue`` is set beside
+    it by the caller)."""
     ds = group.create_dataset(
         name,
         shape=data.shape,
@@ -146,6 +148,7 @@ def deflated_dataset(
         compression_opts=level,  # what the filter records; the chunks are written as made
         shuffle=shuffle,
         fletcher32=True,
+        fillvalue=fillvalue,
     )
     starts = list(
         itertools.product(*(range(0, n, c) for n, c in zip(data.shape, chunks, strict=True)))

@@ -387,7 +387,13 @@ def _write_band(
         ),
     ):
         level = deflate_level if var == name else DEFLATE_LEVEL
-        ds = deflated_dataset(f, var, data, chunks, level=level)
+        # a quantity's NaN where not valid is its fill value too: GDAL's netCDF driver read
+        # a DEM's holes as 0 m without it
+        floating = np.issubdtype(data.dtype, np.floating)
+        fill = np.nan if quantity and var == name and floating else None
+        ds = deflated_dataset(f, var, data, chunks, level=level, fillvalue=fill)
+        if fill is not None:
+            ds.attrs["_FillValue"] = np.array(fill, dtype=data.dtype)
         for axis, dim in enumerate(dims):
             ds.dims[axis].attach_scale(dim)
         ds.attrs["units"] = units_of(name) if quantity and var == name else "1"

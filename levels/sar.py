@@ -796,8 +796,8 @@ def sar_product(
     provenance: dict[str, Any] | None = None,
 ) -> Any:
     """A geocoded frame as a map product of the house format (level ``GEC`` or ``GTC``):
-    bands ``intensity`` (NaN outside the frame), ``layover`` and ``shadow`` (1 or 0),
-    float32; the annotation and the anchors' error in ``geometry/sar``; ``quality``."""
+    bands ``intensity``, ``layover`` and ``shadow`` (1 or 0), float32, NaN outside the
+    frame; the annotation and the anchors' error in ``geometry/sar``; ``quality``."""
     from levels import __version__
     from levels.products import BandImage, Product
 
@@ -805,8 +805,8 @@ def sar_product(
     valid = np.isfinite(g.intensity)
     bands = {
         "intensity": BandImage(g.intensity, valid),  # type: ignore[arg-type]
-        "layover": BandImage(g.layover.astype(np.float32), valid),
-        "shadow": BandImage(g.shadow.astype(np.float32), valid),
+        "layover": BandImage(np.where(valid, g.layover, np.nan).astype(np.float32), valid),
+        "shadow": BandImage(np.where(valid, g.shadow, np.nan).astype(np.float32), valid),
     }
     t_mid = ann.first_line_s + 0.5 * ann.shape[0] * ann.line_interval_s
     sar = {

@@ -263,7 +263,8 @@ def test_station_runs_an_ers_frame_that_gdal_reads_on_the_truth(tmp_path) -> Non
     assert row["quality"]["checkpoints"]["rms_px"] <= CHECKPOINT_PX
     with rasterio.open(f'NETCDF:"{tmp_path / "run" / row["file"]}":intensity') as ds:
         image, transform, crs = ds.read(1).astype(np.float64), ds.transform, ds.crs
-    valid = image > 0  # outside the frame: 0
+        assert np.isnan(ds.nodata)  # outside the frame: no-data
+    valid = np.isfinite(image)
     jj, ii = np.meshgrid(np.arange(image.shape[1]) + 0.5, np.arange(image.shape[0]) + 0.5)
     x, y = transform @ (jj, ii)
     lon, lat = pyproj.Transformer.from_crs(crs.to_wkt(), "EPSG:4326", always_xy=True).transform(

@@ -211,6 +211,14 @@ def test_the_dem_geotiff_opens_georeferenced_in_gdal(stereo_run: Path) -> None:
         assert ds.transform.to_gdal() == pytest.approx(dem.map_grid.geotransform)
         heights = ds.read(1)
     np.testing.assert_array_equal(heights, dem.bands["height_m"].image)
+    # the product itself through GDAL's netCDF driver: its holes no-data, not 0 m (they
+    # read as 0 m before the band declared its fill value)
+    with rasterio.open(f'NETCDF:"{stereo_run / entry["file"]}":height_m') as ds:
+        assert ds.nodata is not None and np.isnan(ds.nodata)
+        netcdf = ds.read(1)
+    holes = ~dem.bands["height_m"].valid
+    assert holes.any() and np.all(np.isnan(netcdf[holes]))
+    np.testing.assert_array_equal(netcdf[~holes], dem.bands["height_m"].image[~holes])
 
 
 def test_level_3_over_the_pairs_own_dem(stereo_run: Path) -> None:
