@@ -300,7 +300,8 @@ def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path) -> None:
 
 def test_station_run_takes_a_sar_scenario_and_refuses_a_gtc_without_a_dem(tmp_path) -> None:
     """``station run`` knows a SAR scenario by its ``[sar]`` table; GTC without ``[dem]``
-    and an unknown table are refused in one line (exit 2), nothing written."""
+    and an unknown table are refused in one line (exit 2), nothing written; ``--check``
+    checks a good one without writing."""
     from station.cli import main
 
     bad = tmp_path / "bad.toml"
@@ -308,6 +309,10 @@ def test_station_run_takes_a_sar_scenario_and_refuses_a_gtc_without_a_dem(tmp_pa
     assert main(["run", str(bad), "--out", str(tmp_path / "out")]) == 2
     bad.write_text("[sar]\nlines = 64\n[instrument]\nmirror_step = 48\n")
     assert main(["run", str(bad), "--out", str(tmp_path / "out")]) == 2
+    assert not (tmp_path / "out").exists()
+    # --check: the scenario and the files it reads, nothing written
+    shipped = str(ROOT / "scenarios" / "sar" / "ers_gtc.toml")
+    assert main(["run", shipped, "--check", "--out", str(tmp_path / "out")]) == 0
     assert not (tmp_path / "out").exists()
 
 

@@ -145,7 +145,20 @@ def _run_sar(path: Path, args: argparse.Namespace) -> int:
     scn = load_sar_scenario(path)
     out = Path(args.out) if args.out else Path("runs") / scn.name
     if args.check:
-        raise StationError("--check: not available for a SAR scenario yet; run it")
+        from station.run import prepare_run_dir
+
+        prepare_run_dir(out, scn.name, scn.inputs())  # replaceable, writable; no write
+        missing = [str(p) for p in scn.inputs() if not p.is_file()]
+        if missing:
+            raise StationError(f"{scn.name}: {missing[0]} not found")
+        found = {"scenario": scn.name, "files": [str(p) for p in scn.inputs()], "out": str(out)}
+        print(
+            json.dumps(found, indent=2)
+            if args.json
+            else f"{scn.name}: checks passed (the scenario, the files it reads: "
+            f"{', '.join(found['files'])}); into {out}/"
+        )
+        return 0
     if not args.json and not args.quiet:
         print(f"running the SAR frame {path} into {out}/ ...", file=sys.stderr)
     report = run_sar(scn, out)
