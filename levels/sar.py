@@ -187,6 +187,15 @@ class SarAnnotation:
         up = WGS84.up(np.ravel(lat_rad), np.ravel(lon_rad))
         return np.arccos(np.clip(np.sum(los * up, axis=1), -1.0, 1.0)).reshape(shape)
 
+    def edge_ground(self, height_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Latitude and longitude (rad) of 9 points along each of the image's four edges,
+        at ``height_m``: its footprint's outline."""
+        n_l, n_s = self.shape
+        e = np.linspace(0.0, 1.0, 9)
+        lines = np.concatenate([e * (n_l - 1), e * (n_l - 1), 0 * e, 0 * e + n_l - 1])
+        cols = np.concatenate([0 * e, 0 * e + n_s - 1, e * (n_s - 1), e * (n_s - 1)])
+        return self.ground_of_image(lines, cols, height_m)
+
     def ground_of_image(
         self, line: ArrayLike, column: ArrayLike, h_m: ArrayLike
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -265,11 +274,7 @@ def frame_grid(
 ) -> MapGrid:
     """A north-up UTM grid (the zone of the frame's centre) of ``pixel_size_m`` covering the
     frame's footprint at ``height_m``, widened by ``margin_m`` each side."""
-    n_l, n_s = ann.shape
-    edge = np.linspace(0.0, 1.0, 9)
-    lines = np.concatenate([edge * (n_l - 1), edge * (n_l - 1), 0 * edge, 0 * edge + n_l - 1])
-    cols = np.concatenate([0 * edge, 0 * edge + n_s - 1, edge * (n_s - 1), edge * (n_s - 1)])
-    lat, lon = ann.ground_of_image(lines, cols, height_m)
+    lat, lon = ann.edge_ground(height_m)
     crs = map_crs("utm", float(np.mean(lat)), float(np.mean(lon)))
     to_map = pyproj.Transformer.from_crs(pyproj.CRS.from_epsg(4326), crs, always_xy=True)
     x, y = to_map.transform(np.degrees(lon), np.degrees(lat))

@@ -50,6 +50,7 @@ __all__ = [
     "comparable_report",
     "prepare_run_dir",
     "run_scenario",
+    "scenario_entry",
     "summary_table",
 ]
 
@@ -181,12 +182,7 @@ def _run(
         "format": REPORT_FORMAT,
         "format_version": REPORT_VERSION,
         "software": f"spot-station {__version__}",
-        "scenario": {
-            "name": scn.name,
-            "file": Path(scn.source).name if scn.source else "",
-            "sha256": scn.source_sha256,
-            "seed": scn.seed,
-        },
+        "scenario": scenario_entry(scn),
         "hrvs": hrvs,
         **(
             {"dem": {"file": f"{scn.name}.dem.tif", **asdict(scn.dem)}}
@@ -200,6 +196,17 @@ def _run(
     write_json(out / "report.json", report)
     stages.close()
     return report
+
+
+def scenario_entry(scn: Any) -> dict[str, Any]:
+    """What a run's report says of its scenario (a pass's or a SAR frame's): name, file,
+    its bytes' SHA-256, seed."""
+    return {
+        "name": scn.name,
+        "file": Path(scn.source).name if scn.source else "",
+        "sha256": scn.source_sha256,
+        "seed": scn.seed,
+    }
 
 
 def prepare_run_dir(out_dir: str | Path, name: str, inputs: list[Path] | None = None) -> Path:

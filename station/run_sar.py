@@ -201,14 +201,7 @@ def _frame(scn: SarScenario) -> Any:
 
 def _footprint_rad(ann: Any, heights: tuple[float, float]) -> tuple[float, float, float, float]:
     """(south, north, west, east) of the frame's footprint over a span of heights."""
-    n_l, n_s = ann.shape
-    edge = np.linspace(0.0, 1.0, 9)
-    lines = np.concatenate([edge * (n_l - 1), edge * (n_l - 1), 0 * edge, 0 * edge + n_l - 1])
-    cols = np.concatenate([0 * edge, 0 * edge + n_s - 1, edge * (n_s - 1), edge * (n_s - 1)])
-    lat, lon = (
-        np.concatenate(a)
-        for a in zip(*(ann.ground_of_image(lines, cols, h) for h in heights), strict=True)
-    )
+    lat, lon = (np.concatenate(a) for a in zip(*map(ann.edge_ground, heights), strict=True))
     return float(lat.min()), float(lat.max()), float(lon.min()), float(lon.max())
 
 
@@ -312,6 +305,7 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
     from levels.readers.dem import read_dem
     from levels.sar import frame_grid, geocode, sar_product
     from station.catalog import CATALOG_FILE, write_catalog
+    from station.run import scenario_entry
     from station.spacecraft.dem import export_dem_over
     from station.spacecraft.sar import emulate_frame
 
@@ -392,12 +386,7 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
         "format": SAR_REPORT_FORMAT,
         "format_version": SAR_REPORT_VERSION,
         "software": f"spot-station {__version__}",
-        "scenario": {
-            "name": scn.name,
-            "file": Path(scn.source).name if scn.source else "",
-            "sha256": scn.source_sha256,
-            "seed": scn.seed,
-        },
+        "scenario": scenario_entry(scn),
         "frame": {
             "instrument": "ERS-1 AMI SAR",
             "lines": ann.shape[0],

@@ -25,6 +25,7 @@ from a gamma law of the scenario's coefficient of variation.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -186,7 +187,7 @@ class StationSimulation:
         self.extra_2a_s = {m: cor_window_s(service, scn.service, m) for m in ("P", "XS")}
         ls = scn.landsat
         if landsat is not None:
-            env.process(self.landsat_passes(landsat))
+            env.process(self.shared_passes(landsat, ls.antenna_share, self.rng_landsat, "landsat"))
         if ls.tm_jobs_per_day > 0 and ls.tm_job_s > 0:
             env.process(self.tm_jobs())
         self.rng_ers = rng.spawn(1)[0]  # after the others: runs without ERS draw as before
@@ -196,7 +197,9 @@ class StationSimulation:
                     "[ers]: the service-time file predates SAR geocoding's "
                     "(no sar_gtc_s_per_frame); run `station capacity calibrate`"
                 )
-            env.process(self.ers_passes(ers))
+            env.process(
+                self.shared_passes(ers, scn.ers.antenna_share, self.rng_ers, "ers", self.ers_frames)
+            )
 
     def _draw(self, mean_s: float, scale: float) -> float:
         """A service time: the calibrated mean times the scenario's factor, gamma law."""
@@ -299,10 +302,19 @@ class StationSimulation:
                     self.one_pass(sat, t, d, bool(day))
             k0 += 1
 
-    def landsat_passes(self, pattern: PassPattern) -> Process:
-        """Landsat's passes at their AOS: a tracked one takes the antenna (if free) for its
-        visibility, and a SPOT pass meanwhile is lost."""
-        env, ls = self.env, self.scn.landsat
+    def shared_passes(
+        self,
+        pattern: PassPattern,
+        share: float,
+        rng: np.random.Generator,
+        name: str,
+        on_tracked: Callable[[float], None] | None = None,
+    ) -> Process:
+        """Another mission's passes at their AOS (Landsat's, ERS-1's): a tracked one (a
+        ``share`` of them) takes the antenna (if free) for its visibility, and a SPOT pass
+        meanwhile is lost; counted as ``<name>_passes_tracked`` or ``_missed``, and
+        ``on_tracked(aos)`` called for a tracked one."""
+        env = self.env
         k = 0
         while True:
             for t, d in zip(pattern.aos_s + k * pattern.cycle_s, pattern.duration_s, strict=True):
@@ -310,35 +322,21 @@ class StationSimulation:
                     return
                 if t > env.now:
                     yield env.timeout(t - env.now)
-                if self.rng_landsat.random() < ls.antenna_share:
+                if rng.random() < share:
                     got = self.stages["antenna"].take(d, count_loss=False)
                     if t >= self.warmup:
-                        self.counts[
-                            "landsat_passes_tracked" if got else "landsat_passes_missed"
-                        ] += 1
+                        self.counts[f"{name}_passes_{'tracked' if got else 'missed'}"] += 1
+                    if got and on_tracked is not None:
+                        on_tracked(t)
             k += 1
 
-    def ers_passes(self, pattern: PassPattern) -> Process:
-        """ERS-1's passes at their AOS: a tracked one takes the antenna (if free) for its
-        visibility, as Landsat's, and its frames to geocode go to COR."""
-        env, ers = self.env, self.scn.ers
-        k = 0
-        while True:
-            for t, d in zip(pattern.aos_s + k * pattern.cycle_s, pattern.duration_s, strict=True):
-                if t >= self.t_end:
-                    return
-                if t > env.now:
-                    yield env.timeout(t - env.now)
-                if self.rng_ers.random() < ers.antenna_share:
-                    got = self.stages["antenna"].take(d, count_loss=False)
-                    if t >= self.warmup:
-                        self.counts["ers_passes_tracked" if got else "ers_passes_missed"] += 1
-                    if got:
-                        n = int(self.rng_ers.poisson(ers.frames_per_pass * ers.gtc_fraction))
-                        self.counts["sar_frames_recorded"] += n if t >= self.warmup else 0
-                        for _ in range(n):
-                            env.process(self.sar_frame(t >= self.warmup))
-            k += 1
+    def ers_frames(self, t: float) -> None:
+        """A tracked ERS-1 pass's frames to geocode, to COR."""
+        ers = self.scn.ers
+        n = int(self.rng_ers.poisson(ers.frames_per_pass * ers.gtc_fraction))
+        self.counts["sar_frames_recorded"] += n if t >= self.warmup else 0
+        for _ in range(n):
+            self.env.process(self.sar_frame(t >= self.warmup))
 
     def sar_frame(self, counted: bool) -> Process:
         """One ERS-1 frame geocoded (GTC) on a COR unit, after SPOT's urgent orders;
