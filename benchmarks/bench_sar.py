@@ -44,7 +44,7 @@ def main() -> int:
     )
     stages: dict[str, float] = {}
     original = {}
-    for name in ("_dem_heights", "_exact", "layover_and_shadow"):
+    for name in ("_dem_heights", "_anchors", "_profiles"):
         original[name] = getattr(sar, name)
 
         def timed(*a, _f=original[name], _n=name, **k):

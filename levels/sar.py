@@ -131,27 +131,41 @@ class SarAnnotation:
         return (np.asarray(r_m, dtype=np.float64) - self.near_range_m) / self.range_spacing_m
 
     def locate(
-        self, p_ecef: ArrayLike
+        self, p_ecef: ArrayLike, t0_s: ArrayLike | None = None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
         """Time (s since the epoch), slant range (m) and convergence of ground points
-        ``p`` (N, 3): the Doppler and range equations (module docstring)."""
-        p = np.atleast_2d(np.asarray(p_ecef, dtype=np.float64))
+        ``p`` (N, 3): the Doppler and range equations (module docstring), Newton's method
+        from ``t0_s`` (first guesses, NaN for none) or the frame's middle."""
+        t, r, ok, _ = self._solve(np.atleast_2d(np.asarray(p_ecef, dtype=np.float64)), t0_s)
+        return t, r, ok
+
+    def _solve(
+        self, p: NDArray, t0_s: ArrayLike | None
+    ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """:meth:`locate` by chunks; also the antenna's positions."""
+        middle = self.first_line_s + 0.5 * self.shape[0] * self.line_interval_s
+        t0 = np.full(p.shape[0], middle) if t0_s is None else np.ravel(t0_s).astype(np.float64)
+        t0 = np.where(np.isfinite(t0), t0, middle)
         t_out = np.full(p.shape[0], np.nan)
         r_out = np.full(p.shape[0], np.nan)
         ok_out = np.zeros(p.shape[0], dtype=bool)
+        s_out = np.full(p.shape, np.nan)
         for a in range(0, p.shape[0], _CHUNK):
-            t, r, ok = self._locate(p[a : a + _CHUNK])
-            t_out[a : a + _CHUNK], r_out[a : a + _CHUNK], ok_out[a : a + _CHUNK] = t, r, ok
-        return t_out, r_out, ok_out
+            part = slice(a, a + _CHUNK)
+            t_out[part], r_out[part], ok_out[part], s_out[part] = self._locate(p[part], t0[part])
+        return t_out, r_out, ok_out, s_out
 
-    def _locate(self, p: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    def _locate(self, p: NDArray, t: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """:meth:`locate` from first guesses ``t``; also the antenna's position then. The
+        acceleration (Newton's derivative) from the velocity's difference over 1 ms at the
+        first two steps, kept after (it changes by nothing over the last steps)."""
         eph, lam = self.ephemeris, self.wavelength_m
-        t = np.full(p.shape[0], self.first_line_s + 0.5 * self.shape[0] * self.line_interval_s)
         step = np.full(p.shape[0], np.inf)
-        for _ in range(_ITERATIONS):
+        for it in range(_ITERATIONS):
             s, sd = eph.interpolate(t)
-            _, sd2 = eph.interpolate(t + 1e-3)
-            acc = (sd2 - sd) / 1e-3
+            if it < 2:
+                _, sd2 = eph.interpolate(t + 1e-3)
+                acc = (sd2 - sd) / 1e-3
             d = p - s
             r = np.linalg.norm(d, axis=1)
             f = self.doppler_at(r) + 2.0 * np.sum(d * sd, axis=1) / (lam * r)
@@ -162,7 +176,7 @@ class SarAnnotation:
                 break
         s, _ = eph.interpolate(t)
         r = np.linalg.norm(p - s, axis=1)
-        return t, r, np.isfinite(r) & (np.abs(step) <= _T_TOL_S)
+        return t, r, np.isfinite(r) & (np.abs(step) <= _T_TOL_S), s
 
     def image_of(
         self, lat_rad: ArrayLike, lon_rad: ArrayLike, h_m: ArrayLike
@@ -226,9 +240,9 @@ class SarAnnotation:
                 + along[:, None] * vh
                 + across[:, None] * (np.cos(look)[:, None] * down + np.sin(look)[:, None] * side)
             )
-            _, _, hp = WGS84.to_geodetic(p)
+            lat_p, lon_p, hp = WGS84.to_geodetic(p)
             dp = across[:, None] * (-np.sin(look)[:, None] * down + np.cos(look)[:, None] * side)
-            dh = np.sum(dp * WGS84.up(*WGS84.to_geodetic(p)[:2]), axis=1)
+            dh = np.sum(dp * WGS84.up(lat_p, lon_p), axis=1)
             move = (hp - target) / dh
             look = look - move
             if np.max(np.abs(move)) < 1e-12:
@@ -293,21 +307,65 @@ def _to_geo(grid: MapGrid) -> pyproj.Transformer:
 
 
 def _exact(
-    ann: SarAnnotation, grid: MapGrid, i: NDArray, j: NDArray, h: NDArray
-) -> tuple[NDArray, NDArray, NDArray]:
-    """The exact (line, column) of output pixels ``(i, j)`` at heights ``h``, and the look
-    angle there (rad, at the antenna from its geocentric nadir)."""
+    ann: SarAnnotation,
+    grid: MapGrid,
+    i: NDArray,
+    j: NDArray,
+    h: NDArray,
+    t0_s: NDArray | None = None,
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """The exact (line, column) of output pixels ``(i, j)`` at heights ``h``, the look
+    angle there (rad, at the antenna from its geocentric nadir) and the time (s), from
+    first guesses ``t0_s`` of it."""
     x, y = grid.map_of(i, j)
     lon, lat = _to_geo(grid).transform(np.ravel(x), np.ravel(y))
-    p = WGS84.to_ecef(np.radians(lat), np.radians(lon), np.ravel(h))
-    t, r, ok = ann.locate(p)
-    s, _ = ann.ephemeris.interpolate(t)
+    return _exact_geo(ann, np.radians(lat), np.radians(lon), np.ravel(h), np.shape(i), t0_s)
+
+
+def _exact_geo(
+    ann: SarAnnotation,
+    lat: NDArray,
+    lon: NDArray,
+    h: NDArray,
+    shape: tuple[int, ...],
+    t0_s: NDArray | None = None,
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """:func:`_exact` of geodetic points (rad, flat), shaped ``shape``."""
+    p = WGS84.to_ecef(lat, lon, h)
+    t, r, ok, s = ann._solve(p, t0_s)
     cos_look = np.sum(-s * (p - s), axis=1) / (np.linalg.norm(s, axis=1) * r)
     look = np.arccos(np.clip(cos_look, -1.0, 1.0))
-    shape = np.shape(i)
     line = np.where(ok, ann.line_of(t), np.nan).reshape(shape)
     col = np.where(ok, ann.column_of(r), np.nan).reshape(shape)
-    return line, col, np.where(ok, look, np.nan).reshape(shape)
+    return line, col, np.where(ok, look, np.nan).reshape(shape), t.reshape(shape)
+
+
+def _anchors(
+    ann: SarAnnotation, grid: MapGrid, step_px: int, levels: NDArray
+) -> NDArray[np.float64]:
+    """The exact (line, column, look) of the anchors (every ``step_px`` output pixels, one
+    step beyond the grid) at each height level, ``(levels, 3, rows, columns)``. Newton's
+    first guesses: every eighth anchor solved from the frame's middle, the times between
+    bilinearly; each level then from the level before."""
+    na = -(-(grid.n_rows - 1) // step_px) + 2
+    nb = -(-(grid.n_cols - 1) // step_px) + 2
+    ai, aj = np.meshgrid(
+        np.arange(na, dtype=np.float64) * step_px,
+        np.arange(nb, dtype=np.float64) * step_px,
+        indexing="ij",
+    )
+    x, y = grid.map_of(ai, aj)
+    lon, lat = (np.radians(v) for v in _to_geo(grid).transform(np.ravel(x), np.ravel(y)))
+    coarse = (slice(None, None, 8), slice(None, None, 8))
+    t_c = _exact(ann, grid, ai[coarse], aj[coarse], np.full(ai[coarse].shape, levels[0]))[3]
+    t = None
+    if min(t_c.shape) > 1:
+        t = bilinear_grid(ai[coarse][:, 0], aj[coarse][0], t_c, ai, aj)
+    out = []
+    for h in levels:
+        *q, t = _exact_geo(ann, lat, lon, np.full(lat.shape, h), ai.shape, t)
+        out.append(q)
+    return np.array(out, dtype=np.float64)
 
 
 #: Lattice lines about a strip whose nodes are visited for it (an edge spans at most two
@@ -564,67 +622,100 @@ def _kernel_dem(lo, hi, step, nodes, z, out):
             )
 
 
-def _dem_heights(dem: Dem, grid: MapGrid) -> NDArray[np.float64]:
+def _dem_heights(dem: Dem, grid: MapGrid) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The DEM's height above the ellipsoid under every output pixel: its (row, column)
-    through PROJ every 16 pixels and bilinearly between, its heights bilinearly in its own
-    grid (as level 3 samples a DEM)."""
+    through PROJ every ``DEM_COORD_STEP`` pixels and bilinearly between, its heights
+    bilinearly in its own grid (as level 3 samples a DEM); and the DEM's ellipsoidal
+    heights (the profiles read the same surface)."""
     from levels.geo.level3 import DEM_COORD_STEP, _dem_coordinates, _ellipsoidal
 
     nodes = np.ascontiguousarray(_dem_coordinates(dem, grid, DEM_COORD_STEP), dtype=np.float64)
     out = np.empty(grid.shape, dtype=np.float64)
     z = np.ascontiguousarray(_ellipsoidal(dem), dtype=np.float64)
     over_blocks(_kernel_dem, grid.n_rows, DEM_COORD_STEP, nodes, z, out, grain=64)
-    return out
+    return out, z
+
+
+def _in_height(values: NDArray[np.float64], levels: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The polynomial through ``values`` (one per height level, first axis) in the scaled
+    height ``x = (h − centre) / half-span`` of the levels: its coefficients, lowest power
+    first (Lagrange's interpolant in the monomial basis; at ``x = 0``, the middle height,
+    the constant term)."""
+    x = (levels - np.mean(levels)) / _half_span(levels)
+    flat = values.reshape(levels.size, -1)
+    return np.linalg.solve(np.vander(x, increasing=True), flat).reshape(values.shape)
+
+
+def _half_span(levels: NDArray[np.float64]) -> float:
+    return max(0.5 * float(levels[-1] - levels[0]), 1.0)
 
 
 @nb.njit(cache=True, nogil=True)
 def _kernel_geocode(
-    lo, hi, step, anchors, levels, w_mid, height, image, out, line, col, look, across
-):
+    lo, hi, step, anchors, h_mid, inv_span, height, image, out, line, col, masks, profiles,
+    frame, tol_r, tol_look, layover, shadow,
+):  # fmt: skip
     """Rows ``lo … hi − 1`` of the output: each pixel's (line, column, look) from the
-    anchors (bilinear, then Lagrange through the height levels at its height), the slant
-    image bilinearly there (NaN outside it or over a void), and its column at the middle
-    height (Lagrange weights ``w_mid``: a ground-range coordinate)."""
+    anchors (bilinear, then the polynomial in height through the levels,
+    :func:`_in_height`: ``anchors`` its coefficients, ``x = (h − h_mid) · inv_span``), the
+    slant image bilinearly there (NaN outside it or over a void). The anchors are
+    interpolated down the row once for each anchor column, then along the row per pixel.
+
+    ``masks``: each pixel also judged against the terrain's profiles (:func:`_profiles`:
+    ``profiles`` their running maxima of the range and look angle outwards and minima
+    of the range inwards, rows of lines ``frame[0] + k·frame[1]``, columns of ground
+    range ``frame[2] + m·frame[3]``: the column at the middle height): the two rows about
+    its line, interpolated, one sample beyond the one nearer than it
+    (:func:`layover_and_shadow`'s definitions); ``tol_r`` and ``tol_look`` its
+    tolerances."""
     n_lev, _, na, nb = anchors.shape
     n_l, n_s = image.shape
-    w = np.empty(n_lev)
+    n_p, n_u = profiles.shape[0], profiles.shape[1]
+    at_row = np.empty((n_lev, 3, nb))
+    inv_step = 1.0 / step
+    inv_per, inv_du = 1.0 / frame[1], 1.0 / frame[3]
     for i in range(lo, hi):
         a = min(i // step, na - 2)
-        fu = (i - a * step) / step
+        fu = (i - a * step) * inv_step
+        for k in range(n_lev):
+            for c in range(3):
+                for b in range(nb):
+                    at_row[k, c, b] = (1.0 - fu) * anchors[k, c, a, b] + fu * anchors[
+                        k, c, a + 1, b
+                    ]
         for j in range(out.shape[1]):
             h = height[i, j]
-            b = min(j // step, nb - 2)
-            fv = (j - b * step) / step
             if not (h == h):
                 out[i, j] = np.nan
                 line[i, j] = np.nan
                 col[i, j] = np.nan
-                look[i, j] = np.nan
-                across[i, j] = np.nan
                 continue
-            for k in range(n_lev):  # Lagrange weights at h
-                w[k] = 1.0
-                for m in range(n_lev):
-                    if m != k:
-                        w[k] *= (h - levels[m]) / (levels[k] - levels[m])
-            q0 = q1 = q2 = mid = 0.0
-            for k in range(n_lev):
-                for c in range(3):
-                    z = anchors[k, c]
-                    at_b = (1.0 - fu) * z[a, b] + fu * z[a + 1, b]
-                    at_b1 = (1.0 - fu) * z[a, b + 1] + fu * z[a + 1, b + 1]
-                    v = (1.0 - fv) * at_b + fv * at_b1
-                    if c == 0:
-                        q0 += w[k] * v
-                    elif c == 1:
-                        q1 += w[k] * v
-                        mid += w_mid[k] * v
-                    else:
-                        q2 += w[k] * v
+            b = min(j // step, nb - 2)
+            fv = (j - b * step) * inv_step
+            gv = 1.0 - fv
+            x = (h - h_mid) * inv_span
+            q0 = q1 = q2 = 0.0
+            for k in range(n_lev - 1, -1, -1):  # Horner
+                q0 = q0 * x + (gv * at_row[k, 0, b] + fv * at_row[k, 0, b + 1])
+                q1 = q1 * x + (gv * at_row[k, 1, b] + fv * at_row[k, 1, b + 1])
+                q2 = q2 * x + (gv * at_row[k, 2, b] + fv * at_row[k, 2, b + 1])
             line[i, j] = q0
             col[i, j] = q1
-            look[i, j] = q2
-            across[i, j] = mid
+            if masks:
+                y = (q0 - frame[0]) * inv_per
+                mid = gv * at_row[0, 1, b] + fv * at_row[0, 1, b + 1]
+                x = (mid - frame[2]) * inv_du
+                if 0.0 <= y < n_p - 1 and 1.0 <= x < n_u - 2:
+                    r0 = int(y)
+                    f = y - r0
+                    m0 = int(x)
+                    near_r = _near(profiles[r0, m0 - 1, 0], profiles[r0 + 1, m0 - 1, 0], f)
+                    far_r = _near(profiles[r0, m0 + 2, 1], profiles[r0 + 1, m0 + 2, 1], f)
+                    near_look = _near(profiles[r0, m0 - 1, 2], profiles[r0 + 1, m0 - 1, 2], f)
+                    layover[i, j] = (near_r == near_r and q1 < near_r - tol_r) or (
+                        far_r == far_r and q1 > far_r + tol_r
+                    )
+                    shadow[i, j] = near_look == near_look and q2 < near_look - tol_look
             if not (0.0 <= q0 <= n_l - 1 and 0.0 <= q1 <= n_s - 1):
                 out[i, j] = np.nan
                 continue
@@ -634,6 +725,106 @@ def _kernel_geocode(
             out[i, j] = (1.0 - fl) * ((1.0 - fc) * image[l0, c0] + fc * image[l0, c0 + 1]) + fl * (
                 (1.0 - fc) * image[l0 + 1, c0] + fc * image[l0 + 1, c0 + 1]
             )
+
+
+@nb.njit(cache=True, nogil=True)
+def _kernel_profile_rows(
+    lo, hi, lattice, s_a, s_b, per, line0, n_rows, n_cols, z, h_mid, inv_span, profiles
+):  # fmt: skip
+    """Rows ``lo … hi − 1`` of the terrain's profiles (:func:`_profiles`): row ``k`` the
+    zero-Doppler line ``line0 + k·per``, its samples the terrain there at ground ranges
+    evenly spaced. ``lattice`` (every ``s_a`` rows and ``s_b`` samples), bilinearly: each
+    sample's output pixel (row, column) and DEM (row, column) at the middle height, and
+    the anchors' (line, column, look) there as polynomials in height (:func:`_in_height`,
+    the coefficients of each after the four). The DEM's height read there (bilinearly;
+    outside or over a void, none), the sample is moved along the lattice by what that
+    height shifts its line (the zero-Doppler plane leans a little from the vertical:
+    0.14 line a kilometre for ERS-1), its height following the DEM cell's bilinear
+    surface; its column and look angle at that height. Then each row's running maxima
+    outwards (range, look: ``profiles[..., 0]``, ``[..., 2]``) and minima inwards (range:
+    ``[..., 1]``); −∞ and +∞ where no terrain is yet; samples outside the output grid or
+    the DEM skipped."""
+    n_q, nla, nlb = lattice.shape
+    n_lev = (n_q - 4) // 3
+    nr, nc = z.shape
+    n_u = profiles.shape[1]
+    val = np.empty((n_q, nlb))  # the lattice down to the row, and its change per row
+    dval = np.empty((n_q, nlb))
+    inv_a, inv_b = 1.0 / s_a, 1.0 / s_b
+    inv_per = 1.0 / per
+    for kr in range(lo, hi):
+        a = min(kr // s_a, nla - 2)
+        fu = (kr - a * s_a) * inv_a
+        for q in range(n_q):
+            for b in range(nlb):
+                val[q, b] = (1.0 - fu) * lattice[q, a, b] + fu * lattice[q, a + 1, b]
+                dval[q, b] = (lattice[q, a + 1, b] - lattice[q, a, b]) * inv_a
+        target = line0 + kr * per
+        for m in range(n_u):
+            b = min(m // s_b, nlb - 2)
+            fv = (m - b * s_b) * inv_b
+            gv = 1.0 - fv
+            r_out = np.nan
+            look_out = np.nan
+            pi = gv * val[0, b] + fv * val[0, b + 1]
+            pj = gv * val[1, b] + fv * val[1, b + 1]
+            drow = gv * val[2, b] + fv * val[2, b + 1]
+            dcol = gv * val[3, b] + fv * val[3, b + 1]
+            if (
+                0.0 <= pi <= n_rows - 1
+                and 0.0 <= pj <= n_cols - 1
+                and 0.0 <= drow <= nr - 1
+                and 0.0 <= dcol <= nc - 1
+            ):
+                p0 = min(int(drow), nr - 2)
+                q0 = min(int(dcol), nc - 2)
+                s, t = drow - p0, dcol - q0
+                z00, z01 = z[p0, q0], z[p0, q0 + 1]
+                z10, z11 = z[p0 + 1, q0], z[p0 + 1, q0 + 1]
+                h = (1 - s) * ((1 - t) * z00 + t * z01) + s * ((1 - t) * z10 + t * z11)
+                if h == h:
+                    x = (h - h_mid) * inv_span
+                    line_h = 0.0
+                    for k in range(n_lev - 1, -1, -1):
+                        line_h = line_h * x + (gv * val[4 + k, b] + fv * val[4 + k, b + 1])
+                    shift = (target - line_h) * inv_per  # rows along the lattice onto the line
+                    ds = shift * (gv * dval[2, b] + fv * dval[2, b + 1])
+                    dt = shift * (gv * dval[3, b] + fv * dval[3, b + 1])
+                    h += ds * ((1 - t) * (z10 - z00) + t * (z11 - z01)) + dt * (
+                        (1 - s) * (z01 - z00) + s * (z11 - z10)
+                    )
+                    x = (h - h_mid) * inv_span
+                    r_out = 0.0
+                    look_out = 0.0
+                    for k in range(n_lev - 1, -1, -1):
+                        c = 4 + n_lev + k
+                        r_out = r_out * x + (
+                            gv * (val[c, b] + shift * dval[c, b])
+                            + fv * (val[c, b + 1] + shift * dval[c, b + 1])
+                        )
+                        c += n_lev
+                        look_out = look_out * x + (
+                            gv * (val[c, b] + shift * dval[c, b])
+                            + fv * (val[c, b + 1] + shift * dval[c, b + 1])
+                        )
+            profiles[kr, m, 0] = r_out
+            profiles[kr, m, 2] = look_out
+        run_r = -np.inf
+        run_look = -np.inf
+        for m in range(n_u):  # outwards: the farthest range and the largest look so far
+            v = profiles[kr, m, 0]
+            profiles[kr, m, 1] = v
+            if v == v:
+                run_r = max(run_r, v)
+                run_look = max(run_look, profiles[kr, m, 2])
+            profiles[kr, m, 0] = run_r
+            profiles[kr, m, 2] = run_look
+        run_r = np.inf
+        for m in range(n_u - 1, -1, -1):  # inwards: the nearest range so far
+            v = profiles[kr, m, 1]
+            if v == v:
+                run_r = min(run_r, v)
+            profiles[kr, m, 1] = run_r
 
 
 def mask_oversample(dem: Dem, grid: MapGrid, most: int = 4) -> int:
@@ -650,6 +841,89 @@ def mask_oversample(dem: Dem, grid: MapGrid, most: int = 4) -> int:
     return int(min(most, max(1, np.ceil(2 * grid.pixel_size_m / min(sx, sy) - 1e-6))))
 
 
+#: Profile rows and samples between the exact points of the profiles' lattice (the
+#: ground under a line is nearly straight, across it a hyperbola: 2e-3 px at most
+#: interpolated on ERS-1's 100 km frame at 12.5 m).
+PROFILE_LATTICE_STEP = (64, 16)
+
+
+def _profiles(
+    ann: SarAnnotation,
+    grid: MapGrid,
+    coef: NDArray[np.float64],
+    levels: NDArray[np.float64],
+    dem: Dem,
+    z: NDArray[np.float64],
+    per_node: int,
+    step_px: int,
+) -> tuple[NDArray[np.float32], NDArray[np.float64]]:
+    """The terrain's zero-Doppler profiles for the layover and shadow masks: a row per
+    image line ``line0 + k·per`` (one per output pixel along the track, ``per_node`` times
+    finer: :func:`mask_oversample`), the terrain along it sampled at ground ranges
+    ``u0 + m·du`` (``u``: the column at the middle height, ``per_node`` samples per output
+    pixel across the track); each sample's range (columns) and look angle, as running
+    maxima and minima (:func:`_kernel_profile_rows`). The rows cover the image's lines;
+    the samples its columns and, beyond them, twice the DEM's relief in range: no terrain
+    farther out can fold onto or hide a pixel of the image (a fold's range lies in the
+    image; what hides a pixel stands within its relief · tan θ < relief in range of it).
+    Returns the profiles ``(rows, samples, 3)`` and ``(line0, per, u0, du)``."""
+    n_l, n_s = ann.shape
+    u = coef[0, 1]  # the column at the middle height
+    du_px = np.hypot(np.diff(u, axis=0)[:, :-1], np.diff(u, axis=1)[:-1, :]) / step_px
+    line_px = (
+        np.hypot(np.diff(coef[0, 0], axis=0)[:, :-1], np.diff(coef[0, 0], axis=1)[:-1, :]) / step_px
+    )
+    inside = (u[:-1, :-1] >= 0) & (u[:-1, :-1] <= n_s - 1)
+    du = float(np.nanmedian(du_px[inside] if inside.any() else du_px)) / per_node
+    per = float(np.nanmax(line_px)) / per_node
+    reach = 2.0 * float(levels[-1] - levels[0]) / ann.range_spacing_m + 4.0
+    u_lo = max(float(np.nanmin(u)), -reach)
+    u_hi = min(float(np.nanmax(u)), n_s - 1 + reach)
+    line0, u0 = -per, u_lo - 2.0 * du
+    n_p = int(np.ceil((n_l - 1 - line0) / per)) + 2
+    n_u = int(np.ceil((u_hi - u0) / du)) + 3
+    s_a, s_b = PROFILE_LATTICE_STEP
+    la = line0 + np.arange(-(-(n_p - 1) // s_a) + 2) * s_a * per
+    lb = u0 + np.arange(-(-(n_u - 1) // s_b) + 2) * s_b * du
+    ll, uu = np.meshgrid(la, lb, indexing="ij")
+    lat, lon = ann.ground_of_image(ll, uu, float(np.mean(levels)))
+    to_map = pyproj.Transformer.from_crs(
+        pyproj.CRS.from_epsg(4326), pyproj.CRS.from_wkt(grid.crs_wkt), always_xy=True
+    )
+    e, n = to_map.transform(np.degrees(lon), np.degrees(lat))
+    li, lj = grid.ij_of_map(e, n)
+    to_dem = pyproj.Transformer.from_crs(
+        pyproj.CRS.from_epsg(4326), pyproj.CRS.from_wkt(dem.crs_wkt), always_xy=True
+    )
+    dr, dc = dem.pixel_of(
+        *(np.asarray(v) for v in to_dem.transform(np.degrees(lon), np.degrees(lat)))
+    )
+    rows = np.arange(coef.shape[2], dtype=np.float64) * step_px
+    cols = np.arange(coef.shape[3], dtype=np.float64) * step_px
+    at_anchors = [
+        bilinear_grid(rows, cols, coef[k, c], li, lj) for c in range(3) for k in range(levels.size)
+    ]
+    lattice = np.ascontiguousarray(np.stack([li, lj, dr, dc, *at_anchors]), dtype=np.float64)
+    profiles = np.empty((n_p, n_u, 3), dtype=np.float32)
+    over_blocks(
+        _kernel_profile_rows,
+        n_p,
+        lattice,
+        s_a,
+        s_b,
+        per,
+        line0,
+        grid.n_rows,
+        grid.n_cols,
+        z,
+        float(np.mean(levels)),
+        1.0 / _half_span(levels),
+        profiles,
+        grain=16,
+    )
+    return profiles, np.array([line0, per, u0, du])
+
+
 def geocode(
     image: SarImage,
     grid: MapGrid,
@@ -660,28 +934,22 @@ def geocode(
 ) -> Geocoded:
     """``image`` on ``grid``: over ``dem`` (GTC), or on the ellipsoid raised to
     ``reference_height_m`` (GEC) (module docstring); ``masks=False``: no layover and
-    shadow (all false), the geometry alone."""
+    shadow (all false), the geometry alone. On the ellipsoid nothing folds: no masks."""
     ann = image.annotation
     if dem is None:
         height = np.full(grid.shape, float(reference_height_m))
         levels = np.array([float(reference_height_m)])
         kind = "GEC"
     else:
-        height = _dem_heights(dem, grid)
+        height, z = _dem_heights(dem, grid)
         if not np.isfinite(height).any():
             raise GeometryError("GTC: the DEM does not cover the output grid")
         lo, hi = float(np.nanmin(height)), float(np.nanmax(height))
         levels = np.linspace(lo - 10.0, hi + 10.0, HEIGHT_LEVELS)
         kind = "GTC"
-    na = -(-(grid.n_rows - 1) // step_px) + 2
-    nb = -(-(grid.n_cols - 1) // step_px) + 2
-    ai, aj = np.meshgrid(
-        np.arange(na, dtype=np.float64) * step_px,
-        np.arange(nb, dtype=np.float64) * step_px,
-        indexing="ij",
-    )
-    anchors = [_exact(ann, grid, ai, aj, np.full(ai.shape, h)) for h in levels]
-    rows, cols = ai[:, 0], aj[0]
+    anchors = _anchors(ann, grid, step_px, levels)
+    rows = np.arange(anchors.shape[2], dtype=np.float64) * step_px
+    cols = np.arange(anchors.shape[3], dtype=np.float64) * step_px
 
     def at(i: NDArray, j: NDArray, h: NDArray, which: int = 2) -> list[NDArray]:
         """(line, column[, look]) of output pixels at heights ``h`` through the anchors."""
@@ -693,80 +961,40 @@ def geocode(
             for q in range(which)
         ]
 
-    stack = np.ascontiguousarray(np.array(anchors, dtype=np.float64))  # (levels, 3, na, nb)
+    # (levels, 3, na, nb): the anchors' (line, column, look) as polynomials in height
+    coef = np.ascontiguousarray(_in_height(anchors, levels))
+    with_masks = masks and dem is not None
+    if with_masks:
+        profiles, frame = _profiles(
+            ann, grid, coef, levels, dem, z, mask_oversample(dem, grid), step_px
+        )
+    else:
+        profiles, frame = np.zeros((2, 4, 3), dtype=np.float32), np.array([0.0, 1.0, 0.0, 1.0])
     intensity = np.empty(grid.shape, dtype=np.float32)
-    line, col, look, across = (np.empty(grid.shape, dtype=np.float64) for _ in range(4))
-    # layover and shadow (below) order each line's pixels by their column at one height
-    w_mid = lagrange_weights(levels, np.array(float(np.mean(levels)))).reshape(-1)
+    line, col = (np.empty(grid.shape, dtype=np.float64) for _ in range(2))
+    layover = np.zeros(grid.shape, dtype=np.bool_)
+    shadow = np.zeros(grid.shape, dtype=np.bool_)
     over_blocks(
         _kernel_geocode,
         grid.n_rows,
         int(step_px),
-        stack,
-        levels.astype(np.float64),
-        w_mid,
+        coef,
+        float(np.mean(levels)),
+        1.0 / _half_span(levels),
         np.ascontiguousarray(height, dtype=np.float64),
         np.ascontiguousarray(image.intensity, dtype=np.float32),
         intensity,
         line,
         col,
-        look,
-        across,
+        with_masks,
+        profiles,
+        frame,
+        MASK_TOLERANCE_PX,
+        MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m,
+        layover,
+        shadow,
         grain=64,
     )
-    per_px = (
-        max(
-            float(np.nanmax(np.abs(np.diff(anchors[0][0], axis=0)))),
-            float(np.nanmax(np.abs(np.diff(anchors[0][0], axis=1)))),
-        )
-        / step_px
-    )
-    # the terrain's profiles: on the output grid, or on nodes finer by the DEM's own
-    # resolution (a cliff narrower than an output pixel casts its shadow all the same)
-    k = 1 if dem is None or not masks else mask_oversample(dem, grid)
-    nodes: list[NDArray[np.float64]] = [line, across, col, look]
-    if k > 1:
-        res = grid.pixel_size_m
-        fine = MapGrid.north_up(
-            grid.crs_wkt,
-            grid.x_min_m + 0.5 * res * (1 - 1 / k),
-            grid.y_max_m - 0.5 * res * (1 - 1 / k),
-            res / k,
-            (grid.n_rows - 1) * k + 1,
-            (grid.n_cols - 1) * k + 1,
-        )
-        nodes = [np.empty(fine.shape) for _ in range(4)]
-        over_blocks(
-            _kernel_geocode,
-            fine.n_rows,
-            int(step_px) * k,
-            stack,
-            levels.astype(np.float64),
-            w_mid,
-            _dem_heights(dem, fine),  # type: ignore[arg-type]
-            np.ascontiguousarray(image.intensity, dtype=np.float32),
-            np.empty(fine.shape, dtype=np.float32),
-            nodes[0],
-            nodes[2],
-            nodes[3],
-            nodes[1],
-            grain=64,
-        )
-    if masks:
-        du = float(np.hypot(_median_step(nodes[1], 0), _median_step(nodes[1], 1)))
-        layover, shadow = layover_and_shadow(
-            nodes[0],
-            nodes[1],
-            nodes[2],
-            nodes[3],
-            0.5 * du,  # bins of half a node across it
-            MASK_TOLERANCE_PX,
-            MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m,
-            queries=None if k == 1 else (line, across, col, look),
-            lines_per_profile=max(per_px / k, 1e-3),  # one profile per node along the track
-        )
-    else:
-        layover = shadow = np.zeros(grid.shape, dtype=np.bool_)
     # the anchor grid's error: a lattice between the anchors, at each pixel's height
     ci, cj = np.meshgrid(
         np.linspace(0.5 * step_px, grid.n_rows - 1, 23),
@@ -781,7 +1009,7 @@ def geocode(
         cj,
     )
     gl, gc = at(ci, cj, ch)
-    el, ec, _ = _exact(ann, grid, ci, cj, ch)
+    el, ec, _, _ = _exact(ann, grid, ci, cj, ch)
     e = np.hypot(gl - el, gc - ec)
     e = e[np.isfinite(e)]
     err: dict[str, Any] = {
