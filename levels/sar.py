@@ -29,7 +29,8 @@ location is measured on a lattice between the anchors and returned.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numba as nb
@@ -158,12 +159,14 @@ class SarAnnotation:
     def _locate(self, p: NDArray, t: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """:meth:`locate` from first guesses ``t``; also the antenna's position then. The
         acceleration (Newton's derivative) from the velocity's difference over 1 ms at the
-        first two steps, kept after (it changes by nothing over the last steps)."""
+        first step, kept after (it changes by nothing over the next steps); the position
+        at the last step's end to first order (a step of 1e-10 s moves it by 1e-6 m)."""
         eph, lam = self.ephemeris, self.wavelength_m
         step = np.full(p.shape[0], np.inf)
+        s = np.full(p.shape, np.nan)
         for it in range(_ITERATIONS):
             s, sd = eph.interpolate(t)
-            if it < 2:
+            if it == 0:
                 _, sd2 = eph.interpolate(t + 1e-3)
                 acc = (sd2 - sd) / 1e-3
             d = p - s
@@ -172,9 +175,9 @@ class SarAnnotation:
             dfdt = 2.0 * (np.sum(d * acc, axis=1) - np.sum(sd * sd, axis=1)) / (lam * r)
             step = f / dfdt
             t = t - step
+            s = s - sd * step[:, None]
             if not np.any(np.abs(step) > _T_TOL_S):
                 break
-        s, _ = eph.interpolate(t)
         r = np.linalg.norm(p - s, axis=1)
         return t, r, np.isfinite(r) & (np.abs(step) <= _T_TOL_S), s
 
@@ -268,19 +271,61 @@ class SarImage:
 @dataclass(frozen=True, eq=False)
 class Geocoded:
     """A geocoded SAR image: intensity on a map grid (NaN outside the frame or over a
-    void), each pixel's (line, column) in the slant image, its height, the anchor grid's
-    error (slant pixels), and the layover and shadow masks of the terrain the DEM gives
-    (:func:`layover_and_shadow`; none on the ellipsoid)."""
+    void), each pixel's height, the anchor grid's error (slant pixels), and the layover
+    and shadow masks of the terrain the DEM gives (:func:`layover_and_shadow`'s
+    definitions; none on the ellipsoid); each pixel's (line, column) in the slant image
+    on first asking (the geocoding's own arithmetic, from its anchors: 1.5 GB for a full
+    frame that the product does not hold)."""
 
     grid: MapGrid
     intensity: NDArray[np.float32]
-    line: NDArray[np.float64]
-    column: NDArray[np.float64]
     height_m: NDArray[np.float64]
     kind: str  # "GEC" or "GTC"
     anchor_error: dict[str, float]
     layover: NDArray[np.bool_]
     shadow: NDArray[np.bool_]
+    #: the anchors' polynomials in height, their step, the middle height and 1 / half-span
+    model: tuple[NDArray[np.float64], int, float, float] = field(repr=False)
+
+    @cached_property
+    def _located(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        coef, step, h_mid, inv_span = self.model
+        line, col = (np.empty(self.grid.shape) for _ in range(2))
+        none = np.empty((1, 1), dtype=np.float32)
+        over_blocks(
+            _kernel_geocode,
+            self.grid.n_rows,
+            step,
+            coef,
+            h_mid,
+            inv_span,
+            np.ascontiguousarray(self.height_m, dtype=np.float64),
+            none,
+            False,
+            none,
+            True,
+            line,
+            col,
+            False,
+            np.zeros((2, 4, 3), dtype=np.float32),
+            np.array([0.0, 1.0, 0.0, 1.0]),
+            0.0,
+            0.0,
+            np.empty((1, 1), dtype=np.bool_),
+            np.empty((1, 1), dtype=np.bool_),
+            grain=64,
+        )
+        return line, col
+
+    @property
+    def line(self) -> NDArray[np.float64]:
+        """Each pixel's line in the slant image (NaN over a void)."""
+        return self._located[0]
+
+    @property
+    def column(self) -> NDArray[np.float64]:
+        """Each pixel's column in the slant image (NaN over a void)."""
+        return self._located[1]
 
 
 def frame_grid(
@@ -652,21 +697,23 @@ def _half_span(levels: NDArray[np.float64]) -> float:
 
 @nb.njit(cache=True, nogil=True)
 def _kernel_geocode(
-    lo, hi, step, anchors, h_mid, inv_span, height, image, out, line, col, masks, profiles,
-    frame, tol_r, tol_look, layover, shadow,
+    lo, hi, step, anchors, h_mid, inv_span, height, image, imaged, out, located, line, col,
+    masks, profiles, frame, tol_r, tol_look, layover, shadow,
 ):  # fmt: skip
     """Rows ``lo … hi − 1`` of the output: each pixel's (line, column, look) from the
     anchors (bilinear, then the polynomial in height through the levels,
     :func:`_in_height`: ``anchors`` its coefficients, ``x = (h − h_mid) · inv_span``), the
     slant image bilinearly there (NaN outside it or over a void). The anchors are
     interpolated down the row once for each anchor column, then along the row per pixel.
+    What is written: the image (``imaged``: ``out``), the location (``located``:
+    ``line`` and ``col``), the masks (``masks``).
 
     ``masks``: each pixel also judged against the terrain's profiles (:func:`_profiles`:
     ``profiles`` their running maxima of the range and look angle outwards and minima
     of the range inwards, rows of lines ``frame[0] + k·frame[1]``, columns of ground
     range ``frame[2] + m·frame[3]``: the column at the middle height): the two rows about
-    its line, interpolated, one sample beyond the one nearer than it
-    (:func:`layover_and_shadow`'s definitions); ``tol_r`` and ``tol_look`` its
+    its line, interpolated, up to the sample before it (from there on after it):
+    :func:`layover_and_shadow`'s definitions, ``tol_r`` and ``tol_look`` their
     tolerances."""
     n_lev, _, na, nb = anchors.shape
     n_l, n_s = image.shape
@@ -683,12 +730,14 @@ def _kernel_geocode(
                     at_row[k, c, b] = (1.0 - fu) * anchors[k, c, a, b] + fu * anchors[
                         k, c, a + 1, b
                     ]
-        for j in range(out.shape[1]):
+        for j in range(height.shape[1]):
             h = height[i, j]
             if not (h == h):
-                out[i, j] = np.nan
-                line[i, j] = np.nan
-                col[i, j] = np.nan
+                if imaged:
+                    out[i, j] = np.nan
+                if located:
+                    line[i, j] = np.nan
+                    col[i, j] = np.nan
                 continue
             b = min(j // step, nb - 2)
             fv = (j - b * step) * inv_step
@@ -699,23 +748,26 @@ def _kernel_geocode(
                 q0 = q0 * x + (gv * at_row[k, 0, b] + fv * at_row[k, 0, b + 1])
                 q1 = q1 * x + (gv * at_row[k, 1, b] + fv * at_row[k, 1, b + 1])
                 q2 = q2 * x + (gv * at_row[k, 2, b] + fv * at_row[k, 2, b + 1])
-            line[i, j] = q0
-            col[i, j] = q1
+            if located:
+                line[i, j] = q0
+                col[i, j] = q1
             if masks:
                 y = (q0 - frame[0]) * inv_per
                 mid = gv * at_row[0, 1, b] + fv * at_row[0, 1, b + 1]
                 x = (mid - frame[2]) * inv_du
-                if 0.0 <= y < n_p - 1 and 1.0 <= x < n_u - 2:
+                if 0.0 <= y < n_p - 1 and 0.0 <= x < n_u - 1:
                     r0 = int(y)
                     f = y - r0
                     m0 = int(x)
-                    near_r = _near(profiles[r0, m0 - 1, 0], profiles[r0 + 1, m0 - 1, 0], f)
-                    far_r = _near(profiles[r0, m0 + 2, 1], profiles[r0 + 1, m0 + 2, 1], f)
-                    near_look = _near(profiles[r0, m0 - 1, 2], profiles[r0 + 1, m0 - 1, 2], f)
+                    near_r = _near(profiles[r0, m0, 0], profiles[r0 + 1, m0, 0], f)
+                    far_r = _near(profiles[r0, m0 + 1, 1], profiles[r0 + 1, m0 + 1, 1], f)
+                    near_look = _near(profiles[r0, m0, 2], profiles[r0 + 1, m0, 2], f)
                     layover[i, j] = (near_r == near_r and q1 < near_r - tol_r) or (
                         far_r == far_r and q1 > far_r + tol_r
                     )
                     shadow[i, j] = near_look == near_look and q2 < near_look - tol_look
+            if not imaged:
+                continue
             if not (0.0 <= q0 <= n_l - 1 and 0.0 <= q1 <= n_s - 1):
                 out[i, j] = np.nan
                 continue
@@ -748,6 +800,7 @@ def _kernel_profile_rows(
     n_lev = (n_q - 4) // 3
     nr, nc = z.shape
     n_u = profiles.shape[1]
+    raw = np.empty((2, n_u))  # the row's ranges and looks
     val = np.empty((n_q, nlb))  # the lattice down to the row, and its change per row
     dval = np.empty((n_q, nlb))
     inv_a, inv_b = 1.0 / s_a, 1.0 / s_b
@@ -807,24 +860,22 @@ def _kernel_profile_rows(
                             gv * (val[c, b] + shift * dval[c, b])
                             + fv * (val[c, b + 1] + shift * dval[c, b + 1])
                         )
-            profiles[kr, m, 0] = r_out
-            profiles[kr, m, 2] = look_out
-        run_r = -np.inf
-        run_look = -np.inf
+            raw[0, m] = r_out
+            raw[1, m] = look_out
+        near_r = near_look = -np.inf
         for m in range(n_u):  # outwards: the farthest range and the largest look so far
-            v = profiles[kr, m, 0]
-            profiles[kr, m, 1] = v
+            v = raw[0, m]
             if v == v:
-                run_r = max(run_r, v)
-                run_look = max(run_look, profiles[kr, m, 2])
-            profiles[kr, m, 0] = run_r
-            profiles[kr, m, 2] = run_look
-        run_r = np.inf
+                near_r = max(near_r, v)
+                near_look = max(near_look, raw[1, m])
+            profiles[kr, m, 0] = near_r
+            profiles[kr, m, 2] = near_look
+        far_r = np.inf
         for m in range(n_u - 1, -1, -1):  # inwards: the nearest range so far
-            v = profiles[kr, m, 1]
+            v = raw[0, m]
             if v == v:
-                run_r = min(run_r, v)
-            profiles[kr, m, 1] = run_r
+                far_r = min(far_r, v)
+            profiles[kr, m, 1] = far_r
 
 
 def mask_oversample(dem: Dem, grid: MapGrid, most: int = 4) -> int:
@@ -863,9 +914,8 @@ def _profiles(
     ``u0 + m·du`` (``u``: the column at the middle height, ``per_node`` samples per output
     pixel across the track); each sample's range (columns) and look angle, as running
     maxima and minima (:func:`_kernel_profile_rows`). The rows cover the image's lines;
-    the samples its columns and, beyond them, twice the DEM's relief in range: no terrain
-    farther out can fold onto or hide a pixel of the image (a fold's range lies in the
-    image; what hides a pixel stands within its relief · tan θ < relief in range of it).
+    the samples its columns and, beyond them, what the relief can fold onto them or hide
+    them with (below).
     Returns the profiles ``(rows, samples, 3)`` and ``(line0, per, u0, du)``."""
     n_l, n_s = ann.shape
     u = coef[0, 1]  # the column at the middle height
@@ -876,9 +926,17 @@ def _profiles(
     inside = (u[:-1, :-1] >= 0) & (u[:-1, :-1] <= n_s - 1)
     du = float(np.nanmedian(du_px[inside] if inside.any() else du_px)) / per_node
     per = float(np.nanmax(line_px)) / per_node
-    reach = 2.0 * float(levels[-1] - levels[0]) / ann.range_spacing_m + 4.0
-    u_lo = max(float(np.nanmin(u)), -reach)
-    u_hi = min(float(np.nanmax(u)), n_s - 1 + reach)
+    # what can fold onto or hide a pixel of the image, in columns (flat Earth, 10 % over):
+    # a pixel's column lies within half the relief of its column at the middle height;
+    # a fold's range lies in the image; what hides a pixel stands within relief · tan θ
+    # of it on the ground, relief · tan θ · sin θ in range (θ the incidence, largest at
+    # the far range)
+    h_mid = float(np.mean(levels))
+    far = ann.ground_of_image(np.array([0.5 * (n_l - 1)]), np.array([n_s - 1.0]), h_mid)
+    inc = float(ann.incidence(*far, np.array([h_mid]))[0])
+    relief = 1.1 * float(levels[-1] - levels[0]) / ann.range_spacing_m
+    u_lo = max(float(np.nanmin(u)), -(0.5 + np.tan(inc) * np.sin(inc)) * relief - 4.0)
+    u_hi = min(float(np.nanmax(u)), n_s - 1 + 0.5 * relief + 4.0)
     line0, u0 = -per, u_lo - 2.0 * du
     n_p = int(np.ceil((n_l - 1 - line0) / per)) + 2
     n_u = int(np.ceil((u_hi - u0) / du)) + 3
@@ -886,7 +944,7 @@ def _profiles(
     la = line0 + np.arange(-(-(n_p - 1) // s_a) + 2) * s_a * per
     lb = u0 + np.arange(-(-(n_u - 1) // s_b) + 2) * s_b * du
     ll, uu = np.meshgrid(la, lb, indexing="ij")
-    lat, lon = ann.ground_of_image(ll, uu, float(np.mean(levels)))
+    lat, lon = ann.ground_of_image(ll, uu, h_mid)
     to_map = pyproj.Transformer.from_crs(
         pyproj.CRS.from_epsg(4326), pyproj.CRS.from_wkt(grid.crs_wkt), always_xy=True
     )
@@ -916,7 +974,7 @@ def _profiles(
         grid.n_rows,
         grid.n_cols,
         z,
-        float(np.mean(levels)),
+        h_mid,
         1.0 / _half_span(levels),
         profiles,
         grain=16,
@@ -971,21 +1029,24 @@ def geocode(
     else:
         profiles, frame = np.zeros((2, 4, 3), dtype=np.float32), np.array([0.0, 1.0, 0.0, 1.0])
     intensity = np.empty(grid.shape, dtype=np.float32)
-    line, col = (np.empty(grid.shape, dtype=np.float64) for _ in range(2))
     layover = np.zeros(grid.shape, dtype=np.bool_)
     shadow = np.zeros(grid.shape, dtype=np.bool_)
+    model = (coef, int(step_px), float(np.mean(levels)), 1.0 / _half_span(levels))
+    nowhere = np.empty((1, 1))
     over_blocks(
         _kernel_geocode,
         grid.n_rows,
-        int(step_px),
+        model[1],
         coef,
-        float(np.mean(levels)),
-        1.0 / _half_span(levels),
+        model[2],
+        model[3],
         np.ascontiguousarray(height, dtype=np.float64),
         np.ascontiguousarray(image.intensity, dtype=np.float32),
+        True,
         intensity,
-        line,
-        col,
+        False,
+        nowhere,
+        nowhere,
         with_masks,
         profiles,
         frame,
@@ -1017,7 +1078,7 @@ def geocode(
         "rms_px": float(np.sqrt(np.mean(e**2))) if e.size else float("nan"),
         "max_px": float(np.max(e)) if e.size else float("nan"),
     }
-    return Geocoded(grid, intensity, line, col, height, kind, err, layover, shadow)
+    return Geocoded(grid, intensity, height, kind, err, layover, shadow, model)
 
 
 def sar_product(
