@@ -110,11 +110,11 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         grid = MapGrid.north_up(dem.crs_wkt, gt[0], gt[3], gt[1], *dem.height_m.shape)
         g = sar.geocode(image, grid, dem=dem, masks=False)
+        ours_l, ours_c = g.line[::-1], g.column[::-1]  # per cell, south-up as sarsen's
         t_ours = time.perf_counter() - t
     line_sarsen = (az - epoch) / np.timedelta64(1, "ns") * 1e-9
     line_sarsen = (line_sarsen - ann.first_line_s) / ann.line_interval_s
     col_sarsen = (slant - ann.near_range_m) / ann.range_spacing_m
-    ours_l, ours_c = g.line[::-1], g.column[::-1]  # south-up as sarsen's
     inside = (ours_l >= 0) & (ours_l <= n_l - 1) & (ours_c >= 0) & (ours_c <= n_s - 1)
     dl, dc = (line_sarsen - ours_l)[inside], (col_sarsen - ours_c)[inside]
     ratio = t_sarsen / t_ours

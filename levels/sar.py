@@ -74,8 +74,88 @@ HEIGHT_LEVELS = 3
 MASK_TOLERANCE_PX = 0.05
 #: Newton's steps at most, and the time step at which it stops (s).
 _ITERATIONS, _T_TOL_S = 12, 1e-10
-#: Points located at once (memory).
-_CHUNK = 1 << 18
+
+
+@nb.njit(cache=True, nogil=True)
+def _kernel_locate(lo, hi, p, t_nodes, states, n_points, doppler, r0, lam, t, r, ok, s):
+    """Points ``lo … hi − 1``: the time ``t`` (in: first guesses) solving the Doppler
+    equation by Newton's method, the slant range ``r`` and the antenna's position ``s``
+    then, ``ok`` where it converged (module docstring). The states (position, velocity)
+    by ``n_points``-point Lagrange on the window of nodes about the instant (as
+    :func:`levels.geometry.ephemeris.lagrange_interpolate`, NaN outside the nodes); the
+    acceleration (Newton's derivative) from the velocity's difference over 1 ms at the
+    first step, kept after (it changes by nothing over the next steps); the position at
+    the last step's end to first order (a step of 1e-10 s moves it by 1e-6 m)."""
+    n = t_nodes.size
+    m = min(n_points, n)
+    w = np.empty(m)
+    st = np.empty(6)
+    acc = np.zeros(3)
+    for q in range(lo, hi):
+        tq = t[q]
+        step = np.inf
+        rq = np.nan
+        for it in range(_ITERATIONS):
+            for e in range(2 if it == 0 else 1):  # at t, and 1 ms on for the acceleration
+                te = tq + 1e-3 * e
+                if not (t_nodes[0] <= te <= t_nodes[n - 1]):
+                    if e == 0:
+                        st[:] = np.nan
+                    else:
+                        acc[:] = np.nan
+                else:
+                    a, b = 0, n  # the first node after te
+                    while a < b:
+                        c = (a + b) // 2
+                        if t_nodes[c] <= te:
+                            a = c + 1
+                        else:
+                            b = c
+                    k0 = min(max(a - m // 2, 0), n - m)
+                    for j in range(m):
+                        wj = 1.0
+                        for i in range(m):
+                            if i != j:
+                                wj *= (te - t_nodes[k0 + i]) / (t_nodes[k0 + j] - t_nodes[k0 + i])
+                        w[j] = wj
+                    for c in range(6):
+                        v = 0.0
+                        for j in range(m):
+                            v += w[j] * states[k0 + j, c]
+                        if e == 0:
+                            st[c] = v
+                        elif c >= 3:
+                            acc[c - 3] = (v - st[c]) / 1e-3
+            dx, dy, dz = p[q, 0] - st[0], p[q, 1] - st[1], p[q, 2] - st[2]
+            rq = np.sqrt(dx * dx + dy * dy + dz * dz)
+            x = (rq - r0) / 1000.0
+            fdc = 0.0
+            for c in range(doppler.size - 1, -1, -1):
+                fdc = fdc * x + doppler[c]
+            f = fdc + 2.0 * (dx * st[3] + dy * st[4] + dz * st[5]) / (lam * rq)
+            dfdt = (
+                2.0
+                * (
+                    dx * acc[0]
+                    + dy * acc[1]
+                    + dz * acc[2]
+                    - (st[3] * st[3] + st[4] * st[4] + st[5] * st[5])
+                )
+                / (lam * rq)
+            )
+            step = f / dfdt
+            tq -= step
+            for c in range(3):
+                st[c] -= st[c + 3] * step
+            if not abs(step) > _T_TOL_S:
+                break
+        dx, dy, dz = p[q, 0] - st[0], p[q, 1] - st[1], p[q, 2] - st[2]
+        rq = np.sqrt(dx * dx + dy * dy + dz * dz)
+        t[q] = tq
+        r[q] = rq
+        ok[q] = rq == rq and abs(step) <= _T_TOL_S
+        for c in range(3):
+            s[q, c] = st[c]
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,43 +223,32 @@ class SarAnnotation:
     def _solve(
         self, p: NDArray, t0_s: ArrayLike | None
     ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-        """:meth:`locate` by chunks; also the antenna's positions."""
+        """:meth:`locate`, and the antenna's positions then (:func:`_kernel_locate`)."""
         middle = self.first_line_s + 0.5 * self.shape[0] * self.line_interval_s
-        t0 = np.full(p.shape[0], middle) if t0_s is None else np.ravel(t0_s).astype(np.float64)
-        t0 = np.where(np.isfinite(t0), t0, middle)
-        t_out = np.full(p.shape[0], np.nan)
-        r_out = np.full(p.shape[0], np.nan)
-        ok_out = np.zeros(p.shape[0], dtype=bool)
-        s_out = np.full(p.shape, np.nan)
-        for a in range(0, p.shape[0], _CHUNK):
-            part = slice(a, a + _CHUNK)
-            t_out[part], r_out[part], ok_out[part], s_out[part] = self._locate(p[part], t0[part])
-        return t_out, r_out, ok_out, s_out
-
-    def _locate(self, p: NDArray, t: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-        """:meth:`locate` from first guesses ``t``; also the antenna's position then. The
-        acceleration (Newton's derivative) from the velocity's difference over 1 ms at the
-        first step, kept after (it changes by nothing over the next steps); the position
-        at the last step's end to first order (a step of 1e-10 s moves it by 1e-6 m)."""
-        eph, lam = self.ephemeris, self.wavelength_m
-        step = np.full(p.shape[0], np.inf)
-        s = np.full(p.shape, np.nan)
-        for it in range(_ITERATIONS):
-            s, sd = eph.interpolate(t)
-            if it == 0:
-                _, sd2 = eph.interpolate(t + 1e-3)
-                acc = (sd2 - sd) / 1e-3
-            d = p - s
-            r = np.linalg.norm(d, axis=1)
-            f = self.doppler_at(r) + 2.0 * np.sum(d * sd, axis=1) / (lam * r)
-            dfdt = 2.0 * (np.sum(d * acc, axis=1) - np.sum(sd * sd, axis=1)) / (lam * r)
-            step = f / dfdt
-            t = t - step
-            s = s - sd * step[:, None]
-            if not np.any(np.abs(step) > _T_TOL_S):
-                break
-        r = np.linalg.norm(p - s, axis=1)
-        return t, r, np.isfinite(r) & (np.abs(step) <= _T_TOL_S), s
+        t = np.full(p.shape[0], middle) if t0_s is None else np.ravel(t0_s).astype(np.float64)
+        t = np.where(np.isfinite(t), t, middle)
+        eph = self.ephemeris
+        states = np.ascontiguousarray(np.hstack([eph.r_ecef_m, eph.v_ecef_m_per_s]))
+        r = np.empty(p.shape[0])
+        ok = np.empty(p.shape[0], dtype=np.bool_)
+        s = np.empty(p.shape)
+        over_blocks(
+            _kernel_locate,
+            p.shape[0],
+            np.ascontiguousarray(p, dtype=np.float64),
+            np.asarray(eph.t_s, dtype=np.float64),
+            states,
+            int(eph.n_points),
+            np.asarray(self.doppler_hz, dtype=np.float64),
+            self.near_range_m,
+            self.wavelength_m,
+            t,
+            r,
+            ok,
+            s,
+            grain=4096,
+        )
+        return t, r, ok, s
 
     def image_of(
         self, lat_rad: ArrayLike, lon_rad: ArrayLike, h_m: ArrayLike
@@ -269,6 +338,86 @@ class SarImage:
 
 
 @dataclass(frozen=True, eq=False)
+class _Model:
+    """The geocoding's model of an image: its anchors' (line, column, look) every ``step``
+    output pixels as polynomials in the scaled height (:func:`_in_height`) through the
+    height ``levels``, and the image's shape."""
+
+    coef: NDArray[np.float64]
+    step: int
+    levels: NDArray[np.float64]
+    image_shape: tuple[int, int]
+
+    @property
+    def h_mid(self) -> float:
+        return float(np.mean(self.levels))
+
+    @property
+    def inv_span(self) -> float:
+        return 1.0 / _half_span(self.levels)
+
+
+def _geocode_rows(
+    model: _Model,
+    height: NDArray[np.float64],
+    surface: tuple[NDArray, NDArray, float, float] | None = None,
+    image: NDArray | None = None,
+    out: NDArray[np.float32] | None = None,
+    located: tuple[NDArray, NDArray] | None = None,
+    masks: tuple[NDArray, NDArray, float, float] | None = None,
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """:func:`_kernel_geocode` over the output's rows on threads: the heights from the DEM
+    ``surface`` (:func:`_dem_surface`) into ``height``, or read from it; the ``image``
+    into ``out``; the location into ``located``; the layover and shadow masks against
+    ``masks`` (profiles, frame, tolerances: :func:`_profiles`), returned (all false
+    without)."""
+    n_rows, n_cols = height.shape
+    none2, none3 = np.empty((1, 1)), np.empty((2, 2, 3), dtype=np.float32)
+    nodes, z = (surface[0], surface[1]) if surface is not None else (np.zeros((2, 2, 2)), none2)
+    profiles, frame, tol_r, tol_look = masks or (none3, np.array([0.0, 1.0, 0.0, 1.0]), 0.0, 0.0)
+    shape = (n_rows, n_cols) if masks is not None else (1, 1)
+    layover, shadow = np.zeros(shape, dtype=np.bool_), np.zeros(shape, dtype=np.bool_)
+    from levels.geo.level3 import DEM_COORD_STEP
+
+    over_blocks(
+        _kernel_geocode,
+        n_rows,
+        model.step,
+        model.coef,
+        model.h_mid,
+        model.inv_span,
+        (model.levels - model.h_mid) * model.inv_span,
+        model.image_shape,
+        nodes,
+        DEM_COORD_STEP,
+        z,
+        surface is not None,
+        height,
+        np.ascontiguousarray(image, dtype=np.float32)
+        if image is not None
+        else none2.astype(np.float32),
+        out is not None,
+        out if out is not None else none2.astype(np.float32),
+        located is not None,
+        *(located or (none2, none2)),
+        masks is not None,
+        profiles,
+        frame,
+        tol_r,
+        tol_look,
+        layover,
+        shadow,
+        grain=64,
+    )
+    if masks is None:
+        layover, shadow = (
+            np.zeros((n_rows, n_cols), dtype=np.bool_),
+            np.zeros((n_rows, n_cols), dtype=np.bool_),
+        )
+    return layover, shadow
+
+
+@dataclass(frozen=True, eq=False)
 class Geocoded:
     """A geocoded SAR image: intensity on a map grid (NaN outside the frame or over a
     void), each pixel's height, the anchor grid's error (slant pixels), and the layover
@@ -284,37 +433,13 @@ class Geocoded:
     anchor_error: dict[str, float]
     layover: NDArray[np.bool_]
     shadow: NDArray[np.bool_]
-    #: the anchors' polynomials in height, their step, the middle height and 1 / half-span
-    model: tuple[NDArray[np.float64], int, float, float] = field(repr=False)
+    #: the anchors' polynomials in height (the geocoding's model of the image)
+    model: _Model = field(repr=False)
 
     @cached_property
     def _located(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        coef, step, h_mid, inv_span = self.model
         line, col = (np.empty(self.grid.shape) for _ in range(2))
-        none = np.empty((1, 1), dtype=np.float32)
-        over_blocks(
-            _kernel_geocode,
-            self.grid.n_rows,
-            step,
-            coef,
-            h_mid,
-            inv_span,
-            np.ascontiguousarray(self.height_m, dtype=np.float64),
-            none,
-            False,
-            none,
-            True,
-            line,
-            col,
-            False,
-            np.zeros((2, 4, 3), dtype=np.float32),
-            np.array([0.0, 1.0, 0.0, 1.0]),
-            0.0,
-            0.0,
-            np.empty((1, 1), dtype=np.bool_),
-            np.empty((1, 1), dtype=np.bool_),
-            grain=64,
-        )
+        _geocode_rows(self.model, self.height_m, located=(line, col))
         return line, col
 
     @property
@@ -637,48 +762,32 @@ def layover_and_shadow(
     return back(layover), back(shadow)
 
 
-@nb.njit(cache=True, nogil=True)
-def _kernel_dem(lo, hi, step, nodes, z, out):
-    """Rows ``lo … hi − 1``: the DEM's (row, column) bilinearly from its nodes every
-    ``step`` output pixels, then its heights ``z`` bilinearly there (NaN outside or over a
-    void): :func:`levels.geometry.dem.bilinear_surface`'s arithmetic."""
-    na, nb_ = nodes.shape[1], nodes.shape[2]
-    nr, nc = z.shape
-    for i in range(lo, hi):
-        a = min(i // step, na - 2)
-        u = (i - a * step) * (1.0 / step)
-        for j in range(out.shape[1]):
-            b = min(j // step, nb_ - 2)
-            v = (j - b * step) * (1.0 / step)
-            at_b = (1.0 - u) * nodes[0, a, b] + u * nodes[0, a + 1, b]
-            at_b1 = (1.0 - u) * nodes[0, a, b + 1] + u * nodes[0, a + 1, b + 1]
-            row = (1.0 - v) * at_b + v * at_b1
-            at_b = (1.0 - u) * nodes[1, a, b] + u * nodes[1, a + 1, b]
-            at_b1 = (1.0 - u) * nodes[1, a, b + 1] + u * nodes[1, a + 1, b + 1]
-            col = (1.0 - v) * at_b + v * at_b1
-            if not (0.0 <= row <= nr - 1 and 0.0 <= col <= nc - 1):
-                out[i, j] = np.nan
-                continue
-            p0 = min(int(row), nr - 2)
-            q0 = min(int(col), nc - 2)
-            s, t = row - p0, col - q0
-            out[i, j] = (1 - s) * ((1 - t) * z[p0, q0] + t * z[p0, q0 + 1]) + s * (
-                (1 - t) * z[p0 + 1, q0] + t * z[p0 + 1, q0 + 1]
-            )
-
-
-def _dem_heights(dem: Dem, grid: MapGrid) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The DEM's height above the ellipsoid under every output pixel: its (row, column)
-    through PROJ every ``DEM_COORD_STEP`` pixels and bilinearly between, its heights
-    bilinearly in its own grid (as level 3 samples a DEM); and the DEM's ellipsoidal
-    heights (the profiles read the same surface)."""
+def _dem_surface(
+    dem: Dem, grid: MapGrid
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
+    """The DEM as the geocoding reads it (as level 3 does): its (row, column) through PROJ
+    at output pixels every ``DEM_COORD_STEP``, its heights above the ellipsoid, and their
+    lowest and highest over the DEM's cells under the grid; :class:`GeometryError` if it
+    has none there."""
     from levels.geo.level3 import DEM_COORD_STEP, _dem_coordinates, _ellipsoidal
 
     nodes = np.ascontiguousarray(_dem_coordinates(dem, grid, DEM_COORD_STEP), dtype=np.float64)
-    out = np.empty(grid.shape, dtype=np.float64)
     z = np.ascontiguousarray(_ellipsoidal(dem), dtype=np.float64)
-    over_blocks(_kernel_dem, grid.n_rows, DEM_COORD_STEP, nodes, z, out, grain=64)
-    return out, z
+    nr, nc = z.shape
+    r0, c0 = (
+        int(np.clip(np.floor(np.nanmin(a)), 0, n - 1)) for a, n in zip(nodes, z.shape, strict=True)
+    )
+    r1, c1 = (
+        int(np.clip(np.ceil(np.nanmax(a)), 0, n - 1)) for a, n in zip(nodes, z.shape, strict=True)
+    )
+    under = z[r0 : r1 + 1, c0 : c1 + 1]
+    covers = (
+        np.nanmax(nodes[0]) >= 0 and np.nanmin(nodes[0]) <= nr - 1
+        and np.nanmax(nodes[1]) >= 0 and np.nanmin(nodes[1]) <= nc - 1
+    )  # fmt: skip
+    if not covers or not np.isfinite(under).any():
+        raise GeometryError("GTC: the DEM does not cover the output grid")
+    return nodes, z, float(np.nanmin(under)), float(np.nanmax(under))
 
 
 def _in_height(values: NDArray[np.float64], levels: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -688,7 +797,8 @@ def _in_height(values: NDArray[np.float64], levels: NDArray[np.float64]) -> NDAr
     the constant term)."""
     x = (levels - np.mean(levels)) / _half_span(levels)
     flat = values.reshape(levels.size, -1)
-    return np.linalg.solve(np.vander(x, increasing=True), flat).reshape(values.shape)
+    coef = np.linalg.solve(np.vander(x, increasing=True), flat)
+    return np.asarray(coef, dtype=np.float64).reshape(values.shape)
 
 
 def _half_span(levels: NDArray[np.float64]) -> float:
@@ -697,8 +807,9 @@ def _half_span(levels: NDArray[np.float64]) -> float:
 
 @nb.njit(cache=True, nogil=True)
 def _kernel_geocode(
-    lo, hi, step, anchors, h_mid, inv_span, height, image, imaged, out, located, line, col,
-    masks, profiles, frame, tol_r, tol_look, layover, shadow,
+    lo, hi, step, anchors, h_mid, inv_span, xs, image_shape, dem_nodes, dem_step, z,
+    from_dem, height, image, imaged, out, located, line, col, masks, profiles, frame,
+    tol_r, tol_look, layover, shadow,
 ):  # fmt: skip
     """Rows ``lo … hi − 1`` of the output: each pixel's (line, column, look) from the
     anchors (bilinear, then the polynomial in height through the levels,
@@ -708,19 +819,32 @@ def _kernel_geocode(
     What is written: the image (``imaged``: ``out``), the location (``located``:
     ``line`` and ``col``), the masks (``masks``).
 
+    ``from_dem``: each pixel's height is the DEM's, written to ``height``, read as level 3
+    samples a DEM (its (row, column) bilinearly from ``dem_nodes`` every ``dem_step``
+    output pixels, the ellipsoidal heights ``z`` bilinearly there), NaN outside the DEM,
+    over a void, or outside the frame: beyond the anchor cells where no height level
+    (``xs``, scaled as ``x``) lands within ``_FRAME_MARGIN_PX`` of the slant image of
+    ``image_shape`` (a third of a frame's bounding box, not sampled, located nor judged);
+    else ``height`` is read.
+
     ``masks``: each pixel also judged against the terrain's profiles (:func:`_profiles`:
     ``profiles`` their running maxima of the range and look angle outwards and minima
     of the range inwards, rows of lines ``frame[0] + k·frame[1]``, columns of ground
     range ``frame[2] + m·frame[3]``: the column at the middle height): the two rows about
     its line, interpolated, up to the sample before it (from there on after it):
     :func:`layover_and_shadow`'s definitions, ``tol_r`` and ``tol_look`` their
-    tolerances."""
+    tolerances; none where a row has no terrain there (the grid's or the DEM's edge)."""
     n_lev, _, na, nb = anchors.shape
-    n_l, n_s = image.shape
+    n_l, n_s = image_shape
     n_p, n_u = profiles.shape[0], profiles.shape[1]
+    nda, ndb = dem_nodes.shape[1], dem_nodes.shape[2]
+    nr, nc = z.shape
+    n_cols = height.shape[1]
     at_row = np.empty((n_lev, 3, nb))
+    dem_row = np.empty((2, ndb))
     inv_step = 1.0 / step
     inv_per, inv_du = 1.0 / frame[1], 1.0 / frame[3]
+    m = _FRAME_MARGIN_PX
     for i in range(lo, hi):
         a = min(i // step, na - 2)
         fu = (i - a * step) * inv_step
@@ -730,8 +854,45 @@ def _kernel_geocode(
                     at_row[k, c, b] = (1.0 - fu) * anchors[k, c, a, b] + fu * anchors[
                         k, c, a + 1, b
                     ]
-        for j in range(height.shape[1]):
-            h = height[i, j]
+        j_lo, j_hi = 0, n_cols
+        if from_dem:  # the anchor columns where the frame is, at some height
+            b_lo, b_hi = nb, -1
+            for b in range(nb):
+                for x in xs:
+                    q0 = q1 = 0.0
+                    for k in range(n_lev - 1, -1, -1):
+                        q0 = q0 * x + at_row[k, 0, b]
+                        q1 = q1 * x + at_row[k, 1, b]
+                    if -m <= q0 <= n_l - 1 + m and -m <= q1 <= n_s - 1 + m:
+                        b_lo, b_hi = min(b_lo, b), max(b_hi, b)
+            j_lo = min(max((b_lo - 1) * step, 0), n_cols)
+            j_hi = max(min((b_hi + 1) * step + 1, n_cols), j_lo)
+        if from_dem:
+            da = min(i // dem_step, nda - 2)
+            su = (i - da * dem_step) / dem_step
+            for c in range(2):
+                for b in range(ndb):
+                    dem_row[c, b] = (1.0 - su) * dem_nodes[c, da, b] + su * dem_nodes[c, da + 1, b]
+        for j in range(n_cols):
+            if j < j_lo or j >= j_hi:
+                h = np.nan
+            elif from_dem:
+                db = min(j // dem_step, ndb - 2)
+                sv = (j - db * dem_step) / dem_step
+                drow = (1.0 - sv) * dem_row[0, db] + sv * dem_row[0, db + 1]
+                dcol = (1.0 - sv) * dem_row[1, db] + sv * dem_row[1, db + 1]
+                h = np.nan
+                if 0.0 <= drow <= nr - 1 and 0.0 <= dcol <= nc - 1:
+                    p0 = min(int(drow), nr - 2)
+                    r0 = min(int(dcol), nc - 2)
+                    s, t = drow - p0, dcol - r0
+                    h = (1 - s) * ((1 - t) * z[p0, r0] + t * z[p0, r0 + 1]) + s * (
+                        (1 - t) * z[p0 + 1, r0] + t * z[p0 + 1, r0 + 1]
+                    )
+            else:
+                h = height[i, j]
+            if from_dem:
+                height[i, j] = h
             if not (h == h):
                 if imaged:
                     out[i, j] = np.nan
@@ -759,13 +920,12 @@ def _kernel_geocode(
                     r0 = int(y)
                     f = y - r0
                     m0 = int(x)
-                    near_r = _near(profiles[r0, m0, 0], profiles[r0 + 1, m0, 0], f)
-                    far_r = _near(profiles[r0, m0 + 1, 1], profiles[r0 + 1, m0 + 1, 1], f)
-                    near_look = _near(profiles[r0, m0, 2], profiles[r0 + 1, m0, 2], f)
-                    layover[i, j] = (near_r == near_r and q1 < near_r - tol_r) or (
-                        far_r == far_r and q1 > far_r + tol_r
-                    )
-                    shadow[i, j] = near_look == near_look and q2 < near_look - tol_look
+                    g0 = 1.0 - f
+                    near_r = g0 * profiles[r0, m0, 0] + f * profiles[r0 + 1, m0, 0]
+                    far_r = g0 * profiles[r0, m0 + 1, 1] + f * profiles[r0 + 1, m0 + 1, 1]
+                    near_look = g0 * profiles[r0, m0, 2] + f * profiles[r0 + 1, m0, 2]
+                    layover[i, j] = q1 < near_r - tol_r or q1 > far_r + tol_r
+                    shadow[i, j] = q2 < near_look - tol_look
             if not imaged:
                 continue
             if not (0.0 <= q0 <= n_l - 1 and 0.0 <= q1 <= n_s - 1):
@@ -892,6 +1052,9 @@ def mask_oversample(dem: Dem, grid: MapGrid, most: int = 4) -> int:
     return int(min(most, max(1, np.ceil(2 * grid.pixel_size_m / min(sx, sy) - 1e-6))))
 
 
+#: Slant pixels beyond the image within which an output pixel is still geocoded (and
+#: an anchor cell more about it): the frame's edge and its interpolation.
+_FRAME_MARGIN_PX = 2.0
 #: Profile rows and samples between the exact points of the profiles' lattice (the
 #: ground under a line is nearly straight, across it a hyperbola: 2e-3 px at most
 #: interpolated on ERS-1's 100 km frame at 12.5 m).
@@ -997,13 +1160,12 @@ def geocode(
     if dem is None:
         height = np.full(grid.shape, float(reference_height_m))
         levels = np.array([float(reference_height_m)])
+        surface = None
         kind = "GEC"
     else:
-        height, z = _dem_heights(dem, grid)
-        if not np.isfinite(height).any():
-            raise GeometryError("GTC: the DEM does not cover the output grid")
-        lo, hi = float(np.nanmin(height)), float(np.nanmax(height))
-        levels = np.linspace(lo - 10.0, hi + 10.0, HEIGHT_LEVELS)
+        surface = _dem_surface(dem, grid)
+        height = np.empty(grid.shape)
+        levels = np.linspace(surface[2] - 10.0, surface[3] + 10.0, HEIGHT_LEVELS)
         kind = "GTC"
     anchors = _anchors(ann, grid, step_px, levels)
     rows = np.arange(anchors.shape[2], dtype=np.float64) * step_px
@@ -1020,41 +1182,26 @@ def geocode(
         ]
 
     # (levels, 3, na, nb): the anchors' (line, column, look) as polynomials in height
-    coef = np.ascontiguousarray(_in_height(anchors, levels))
-    with_masks = masks and dem is not None
-    if with_masks:
-        profiles, frame = _profiles(
-            ann, grid, coef, levels, dem, z, mask_oversample(dem, grid), step_px
-        )
-    else:
-        profiles, frame = np.zeros((2, 4, 3), dtype=np.float32), np.array([0.0, 1.0, 0.0, 1.0])
+    model = _Model(
+        np.ascontiguousarray(_in_height(anchors, levels)), int(step_px), levels, ann.shape
+    )
     intensity = np.empty(grid.shape, dtype=np.float32)
-    layover = np.zeros(grid.shape, dtype=np.bool_)
-    shadow = np.zeros(grid.shape, dtype=np.bool_)
-    model = (coef, int(step_px), float(np.mean(levels)), 1.0 / _half_span(levels))
-    nowhere = np.empty((1, 1))
-    over_blocks(
-        _kernel_geocode,
-        grid.n_rows,
-        model[1],
-        coef,
-        model[2],
-        model[3],
-        np.ascontiguousarray(height, dtype=np.float64),
-        np.ascontiguousarray(image.intensity, dtype=np.float32),
-        True,
-        intensity,
-        False,
-        nowhere,
-        nowhere,
-        with_masks,
-        profiles,
-        frame,
-        MASK_TOLERANCE_PX,
-        MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m,
-        layover,
-        shadow,
-        grain=64,
+    judged = None
+    if masks and dem is not None and surface is not None:
+        profiles, frame = _profiles(
+            ann,
+            grid,
+            model.coef,
+            levels,
+            dem,
+            surface[1],
+            mask_oversample(dem, grid),
+            step_px,
+        )
+        tol = (MASK_TOLERANCE_PX, MASK_TOLERANCE_PX * ann.range_spacing_m / ann.near_range_m)
+        judged = (profiles, frame, *tol)
+    layover, shadow = _geocode_rows(
+        model, height, surface, image=image.intensity, out=intensity, masks=judged
     )
     # the anchor grid's error: a lattice between the anchors, at each pixel's height
     ci, cj = np.meshgrid(
