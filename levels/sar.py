@@ -359,7 +359,7 @@ class _Model:
 
 def _geocode_rows(
     model: _Model,
-    height: NDArray[np.float64],
+    height: NDArray[np.float32],
     surface: tuple[NDArray, NDArray, float, float] | None = None,
     image: NDArray | None = None,
     out: NDArray[np.float32] | None = None,
@@ -420,15 +420,16 @@ def _geocode_rows(
 @dataclass(frozen=True, eq=False)
 class Geocoded:
     """A geocoded SAR image: intensity on a map grid (NaN outside the frame or over a
-    void), each pixel's height, the anchor grid's error (slant pixels), and the layover
-    and shadow masks of the terrain the DEM gives (:func:`layover_and_shadow`'s
-    definitions; none on the ellipsoid); each pixel's (line, column) in the slant image
-    on first asking (the geocoding's own arithmetic, from its anchors: 1.5 GB for a full
-    frame that the product does not hold)."""
+    void), each pixel's height (float32: a millimetre; NaN outside the frame over a DEM),
+    the anchor grid's error (slant pixels), and the layover and shadow masks of the
+    terrain the DEM gives (:func:`layover_and_shadow`'s definitions; none on the
+    ellipsoid); each pixel's (line, column) in the slant image on first asking (the
+    geocoding's own arithmetic, from its anchors: 1.5 GB for a full frame that the
+    product does not hold)."""
 
     grid: MapGrid
     intensity: NDArray[np.float32]
-    height_m: NDArray[np.float64]
+    height_m: NDArray[np.float32]
     kind: str  # "GEC" or "GTC"
     anchor_error: dict[str, float]
     layover: NDArray[np.bool_]
@@ -1158,13 +1159,13 @@ def geocode(
     shadow (all false), the geometry alone. On the ellipsoid nothing folds: no masks."""
     ann = image.annotation
     if dem is None:
-        height = np.full(grid.shape, float(reference_height_m))
+        height = np.full(grid.shape, float(reference_height_m), dtype=np.float32)
         levels = np.array([float(reference_height_m)])
         surface = None
         kind = "GEC"
     else:
         surface = _dem_surface(dem, grid)
-        height = np.empty(grid.shape)
+        height = np.empty(grid.shape, dtype=np.float32)
         levels = np.linspace(surface[2] - 10.0, surface[3] + 10.0, HEIGHT_LEVELS)
         kind = "GTC"
     anchors = _anchors(ann, grid, step_px, levels)

@@ -11,6 +11,7 @@ inverse grid is tens of thousands of nodes, a checkpoint lattice hundreds of poi
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numba as nb
 import numpy as np
@@ -252,7 +253,7 @@ def invert_scattered(
 def bilinear_grid(
     rows: NDArray[np.float64],
     cols: NDArray[np.float64],
-    z: NDArray[np.float64],
+    z: NDArray[np.floating[Any]],
     i: ArrayLike,
     j: ArrayLike,
 ) -> NDArray[np.float64]:
