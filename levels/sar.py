@@ -843,7 +843,7 @@ def _kernel_geocode(
     n_cols = height.shape[1]
     at_row = np.empty((n_lev, 3, nb))
     dem_row = np.empty((2, ndb))
-    inv_step = 1.0 / step
+    inv_step, inv_dem = 1.0 / step, 1.0 / dem_step
     inv_per, inv_du = 1.0 / frame[1], 1.0 / frame[3]
     m = _FRAME_MARGIN_PX
     for i in range(lo, hi):
@@ -870,16 +870,23 @@ def _kernel_geocode(
             j_hi = max(min((b_hi + 1) * step + 1, n_cols), j_lo)
         if from_dem:
             da = min(i // dem_step, nda - 2)
-            su = (i - da * dem_step) / dem_step
+            su = (i - da * dem_step) * inv_dem
             for c in range(2):
                 for b in range(ndb):
                     dem_row[c, b] = (1.0 - su) * dem_nodes[c, da, b] + su * dem_nodes[c, da + 1, b]
+        b = db = 0  # the anchor and DEM node columns about j, and j's offsets from them
+        jb = jd = -1
         for j in range(n_cols):
+            jb += 1  # (counted, not divided: an integer division per pixel costs)
+            if jb == step and b < nb - 2:
+                b, jb = b + 1, 0
+            jd += 1
+            if jd == dem_step and db < ndb - 2:
+                db, jd = db + 1, 0
             if j < j_lo or j >= j_hi:
                 h = np.nan
             elif from_dem:
-                db = min(j // dem_step, ndb - 2)
-                sv = (j - db * dem_step) / dem_step
+                sv = jd * inv_dem
                 drow = (1.0 - sv) * dem_row[0, db] + sv * dem_row[0, db + 1]
                 dcol = (1.0 - sv) * dem_row[1, db] + sv * dem_row[1, db + 1]
                 h = np.nan
@@ -901,8 +908,7 @@ def _kernel_geocode(
                     line[i, j] = np.nan
                     col[i, j] = np.nan
                 continue
-            b = min(j // step, nb - 2)
-            fv = (j - b * step) * inv_step
+            fv = jb * inv_step
             gv = 1.0 - fv
             x = (h - h_mid) * inv_span
             q0 = q1 = q2 = 0.0
@@ -974,9 +980,12 @@ def _kernel_profile_rows(
                 val[q, b] = (1.0 - fu) * lattice[q, a, b] + fu * lattice[q, a + 1, b]
                 dval[q, b] = (lattice[q, a + 1, b] - lattice[q, a, b]) * inv_a
         target = line0 + kr * per
+        b, mb = 0, -1  # the lattice column about m, and m's offset from it (counted)
         for m in range(n_u):
-            b = min(m // s_b, nlb - 2)
-            fv = (m - b * s_b) * inv_b
+            mb += 1
+            if mb == s_b and b < nlb - 2:
+                b, mb = b + 1, 0
+            fv = mb * inv_b
             gv = 1.0 - fv
             r_out = np.nan
             look_out = np.nan
