@@ -23,8 +23,13 @@ Newton's method on the geodetic height.
 (one, the reference height, for GEC), the exact (line, column) of the map point; per
 output pixel its height (GEC: the reference; GTC: the DEM bilinearly in its own grid,
 :mod:`levels.geo.level3`'s sampling), the anchors bilinearly, the levels by Lagrange in
-height, and the slant image bilinearly there. The anchor grid's error against the exact
-location is measured on a lattice between the anchors and returned.
+height (as a polynomial), and the slant image bilinearly there. The anchor grid's error
+against the exact location is measured on a lattice between the anchors and returned.
+
+**Layover and shadow** over a DEM (:func:`layover_and_shadow`'s definitions): the
+terrain's zero-Doppler profiles sampled along the image's lines (:func:`_profiles`), each
+output pixel judged against them inside the geocoding kernel; :func:`layover_and_shadow`
+itself, on continuous profiles of scattered terrain points, is the truth's.
 """
 
 from __future__ import annotations
@@ -1049,10 +1054,10 @@ def _kernel_profile_rows(
 
 
 def mask_oversample(dem: Dem, grid: MapGrid, most: int = 4) -> int:
-    """Nodes per output pixel (each way) that the layover and shadow profiles take to
-    follow the DEM's own resolution: the output pixel over half the DEM's spacing (metres;
-    degrees at the grid's latitude; the bilinear surface bends at the DEM's nodes, and
-    nodes twice as fine catch a cliff's edge), rounded up, at most ``most``."""
+    """Profile samples per output pixel (each way) that the layover and shadow profiles
+    take to follow the DEM's own resolution: the output pixel over half the DEM's spacing
+    (metres; degrees at the grid's latitude; the bilinear surface bends at the DEM's
+    nodes, and samples twice as fine catch a cliff's edge), rounded up, at most ``most``."""
     sx, sy = dem.spacing
     if pyproj.CRS.from_wkt(dem.crs_wkt).is_geographic:
         x, y = grid.map_of(np.array([grid.n_rows / 2]), np.array([grid.n_cols / 2]))
