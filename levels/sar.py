@@ -65,7 +65,10 @@ __all__ = [
     "geocode",
     "layover_and_shadow",
     "mask_oversample",
+    "nominal_cell_m2",
     "sar_product",
+    "splat_bilinear",
+    "terrain_flattening",
 ]
 
 SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
@@ -1243,6 +1246,100 @@ def geocode(
     return Geocoded(grid, intensity, height, kind, err, layover, shadow, model)
 
 
+def splat_bilinear(
+    out: NDArray[np.float64], line: NDArray, col: NDArray, value: NDArray, n_l: int, n_s: int
+) -> None:
+    """Add each point's ``value`` to the four cells of an ``n_l`` × ``n_s`` image (``out``,
+    flat) around its (line, column), bilinearly; what falls outside is dropped."""
+    l0, c0 = np.floor(line).astype(np.int64), np.floor(col).astype(np.int64)
+    fl, fc = line - l0, col - c0
+    for dl, dc, w in (
+        (0, 0, (1 - fl) * (1 - fc)),
+        (1, 0, fl * (1 - fc)),
+        (0, 1, (1 - fl) * fc),
+        (1, 1, fl * fc),
+    ):
+        ll, cc = l0 + dl, c0 + dc
+        ok = (ll >= 0) & (ll < n_l) & (cc >= 0) & (cc < n_s)
+        idx = ll[ok] * n_s + cc[ok]
+        out += np.bincount(idx, weights=(w * value)[ok], minlength=n_l * n_s)
+
+
+def nominal_cell_m2(ann: SarAnnotation, height_m: float) -> NDArray[np.float64]:
+    """Each column's slant-range cell as ground on the ellipsoid raised to ``height_m``,
+    mid-frame (m²): the range spacing over the sine of the incidence, times the ground
+    distance between lines (the antenna's speed brought down to the Earth's radius): the
+    area a detected image's σ⁰ is reckoned on."""
+    n_l, n_s = ann.shape
+    cols = np.arange(n_s, dtype=np.float64)
+    lat, lon = ann.ground_of_image(np.full(n_s, 0.5 * n_l), cols, height_m)
+    inc = ann.incidence(lat, lon, np.full(n_s, float(height_m)))
+    s, v = ann.ephemeris.interpolate(np.array([ann.first_line_s + 0.5 * n_l * ann.line_interval_s]))
+    ground_speed = float(np.linalg.norm(v) * WGS84.a_m / np.linalg.norm(s))
+    return np.asarray(ann.range_spacing_m / np.sin(inc) * ground_speed * ann.line_interval_s)
+
+
+#: Cells where the terrain shows the radar less than this share of their nominal area
+#: (seen edge-on, or all hidden) are not flattened: NaN.
+FLATTEN_MIN_AREA = 0.05
+
+
+def terrain_flattening(g: Geocoded, image: SarImage) -> NDArray[np.float32]:
+    """γ⁰ of each output pixel of a GTC by radiometric terrain flattening (Small 2011,
+    "Flattening Gamma", IEEE TGRS 49(8); what sarsen does): the slant image's intensity (σ⁰
+    reckoned on the ellipsoid's nominal cell, :func:`nominal_cell_m2`) times that cell's
+    area over the area the terrain presents to the radar in it, ``A_γ = Σ A·cos θ_loc``
+    over the terrain imaged there; on flat ground ``σ⁰ / cos θ``. The terrain is the
+    output's pixels over the DEM (``g.height_m``), each of area ``A = px² · |n|`` with
+    ``n = (−∂h/∂E, −∂h/∂N, 1)``, so that ``A·cos θ_loc = px² · n · l`` (``l`` the unit
+    vector to the antenna, from a lattice of exact locations every ``ANCHOR_STEP_PX``);
+    facets turned away or in shadow count nothing; each is added into the cells about
+    its (line, column) bilinearly (:func:`splat_bilinear`). The flattened image is then
+    read at each pixel's (line, column) as the intensity is. NaN where the GTC is, or
+    where a cell shows less than ``FLATTEN_MIN_AREA`` of its nominal area."""
+    ann, grid = image.annotation, g.grid
+    n_l, n_s = ann.shape
+    px = grid.pixel_size_m
+    d_south, d_east = np.gradient(np.asarray(g.height_m, dtype=np.float64), px)
+    step = g.model.step
+    rows = np.arange(g.model.coef.shape[2], dtype=np.float64) * step
+    cols = np.arange(g.model.coef.shape[3], dtype=np.float64) * step
+    ai, aj = np.meshgrid(rows, cols, indexing="ij")
+    x, y = grid.map_of(ai, aj)
+    lon, lat = (np.radians(v) for v in _to_geo(grid).transform(np.ravel(x), np.ravel(y)))
+    p = WGS84.to_ecef(lat, lon, np.full(lat.shape, g.model.h_mid))
+    _, r, _, s = ann._solve(p, None)
+    los = (s - p) / r[:, None]
+    east = np.stack([-np.sin(lon), np.cos(lon), np.zeros_like(lon)], axis=-1)
+    north = np.stack([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)], axis=-1)
+    facing = np.zeros(grid.shape)
+    ii, jj = np.meshgrid(np.arange(grid.n_rows), np.arange(grid.n_cols), indexing="ij")
+    for grad, axis in ((-d_east, east), (d_south, north), (None, WGS84.up(lat, lon))):
+        comp = np.sum(los * axis, axis=1).reshape(ai.shape)
+        at = bilinear_grid(rows, cols, comp, ii, jj)
+        facing += at if grad is None else grad * at
+    area = px**2 * facing  # A·cos θ_loc of each pixel's facet
+    line, col = g.line, g.column
+    seen = np.isfinite(area) & (area > 0) & ~g.shadow & np.isfinite(line)
+    shown = np.zeros(n_l * n_s)
+    splat_bilinear(shown, line[seen], col[seen], area[seen], n_l, n_s)
+    cell = nominal_cell_m2(ann, g.model.h_mid)[None, :]
+    a_gamma = shown.reshape(n_l, n_s)
+    shows = a_gamma > FLATTEN_MIN_AREA * cell
+    flat = np.full((n_l, n_s), np.nan)
+    np.divide(image.intensity * cell, a_gamma, out=flat, where=shows)
+    out = np.full(grid.shape, np.nan, dtype=np.float32)
+    inside = np.isfinite(g.intensity)
+    ln, cn = line[inside], col[inside]
+    l0 = np.clip(np.floor(ln).astype(np.int64), 0, n_l - 2)
+    c0 = np.clip(np.floor(cn).astype(np.int64), 0, n_s - 2)
+    fl, fc = ln - l0, cn - c0
+    out[inside] = (1 - fl) * ((1 - fc) * flat[l0, c0] + fc * flat[l0, c0 + 1]) + fl * (
+        (1 - fc) * flat[l0 + 1, c0] + fc * flat[l0 + 1, c0 + 1]
+    )
+    return out
+
+
 def sar_product(
     geocoded: Geocoded,
     image: SarImage,
@@ -1250,10 +1347,12 @@ def sar_product(
     quality: dict[str, Any] | None = None,
     dem_source: str = "",
     provenance: dict[str, Any] | None = None,
+    gamma0: NDArray[np.float32] | None = None,
 ) -> Any:
     """A geocoded frame as a map product of the house format (level ``GEC`` or ``GTC``):
-    bands ``intensity``, ``layover`` and ``shadow`` (1 or 0), float32, NaN outside the
-    frame; the annotation and the anchors' error in ``geometry/sar``; ``quality``."""
+    bands ``intensity``, ``layover`` and ``shadow`` (1 or 0), and ``gamma0`` when given
+    (:func:`terrain_flattening`), float32, NaN outside the frame; the annotation and the
+    anchors' error in ``geometry/sar``; ``quality``."""
     from levels import __version__
     from levels.products import BandImage, Product
 
@@ -1264,6 +1363,8 @@ def sar_product(
         "layover": BandImage(np.where(valid, g.layover, np.nan).astype(np.float32), valid),
         "shadow": BandImage(np.where(valid, g.shadow, np.nan).astype(np.float32), valid),
     }
+    if gamma0 is not None:
+        bands["gamma0"] = BandImage(gamma0.astype(np.float32), np.isfinite(gamma0))
     t_mid = ann.first_line_s + 0.5 * ann.shape[0] * ann.line_interval_s
     sar = {
         "kind": g.kind,

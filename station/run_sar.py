@@ -98,6 +98,13 @@ class SarConfig:
         "reference_height_m",
         "GEC's height above the ellipsoid (default: the world's base height)",
     )
+    backscatter: str = option(
+        "cos2",
+        "backscatter",
+        "the terrain's law on the local incidence: σ⁰ = ρ·cos²θ, or ρ·cos θ (γ⁰ = ρ)",
+        choices=("cos2", "gamma"),
+    )
+    flatten: bool = option(False, "flatten", "GTC: γ⁰ by terrain flattening too (gamma0)")
 
 
 @dataclass(frozen=True)
@@ -196,6 +203,7 @@ def _frame(scn: SarScenario) -> Any:
         state_bias_m=c.state_bias_m,
         state_drift_m_per_s=c.state_drift_m_per_s,
         seed=scn.seed,
+        backscatter=c.backscatter,
     )
 
 
@@ -252,6 +260,40 @@ def checkpoint_errors(g: Any, truth: Any, n: int = CHECKPOINTS, seed: int = 1) -
     return {"di": di, "dj": dj, "height_m": h[ok], "incidence_rad": inc, "figures": figures}
 
 
+def flattening_figures(g: Any, gamma0: Any, image: Any, truth: Any) -> dict[str, Any]:
+    """γ⁰ (:func:`levels.sar.terrain_flattening`) against the world's own reflectance ρ at
+    each pixel, outside layover and shadow: under the ``gamma`` law γ⁰ is ρ whatever the
+    slope. By sixths of the flattening's correction (γ⁰ over σ⁰ / cos θ on the ellipsoid),
+    the median of γ⁰ / ρ and of σ⁰ / (ρ cos θ): flat, and not, across the slopes."""
+    grid, ann = g.grid, image.annotation
+    ii, jj = np.meshgrid(np.arange(grid.n_rows), np.arange(grid.n_cols), indexing="ij")
+    ok = np.isfinite(gamma0) & np.isfinite(g.intensity) & ~g.layover & ~g.shadow
+    x, y = grid.map_of(ii[ok], jj[ok])
+    to_geo = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True)
+    lat, lon = (np.radians(a) for a in to_geo.transform(x, y)[::-1])
+    rho = truth.world.reflectance(lat, lon, "P")
+    on_ellipsoid = g.intensity[ok] / np.cos(ann.incidence(lat, lon, g.height_m[ok]))
+    flat, plain = np.log(gamma0[ok] / rho), np.log(on_ellipsoid / rho)
+    correction = np.log(gamma0[ok] / on_ellipsoid)
+    edges = np.quantile(correction, np.linspace(0.0, 1.0, 7)) if ok.any() else np.zeros(7)
+    sixth = np.clip(np.searchsorted(edges, correction, side="right") - 1, 0, 5)
+
+    def by_sixth(v: np.ndarray) -> list[float]:
+        return [round(float(np.exp(np.median(v[sixth == k]))), 4) for k in range(6)]
+
+    return {
+        "pixels": int(ok.sum()),
+        "median_to_truth": float(np.exp(np.median(flat))) if ok.any() else float("nan"),
+        "correction_5_95": [
+            round(float(np.exp(q)), 4) for q in np.quantile(correction, [0.05, 0.95])
+        ]
+        if ok.any()
+        else [],
+        "by_correction": by_sixth(flat) if ok.any() else [],
+        "unflattened_by_correction": by_sixth(plain) if ok.any() else [],
+    }
+
+
 def _mask_figures(g: Any, truth: Any) -> dict[str, Any]:
     """Layover and shadow against the truth's, over the frame (its valid pixels' box)."""
     from levels.geo.maps import MapGrid
@@ -303,7 +345,7 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
     from levels.files import write_json
     from levels.products import write_product
     from levels.readers.dem import read_dem
-    from levels.sar import frame_grid, geocode, sar_product
+    from levels.sar import frame_grid, geocode, sar_product, terrain_flattening
     from station.catalog import CATALOG_FILE, write_catalog
     from station.run import scenario_entry
     from station.spacecraft.dem import export_dem_over
@@ -348,9 +390,15 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
                 if big.any()
                 else None,
             }
+        gamma0 = None
         if level == "GTC":
             quality["masks"] = _mask_figures(g, truth)
-        timings[f"truth_{level}"] = clock() - t
+            if scn.sar.flatten:
+                t_f = clock()
+                gamma0 = terrain_flattening(g, image)
+                timings["flatten"] = clock() - t_f
+                quality["gamma0"] = flattening_figures(g, gamma0, image, truth)
+        timings[f"truth_{level}"] = clock() - t - timings.get("flatten", 0.0)
         product = sar_product(
             g,
             image,
@@ -364,6 +412,7 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
                 "seed": scn.seed,
                 "inputs": dem_row.get("file", "") if level == "GTC" else "",
             },
+            gamma0=gamma0,
         )
         path = write_product(out / f"{scn.name}_{level}.nc", product)
         rows.append(

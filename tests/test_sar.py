@@ -34,6 +34,11 @@ RELIEF_DISPLACEMENT_REL = 0.01
 #: ridges world at 25 m, layover 0.987 over the SRTM tile: the levels sample the terrain's
 #: profiles, the truth bins their continuous edges).
 MASK_IOU = 0.95
+#: γ⁰ by terrain flattening against the world's reflectance where that is the terrain's
+#: γ⁰, overall and in each sixth of the correction (measured within 0.003 and 0.010 over
+#: the SRTM tile, σ⁰ on the ellipsoid 0.54–2.86: the facets are the output pixels, the
+#: emulator's twice as fine).
+GAMMA0_REL = 0.03
 #: The reduced frames' lines and samples.
 FRAME = 150
 #: The output grid's pixel (m): about the reduced frame's ground range sample.
@@ -294,11 +299,24 @@ def test_station_runs_an_ers_frame_that_gdal_reads_on_the_truth(tmp_path) -> Non
 def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path) -> None:
     """The GTC scenario (real relief: the SRTM tile N00E010; a 100 × 100 frame): GTC over
     the exported DEM on the truth, GEC moved by each point's height off the reference over
-    tan θ, layover against the truth's."""
+    tan θ, layover against the truth's. The terrain's γ⁰ the world's reflectance (the
+    ``gamma`` law, no speckle): the product's γ⁰ by terrain flattening on it whatever the
+    slope, where σ⁰ on the ellipsoid is not."""
+    from levels.products import read_product
     from station.run_sar import run_sar
 
-    report = run_sar(_reduced(tmp_path, "ers_gtc", lines=100, samples=100), tmp_path / "run")
+    scn = _reduced(
+        tmp_path, "ers_gtc", lines=100, samples=100, speckle_looks=0.0, backscatter="gamma",
+        flatten=True,
+    )  # fmt: skip
+    report = run_sar(scn, tmp_path / "run")
     gec, gtc = report["products"]
+    gamma0 = gtc["quality"]["gamma0"]
+    assert gamma0["pixels"] > 5000 and abs(gamma0["median_to_truth"] - 1) <= GAMMA0_REL
+    assert max(abs(m - 1) for m in gamma0["by_correction"]) <= GAMMA0_REL
+    plain = gamma0["unflattened_by_correction"]  # the terrain's effect, which it takes off
+    assert max(plain) / min(plain) > 2
+    assert "gamma0" in read_product(tmp_path / "run" / gtc["file"]).bands
     assert (gec["level"], gtc["level"]) == ("GEC", "GTC")
     assert gtc["quality"]["checkpoints"]["rms_px"] <= CHECKPOINT_PX
     relief = gec["quality"]["relief_displacement"]

@@ -15,7 +15,8 @@ detected slant-range image of a frame rendered from the world (issue 38, ADRIN `
   difference: what the processing centre's ephemeris knows only through state vectors.
 * **The image.** The world's terrain, sampled on a map grid finer than the image, each facet
   carrying the backscatter of its local incidence angle ``θ`` (``σ⁰ = ρ·cos²θ``, ``ρ`` the
-  world's texture) times its area on the terrain, is summed into the slant-range cell where
+  world's texture; or ``ρ·cos θ``, whose γ⁰ is ``ρ``) times its area on the terrain, is
+  summed into the slant-range cell where
   the truth images it (bilinear weights): two slopes at one range add up (layover), a facet
   the terrain hides from the antenna gives nothing (shadow: of the facets on one line at
   one look angle, only the nearest is seen). The sum over the cell's nominal area on the
@@ -46,6 +47,8 @@ from levels.sar import (
     SarImage,
     frame_grid,
     layover_and_shadow,
+    nominal_cell_m2,
+    splat_bilinear,
 )
 from station.spacecraft.orbit import TruthOrbit, node_state, phased_targets
 from station.spacecraft.placement import place_orbit
@@ -107,6 +110,14 @@ class ErsFrame:
     #: Map sampling of the terrain under the frame, per image sample (finer = more facets).
     oversample: float = 2.0
     seed: int = 38
+    #: The terrain's backscatter law on the local incidence θ: ``"cos2"``, σ⁰ = ρ·cos²θ;
+    #: ``"gamma"``, σ⁰ = ρ·cos θ (γ⁰ = σ⁰ / cos θ = ρ whatever the slope: what terrain
+    #: flattening recovers).
+    backscatter: str = "cos2"
+
+    def __post_init__(self) -> None:
+        if self.backscatter not in ("cos2", "gamma"):
+            raise ValueError(f"backscatter {self.backscatter!r}: 'cos2' or 'gamma'")
 
 
 def sar_view(look_rad: float, height_m: float, right: bool = True):
@@ -335,10 +346,11 @@ def _render(
         cos_loc = np.sum(_enu_normal(lat[k], lon[k], gx[k], gy[k]) * to_sat, axis=1)
         rho = truth.world.reflectance(lat[k], lon[k], "P")
         area = spacing**2 * np.sqrt(1.0 + gx[k] ** 2 + gy[k] ** 2)
-        power = rho * np.clip(cos_loc, 0.0, None) ** 2 * area
+        power = rho * np.clip(cos_loc, 0.0, None) ** (2 if frame.backscatter == "cos2" else 1)
+        power *= area
         seen = _visible(line[k], _look_angle(s, p[k], r[k]), r[k], ann.range_spacing_m, spacing)
-        _splat(out, line[k][seen], col[k][seen], power[seen], n_l, n_s)
-    cell = ann.range_spacing_m / np.sin(_incidence_of_columns(truth)) * _line_spacing_m(truth)
+        splat_bilinear(out, line[k][seen], col[k][seen], power[seen], n_l, n_s)
+    cell = nominal_cell_m2(ann, truth.world.base_height_m)  # σ⁰ on flat ground
     intensity = out.reshape(n_l, n_s) / cell[None, :]
     if frame.speckle_looks > 0:
         lk = frame.speckle_looks
@@ -353,20 +365,6 @@ def _line_spacing_m(truth: SarTruth) -> float:
     s, v = truth.orbit.state_ecef(np.array([t]))
     ground_speed = np.linalg.norm(v) * WGS84.a_m / np.linalg.norm(s)
     return float(ground_speed * ann.line_interval_s)
-
-
-def _incidence_of_columns(truth: SarTruth) -> NDArray[np.float64]:
-    """Incidence on the ellipsoid at the reference height of every column, mid-frame."""
-    ann = truth.annotation
-    n_l, n_s = ann.shape
-    cols = np.arange(n_s, dtype=np.float64)
-    lat, lon = ann.ground_of_image(np.full(n_s, 0.5 * n_l), cols, truth.world.base_height_m)
-    p = WGS84.to_ecef(lat, lon, np.full(n_s, truth.world.base_height_m))
-    t = ann.first_line_s + 0.5 * n_l * ann.line_interval_s
-    s, _ = truth.orbit.state_ecef(np.full(n_s, t))
-    up = WGS84.up(lat, lon)
-    los = (s - p) / np.linalg.norm(s - p, axis=1, keepdims=True)
-    return np.arccos(np.clip(np.sum(up * los, axis=1), -1.0, 1.0))
 
 
 def _look_angle(s: NDArray, p: NDArray, r: NDArray) -> NDArray:
@@ -392,19 +390,3 @@ def _visible(
     seen = np.empty(r.size, dtype=bool)
     seen[order] = rs <= rs[nearest] + range_spacing_m
     return seen
-
-
-def _splat(out: NDArray, line: NDArray, col: NDArray, power: NDArray, n_l: int, n_s: int) -> None:
-    """Add each facet's power to the four cells around its (line, column), bilinearly."""
-    l0, c0 = np.floor(line).astype(np.int64), np.floor(col).astype(np.int64)
-    fl, fc = line - l0, col - c0
-    for dl, dc, w in (
-        (0, 0, (1 - fl) * (1 - fc)),
-        (1, 0, fl * (1 - fc)),
-        (0, 1, (1 - fl) * fc),
-        (1, 1, fl * fc),
-    ):
-        ll, cc = l0 + dl, c0 + dc
-        ok = (ll >= 0) & (ll < n_l) & (cc >= 0) & (cc < n_s)
-        idx = ll[ok] * n_s + cc[ok]
-        out += np.bincount(idx, weights=(w * power)[ok], minlength=n_l * n_s)
