@@ -264,7 +264,8 @@ def flattening_figures(g: Any, gamma0: Any, image: Any, truth: Any) -> dict[str,
     """γ⁰ (:func:`levels.sar.terrain_flattening`) against the world's own reflectance ρ at
     each pixel, outside layover and shadow: under the ``gamma`` law γ⁰ is ρ whatever the
     slope. By sixths of the flattening's correction (γ⁰ over σ⁰ / cos θ on the ellipsoid),
-    the median of γ⁰ / ρ and of σ⁰ / (ρ cos θ): flat, and not, across the slopes."""
+    the mean of γ⁰ / ρ and of σ⁰ / (ρ cos θ) (means: speckle's median is not its mean):
+    flat, and not, across the slopes."""
     grid, ann = g.grid, image.annotation
     ii, jj = np.meshgrid(np.arange(grid.n_rows), np.arange(grid.n_cols), indexing="ij")
     ok = np.isfinite(gamma0) & np.isfinite(g.intensity) & ~g.layover & ~g.shadow
@@ -273,17 +274,17 @@ def flattening_figures(g: Any, gamma0: Any, image: Any, truth: Any) -> dict[str,
     lat, lon = (np.radians(a) for a in to_geo.transform(x, y)[::-1])
     rho = truth.world.reflectance(lat, lon, "P")
     on_ellipsoid = g.intensity[ok] / np.cos(ann.incidence(lat, lon, g.height_m[ok]))
-    flat, plain = np.log(gamma0[ok] / rho), np.log(on_ellipsoid / rho)
+    flat, plain = gamma0[ok] / rho, on_ellipsoid / rho
     correction = np.log(gamma0[ok] / on_ellipsoid)
     edges = np.quantile(correction, np.linspace(0.0, 1.0, 7)) if ok.any() else np.zeros(7)
     sixth = np.clip(np.searchsorted(edges, correction, side="right") - 1, 0, 5)
 
     def by_sixth(v: np.ndarray) -> list[float]:
-        return [round(float(np.exp(np.median(v[sixth == k]))), 4) for k in range(6)]
+        return [round(float(np.mean(v[sixth == k])), 4) for k in range(6)]
 
     return {
         "pixels": int(ok.sum()),
-        "median_to_truth": float(np.exp(np.median(flat))) if ok.any() else float("nan"),
+        "mean_to_truth": float(np.mean(flat)) if ok.any() else float("nan"),
         "correction_5_95": [
             round(float(np.exp(q)), 4) for q in np.quantile(correction, [0.05, 0.95])
         ]
@@ -397,7 +398,11 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
                 t_f = clock()
                 gamma0 = terrain_flattening(g, image)
                 timings["flatten"] = clock() - t_f
-                quality["gamma0"] = flattening_figures(g, gamma0, image, truth)
+                quality["gamma0"] = (  # against the truth where γ⁰ is the reflectance
+                    flattening_figures(g, gamma0, image, truth)
+                    if scn.sar.backscatter == "gamma"
+                    else {"valid_fraction": float(np.isfinite(gamma0).mean())}
+                )
         timings[f"truth_{level}"] = clock() - t - timings.get("flatten", 0.0)
         product = sar_product(
             g,
@@ -474,6 +479,13 @@ def sar_summary(report: dict[str, Any], out: Path) -> str:
                 f"{k} {v['pixels']} px (truth {v['truth_pixels']}"
                 + (f", IoU {v['iou']:.3f})" if v["iou"] is not None else ")")
                 for k, v in masks.items()
+            )
+        g0 = p["quality"].get("gamma0", {})
+        if g0.get("by_correction"):
+            b, u = g0["by_correction"], g0["unflattened_by_correction"]
+            line += (
+                f"; γ⁰ / truth {g0['mean_to_truth']:.3f} ({min(b):.3f}–{max(b):.3f} across "
+                f"slopes; σ⁰ on the ellipsoid {min(u):.2f}–{max(u):.2f})"
             )
         lines.append(line + f": {p['file']}")
     return "\n".join(lines)

@@ -35,10 +35,11 @@ RELIEF_DISPLACEMENT_REL = 0.01
 #: profiles, the truth bins their continuous edges).
 MASK_IOU = 0.95
 #: γ⁰ by terrain flattening against the world's reflectance where that is the terrain's
-#: γ⁰, overall and in each sixth of the correction (measured within 0.003 and 0.010 over
-#: the SRTM tile, σ⁰ on the ellipsoid 0.54–2.86: the facets are the output pixels, the
-#: emulator's twice as fine).
-GAMMA0_REL = 0.03
+#: γ⁰, overall and in each sixth of the correction (means; measured 1.011 and within
+#: 0.026 over the reduced SRTM frame, where σ⁰ on the ellipsoid spans 0.53–3.37: a cell's
+#: texture averaged against its value at a pixel's centre, and the facets the output
+#: pixels where the emulator's are twice as fine).
+GAMMA0_REL = 0.05
 #: The reduced frames' lines and samples.
 FRAME = 150
 #: The output grid's pixel (m): about the reduced frame's ground range sample.
@@ -312,7 +313,7 @@ def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path) -> None:
     report = run_sar(scn, tmp_path / "run")
     gec, gtc = report["products"]
     gamma0 = gtc["quality"]["gamma0"]
-    assert gamma0["pixels"] > 5000 and abs(gamma0["median_to_truth"] - 1) <= GAMMA0_REL
+    assert gamma0["pixels"] > 5000 and abs(gamma0["mean_to_truth"] - 1) <= GAMMA0_REL
     assert max(abs(m - 1) for m in gamma0["by_correction"]) <= GAMMA0_REL
     plain = gamma0["unflattened_by_correction"]  # the terrain's effect, which it takes off
     assert max(plain) / min(plain) > 2
