@@ -267,9 +267,8 @@ def flattening_figures(g: Any, gamma0: Any, image: Any, truth: Any) -> dict[str,
     the mean of γ⁰ / ρ and of σ⁰ / (ρ cos θ) (means: speckle's median is not its mean):
     flat, and not, across the slopes."""
     grid, ann = g.grid, image.annotation
-    ii, jj = np.meshgrid(np.arange(grid.n_rows), np.arange(grid.n_cols), indexing="ij")
     ok = np.isfinite(gamma0) & np.isfinite(g.intensity) & ~g.layover & ~g.shadow
-    x, y = grid.map_of(ii[ok], jj[ok])
+    x, y = grid.map_of(*np.nonzero(ok))
     to_geo = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True)
     lat, lon = (np.radians(a) for a in to_geo.transform(x, y)[::-1])
     rho = truth.world.reflectance(lat, lon, "P")

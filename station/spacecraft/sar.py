@@ -16,8 +16,8 @@ detected slant-range image of a frame rendered from the world (issue 38, ADRIN `
 * **The image.** The world's terrain, sampled on a map grid finer than the image, each facet
   carrying the backscatter of its local incidence angle ``θ`` (``σ⁰ = ρ·cos²θ``, ``ρ`` the
   world's texture; or ``ρ·cos θ``, whose γ⁰ is ``ρ``) times its area on the terrain, is
-  summed into the slant-range cell where
-  the truth images it (bilinear weights): two slopes at one range add up (layover), a facet
+  summed into the slant-range cell where the truth images it (bilinear weights,
+  :func:`levels.sar.splat_bilinear`): two slopes at one range add up (layover), a facet
   the terrain hides from the antenna gives nothing (shadow: of the facets on one line at
   one look angle, only the nearest is seen). The sum over the cell's nominal area on the
   ellipsoid is σ⁰ where the ground is flat; multiplicative speckle of ``looks`` looks
