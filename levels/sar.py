@@ -45,7 +45,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
 from levels.geo.inverse_grid import bilinear_grid
-from levels.geo.level3 import lagrange_weights
 from levels.geo.maps import MapGrid, map_crs
 from levels.geometry.dem import Dem
 from levels.geometry.ellipsoid import WGS84
@@ -64,6 +63,7 @@ __all__ = [
     "frame_grid",
     "geocode",
     "layover_and_shadow",
+    "line_spacing_m",
     "mask_oversample",
     "nominal_cell_m2",
     "sar_product",
@@ -364,6 +364,19 @@ class _Model:
     def inv_span(self) -> float:
         return 1.0 / _half_span(self.levels)
 
+    def at(self, i: NDArray, j: NDArray, h: NDArray) -> tuple[NDArray, NDArray]:
+        """(line, column) of output pixels ``(i, j)`` at heights ``h``: the kernel's
+        arithmetic in numpy (the anchors bilinearly, the polynomial at ``h``)."""
+        rows, cols = (np.arange(n, dtype=np.float64) * self.step for n in self.coef.shape[2:])
+        x = (np.asarray(h, dtype=np.float64) - self.h_mid) * self.inv_span
+        out = []
+        for q in range(2):
+            v = np.zeros(np.shape(i))
+            for k in range(self.coef.shape[0] - 1, -1, -1):  # Horner
+                v = v * x + bilinear_grid(rows, cols, self.coef[k, q], i, j)
+            out.append(v)
+        return out[0], out[1]
+
 
 def _geocode_rows(
     model: _Model,
@@ -377,7 +390,7 @@ def _geocode_rows(
     """:func:`_kernel_geocode` over the output's rows on threads: the heights from the DEM
     ``surface`` (:func:`_dem_surface`) into ``height``, or read from it; the ``image``
     into ``out``; the location into ``located``; the layover and shadow masks against
-    ``masks`` (profiles, frame, tolerances: :func:`_profiles`), returned (all false
+    ``masks`` (profiles, frame, tolerances: :func:`_profiles`), returned (1 × 1
     without)."""
     n_rows, n_cols = height.shape
     none2, none3 = np.empty((1, 1)), np.empty((2, 2, 3), dtype=np.float32)
@@ -385,6 +398,7 @@ def _geocode_rows(
     profiles, frame, tol_r, tol_look = masks or (none3, np.array([0.0, 1.0, 0.0, 1.0]), 0.0, 0.0)
     shape = (n_rows, n_cols) if masks is not None else (1, 1)
     layover, shadow = np.zeros(shape, dtype=np.bool_), np.zeros(shape, dtype=np.bool_)
+    image32 = none2.astype(np.float32) if image is None else image
     from levels.geo.level3 import DEM_COORD_STEP
 
     over_blocks(
@@ -401,11 +415,9 @@ def _geocode_rows(
         z,
         surface is not None,
         height,
-        np.ascontiguousarray(image, dtype=np.float32)
-        if image is not None
-        else none2.astype(np.float32),
+        np.ascontiguousarray(image32, dtype=np.float32),
         out is not None,
-        out if out is not None else none2.astype(np.float32),
+        out if out is not None else image32,
         located is not None,
         *(located or (none2, none2)),
         masks is not None,
@@ -417,11 +429,6 @@ def _geocode_rows(
         shadow,
         grain=64,
     )
-    if masks is None:
-        layover, shadow = (
-            np.zeros((n_rows, n_cols), dtype=np.bool_),
-            np.zeros((n_rows, n_cols), dtype=np.bool_),
-        )
     return layover, shadow
 
 
@@ -536,7 +543,9 @@ def _anchors(
     x, y = grid.map_of(ai, aj)
     lon, lat = (np.radians(v) for v in _to_geo(grid).transform(np.ravel(x), np.ravel(y)))
     coarse = (slice(None, None, 8), slice(None, None, 8))
-    t_c = _exact(ann, grid, ai[coarse], aj[coarse], np.full(ai[coarse].shape, levels[0]))[3]
+    lat_c, lon_c = (v.reshape(ai.shape)[coarse] for v in (lat, lon))
+    h_c = np.full(lat_c.size, levels[0])
+    t_c = _exact_geo(ann, lat_c.ravel(), lon_c.ravel(), h_c, lat_c.shape)[3]
     t = None
     if min(t_c.shape) > 1:
         t = bilinear_grid(ai[coarse][:, 0], aj[coarse][0], t_c, ai, aj)
@@ -1186,23 +1195,11 @@ def geocode(
         levels = np.linspace(surface[2] - 10.0, surface[3] + 10.0, HEIGHT_LEVELS)
         kind = "GTC"
     anchors = _anchors(ann, grid, step_px, levels)
-    rows = np.arange(anchors.shape[2], dtype=np.float64) * step_px
-    cols = np.arange(anchors.shape[3], dtype=np.float64) * step_px
-
-    def at(i: NDArray, j: NDArray, h: NDArray, which: int = 2) -> list[NDArray]:
-        """(line, column[, look]) of output pixels at heights ``h`` through the anchors."""
-        w = np.ones((1, *np.shape(i))) if levels.size == 1 else lagrange_weights(levels, h)
-        return [
-            np.asarray(
-                sum(w[k] * bilinear_grid(rows, cols, a[q], i, j) for k, a in enumerate(anchors))
-            )
-            for q in range(which)
-        ]
-
     # (levels, 3, na, nb): the anchors' (line, column, look) as polynomials in height
     model = _Model(
         np.ascontiguousarray(_in_height(anchors, levels)), int(step_px), levels, ann.shape
     )
+    del anchors
     intensity = np.empty(grid.shape, dtype=np.float32)
     judged = None
     if masks and dem is not None and surface is not None:
@@ -1221,6 +1218,8 @@ def geocode(
     layover, shadow = _geocode_rows(
         model, height, surface, image=image.intensity, out=intensity, masks=judged
     )
+    if judged is None:  # nothing folds on the ellipsoid, or nothing was asked
+        layover = shadow = np.zeros(grid.shape, dtype=np.bool_)
     # the anchor grid's error: a lattice between the anchors, at each pixel's height
     ci, cj = np.meshgrid(
         np.linspace(0.5 * step_px, grid.n_rows - 1, 23),
@@ -1234,7 +1233,7 @@ def geocode(
         ci,
         cj,
     )
-    gl, gc = at(ci, cj, ch)
+    gl, gc = model.at(ci, cj, ch)
     el, ec, _, _ = _exact(ann, grid, ci, cj, ch)
     e = np.hypot(gl - el, gc - ec)
     e = e[np.isfinite(e)]
@@ -1274,9 +1273,15 @@ def nominal_cell_m2(ann: SarAnnotation, height_m: float) -> NDArray[np.float64]:
     cols = np.arange(n_s, dtype=np.float64)
     lat, lon = ann.ground_of_image(np.full(n_s, 0.5 * n_l), cols, height_m)
     inc = ann.incidence(lat, lon, np.full(n_s, float(height_m)))
-    s, v = ann.ephemeris.interpolate(np.array([ann.first_line_s + 0.5 * n_l * ann.line_interval_s]))
-    ground_speed = float(np.linalg.norm(v) * WGS84.a_m / np.linalg.norm(s))
-    return np.asarray(ann.range_spacing_m / np.sin(inc) * ground_speed * ann.line_interval_s)
+    return np.asarray(ann.range_spacing_m / np.sin(inc) * line_spacing_m(ann))
+
+
+def line_spacing_m(ann: SarAnnotation) -> float:
+    """Ground distance between lines at the frame's centre (m): the antenna's speed
+    brought down to the Earth's radius, times the line interval."""
+    t = ann.first_line_s + 0.5 * ann.shape[0] * ann.line_interval_s
+    s, v = ann.ephemeris.interpolate(np.array([t]))
+    return float(np.linalg.norm(v) * WGS84.a_m / np.linalg.norm(s) * ann.line_interval_s)
 
 
 #: Cells where the terrain shows the radar less than this share of their nominal area

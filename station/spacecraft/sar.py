@@ -47,6 +47,7 @@ from levels.sar import (
     SarImage,
     frame_grid,
     layover_and_shadow,
+    line_spacing_m,
     nominal_cell_m2,
     splat_bilinear,
 )
@@ -324,7 +325,7 @@ def _render(
     n_l, n_s = ann.shape
     inc_near = np.radians(instrument.incidence_deg[0])
     ground_range_m = ann.range_spacing_m / np.sin(inc_near)
-    spacing = min(ground_range_m, _line_spacing_m(truth)) / frame.oversample
+    spacing = min(ground_range_m, line_spacing_m(ann)) / frame.oversample
     # the terrain under the frame, on a map grid finer than its samples
     under = frame_grid(ann, spacing, truth.world.base_height_m, 2.0 * truth.world.relief_m + 500.0)
     xs, ys = under.x_m(), under.y_m()
@@ -356,15 +357,6 @@ def _render(
         lk = frame.speckle_looks
         intensity *= rng.gamma(lk, 1.0 / lk, intensity.shape)
     return intensity.astype(np.float32)
-
-
-def _line_spacing_m(truth: SarTruth) -> float:
-    """Ground distance between lines at the frame's centre (m)."""
-    ann = truth.annotation
-    t = ann.first_line_s + 0.5 * ann.shape[0] * ann.line_interval_s
-    s, v = truth.orbit.state_ecef(np.array([t]))
-    ground_speed = np.linalg.norm(v) * WGS84.a_m / np.linalg.norm(s)
-    return float(ground_speed * ann.line_interval_s)
 
 
 def _look_angle(s: NDArray, p: NDArray, r: NDArray) -> NDArray:
