@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 import pyproj
+from numpy.typing import NDArray
 
 from levels.errors import ProductError
 from levels.geo.level1b import Level1BGeometry
@@ -215,12 +216,23 @@ def _products_in(d: Path) -> dict[str, Path]:
     return {p.name: p for p in sorted(d.iterdir()) if p.is_file() and is_product_file(p)}
 
 
-def compare_directories(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> Comparison:
+#: Files of control and tie points (``docs/gcp.md``) a directory of products may hold.
+POINT_FILES = ("*.gcp.csv", "*.tie.csv")
+#: What a point file can tell apart: image positions written to 1e-3 px, heights to 1 mm
+#: (longitudes and latitudes to 1e-9°, 0.1 mm): a tolerance finer than that is this.
+POINT_FILE_PX, POINT_FILE_M = 1e-3, 1e-3
+
+
+def compare_directories(
+    a: Path, b: Path, tol: dict[str, dict[str, float]], require_products: bool = True
+) -> Comparison:
     """Two directories of products, matched by file name: every pair compared, and the
-    products present in one directory only reported as differences."""
+    products present in one directory only reported as differences; their control and tie
+    point files too (:func:`compare_point_files`). ``require_products``: a directory pair
+    with no product is bad input (:class:`CompareError`)."""
     out = Comparison(str(a), str(b))
     pa, pb = _products_in(a), _products_in(b)
-    if not pa and not pb:
+    if require_products and not pa and not pb:
         raise CompareError(f"no level products (*.nc, *.h5) in {a} or {b}")
     out.findings[""] = [
         Finding(
@@ -232,10 +244,89 @@ def compare_directories(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> C
         )
         for name in sorted(set(pa) ^ set(pb))
     ]
+    out.findings[""] += compare_point_files(a, b, tol)
     for name in sorted(set(pa) & set(pb)):
         out.findings[name] = compare_products(read_product(pa[name]), read_product(pb[name]), tol)
         out.findings[name] += compare_stored(pa[name], pb[name], tol)
     return out
+
+
+def compare_point_files(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> list[Finding]:
+    """The control and tie point files of two directories (:data:`POINT_FILES`), matched by
+    name: the same points (ids, kinds, HRVs), their image positions within ``grid_px``,
+    their ground within ``corner_shift_m`` and their σ within ``rel``."""
+    from levels.readers.gcp import read_gcps
+
+    names = {
+        side: {p.name: p for pattern in POINT_FILES for p in sorted(d.glob(pattern))}
+        for side, d in (("a", a), ("b", b))
+    }
+    fa, fb = names["a"], names["b"]
+    out = [
+        Finding(
+            "files",
+            f"points {n}",
+            ok=False,
+            a="present" if n in fa else "missing",
+            b="present" if n in fb else "missing",
+        )
+        for n in sorted(set(fa) ^ set(fb))
+    ]
+    g = tol["geometry"]
+    for n in sorted(set(fa) & set(fb)):
+        x, y = read_gcps(fa[n]), read_gcps(fb[n])
+        if x.id != y.id or not np.array_equal(x.tie, y.tie) or not np.array_equal(x.hrv, y.hrv):
+            moved = sorted(set(x.id) ^ set(y.id))
+            out.append(
+                Finding(
+                    "points",
+                    f"{n}: points",
+                    ok=False,
+                    a=len(x),
+                    b=len(y) if not moved else f"{len(y)}, {len(moved)} not in both",
+                )
+            )
+            continue
+        ground = _ground_shift_m(x, y)
+        checks = {
+            "image position (px)": (
+                np.hypot(x.line - y.line, x.column - y.column),
+                max(g["grid_px"], POINT_FILE_PX),
+            ),
+            "ground (m)": (ground, max(g["corner_shift_m"], POINT_FILE_M)),
+        }
+        for what, (d, bound) in checks.items():
+            bad = ~(d <= bound)
+            if bad.any():
+                worst = int(np.argmax(np.where(np.isfinite(d), d, np.inf)))
+                out.append(
+                    Finding(
+                        "points",
+                        f"{n}: {what} of {int(bad.sum())} point(s), worst {x.id[worst]}",
+                        float(d[worst]),
+                        bound,
+                        ok=False,
+                    )
+                )
+        for field_ in ("sigma_ground_m", "sigma_h_m", "sigma_px"):
+            d, scale = _finite_difference(getattr(x, field_), getattr(y, field_))
+            if not d <= g["rel"] * scale:
+                out.append(Finding("points", f"{n}: {field_}", d, g["rel"] * scale, ok=False))
+        if not any(f.what.startswith(f"{n}:") for f in out):
+            out.append(Finding("points", n, value=f"{len(x)} points within tolerance"))
+    return out
+
+
+def _ground_shift_m(x: Any, y: Any) -> NDArray[np.float64]:
+    """How far each point's ground lies from the other file's, in metres (tie points,
+    which have none: 0 when both lack it, infinite when one has it)."""
+    _, _, flat = _GEOD.inv(
+        np.degrees(x.lon_rad), np.degrees(x.lat_rad), np.degrees(y.lon_rad), np.degrees(y.lat_rad)
+    )
+    d = np.hypot(np.nan_to_num(np.asarray(flat), nan=0.0), np.nan_to_num(x.h_m - y.h_m, nan=0.0))
+    known = np.isfinite(x.lat_rad) & np.isfinite(y.lat_rad)
+    both_unknown = ~np.isfinite(x.lat_rad) & ~np.isfinite(y.lat_rad)
+    return np.where(known, d, np.where(both_unknown, 0.0, np.inf))
 
 
 def compare_products(
@@ -580,11 +671,9 @@ def _geometry_leaves(a: Product, b: Product, tol: dict[str, float]) -> list[Find
             if xa.shape != xb.shape:
                 out.append(Finding("geometry", f"geometry/{k}", ok=False, a=xa.shape, b=xb.shape))
                 continue
-            scale = float(np.nanmax(np.abs(xa))) if xa.size and np.isfinite(xa).any() else 0.0
-            same_nan = np.array_equal(np.isnan(xa.astype(float)), np.isnan(xb.astype(float)))
-            d = float(np.nanmax(np.abs(xa - xb))) if xa.size and not np.isnan(xa).all() else 0.0
+            d, scale = _finite_difference(xa, xb)
             bound = tol["grid_px"] if in_pixels else tol["rel"] * scale
-            if not same_nan or not d <= bound:
+            if not d <= bound:
                 out.append(Finding("geometry", f"geometry/{k}", d, bound, ok=False))
         elif _differs(va, vb):
             out.append(Finding("geometry", f"geometry/{k}", ok=False, a=_plain(va), b=_plain(vb)))
@@ -592,6 +681,32 @@ def _geometry_leaves(a: Product, b: Product, tol: dict[str, float]) -> list[Find
     if not out:
         out.append(Finding("geometry", f"geometry ({n} values)", value="within tolerance"))
     return out
+
+
+def _finite_difference(xa: NDArray[Any], xb: NDArray[Any]) -> tuple[float, float]:
+    """The largest difference of two arrays of numbers of one shape, and the largest finite
+    magnitude of the first. A value that is not finite must be the same in both (NaN for
+    NaN, +inf for +inf: a level 2's unbounded σ of what it does not estimate), else the
+    difference is infinite; two equal non-finite values differ by nothing."""
+    fa, fb = xa.astype(np.float64), xb.astype(np.float64)
+    same = (fa == fb) | (np.isnan(fa) & np.isnan(fb))
+    if same.all():
+        d = 0.0
+    elif not (np.isfinite(fa) | same).all() or not (np.isfinite(fb) | same).all():
+        d = math.inf
+    else:
+        d = float(np.max(np.abs(fa - fb), where=~same, initial=0.0))
+    finite = np.isfinite(fa)
+    scale = float(np.max(np.abs(fa), where=finite, initial=0.0))
+    return d, scale
+
+
+def _same_figure(va: float, vb: float, bound: float) -> bool:
+    """Two quality figures within ``bound``; equal non-finite figures (NaN and NaN, an
+    unbounded σ and another) are the same figure."""
+    if va == vb or (math.isnan(va) and math.isnan(vb)):
+        return True
+    return abs(va - vb) <= bound
 
 
 def _quality(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
@@ -606,9 +721,8 @@ def _quality(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
             continue
         va, vb = qa[k], qb[k]
         if isinstance(va, int | float) and isinstance(vb, int | float) and not isinstance(va, bool):
-            bound = tol["abs"] + tol["rel"] * abs(va)
-            ok = abs(va - vb) <= bound or (math.isnan(va) and math.isnan(vb))
-            if not ok:
+            bound = tol["abs"] + tol["rel"] * (abs(va) if math.isfinite(va) else 0.0)
+            if not _same_figure(va, vb, bound):
                 out.append(Finding("quality", what, ok=False, a=va, b=vb, tolerance=bound))
         elif va != vb:
             out.append(Finding("quality", what, ok=False, a=va, b=vb))

@@ -23,46 +23,84 @@ from levels.compare import (
 )
 from levels.readers.l0 import read_l0
 
-__all__ = ["compare_inputs", "compare_runs"]
+__all__ = ["compare_campaigns", "compare_inputs", "compare_runs", "directory_kind"]
 
 
-#: The report naming what wrote a directory: a run, a reprocessing, a campaign.
-_REPORTS = {"report.json": "run", "process.json": "process", "campaign.json": "campaign"}
+#: What wrote a directory, by the report at its root and, for ``report.json``, its format:
+#: each kind is compared its own way (:func:`compare_inputs`) and never with another.
+_REPORTS = {
+    "report.json": "run",
+    "process.json": "a reprocessing",
+    "campaign.json": "a campaign",
+}
+_RUN_FORMATS = {
+    "spot-station-run": "the run of a pass",
+    "spot-station-block-run": "the run of a block",
+    "spot-station-sar-run": "the run of a SAR frame",
+}
+_PRODUCTS = "a directory of products"
+#: Sub-directories of a run that hold no results: compared through what they are made from.
+_DERIVED = ("stac", "quicklooks")
 
 
-def _kind(d: Path) -> str:
-    """What wrote directory ``d``: ``run``, ``process``, ``campaign``, or ``products`` (no
-    report: a directory of products)."""
-    return next((kind for name, kind in _REPORTS.items() if (d / name).is_file()), "products")
+def directory_kind(d: Path) -> str:
+    """What wrote directory ``d``, in words: the run of a pass, of a block (a stereo pair is
+    one), of a SAR frame; a reprocessing (``station process``); a campaign; or, with no
+    report, a directory of products."""
+    report = next((name for name in _REPORTS if (d / name).is_file()), None)
+    if report is None:
+        return _PRODUCTS
+    if _REPORTS[report] != "run":
+        return _REPORTS[report]
+    fmt = _read_report(d / report).get("format")
+    if fmt not in _RUN_FORMATS:
+        raise CompareError(
+            f"{d / report}: format {fmt!r} is no run report this version knows "
+            f"({', '.join(_RUN_FORMATS)})"
+        )
+    return _RUN_FORMATS[fmt]
 
 
 def compare_inputs(
     a: str | Path, b: str | Path, tolerances: dict[str, dict[str, float]] | None = None
 ) -> Comparison:
     """Two products (:func:`levels.compare.compare_paths`), or two directories of the same
-    kind: run directories (:func:`compare_runs`), ``station process`` directories, campaign
-    directories (:func:`compare_campaigns`), or directories of products."""
+    kind (:func:`directory_kind`): runs of a pass (:func:`compare_runs`), of a block (every
+    pass's run, the tie points, the block's and the pair's products), of a SAR frame,
+    reprocessings, campaigns (:func:`compare_campaigns`), directories of products. Two
+    directories of different kinds are refused (:class:`CompareError`): there is nothing
+    to compare them by."""
     pa, pb = Path(a), Path(b)
     if not (pa.is_dir() and pb.is_dir()):
         return compare_paths(pa, pb, tolerances)
-    ka, kb = _kind(pa), _kind(pb)
+    ka, kb = directory_kind(pa), directory_kind(pb)
     if ka != kb:
-        out = Comparison(str(pa), str(pb), {"": []})
-        out.findings[""].append(Finding("files", "what wrote the directory", ok=False, a=ka, b=kb))
-        return out
-    if ka == "campaign":
-        return compare_campaigns(pa, pb, tolerances)
-    if ka == "process":
-        out = compare_directories(pa, pb, tolerances or load_tolerances(None))
-        out.findings[""] += _compare_made(
-            _read_report(pa / "process.json"), _read_report(pb / "process.json")
+        raise CompareError(
+            f"{pa} is {ka} and {pb} {kb}: different kinds of directory, nothing to compare "
+            "them by; compare two of one kind"
         )
-        if list(pa.glob("*.l0.h5")) or list(pb.glob("*.l0.h5")):  # a scenario's pass
-            out.findings[""] += _compare_l0s(pa, pb)
+    return _compare_directory(pa, pb, ka, tolerances or load_tolerances(None))
+
+
+def _compare_directory(
+    a: Path, b: Path, kind: str, tol: dict[str, dict[str, float]], top: bool = True
+) -> Comparison:
+    """Two directories of one kind, compared as that kind is."""
+    if kind == "a campaign":
+        return compare_campaigns(a, b, tol)
+    if kind == "the run of a block":
+        return _compare_blocks(a, b, tol)
+    if kind == "a reprocessing":
+        out = compare_directories(a, b, tol)
+        out.findings[""] += _compare_made(
+            _read_report(a / "process.json"), _read_report(b / "process.json")
+        )
+        if list(a.glob("*.l0.h5")) or list(b.glob("*.l0.h5")):  # a scenario's pass
+            out.findings[""] += _compare_l0s(a, b)
         return out
-    if ka == "products":
-        return compare_directories(pa, pb, tolerances or load_tolerances(None))
-    return compare_runs(pa, pb, tolerances)
+    if kind == _PRODUCTS:
+        return compare_directories(a, b, tol, require_products=top)
+    return compare_runs(a, b, tol)
 
 
 def compare_campaigns(
@@ -139,12 +177,59 @@ def compare_runs(
     return out
 
 
-def _is_sar_run(d: Path) -> bool:
-    """Whether ``d`` is the run of a SAR frame (``station.run_sar``)."""
-    from station.run_sar import SAR_REPORT_FORMAT
+def _compare_blocks(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> Comparison:
+    """Two runs of a block: every sub-directory by its own kind (each pass's run, the
+    block's level 2 and 3, the pair's DEM, the tie points), findings keyed
+    ``<sub-directory>/<product>``; and what the reports say was tied and made."""
+    out = Comparison(str(a), str(b), {"": []})
+    ra, rb = _read_report(a / "report.json"), _read_report(b / "report.json")
+    for key in ("passes", "ties"):
+        made = [_block_made(r, key) for r in (ra, rb)]
+        if made[0] != made[1]:
+            out.findings[""].append(
+                Finding("files", f"report.json: {key}", ok=False, a=made[0], b=made[1])
+            )
+    subs = {
+        side: {p.name for p in d.iterdir() if p.is_dir() and p.name not in _DERIVED}
+        for side, d in (("a", a), ("b", b))
+    }
+    for name in sorted(subs["a"] | subs["b"]):
+        if name not in subs["a"] or name not in subs["b"]:
+            out.findings[""].append(
+                Finding(
+                    "files",
+                    f"directory {name}/",
+                    ok=False,
+                    a="present" if name in subs["a"] else "missing",
+                    b="present" if name in subs["b"] else "missing",
+                )
+            )
+            continue
+        ka, kb = directory_kind(a / name), directory_kind(b / name)
+        if ka != kb:
+            out.findings[""].append(Finding("files", f"{name}/", ok=False, a=ka, b=kb))
+            continue
+        sub = _compare_directory(a / name, b / name, ka, tol, top=False)
+        for key, found in sub.findings.items():
+            out.findings[f"{name}/{key}" if key else f"{name}/"] = found
+    return out
 
+
+def _block_made(report: dict[str, Any], key: str) -> Any:
+    """What a block's report says of its passes (their names) or its ties (the pairs of
+    scenes tied and the points found), without its timings."""
+    if key == "passes":
+        return [r.get("scenario", {}).get("name") for r in report.get("passes", [])]
+    return [
+        (p.get("a"), p.get("b"), p.get("scene_a"), p.get("scene_b"), p.get("points"))
+        for p in report.get("ties", {}).get("pairs", [])
+    ]
+
+
+def _is_sar_run(d: Path) -> bool:
+    """Whether ``d`` is the run of a SAR frame (``station.run_sar``), which records no L0."""
     try:
-        return _read_report(d / "report.json").get("format") == SAR_REPORT_FORMAT
+        return directory_kind(d) == "the run of a SAR frame"
     except (OSError, CompareError):  # no report, or not one: compared as a pass's run
         return False
 

@@ -162,8 +162,31 @@ def test_compare_process_and_campaign_directories(run_dir, tmp_path, capsys) -> 
     assert _process(run_dir, only_1a, "--levels", "1A") == 0
     capsys.readouterr()
     assert main(["compare", str(a), str(only_1a)]) == EXIT_DIFFERENT
+    capsys.readouterr()
     code = main(["compare", str(a), str(c1)])  # a process directory and a campaign's
-    assert code == EXIT_DIFFERENT and "what wrote the directory" in capsys.readouterr().out
+    one_line(capsys, code, EXIT_BAD_INPUT, "is a reprocessing", "a campaign", "different kinds")
+    code = main(["compare", str(run_dir), str(a)])  # a run and a reprocessing
+    one_line(capsys, code, EXIT_BAD_INPUT, "the run of a pass", "a reprocessing")
+
+
+def test_compare_of_level_2_names_one_control_point_moved(run_dir, tmp_path, capsys) -> None:
+    """Level 2 stores an unbounded σ for what it does not estimate (inf): two reprocessings
+    with the same points compare equal (inf − inf was a difference, so no level 2 could
+    pass a regression comparison); one point moved by 0.001° (about 100 m) is named, in the
+    adjustment it changed (exit 1)."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    gcps = run_dir / "small_test.gcp.csv"
+    moved = _gcps_moved(gcps, tmp_path / "moved.csv", dlon=0.001, rows=1)
+    for out, points in ((a, gcps), (b, moved)):
+        assert _process(run_dir, out, "--levels", "2", "--gcps", str(points)) == 0
+    level2 = h5py.File(a / "small_test_s000_2.nc", "r")
+    with level2:
+        assert np.isinf(level2["geometry/adjustment/attitude_jump_sigma_rad"][()]).any()
+    assert main(["compare", str(a), str(a)]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(a), str(b)]) == EXIT_DIFFERENT
+    out = capsys.readouterr().out
+    assert "geometry/adjustment/pass_parameters" in out, out
 
 
 def test_a_tolerance_file_holds_finite_numbers(run_dir, tmp_path, capsys) -> None:

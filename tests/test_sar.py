@@ -297,7 +297,7 @@ def test_station_runs_an_ers_frame_that_gdal_reads_on_the_truth(tmp_path) -> Non
     assert not [f for fs in found.values() for f in fs if f.ok is False]
 
 
-def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path) -> None:
+def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path, capsys) -> None:
     """The GTC scenario (real relief: the SRTM tile N00E010; a 100 × 100 frame): GTC over
     the exported DEM on the truth, GEC moved by each point's height off the reference over
     tan θ, layover against the truth's. The terrain's γ⁰ the world's reflectance (the
@@ -325,6 +325,25 @@ def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path) -> None:
     layover = gtc["quality"]["masks"]["layover"]
     assert layover["truth_pixels"] > 100 and layover["iou"] >= MASK_IOU
     assert (tmp_path / "run" / "ers_gtc.dem.tif").is_file()
+    _compare_sees_a_band_shifted_one_pixel(tmp_path / "run", gtc["file"], tmp_path / "shifted")
+    out = capsys.readouterr().out
+    assert f"DIFFERS  {gtc['file']}: bands/intensity/max_abs" in out, out
+
+
+def _compare_sees_a_band_shifted_one_pixel(run: Path, gtc: str, edited: Path) -> None:
+    """`station compare` of a SAR run with itself: exit 0; with a copy whose GTC intensity
+    is shifted by one pixel east: exit 1, the band named."""
+    import shutil
+
+    import h5py
+
+    from station.cli import EXIT_DIFFERENT, main
+
+    assert main(["compare", str(run), str(run), "-q"]) == 0
+    shutil.copytree(run, edited)
+    with h5py.File(edited / gtc, "r+") as f:
+        f["intensity"][...] = np.roll(f["intensity"][()], 1, axis=1)
+    assert main(["compare", str(run), str(edited)]) == EXIT_DIFFERENT
 
 
 def test_station_run_takes_a_sar_scenario_and_refuses_a_gtc_without_a_dem(tmp_path) -> None:

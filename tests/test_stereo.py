@@ -253,3 +253,29 @@ def test_compare_sees_a_dems_heights_in_metres(stereo_run: Path) -> None:
     assert found["bands/height_m/max_abs"].ok is False
     assert found["bands/height_m/mean_difference"].value == pytest.approx(-0.5, abs=1e-4)
     assert found["bands/sigma_m/max_abs"].ok is True
+
+
+def test_compare_of_two_stereo_runs_names_a_dem_raised_half_a_metre(
+    stereo_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`station compare` of a stereo run (a block: each pass's run, the tie points, the
+    block's level 2 and 3, the pair's DEM) with itself: exit 0; with a copy whose DEM is
+    raised by 0.5 m: exit 1, the DEM's heights named in metres."""
+    import shutil
+
+    import h5py
+
+    from station.cli import EXIT_DIFFERENT, main
+
+    assert main(["compare", str(stereo_run), str(stereo_run)]) == 0
+    out = capsys.readouterr().out
+    assert "outside tolerance" in out and "0 outside" in out, out
+    edited = tmp_path / "run"
+    shutil.copytree(stereo_run, edited)
+    report = json.loads((stereo_run / "report.json").read_text())
+    (entry,) = report["stereo"]["dems"]
+    with h5py.File(edited / entry["file"], "r+") as f:
+        f["height_m"][...] = f["height_m"][()] + np.float32(0.5)
+    assert main(["compare", str(stereo_run), str(edited)]) == EXIT_DIFFERENT
+    out = capsys.readouterr().out
+    assert f"{entry['file']}: bands/height_m/max_abs = 0.5" in out, out
