@@ -275,7 +275,8 @@ def compare_point_files(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> l
     g = tol["geometry"]
     for n in sorted(set(fa) & set(fb)):
         x, y = read_gcps(fa[n]), read_gcps(fb[n])
-        if x.id != y.id or not np.array_equal(x.tie, y.tie) or not np.array_equal(x.hrv, y.hrv):
+        same_kinds = np.array_equal(np.asarray(x.tie), np.asarray(y.tie))
+        if x.id != y.id or not same_kinds or not np.array_equal(x.hrv, y.hrv):
             moved = sorted(set(x.id) ^ set(y.id))
             out.append(
                 Finding(
@@ -309,9 +310,9 @@ def compare_point_files(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> l
                     )
                 )
         for field_ in ("sigma_ground_m", "sigma_h_m", "sigma_px"):
-            d, scale = _finite_difference(getattr(x, field_), getattr(y, field_))
-            if not d <= g["rel"] * scale:
-                out.append(Finding("points", f"{n}: {field_}", d, g["rel"] * scale, ok=False))
+            diff, scale = _finite_difference(getattr(x, field_), getattr(y, field_))
+            if not diff <= g["rel"] * scale:
+                out.append(Finding("points", f"{n}: {field_}", diff, g["rel"] * scale, ok=False))
         if not any(f.what.startswith(f"{n}:") for f in out):
             out.append(Finding("points", n, value=f"{len(x)} points within tolerance"))
     return out
