@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import logging
 import time
 from dataclasses import dataclass, fields
 from typing import Any
@@ -72,6 +73,8 @@ from levels.geometry.frames import (
 )
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
+
+_log = logging.getLogger(__name__)
 
 __all__ = [
     "PASS_PARAMETERS",
@@ -874,6 +877,7 @@ def _judge(strips: list[Strip], sol: _Solution, confidence: float) -> None:
             + ("…" if rejected.size > 5 else "")
             + "; the points' σ or the model are wrong, not a few points: check them"
         )
+    _say_refused(ids, status, np.concatenate(sol.before) if sol.before else None)
     if not sol.dof:
         return
     limit = float(chi2_law.ppf(confidence, sol.dof))
@@ -889,6 +893,19 @@ def _judge(strips: list[Strip], sol: _Solution, confidence: float) -> None:
         + ", ".join(f"{ids[k]} ({wres[k]:.1f}σ)" for k in worst)
         + "; check the points and their σ (or [processing] fit_confidence)"
     )
+
+
+def _say_refused(ids: list[str], status: NDArray[Any], before: NDArray[Any] | None) -> None:
+    """One console line (a warning) per control point the fit did not use: rejected as a
+    blunder, or out of the model's reach; with how far the model before the fit missed it."""
+    for k in np.flatnonzero((status == "rejected") | (status == "outside")):
+        miss = (
+            f"; the model before the fit misses it by {np.hypot(*before[k, :2]):.0f} px"
+            if before is not None and np.all(np.isfinite(before[k, :2]))
+            else ""
+        )
+        what = "rejected as a blunder" if status[k] == "rejected" else "out of the model's reach"
+        _log.warning("level 2: control point %s %s, not used%s", ids[k], what, miss)
 
 
 def _pass_nodes(strips: list[Strip], no_scene: str) -> tuple[_Nodes, float]:

@@ -46,8 +46,9 @@ from numpy.typing import NDArray
 from levels.errors import ProductError
 from levels.geo.level1b import Level1BGeometry
 from levels.geo.level2a import Level2AGeometry
-from levels.products import Product, is_product_file, read_product
+from levels.products import Product, band_spec, is_product_file, read_product
 from levels.quality import scalar_figures
+from levels.registry import kind_of
 
 __all__ = [
     "DEFAULT_TOLERANCES",
@@ -334,7 +335,7 @@ def compare_products(
     a: Product, b: Product, tol: dict[str, dict[str, float]] | None = None
 ) -> list[Finding]:
     """Every check of two products (module docstring)."""
-    tol = tol or load_tolerances(None)
+    tol = _of_kind(a, tol or load_tolerances(None))
     out = _metadata(a, b)
     out += _schema(a, b)
     out += _pixels(a, b, tol["pixels"])
@@ -342,6 +343,23 @@ def compare_products(
     out += _geometry_leaves(a, b, tol["geometry"])
     out += _quality(a, b, tol["quality"])
     out += _provenance(a, b)
+    return out
+
+
+def _of_kind(product: Product, tol: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+    """The tolerances for a product of its kind: the defaults, the kind's own over them
+    (:attr:`levels.kinds.ProductKind.tolerances`), and whatever ``tol`` sets apart from
+    the defaults (a tolerance file's) over both."""
+    known = kind_of(product)
+    if known is None or not known.tolerances:
+        return tol
+    out = {k: dict(v) for k, v in DEFAULT_TOLERANCES.items()}
+    for section, values in known.tolerances.items():
+        out[section].update(values)
+    for section, values in tol.items():
+        for key, v in values.items():
+            if v != DEFAULT_TOLERANCES[section][key]:
+                out[section][key] = v
     return out
 
 
@@ -437,7 +455,7 @@ def _pixels(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
             )
             continue
         both = ia.valid & ib.valid
-        if ia.image.dtype != np.uint8 or ib.image.dtype != np.uint8:
+        if band_spec(a, name, ia.image.dtype).quantity or ia.image.dtype != ib.image.dtype:
             out += _quantities(name, ia, ib, both, tol)
             continue
         d = ia.image[both].astype(np.int16) - ib.image[both].astype(np.int16)
@@ -459,8 +477,8 @@ def _pixels(a: Product, b: Product, tol: dict[str, float]) -> list[Finding]:
 
 
 def _quantities(name: str, ia: Any, ib: Any, both: Any, tol: dict[str, float]) -> list[Finding]:
-    """A band of a quantity in its own units (a DEM's heights, σ and counts,
-    :data:`levels.products.QUANTITY_BANDS`), compared as numbers, not counts: max |Δ| and
+    """A band of a quantity in its own units (a DEM's heights, σ and counts, as its kind
+    declares it: :class:`levels.kinds.BandSpec`), compared as numbers, not counts: max |Δ| and
     RMS in the band's units within ``quantity_max_abs`` and ``quantity_rms``; the share
     of pixels changed at all is reported (another CPU changes the last bits of many)."""
     a = ia.image[both].astype(np.float64)

@@ -1,15 +1,20 @@
 """Export of level products as GeoTIFF (through rasterio, i.e. GDAL).
 
-A product's bands become the bands of one GeoTIFF, uint8, tiled and DEFLATE-compressed; the
-validity mask becomes the dataset's internal mask (GDAL's per-dataset mask band, which QGIS
-and GDAL honour), and pixels not valid are 0. Band descriptions carry the band names; the
-tags carry the level, scene, instrument and the provenance of the product.
+How a product is exported is its kind's declaration (:class:`levels.kinds.ProductKind`:
+``export``, ``export_bands``, ``export_tags``). Its bands (those the kind exports) become
+the bands of one GeoTIFF, tiled and DEFLATE-compressed: counts as uint8, the validity mask
+the dataset's internal mask (GDAL's per-dataset mask band, which QGIS and GDAL honour), and
+pixels not valid 0; a float quantity (a DEM's heights) as float32, NaN its nodata. Band
+descriptions carry the band names; the tags carry the level, scene, instrument, the
+attributes the kind names and the provenance of the product.
 
-- Map levels (2A, 2, 3): the product's CRS (its WKT) and its north-up geotransform.
-- Image-geometry levels (1A, 1B): the RPCs the product carries (:mod:`levels.geo.rpc`,
-  fitted to the rigorous model; the first band's, whose fit error goes in ``ERR_RAND``, in
-  metres) in GDAL's RPC metadata, so that ``gdalwarp -rpc -to RPC_DEM=dem.tif``
-  orthorectifies it. A product written before RPCs were is refused with a clear error.
+- Kinds on a map grid (``Export.MAP``: 2A, 2, 3, DEM, GEC, GTC): the product's CRS (its
+  WKT) and its north-up geotransform.
+- Kinds in image geometry (``Export.RPC``: 1A, 1B): the RPCs the product carries
+  (:mod:`levels.geo.rpc`, fitted to the rigorous model; the first band's, whose fit error
+  goes in ``ERR_RAND``, in metres) in GDAL's RPC metadata, so that ``gdalwarp -rpc -to
+  RPC_DEM=dem.tif`` orthorectifies it. A product written before RPCs were is refused with
+  a clear error.
 
 The products themselves need no export for that: :func:`write_rpc_sidecar` writes, beside
 each 1A and 1B product, the PAM sidecar in which GDAL finds each band's RPCs.
@@ -24,17 +29,22 @@ import numpy as np
 from levels.errors import ProductError
 from levels.files import atomic_path
 from levels.geo.rpc import Rpc
+from levels.kinds import Export
 from levels.products import Product
+from levels.registry import kind_of
 
-__all__ = ["MAP_LEVELS", "RPC_LEVELS", "write_geotiff", "write_rpc_sidecar"]
+__all__ = ["write_geotiff", "write_rpc_sidecar"]
 
-#: Levels on a map grid, which a GeoTIFF's geotransform can describe.
-MAP_LEVELS = ("2A", "2", "3", "DEM", "GEC", "GTC")
-#: A DEM product (:mod:`levels.stereo`) is exported as its heights alone, float32, NaN
-#: where it has none (GDAL's nodata): the raster level 3 and any GIS read as a DEM.
-DEM_EXPORT_BAND = "height_m"
-#: Levels in image geometry, exported with their RPCs.
-RPC_LEVELS = ("1A", "1B")
+
+def _export(product: Product) -> Export:
+    """How the product's kind is exported (:class:`levels.kinds.Export`); a product of a
+    kind not known here: by what it holds (a map grid, RPCs, or neither)."""
+    known = kind_of(product)
+    if known is not None:
+        return known.export
+    if product.map_grid is not None:
+        return Export.MAP
+    return Export.RPC if product.geometry.get("rpc") else Export.NONE
 
 
 def write_rpc_sidecar(product: Product, path: str | Path) -> Path | None:
@@ -47,7 +57,7 @@ def write_rpc_sidecar(product: Product, path: str | Path) -> Path | None:
 
     from levels.files import write_text
 
-    trees = product.geometry.get("rpc") if product.level in RPC_LEVELS else None
+    trees = product.geometry.get("rpc") if _export(product) is Export.RPC else None
     if not trees:
         return None
     parts = ["<PAMDataset>"]
@@ -70,9 +80,9 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
     from rasterio.rpc import RPC
     from rasterio.transform import Affine
 
-    level = product.level
+    level, how = product.level, _export(product)
     georef: dict = {}
-    if level in RPC_LEVELS:
+    if how is Export.RPC:
         trees = product.geometry.get("rpc")
         if not trees:
             raise ProductError(
@@ -81,7 +91,7 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
             )
         rpc = Rpc.from_tree(next(iter(trees.values())))
         georef["rpcs"] = RPC.from_gdal(rpc.gdal_metadata())
-    elif level in MAP_LEVELS:
+    elif how is Export.MAP:
         grid = product.map_grid
         if grid is None:
             raise ProductError(f"level {level} product without a map grid (no crs variable)")
@@ -89,7 +99,9 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
         georef["transform"] = Affine.from_gdal(*grid.geotransform)
     else:
         raise ProductError(f"level {level}: no GeoTIFF export for it")
-    names = [DEM_EXPORT_BAND] if level == "DEM" else list(product.bands)
+    known = kind_of(product)
+    names = list(known.export_bands) if known and known.export_bands else list(product.bands)
+    tags = known.export_tags if known else ()
     images = [product.bands[n].image for n in names]
     valid = np.logical_and.reduce([product.bands[n].valid for n in names])
     rows, cols = images[0].shape
@@ -126,7 +138,7 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
             hrv=a.get("hrv", ""),
             mode=a.get("mode", ""),
             pixel_size_m=a.get("pixel_size_m", ""),
-            **({"vertical": a.get("vertical", "")} if level == "DEM" else {}),
+            **{k: a.get(k, "") for k in tags},
             **{f"provenance_{k}": v for k, v in product.provenance.items()},
         )
     return out

@@ -46,6 +46,7 @@ from levels.hdf5 import (
     deflated_dataset,
     new_hdf5,
 )
+from levels.kinds import BandSpec, counts_band
 
 __all__ = [
     "PRODUCT_FORMAT",
@@ -53,6 +54,7 @@ __all__ = [
     "BandImage",
     "MapGrid",
     "Product",
+    "band_spec",
     "product_name",
     "read_product",
     "write_product",
@@ -71,14 +73,6 @@ SCENE_KEYS = (
     "corners_lat_deg",
     "corners_lon_deg",
 )
-#: The geometry trees a product of each level must carry (``docs/products.md``).
-REQUIRED_GEOMETRY = {
-    "1A": ("scene",),
-    "1B": ("scene", "level_1b"),
-    "2A": ("scene", "level_2a"),
-    "2": ("scene", "level_2a", "adjustment"),
-    "3": ("scene", "level_3"),
-}
 _CHUNK = 512
 #: Metadata arrays of at least this many numbers (anchor grids, the DEM a level 3 product
 #: carries) are stored shuffled and deflated: a third to a half of their size.
@@ -104,18 +98,6 @@ MAP_SUFFIX, IMAGE_SUFFIX = ".nc", ".h5"
 PRODUCT_SUFFIXES = (MAP_SUFFIX, IMAGE_SUFFIX)
 
 
-#: Bands that hold a quantity rather than counts (a DEM product's, :mod:`levels.stereo`):
-#: their long name and CF standard name (None: none fits); their units come from the name.
-QUANTITY_BANDS: dict[str, tuple[str, str | None]] = {
-    "height_m": ("height above the WGS84 ellipsoid", "height_above_reference_ellipsoid"),
-    "points": ("points triangulated in the cell", None),
-    "sigma_m": ("predicted 1 sigma of the cell's height", None),
-    "intensity": ("SAR backscattered intensity, linear (the image's calibration)", None),
-    "layover": ("pixel in SAR layover: 1, or not: 0", None),
-    "shadow": ("pixel in SAR shadow: 1, or not: 0", None),
-}
-
-
 def product_name(name: str, scene_index: int, level: str, on_map: bool = False) -> str:
     """The file name of a scene's product at a level: ``<name>_s<scene>_<level>.nc`` on a
     map grid (``on_map``), ``….h5`` in image geometry (:data:`MAP_SUFFIX`)."""
@@ -138,9 +120,10 @@ def units_of(name: str) -> str:
 
 @dataclass(frozen=True, eq=False)
 class BandImage:
-    """One band of a product: 8-bit image and validity mask, same shape (rows, cols)."""
+    """One band of a product: its image (counts, uint8; or a quantity, as its kind's
+    :class:`~levels.kinds.BandSpec` declares) and validity mask, same shape (rows, cols)."""
 
-    image: NDArray[np.uint8]
+    image: NDArray[np.uint8] | NDArray[np.floating[Any]] | NDArray[np.unsignedinteger[Any]]
     valid: NDArray[np.bool_]
 
     def __post_init__(self) -> None:
@@ -361,6 +344,20 @@ def _dimensions(
     return dims
 
 
+def band_spec(product: Product, name: str, dtype: np.dtype[Any] | None = None) -> BandSpec:
+    """How band ``name`` of ``product`` is declared by its kind (:mod:`levels.registry`);
+    for a kind not known here, counts if its values are bytes, else a quantity named by
+    the project's rule (its units from the name's suffix, NaN its fill)."""
+    from levels.registry import kind_of
+
+    known = kind_of(product)
+    if known is not None:
+        return known.band(name)
+    if dtype is None or dtype == np.uint8:
+        return counts_band(product.level, name)
+    return BandSpec(name, name.replace("_", " "))
+
+
 def _write_band(
     f: h5py.File,
     product: Product,
@@ -370,16 +367,12 @@ def _write_band(
     chunks: tuple[int, int],
     deflate_level: int,
 ) -> None:
-    """One band's image and validity mask, on the dimension scales, CF-described: a byte
-    band as counts, a quantity (:data:`QUANTITY_BANDS`: a DEM's heights) with its units and
-    standard name (NaN where not valid)."""
-    quantity = QUANTITY_BANDS.get(name) if band.image.dtype != np.uint8 else None
+    """One band's image and validity mask, on the dimension scales, CF-described as its
+    kind declares it (:meth:`levels.kinds.ProductKind.band`: counts, or a quantity with
+    its units, standard name and fill value)."""
+    spec = band_spec(product, name, band.image.dtype)
     for var, data, long_name in (
-        (
-            name,
-            band.image,
-            quantity[0] if quantity else f"level {product.level} counts of band {name}",
-        ),
+        (name, band.image, spec.long_name),
         (
             f"{name}_valid",
             band.valid.view(np.uint8),
@@ -389,18 +382,16 @@ def _write_band(
         level = deflate_level if var == name else DEFLATE_LEVEL
         # a quantity's NaN where not valid is its fill value too: GDAL's netCDF driver read
         # a DEM's holes as 0 m without it
-        floating = np.issubdtype(data.dtype, np.floating)
-        fill = np.nan if quantity and var == name and floating else None
+        fill = spec.fill if var == name and np.issubdtype(data.dtype, np.floating) else None
         ds = deflated_dataset(f, var, data, chunks, level=level, fillvalue=fill)
         if fill is not None:
             ds.attrs["_FillValue"] = np.array(fill, dtype=data.dtype)
         for axis, dim in enumerate(dims):
             ds.dims[axis].attach_scale(dim)
-        ds.attrs["units"] = units_of(name) if quantity and var == name else "1"
+        ds.attrs["units"] = (spec.units or units_of(name)) if var == name else "1"
         ds.attrs["long_name"] = long_name
-        if quantity and var == name:
-            if quantity[1]:
-                ds.attrs["standard_name"] = quantity[1]
+        if var == name and spec.standard_name:
+            ds.attrs["standard_name"] = spec.standard_name
         if product.map_grid is not None:
             ds.attrs["grid_mapping"] = "crs"
             # the grid mapping also as a (scalar) coordinate: xarray then opens it as one,
@@ -411,6 +402,14 @@ def _write_band(
         else:
             ds.attrs["flag_values"] = np.array([0, 1], np.uint8)
             ds.attrs["flag_meanings"] = "invalid valid"
+
+
+def _required_trees(level: str) -> tuple[str, ...]:
+    """The geometry trees a product of kind ``level`` must carry (none for a kind not
+    known here)."""
+    from levels.registry import BUILT_IN, kind, kind_names
+
+    return kind(level).geometry_trees if level in BUILT_IN or level in kind_names() else ()
 
 
 def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> None:
@@ -568,7 +567,7 @@ def _read_product(where: Path, images: bool) -> Product:
             }
             trees = {k: _read_tree(f[k], every) for k in ("geometry", "quality", "provenance")}
             level = str(attrs.get("level"))
-            lacking = [k for k in REQUIRED_GEOMETRY.get(level, ()) if k not in trees["geometry"]]
+            lacking = [k for k in _required_trees(level) if k not in trees["geometry"]]
             if lacking:
                 raise ProductError(
                     f"level {level} product without its geometry/{lacking[0]} "

@@ -1,14 +1,16 @@
-"""The registry of levels: which levels the processing centre can make, by name.
+"""The registry of product kinds: every product the processing centre can make, by name.
 
-A level is declared once, in a module of :mod:`levels.makers` that defines its
-:class:`~levels.makers.base.LevelMaker` as ``MAKER``; the built-in levels are the entries
-of :data:`BUILT_IN` below, in processing order. A level made elsewhere (a user's module, a
-test) is added with :func:`register_level` and is then a choice of ``[processing] levels``
-like the others: the driver (:mod:`levels.process`) plans and runs it without a change.
+A kind is declared once (:class:`levels.kinds.ProductKind`), in the module that makes it;
+the built-in kinds are the entries of :data:`BUILT_IN` below: the scene levels in processing
+order, then the stereo pair's DEM and the SAR frame's GEC and GTC. A kind made elsewhere (a
+user's module, a test) is added with :func:`register_kind`, and a scene level with
+:func:`register_level` (its :class:`~levels.makers.base.LevelMaker` alone: the kind's other
+declarations take their defaults); either is then a choice of ``[processing] levels`` like
+the others, planned and made by the driver (:mod:`levels.process`) without a change.
 
-This module sits low in the tree (the options check level names against it): it names the
-built-in makers' modules and imports one only when its maker is asked for, as a plugin
-entry point would.
+This module sits low in the tree (the options check level names against it, the product
+format reads its kinds' bands): it names the built-in kinds' modules and imports one only
+when its kind is asked for, as a plugin entry point would.
 """
 
 from __future__ import annotations
@@ -17,54 +19,124 @@ import importlib
 from typing import TYPE_CHECKING
 
 from levels.choices import Level
+from levels.kinds import Export, Inspection, ProductKind, Unit
 
 if TYPE_CHECKING:
     from levels.makers.base import LevelMaker
+    from levels.products import Product
 
-__all__ = ["BUILT_IN", "level_maker", "level_names", "register_level", "unregister_level"]
+__all__ = [
+    "BUILT_IN",
+    "kind",
+    "kind_names",
+    "kind_of",
+    "level_maker",
+    "level_names",
+    "register_kind",
+    "register_level",
+    "unregister_kind",
+    "unregister_level",
+]
 
-#: The built-in levels and the module that declares each (its ``MAKER``), in processing order.
+#: The built-in kinds and where each is declared (``module:attribute``), the scene levels
+#: in processing order.
 BUILT_IN: dict[str, str] = {
-    Level.L1A: "levels.makers.level1a",
-    Level.L1B: "levels.makers.level1b",
-    Level.L2A: "levels.makers.level2a",
-    Level.L2: "levels.makers.level2",
-    Level.L3: "levels.makers.level3",
+    Level.L1A: "levels.makers.level1a:KIND",
+    Level.L1B: "levels.makers.level1b:KIND",
+    Level.L2A: "levels.makers.level2a:KIND",
+    Level.L2: "levels.makers.level2:KIND",
+    Level.L3: "levels.makers.level3:KIND",
+    "DEM": "levels.makers.dem:KIND",
+    "GEC": "levels.makers.sar:GEC",
+    "GTC": "levels.makers.sar:GTC",
 }
 
-_registered: dict[str, LevelMaker] = {}
+_registered: dict[str, ProductKind] = {}
 
 
-def level_names() -> tuple[str, ...]:
-    """Every level that can be asked for: the built-in ones, then those registered."""
-    return (*(str(k) for k in BUILT_IN), *_registered)
+def kind_names(unit: Unit | None = None) -> tuple[str, ...]:
+    """Every kind (of ``unit``, if given): the built-in ones, then those registered."""
+    names = (*(str(k) for k in BUILT_IN), *_registered)
+    return names if unit is None else tuple(n for n in names if kind(n).unit is unit)
 
 
-def level_maker(name: str) -> LevelMaker:
-    """The maker of level ``name``; :class:`KeyError` naming the known levels if none."""
+def kind(name: str) -> ProductKind:
+    """The kind ``name``; :class:`KeyError` naming the known kinds if none."""
     if name in _registered:
         return _registered[name]
     if name not in BUILT_IN:
+        raise KeyError(f"no product kind {name!r}; known: {', '.join(kind_names())}")
+    module, attr = BUILT_IN[name].split(":")
+    found: ProductKind = getattr(importlib.import_module(module), attr)
+    return found
+
+
+def kind_of(product: Product) -> ProductKind | None:
+    """The kind of ``product`` (its ``level`` attribute), or None if no kind of that name
+    is known here (a product of a kind registered elsewhere)."""
+    name = str(product.attrs.get("level"))
+    return kind(name) if name in BUILT_IN or name in _registered else None
+
+
+def register_kind(new: ProductKind) -> None:
+    """Add a kind (its name must be new); it comes after the built-in ones and those
+    registered before it, unless its ``requires`` put it later."""
+    if new.name in BUILT_IN or new.name in _registered:
+        raise ValueError(f"level {new.name!r} is already registered")
+    if not new.name or "/" in new.name or "_" in new.name:
+        raise ValueError(
+            f"level name {new.name!r}: a product is named <name>_s<scene>_<level>.h5, "
+            "so a level's name is not empty and has no '/' or '_'"
+        )
+    _registered[new.name] = new
+
+
+def unregister_kind(name: str) -> None:
+    """Remove a kind added by :func:`register_kind` (the built-in ones stay)."""
+    if name not in _registered:
+        raise KeyError(f"level {name!r} was not registered")
+    del _registered[name]
+
+
+def level_names() -> tuple[str, ...]:
+    """Every scene level that can be asked for: the built-in ones, then those registered."""
+    return kind_names(Unit.SCENE)
+
+
+def level_maker(name: str) -> LevelMaker:
+    """The maker of scene level ``name``; :class:`KeyError` naming the known levels if
+    none."""
+    if name not in level_names():
         raise KeyError(f"no level {name!r}; known: {', '.join(level_names())}")
-    maker: LevelMaker = importlib.import_module(BUILT_IN[name]).MAKER
+    maker: LevelMaker = kind(name).maker
     return maker
 
 
+def _plain_inspection(product: Product) -> Inspection:
+    a = product.attrs
+    return Inspection(f"level {a.get('level')} of {a.get('name')} scene {a.get('scene_index')}")
+
+
 def register_level(maker: LevelMaker) -> None:
-    """Add a level (its maker's ``name`` must be new); it comes after the built-in ones and
-    those registered before it, unless its ``requires`` put it later."""
-    if maker.name in BUILT_IN or maker.name in _registered:
-        raise ValueError(f"level {maker.name!r} is already registered")
-    if not maker.name or "/" in maker.name or "_" in maker.name:
-        raise ValueError(
-            f"level name {maker.name!r}: a product is named <name>_s<scene>_<level>.h5, "
-            "so a level's name is not empty and has no '/' or '_'"
+    """Add a scene level made by ``maker`` (its ``name`` must be new): a kind of unit
+    :attr:`Unit.SCENE`, not exported, its other declarations the defaults."""
+    from levels.makers.base import no_map_grid
+
+    register_kind(
+        ProductKind(
+            name=maker.name,
+            doc=maker.doc,
+            unit=Unit.SCENE,
+            on_map=maker.map_grid is not no_map_grid,
+            geometry_trees=("scene",),
+            export=Export.NONE,
+            inspect=_plain_inspection,
+            requires=maker.requires,
+            maker=maker,
         )
-    _registered[maker.name] = maker
+    )
 
 
 def unregister_level(name: str) -> None:
     """Remove a level added by :func:`register_level` (the built-in ones stay)."""
-    if name not in _registered:
-        raise KeyError(f"level {name!r} was not registered")
-    del _registered[name]
+    unregister_kind(name)

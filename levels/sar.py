@@ -66,7 +66,6 @@ __all__ = [
     "line_spacing_m",
     "mask_oversample",
     "nominal_cell_m2",
-    "sar_product",
     "splat_bilinear",
     "terrain_flattening",
 ]
@@ -1411,72 +1410,3 @@ def terrain_flattening(g: Geocoded, image: SarImage) -> NDArray[np.float32]:
         _kernel_read, grid.n_rows, flat, g.line, g.column, np.isfinite(g.intensity), out, grain=64
     )
     return out
-
-
-def sar_product(
-    geocoded: Geocoded,
-    image: SarImage,
-    name: str,
-    quality: dict[str, Any] | None = None,
-    dem_source: str = "",
-    provenance: dict[str, Any] | None = None,
-    gamma0: NDArray[np.float32] | None = None,
-) -> Any:
-    """A geocoded frame as a map product of the house format (level ``GEC`` or ``GTC``):
-    bands ``intensity``, ``layover`` and ``shadow`` (1 or 0), and ``gamma0`` when given
-    (:func:`terrain_flattening`), float32, NaN outside the frame; the annotation and the
-    anchors' error in ``geometry/sar``; ``quality``."""
-    from levels import __version__
-    from levels.products import BandImage, Product
-
-    g, ann = geocoded, image.annotation
-    valid = np.isfinite(g.intensity)
-    bands = {
-        "intensity": BandImage(g.intensity, valid),  # type: ignore[arg-type]
-        "layover": BandImage(np.where(valid, g.layover, np.nan).astype(np.float32), valid),
-        "shadow": BandImage(np.where(valid, g.shadow, np.nan).astype(np.float32), valid),
-    }
-    if gamma0 is not None:
-        bands["gamma0"] = BandImage(gamma0.astype(np.float32), np.isfinite(gamma0))
-    t_mid = ann.first_line_s + 0.5 * ann.shape[0] * ann.line_interval_s
-    sar = {
-        "kind": g.kind,
-        "epoch_utc": str(ann.epoch.t0_utc),
-        "state_t_s": np.asarray(ann.state_t_s),
-        "state_r_m": np.asarray(ann.state_r_m),
-        "state_v_m_per_s": np.asarray(ann.state_v_m_per_s),
-        "first_line_s": ann.first_line_s,
-        "line_interval_s": ann.line_interval_s,
-        "near_range_m": ann.near_range_m,
-        "range_spacing_m": ann.range_spacing_m,
-        "wavelength_m": ann.wavelength_m,
-        "doppler_hz": np.asarray(ann.doppler_hz, dtype=np.float64),
-        "image_shape": np.asarray(ann.shape),
-        "looks": ann.looks,
-        "right_looking": int(ann.right_looking),
-        "anchor_step_px": ANCHOR_STEP_PX,
-        "height_range_m": np.array([np.nanmin(g.height_m), np.nanmax(g.height_m)]),
-        "dem_source": dem_source,
-    }
-    return Product(
-        attrs={
-            "level": g.kind,
-            "name": name,
-            "instrument": "ERS-1 AMI SAR",
-            "time_utc": str(ann.epoch.utc(np.array([t_mid]))[0]),
-            "n_rows": g.grid.n_rows,
-            "n_cols": g.grid.n_cols,
-            "pixel_size_m": float(g.grid.geotransform[1]),
-        },
-        bands=bands,
-        geometry={"sar": sar},
-        quality={
-            "anchor_error_px": dict(g.anchor_error),
-            "valid_fraction": float(valid.mean()),
-            "layover_fraction": float(g.layover[valid].mean()) if valid.any() else 0.0,
-            "shadow_fraction": float(g.shadow[valid].mean()) if valid.any() else 0.0,
-            **(quality or {}),
-        },
-        provenance={"software": f"levels {__version__}", **(provenance or {})},
-        map_grid=g.grid,
-    )

@@ -39,6 +39,7 @@ on their adjusted models (level 2 of a block, :mod:`levels.adjust`).
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from typing import Any
 
@@ -56,6 +57,8 @@ from levels.geometry.ellipsoid import WGS84
 from levels.geometry.model import PushbroomModel
 from levels.readers.gcp import ControlPointSet
 from levels.threads import over_blocks
+
+_log = logging.getLogger(__name__)
 
 __all__ = [
     "MAX_REFINE_PX",
@@ -872,13 +875,25 @@ def stereo_dem(
     t0 = time.perf_counter()
     left, right = pair.image(0), pair.image(1)
     t["resample"] = time.perf_counter() - t0
+    _log.info(
+        "stereo: epipolar images %d × %d resampled in %.1f s; matching",
+        *left.shape,
+        t["resample"],
+    )
     t0 = time.perf_counter()
     d_range = coarse_range(left, right, d_range)
     disparity = match(left, right, *d_range)
     t["match"] = time.perf_counter() - t0
+    _log.info(
+        "stereo: %d pixels matched in %.1f s (disparity %.1f to %.1f px); triangulating",
+        disparity.counts.get("valid", 0),
+        t["match"],
+        *d_range,
+    )
     t0 = time.perf_counter()
     points, anchor_error = triangulate(pair, disparity, d_range, stride)
     t["triangulate"] = time.perf_counter() - t0
+    _log.info("stereo: triangulated in %.1f s; gridding", t["triangulate"])
     t0 = time.perf_counter()
     grid = dem_grid(points, pair.frame.crs_wkt, cell_px * pair.frame.pixel_m)
     h, n, sigma = grid_points(points, grid)
@@ -942,73 +957,3 @@ def dem_grid(points: StereoPoints, crs_wkt: str, cell_m: float) -> MapGrid:
     y1 = np.ceil(np.nanmax(points.y_m) / cell_m) * cell_m
     rows, cols = round((y1 - y0) / cell_m) + 1, round((x1 - x0) / cell_m) + 1
     return MapGrid.north_up(crs_wkt, x0 - cell_m / 2, y1 + cell_m / 2, cell_m, rows, cols)
-
-
-#: The level name of a pair's DEM product, and its bands (:data:`levels.products.QUANTITY_BANDS`).
-DEM_LEVEL = "DEM"
-DEM_BANDS = ("height_m", "points", "sigma_m")
-
-
-def dem_name(dem: StereoDem) -> str:
-    """A pair's product name, as its tie points are named: ``<a>_s<k>_<b>_s<k>_DEM.nc``."""
-    a, b = dem.pair.a, dem.pair.b
-    return f"{a.name}_s{a.scene:03d}_{b.name}_s{b.scene:03d}_{DEM_LEVEL}.nc"
-
-
-def _miss_stats(points: StereoPoints) -> dict[str, float]:
-    m = points.miss_m[np.isfinite(points.miss_m)]
-    return {
-        "rms_m": float(np.sqrt(np.mean(m**2))) if m.size else float("nan"),
-        "p99_abs_m": float(np.percentile(np.abs(m), 99)) if m.size else float("nan"),
-    }
-
-
-def dem_product(
-    dem: StereoDem, quality: dict[str, Any] | None = None, inputs: list[str] | None = None
-) -> Any:
-    """The pair's DEM as a map product (``docs/stereo.md``): bands ``height_m`` (above the
-    ellipsoid, NaN in holes), ``points`` and ``sigma_m``; the pair's geometry; its quality
-    (the matching's counts, the rays' miss, and what ``quality`` adds: the truth's)."""
-    from levels import __version__
-    from levels.products import BandImage, Product
-
-    valid = np.isfinite(dem.height_m)
-    bands = {
-        "height_m": BandImage(dem.height_m, valid),  # type: ignore[arg-type]
-        "points": BandImage(dem.count, valid),  # type: ignore[arg-type]
-        "sigma_m": BandImage(dem.sigma_m, valid),  # type: ignore[arg-type]
-    }
-    a, b = dem.pair.a, dem.pair.b
-    q = {
-        "matching": dict(dem.disparity.counts),
-        "disparity_range_px": np.array(dem.disparity_range_px),
-        "ray_miss": _miss_stats(dem.points),
-        "triangulation_anchor_error_m": dem.anchor_error_m,
-        "valid_cell_fraction": float(valid.mean()),
-        "predicted_sigma_rms_m": float(np.sqrt(np.nanmean(dem.sigma_m.astype(np.float64) ** 2))),
-        "timings_s": dict(dem.timings_s),
-        **(quality or {}),
-    }
-    return Product(
-        attrs={
-            "level": DEM_LEVEL,
-            "name": f"{a.name}_s{a.scene:03d}_{b.name}_s{b.scene:03d}",
-            "vertical": "ellipsoid",
-            "datetimes_utc": f"{a.time_utc} {b.time_utc}",
-            "n_rows": dem.grid.n_rows,
-            "n_cols": dem.grid.n_cols,
-        },
-        bands=bands,
-        geometry={
-            "stereo": dem.pair.tree(),
-            "dem": {
-                "cell_m": float(abs(dem.grid.geotransform[1])),
-                "stride_px": dem.points.stride,
-                "matcher": "OpenCV StereoSGBM + least-squares refinement",
-                "refine_window_px": REFINE_WINDOW_PX,
-            },
-        },
-        quality=q,
-        provenance={"software": f"levels {__version__}", "inputs": ", ".join(inputs or [])},
-        map_grid=dem.grid,
-    )

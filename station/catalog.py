@@ -28,7 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from levels.kinds import Unit
 from levels.products import Product, is_product_file, read_product
+from levels.registry import kind_of
 
 __all__ = ["CATALOG_FILE", "EXTENSIONS", "footprint_geojson", "item_of", "write_catalog"]
 
@@ -134,16 +136,16 @@ def _quality(product: Product, path: Path) -> dict[str, Any]:
     return out
 
 
-def _pair_item(product: Product, path: Path) -> Any:
-    """The STAC Item of a map product without a scene: a pair's (a stereo DEM,
-    :mod:`levels.stereo`; the pair's two dates) or a SAR frame's (GEC, GTC:
-    :mod:`levels.sar`; its middle line's time). The map grid's footprint."""
+def _grid_item(product: Product, path: Path, props: dict[str, Any]) -> Any:
+    """The STAC Item of a map product without a scene's sensor model (a stereo pair's DEM,
+    a SAR frame's GEC or GTC): the map grid's footprint; its instants and its own
+    properties as its kind declares them (``props``: :attr:`levels.kinds.ProductKind.stac`)."""
     import pyproj
     import pystac
 
     grid = product.map_grid
     if grid is None:
-        raise ValueError(f"{path}: a pair's product without a map grid")
+        raise ValueError(f"{path}: a {product.level} product without a map grid")
     gt, (rows, cols) = grid.geotransform, grid.shape
     x = np.array([gt[0], gt[0] + cols * gt[1], gt[0] + cols * gt[1], gt[0]])
     y = np.array([gt[3], gt[3], gt[3] + rows * gt[5], gt[3] + rows * gt[5]])
@@ -151,23 +153,19 @@ def _pair_item(product: Product, path: Path) -> Any:
         pyproj.CRS.from_wkt(grid.crs_wkt), pyproj.CRS.from_epsg(4326), always_xy=True
     ).transform(x, y)
     geometry, bbox = footprint_geojson(np.asarray(lat), np.asarray(lon))
-    sar = "sar" in product.geometry
-    key = "time_utc" if sar else "datetimes_utc"
-    when = sorted(str(t) for t in str(product.attrs[key]).split())
-    times = [dt.datetime.fromisoformat(t[:26]).replace(tzinfo=dt.UTC) for t in when]
-    start, end = times[0], times[-1]
     epsg = pyproj.CRS.from_wkt(grid.crs_wkt).to_epsg()
+    when = {k: props.pop(k, None) for k in ("datetime", "start_datetime", "end_datetime")}
+    description = props.pop("description", "")
     item = pystac.Item(
         id=path.stem,
         geometry=geometry,
         bbox=bbox,
-        datetime=start if sar else None,  # a frame: one instant
-        start_datetime=start,
-        end_datetime=end,
+        datetime=when["datetime"],
+        start_datetime=when["start_datetime"],
+        end_datetime=when["end_datetime"],
         properties={
             "title": str(product.attrs.get("name", path.stem)),
-            "constellation": "ers" if sar else "spot",
-            "processing:level": str(product.level),
+            **props,
             "proj:code": f"EPSG:{epsg}" if epsg else None,
             "proj:shape": [rows, cols],
             "proj:transform": [gt[1], gt[2], gt[0], gt[4], gt[5], gt[3]],
@@ -181,8 +179,7 @@ def _pair_item(product: Product, path: Path) -> Any:
             href=str(path.resolve()),
             media_type=_MEDIA.get(path.suffix, "application/x-hdf5"),
             roles=["data"],
-            title=f"{product.level} product of "
-            + ("an ERS-1 SAR frame" if sar else "a stereo pair"),
+            title=f"{product.level} product of {description}".strip(),
         ),
     )
     return item
@@ -197,8 +194,10 @@ def item_of(path: Path, root: Path) -> Any:
     from station import __version__
 
     product = read_product(path, images=False)
-    if "scene" not in product.geometry:  # a pair's product (a stereo DEM)
-        return _pair_item(product, path)
+    known = kind_of(product)
+    props = known.stac(product) if known is not None else {}
+    if known is None or known.unit is not Unit.SCENE:  # a pair's DEM, a SAR frame's
+        return _grid_item(product, path, dict(props))
     a, scene = product.attrs, product.geometry["scene"]
     geometry, bbox = footprint_geojson(scene["corners_lat_deg"], scene["corners_lon_deg"])
     view = _centre_view(product)
@@ -214,7 +213,7 @@ def item_of(path: Path, root: Path) -> Any:
         "spot:mirror_step": int(a.get("mirror_step", 48)),
         "view:off_nadir": abs(float(np.degrees(mirror_angle_rad(int(a.get("mirror_step", 48)))))),
         **view,
-        "processing:level": f"L{level}",
+        "processing:level": props.get("processing:level", f"L{level}"),
         "processing:facility": "spot-station SIPC (emulated)",
         "processing:software": {"spot-station": __version__},
         "spot:quality": _quality(product, path),

@@ -38,11 +38,11 @@ from typing import Any
 
 from levels.files import json_default, staged_dir, write_json
 from levels.products import read_product
-from levels.quality import Headline
 from levels.tasks import Runner
 from station import __version__
 from station.outdir import replaceable_dir
 from station.scenario import Scenario
+from station.tables import product_table
 
 __all__ = [
     "REPORT_FORMAT",
@@ -396,11 +396,6 @@ def comparable_report(report: dict[str, Any]) -> dict[str, Any]:
     return strip(json.loads(json.dumps(report, default=json_default)))
 
 
-def _fmt(x: Any, spec: str) -> str:
-    """``x`` formatted by ``spec`` ("10.1f"), or a dash as wide when there is no figure."""
-    return "—".rjust(int(spec.split(".")[0])) if x is None else format(x, spec)
-
-
 def _downlink_line(dec: dict[str, Any]) -> str:
     """One HRV's decoding in a line: frames, errors, lines, and the check against the truth."""
     link, cadus, tc = dec["link"], dec["cadus"], dec["truth_check"]
@@ -424,6 +419,26 @@ def _downlink_line(dec: dict[str, Any]) -> str:
     )
 
 
+def product_entry(path: Path, where: str = "") -> dict[str, Any]:
+    """What a run's report says of a product beside its quality: its kind, its file (under
+    ``where`` in the run directory), its size in pixels and its first band's valid share."""
+    p = read_product(path, images=False)
+    first = next(iter(p.bands.values()))
+    return {
+        "level": p.level,
+        "file": f"{where}{path.name}",
+        "n_rows": int(p.attrs["n_rows"]),
+        "n_cols": int(p.attrs["n_cols"]),
+        "valid": round(float(first.valid.mean()), 6),
+    }
+
+
+def table_row(r: dict[str, Any]) -> dict[str, Any]:
+    """A product of a run's report as a row of :func:`station.tables.product_table`."""
+    band = r["bands"][0] if r.get("bands") else None
+    return {"valid": r.get("valid_fraction", {}).get(band), **r}
+
+
 def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> str:
     """The short human summary printed at the end of a run."""
     name, several = report["scenario"]["name"], len(report["hrvs"]) > 1
@@ -435,38 +450,12 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
             f"{h['processing']['scenes']} scene(s)"
         )
         lines.append(_downlink_line(h["decode"]))
-    hrv_col = f"{'HRV':>3} " if several else ""
-    lines.append(
-        f"{hrv_col}{'scene':>5} {'level':>5} {'size px':>11} {'valid':>6} "
-        f"{'LOS rms m':>10} {'LOS max m':>10} {'ground rms m':>13} "
-        f"{'approx max px':>14}  product"
-    )
-    for r in report["products"]:
-        band = r["bands"][0]
-        h = Headline.of(r["quality"], band)
-        valid = r["valid_fraction"].get(band)
-        hrv = f"{r['hrv']:3d} " if several else ""
-        lines.append(
-            f"{hrv}{r['scene']:5d} {r['level']:>5} {r['n_rows']:>5}×{r['n_cols']:<5} "
-            f"{_fmt(valid, '6.3f')} {_fmt(h.los_rms_m, '10.1f')} {_fmt(h.los_max_m, '10.1f')} "
-            f"{_fmt(h.ground_rms_m, '13.1f')} {_fmt(h.approx_max_px, '14.4f')}  {r['file']}"
-        )
+    lead = [("hrv", "HRV"), ("scene", "scene")] if several else [("scene", "scene")]
+    lines += product_table([table_row(r) for r in report["products"]], lead)
     for h in report["hrvs"]:
         for k in h["processing"]["skipped"]:
-            hrv = f"{h['hrv']:3d} " if several else ""
+            hrv = f"{h['hrv']:5d} " if several else ""
             lines.append(f"{hrv}{k['scene']:5d}  skipped: {k['reason']}")
-    stripes = [
-        (f"HRV{r['hrv']} " if several else "", r["scene"], h.band, *h.stripes_counts)
-        for r in report["products"]
-        if r["level"] == "1A"
-        for h in [Headline.of(r["quality"], r["bands"][0])]
-        if h.stripes_counts is not None
-    ]
-    if stripes:
-        lines.append(
-            "stripes raw → 1A (counts): "
-            + ", ".join(f"{h}scene {s} {b} {raw:.2f} → {cal:.2f}" for h, s, b, raw, cal in stripes)
-        )
     t = report["timings_s"]
     cor = sum(t.get("cor", {}).values())
     parts = [
@@ -582,12 +571,15 @@ def run_block(
     t0 = time.perf_counter()
     with staged_dir(out) as stage:
         reports = []
-        for s in scns:
+        for k, s in enumerate(scns, start=1):
+            _log.info("block %s: pass %d of %d, %s", name, k, len(scns), s.name)
             (stage / s.name).mkdir()
             reports.append(_run(s, stage / s.name, quicklooks, progress, runner, False))
         if scns[0].gcps.shared:
             _share_control_points(stage, scns)
+        _log.info("block %s: tie points between the passes' 2A scenes", name)
         ties = _block_ties(stage, scns)
+        _log.info("block %s: %d tie points", name, sum(p["points"] for p in ties["pairs"]))
         block: dict[str, Any] = {}
         stereo: dict[str, Any] = {}
         if "2" in processing.levels and processing.adjustment == "block":
@@ -607,10 +599,13 @@ def run_block(
                 )
                 return all_made(run_plans(plans, runner))
 
+            _log.info("block %s: level 2 of every pass on one adjustment", name)
             made = make(opts)
             if processing.stereo:
+                _log.info("block %s: the pair's DEM by dense matching", name)
                 stereo = _block_stereo(stage, scns)
                 if "3" in processing.levels and stereo["dems"]:
+                    _log.info("block %s: level 3 over the pair's own DEM", name)
                     dem = stage / "stereo" / stereo["dems"][0]["geotiff"]
                     made = make(
                         dataclasses.replace(
@@ -622,8 +617,7 @@ def run_block(
                     {
                         "pass": s.name,
                         "scene": sc.index,
-                        "level": level,
-                        "file": f"block/{p.name}",
+                        **product_entry(stage / "block" / p.name, "block/"),
                         "quality": sc.quality[level],
                     }
                     for s, pp in zip(scns, made, strict=True)
@@ -631,6 +625,8 @@ def run_block(
                     for level, p in sc.paths.items()
                 ],
             }
+        if quicklooks:
+            _quicklooks(stage, ("block", "stereo"))
         report = {
             "format": BLOCK_FORMAT,
             "format_version": 1,
@@ -645,6 +641,17 @@ def run_block(
         write_json(stage / "report.json", report)
         write_catalog(stage, name, f"the products of a block run of {name} (spot-station)")
     return report
+
+
+def _quicklooks(stage: Path, subdirs: tuple[str, ...]) -> None:
+    """A quicklook of every product in ``subdirs`` of a run, in ``<subdir>/quicklooks/``."""
+    from levels.products import is_product_file
+    from levels.quicklook import write_quicklook
+
+    for sub in subdirs:
+        for path in sorted((stage / sub).glob("*")) if (stage / sub).is_dir() else []:
+            if is_product_file(path):
+                write_quicklook(read_product(path), path.parent / "quicklooks" / f"{path.stem}.png")
 
 
 def _block_ties(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
@@ -690,10 +697,11 @@ def _block_stereo(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
     ``<stage>/stereo/`` with its GeoTIFF, measured against each pass's truth."""
     from levels.errors import GeometryError
     from levels.export import write_geotiff
+    from levels.makers.dem import dem_name, dem_product
     from levels.products import write_product
     from levels.readers.gcp import read_gcps
     from levels.readers.l0 import read_l0
-    from levels.stereo import StereoView, dem_name, dem_product, disparity_range, epipolar_pair
+    from levels.stereo import StereoView, disparity_range, epipolar_pair
     from levels.stereo import stereo_dem as make_dem
     from station.errors import ScenarioError
     from station.sipc.process import truth_for
@@ -729,7 +737,14 @@ def _block_stereo(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
         product = dem_product(dem, quality, inputs=[pa.name, pb.name])
         write_product(out / name, product)
         tif = write_geotiff(product, out / name.replace(".nc", ".tif"))
-        dems.append({"file": f"stereo/{name}", "geotiff": tif.name, "quality": quality})
+        dems.append(
+            {
+                **product_entry(out / name, "stereo/"),
+                "geotiff": tif.name,
+                "quality": quality,
+                "timings_s": {k: round(v, 4) for k, v in dem.timings_s.items()},
+            }
+        )
     return {"dems": dems}
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +34,8 @@ import pyproj
 from levels.options import build_section, option
 from station.errors import ScenarioError
 from station.scenario import DemConfig, WorldConfig, check_name, read_toml
+
+_log = logging.getLogger(__name__)
 
 __all__ = [
     "SAR_KEY",
@@ -325,7 +328,7 @@ def _mask_figures(g: Any, truth: Any) -> dict[str, Any]:
     return out
 
 
-def run_sar(scn: SarScenario, out_dir: str | Path) -> dict[str, Any]:
+def run_sar(scn: SarScenario, out_dir: str | Path, *, quicklooks: bool = False) -> dict[str, Any]:
     """Run a SAR scenario into ``out_dir`` (module docstring); returns the report (also in
     ``report.json``). Built in a staging directory that replaces ``out_dir`` only when
     complete: a failure leaves the previous run as it was."""
@@ -337,15 +340,17 @@ def run_sar(scn: SarScenario, out_dir: str | Path) -> dict[str, Any]:
         if not p.is_file():
             raise ScenarioError(f"{scn.name}: {p} not found")
     with staged_dir(out) as stage:
-        return _run(scn, stage)
+        return _run(scn, stage, quicklooks)
 
 
-def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
+def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
     from levels import __version__
     from levels.files import write_json
+    from levels.makers.sar import sar_product
     from levels.products import write_product
+    from levels.quicklook import write_quicklook
     from levels.readers.dem import read_dem
-    from levels.sar import frame_grid, geocode, sar_product, terrain_flattening
+    from levels.sar import frame_grid, geocode, terrain_flattening
     from station.catalog import CATALOG_FILE, write_catalog
     from station.run import scenario_entry
     from station.spacecraft.dem import export_dem_over
@@ -357,6 +362,7 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
     world = _world(scn)
     image, truth = emulate_frame(_frame(scn), world)
     timings["emulate"] = clock() - t
+    _log.info("SAR frame %s emulated in %.1f s", scn.name, timings["emulate"])
     ann = image.annotation
     ref = scn.reference_height_m
     dem = None
@@ -376,6 +382,7 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
         grid = frame_grid(ann, scn.sar.pixel_size_m, ref, 3.0 * world.relief_m)
         g = geocode(image, grid, dem=dem if level == "GTC" else None, reference_height_m=ref)
         timings[f"geocode_{level}"] = clock() - t
+        _log.info("%s geocoded in %.1f s; measuring it against the truth", level, clock() - t)
         t = clock()
         cp = checkpoint_errors(g, truth)
         quality: dict[str, Any] = {"checkpoints": cp["figures"]}
@@ -419,6 +426,8 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
             gamma0=gamma0,
         )
         path = write_product(out / f"{scn.name}_{level}.nc", product)
+        if quicklooks:
+            write_quicklook(product, out / "quicklooks" / f"{path.stem}.png")
         rows.append(
             {
                 "level": level,
@@ -462,29 +471,11 @@ def _run(scn: SarScenario, out: Path) -> dict[str, Any]:
 
 
 def sar_summary(report: dict[str, Any], out: Path) -> str:
-    """The run's table: each product, its checkpoints and masks against the truth."""
+    """The run's table: each product, its checkpoints and masks against the truth
+    (:func:`station.tables.product_table`: the figures their kinds declare)."""
+    from station.tables import product_table
+
     f = report["frame"]
+    rows = [{**p, "valid": p.get("valid_fraction")} for p in report["products"]]
     lines = [f"SAR frame {f['lines']} × {f['samples']} ({f['instrument']}) → {out}/"]
-    for p in report["products"]:
-        cp = p["quality"]["checkpoints"]
-        line = (
-            f"  {p['level']}: {p['n_rows']} × {p['n_cols']} px of {p['pixel_size_m']:g} m; "
-            f"checkpoints RMS {cp['rms_px']:.3f} px ({cp['rms_east_m']:.1f} m E, "
-            f"{cp['rms_north_m']:.1f} m N, {cp['points']} points)"
-        )
-        masks = p["quality"].get("masks", {})
-        if masks:
-            line += "; " + ", ".join(
-                f"{k} {v['pixels']} px (truth {v['truth_pixels']}"
-                + (f", IoU {v['iou']:.3f})" if v["iou"] is not None else ")")
-                for k, v in masks.items()
-            )
-        g0 = p["quality"].get("gamma0", {})
-        if g0.get("by_correction"):
-            b, u = g0["by_correction"], g0["unflattened_by_correction"]
-            line += (
-                f"; γ⁰ / truth {g0['mean_to_truth']:.3f} ({min(b):.3f}–{max(b):.3f} across "
-                f"slopes; σ⁰ on the ellipsoid {min(u):.2f}–{max(u):.2f})"
-            )
-        lines.append(line + f": {p['file']}")
-    return "\n".join(lines)
+    return "\n".join(lines + product_table(rows, []))

@@ -431,3 +431,15 @@ def test_a_failed_reprocessing_or_campaign_leaves_the_previous_one(run_dir, tmp_
     )
     one_line(capsys, code, EXIT_BAD_INPUT, "not published over the previous", "left as it was")
     assert tree(camp) == before
+
+
+def test_a_control_point_far_off_is_one_console_line(run_dir, tmp_path, capsys) -> None:
+    """One of the 12 points moved 1° (about 107 km): level 2 is made on the others
+    (exit 0) and says so in one line naming the point, never silently."""
+    far = _gcps_moved(run_dir / "small_test.gcp.csv", tmp_path / "one_far.csv", dlon=1.0, rows=1)
+    code = main(["process", str(run_dir / "small_test.l0.h5"), "--out", str(tmp_path / "out"),
+                 "--levels", "2", "--gcps", str(far)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 0, err
+    said = [ln for ln in err.splitlines() if "control point" in ln]
+    assert len(said) == 1 and "hrv1_p0000" in said[0] and "not used" in said[0], err

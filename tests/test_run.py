@@ -69,7 +69,9 @@ def test_run_prints_a_summary_table(tmp_path: Path, capsys) -> None:
     assert main(["run", str(SMALL), "--out", str(tmp_path), "--quiet", "--no-quicklooks"]) == 0
     out = capsys.readouterr().out
     assert "small_test: HRV1 P" in out and "truth check passed" in out
-    assert out.count("small_test_s000_") == 3 and "stripes raw → 1A" in out
+    rows = [ln for ln in out.splitlines() if ln.rstrip().endswith(("_1A.h5", "_1B.h5", "_2A.nc"))]
+    assert len(rows) == 3  # a line per product, then the 1A's stripes below the table
+    assert "small_test_s000_1A.h5: stripes raw → 1A P" in out
     assert not (tmp_path / "quicklooks").exists()
 
 

@@ -228,8 +228,8 @@ def test_a_gtc_product_opens_georeferenced_in_gdal(rugged, gtc, tmp_path) -> Non
 
     from levels.compare import compare_products
     from levels.export import write_geotiff
+    from levels.makers.sar import sar_product
     from levels.products import read_product, write_product
-    from levels.sar import sar_product
 
     image = rugged[0]
     grid, geocoded = gtc

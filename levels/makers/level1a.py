@@ -11,11 +11,13 @@ from typing import Any
 
 from levels.choices import Level
 from levels.cor.radiometry import stripe_level, to_counts
+from levels.kinds import Export
 from levels.makers.base import BandPixels, LevelMaker, Reads, SceneWork
+from levels.makers.scene import rpc_section, scene_kind
 from levels.makers.steps import common_tree, rpc_1a
 from levels.products import BandImage
 
-__all__ = ["MAKER"]
+__all__ = ["KIND", "MAKER"]
 
 
 def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
@@ -44,3 +46,6 @@ MAKER = LevelMaker(
     reads=Reads.CALIBRATED,
     raw_geometry=True,
 )
+
+#: The level's kind (:mod:`levels.kinds`, named in :mod:`levels.registry`).
+KIND = scene_kind(MAKER, Export.RPC, ("scene",), rpc_section, stripes=True)

@@ -13,11 +13,13 @@ from typing import Any
 from levels.choices import Level
 from levels.cor.resample import resample_1b
 from levels.geo.level1b import Level1BGeometry
+from levels.kinds import Export
 from levels.makers.base import BandPixels, LevelMaker, SceneWork
+from levels.makers.scene import plane_section, rpc_section, scene_kind
 from levels.makers.steps import common_tree, geometry_1b, radiometry, rpc_1b
 from levels.products import BandImage
 
-__all__ = ["MAKER"]
+__all__ = ["KIND", "MAKER"]
 
 
 def _prepare(work: SceneWork) -> None:
@@ -58,3 +60,6 @@ MAKER = LevelMaker(
     geometry_tree=_geometry_tree,
     prepare=_prepare,
 )
+
+#: The level's kind (:mod:`levels.kinds`, named in :mod:`levels.registry`).
+KIND = scene_kind(MAKER, Export.RPC, ("scene", "level_1b"), rpc_section, plane_section)

@@ -16,7 +16,9 @@ import numpy as np
 from levels.choices import Level
 from levels.cor.resample import resample_2a
 from levels.geo.level2a import Level2AGeometry
+from levels.kinds import Export
 from levels.makers.base import BandPixels, LevelMaker, Need, SceneWork
+from levels.makers.scene import adjustment_section, scene_kind
 from levels.makers.steps import (
     checkpoints_2a,
     first_map_grid,
@@ -26,7 +28,7 @@ from levels.makers.steps import (
 )
 from levels.products import BandImage, MapGrid
 
-__all__ = ["MAKER"]
+__all__ = ["KIND", "MAKER"]
 
 
 def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
@@ -102,3 +104,6 @@ MAKER = LevelMaker(
     map_grid=_map_grid,
     needs=frozenset({Need.ADJUSTMENT}),
 )
+
+#: The level's kind (:mod:`levels.kinds`, named in :mod:`levels.registry`).
+KIND = scene_kind(MAKER, Export.MAP, ("scene", "level_2a", "adjustment"), adjustment_section)

@@ -12,7 +12,9 @@ from typing import Any
 from levels.choices import InverseMethod, Level
 from levels.cor.resample import resample_2a
 from levels.geo.level2a import Level2AGeometry
+from levels.kinds import Export
 from levels.makers.base import BandPixels, LevelMaker, SceneWork
+from levels.makers.scene import scene_kind
 from levels.makers.steps import (
     checkpoints_2a,
     common_tree,
@@ -22,7 +24,7 @@ from levels.makers.steps import (
 )
 from levels.products import BandImage, MapGrid
 
-__all__ = ["MAKER"]
+__all__ = ["KIND", "MAKER"]
 
 
 def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
@@ -65,3 +67,6 @@ MAKER = LevelMaker(
     prepare=geometry_2a,
     map_grid=_map_grid,
 )
+
+#: The level's kind (:mod:`levels.kinds`, named in :mod:`levels.registry`).
+KIND = scene_kind(MAKER, Export.MAP, ("scene", "level_2a"))

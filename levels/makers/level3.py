@@ -17,11 +17,13 @@ import numpy as np
 from levels.choices import Level
 from levels.cor.resample import resample_3
 from levels.geo.level3 import Level3Geometry
+from levels.kinds import Export
 from levels.makers.base import BandPixels, LevelMaker, Need, SceneWork
+from levels.makers.scene import dem_section, scene_kind
 from levels.makers.steps import first_map_grid, geometry_3, radiometry, scene_3
 from levels.products import BandImage, MapGrid
 
-__all__ = ["MAKER"]
+__all__ = ["KIND", "MAKER"]
 
 
 def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
@@ -97,3 +99,6 @@ MAKER = LevelMaker(
     map_grid=_map_grid,
     needs=frozenset({Need.DEM}),
 )
+
+#: The level's kind (:mod:`levels.kinds`, named in :mod:`levels.registry`).
+KIND = scene_kind(MAKER, Export.MAP, ("scene", "level_3"), dem_section)

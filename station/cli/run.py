@@ -16,10 +16,6 @@ __all__ = ["DEFAULT_SCENARIO", "register"]
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "quickstart.toml"
 
 
-#: The checkpoint figure a block's product line shows: the first its quality has.
-_BLOCK_FIGURES = (("line_of_sight", "line of sight"), ("ground", "on the terrain"))
-
-
 def register(sub: Any) -> None:
     p = sub.add_parser(
         "run",
@@ -88,6 +84,7 @@ def _run_block(path: Path, args: argparse.Namespace) -> int:
     import json
 
     from station.run import block_scenarios, run_block, summary_table
+    from station.tables import product_table
 
     name, scns, _ = block_scenarios(path)
     out = Path(args.out) if args.out else Path("runs") / name
@@ -115,21 +112,14 @@ def _run_block(path: Path, args: argparse.Namespace) -> int:
             f"tie points: {sum(p['points'] for p in pairs)} between {len(pairs)} pair(s) of "
             f"scenes, in {out}/ties/"
         )
-        for p in report["block"].get("products", []):
-            # level 2: the line of sight at the reference height; level 3: on the terrain
-            figures = {
-                k.split("/")[2]: v
-                for k, v in p["quality"].items()
-                if k.startswith("checkpoints/") and k.endswith("/rms_m")
-            }
-            what, rms = next(
-                ((w, figures[k]) for k, w in _BLOCK_FIGURES if k in figures), (None, None)
-            )
-            print(
-                f"block: {p['pass']} scene {p['scene']} level {p['level']}"
-                + (f", {what} RMS {rms:.1f} m" if rms is not None else "")
-                + f": {out}/{p['file']}"
-            )
+        block = report["block"].get("products", [])
+        if block:
+            print(f"the block's adjustment, in {out}/block/:")
+            print("\n".join(product_table(block, [("pass", "pass"), ("scene", "scene")])))
+        dems = report.get("stereo", {}).get("dems", [])
+        if dems:
+            print(f"the pair's DEM against the true terrain, in {out}/stereo/:")
+            print("\n".join(product_table(dems, [])))
     made = len(report["block"].get("products", [])) + sum(
         len(r["products"]) for r in report["passes"]
     )
@@ -161,7 +151,7 @@ def _run_sar(path: Path, args: argparse.Namespace) -> int:
         return 0
     if not args.json and not args.quiet:
         print(f"running the SAR frame {path} into {out}/ ...", file=sys.stderr)
-    report = run_sar(scn, out)
+    report = run_sar(scn, out, quicklooks=not args.no_quicklooks)
     print(json.dumps(report, indent=2) if args.json else sar_summary(report, out))
     return exit_made(len(report["products"]), "the run")
 

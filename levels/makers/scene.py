@@ -1,0 +1,211 @@
+"""What the scene levels (1A, 1B, 2A, 2, 3) declare alike: their headline figures, their
+``inspect`` title and sections, their STAC properties; each level's module composes its
+:class:`~levels.kinds.ProductKind` from these (:func:`scene_kind`)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from levels.kinds import Export, Figure, Inspection, ProductKind, Unit
+from levels.makers.base import no_map_grid
+from levels.quality import Headline
+
+if TYPE_CHECKING:
+    from levels.makers.base import LevelMaker
+    from levels.products import Product
+
+__all__ = [
+    "SCENE_FIGURES",
+    "Section",
+    "adjustment_section",
+    "dem_section",
+    "plane_section",
+    "rpc_section",
+    "scene_kind",
+]
+
+#: A section of ``inspect``: its JSON sections and its lines of text.
+Section = Callable[["Product"], tuple[dict[str, Any], tuple[str, ...]]]
+
+
+def _headline(attr: str) -> Callable[[Mapping[str, Any]], float | None]:
+    def value(figures: Mapping[str, Any]) -> float | None:
+        v = getattr(Headline.of(figures), attr)
+        return None if v is None else float(v)
+
+    return value
+
+
+#: The scene levels' columns: checkpoint errors along the line of sight (RMS, max) and on
+#: the ground (RMS), and the product's geometry against the rigorous model.
+SCENE_FIGURES = (
+    Figure("LOS rms m", "10.1f", _headline("los_rms_m")),
+    Figure("LOS max m", "10.1f", _headline("los_max_m")),
+    Figure("ground rms m", "13.1f", _headline("ground_rms_m")),
+    Figure("approx max px", "14.4f", _headline("approx_max_px")),
+)
+
+
+def _title(product: Product) -> str:
+    a = product.attrs
+    return (
+        f"level {a.get('level')} of {a.get('name')} scene {a.get('scene_index')}, "
+        f"HRV{a.get('hrv')} {a.get('mode')}, mirror step {a.get('mirror_step')}, "
+        f"{a.get('n_rows')} × {a.get('n_cols')} px"
+        + (f" of {a['pixel_size_m']:g} m" if a.get("pixel_size_m") else "")
+    )
+
+
+def rpc_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """The RPCs an image-geometry product carries, and their fit to the rigorous model."""
+    rpcs = product.geometry.get("rpc") or {}
+    section = {
+        band: {k: float(v) for k, v in tree.get("fit_error_px", {}).items()}
+        for band, tree in rpcs.items()
+    }
+    lines = tuple(
+        f"  RPC {band}: against the rigorous model RMS {e['rms_px']:.4f} px, max "
+        f"{e['max_px']:.4f} px over {e['height_min_m']:.0f}–{e['height_max_m']:.0f} m"
+        for band, e in section.items()
+    )
+    return ({"rpc": section} if section else {}), lines
+
+
+def plane_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """A 1B's tangent plane (INPE's)."""
+    g1b = product.geometry["level_1b"]
+    plane = {
+        "pixel_size_m": float(g1b["pixel_size_m"]),
+        "origin_ecef_m": np.asarray(g1b["plane_ecef_m"])[0].tolist(),
+    }
+    return {"plane": plane}, ()
+
+
+def dem_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """The DEM a level 3 was made over, and its anchor grids."""
+    g3 = product.geometry["level_3"]
+    dem = g3.get("dem", {})
+    d = {
+        "source": Path(str(dem.get("source", ""))).name,
+        "vertical": dem.get("vertical"),
+        "spacing_m": float(dem.get("spacing_m", np.nan)),
+        "anchor_heights_m": np.asarray(g3.get("heights_m", [])).tolist(),
+        "anchor_error_max_px": max(
+            (float(e.get("max_px", np.nan)) for e in g3.get("anchor_error_px", {}).values()),
+            default=None,
+        ),
+    }
+    line = (
+        f"  DEM {d['source']} ({d['vertical']}, {d['spacing_m']:.0f} m), anchor grids at "
+        + ", ".join(f"{h:.0f}" for h in d["anchor_heights_m"])
+        + f" m, their error ≤ {d['anchor_error_max_px']:.4f} px"
+    )
+    return {"dem": d}, (line,)
+
+
+def adjustment_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """A level 2's adjustment: the accuracy it predicts, the control points it used and
+    those it rejected as blunders (by id), their residuals."""
+    import json
+
+    adj = product.geometry["adjustment"]
+    points = adj.get("points", {})
+    ids = json.loads(points.get("id", "[]"))
+    status = json.loads(points.get("status", "[]"))
+    after = np.asarray(points.get("residual_after_px", np.zeros((0, 2))), dtype=np.float64)
+    residual = np.hypot(after[:, 0], after[:, 1]) if after.size else np.zeros(0)
+    used = [i for i, s in zip(ids, status, strict=True) if s == "used"]
+    rejected = {
+        i: float(r) for i, s, r in zip(ids, status, residual, strict=True) if s == "rejected"
+    }
+    sigma = {k: float(v) for k, v in adj.get("predicted_sigma_m", {}).items()}
+    ok = residual[[s == "used" for s in status]] if residual.size else residual
+    section = {
+        "mode": str(adj.get("mode", "")),
+        "predicted_sigma_m": sigma,
+        "points_used": len(used),
+        "points_rejected": sorted(rejected),
+        "residual_rms_px": float(np.sqrt(np.mean(ok**2))) if ok.size else None,
+    }
+    lines = [
+        f"  adjustment ({section['mode']}): {len(used)} control point(s) used"
+        + (
+            f", residual RMS {section['residual_rms_px']:.2f} px"
+            if section["residual_rms_px"] is not None
+            else ""
+        )
+        + (
+            f"; predicted σ {sigma['horizontal']:.1f} m horizontal "
+            f"({sigma.get('prior_horizontal', float('nan')):.1f} m before)"
+            if "horizontal" in sigma
+            else ""
+        )
+    ]
+    lines += [f"  rejected {i}: residual {r:.1f} px" for i, r in sorted(rejected.items())]
+    return {"adjustment": section}, tuple(lines)
+
+
+def _inspection(*sections: Section) -> Callable[[Product], Inspection]:
+    def inspect(product: Product) -> Inspection:
+        found: dict[str, Any] = {}
+        lines: list[str] = []
+        for s in sections:
+            d, more = s(product)
+            found.update(d)
+            lines += more
+        return Inspection(_title(product), found, tuple(lines))
+
+    return inspect
+
+
+def _control_notes(figures: Mapping[str, Any]) -> tuple[str, ...]:
+    used = figures.get("control_points/used")
+    if used is None:
+        return ()
+    sigma = figures.get("predicted_sigma_m/horizontal")
+    return (
+        f"{used} control point(s) used, {figures.get('control_points/rejected', 0)} rejected"
+        + (f"; predicted σ {sigma:.1f} m horizontal" if sigma is not None else ""),
+    )
+
+
+def _stripe_notes(figures: Mapping[str, Any]) -> tuple[str, ...]:
+    h = Headline.of(figures)
+    if h.stripes_counts is None:
+        return ()
+    raw, cal = h.stripes_counts
+    return (f"stripes raw → 1A {h.band} {raw:.2f} → {cal:.2f} counts",)
+
+
+def _scene_stac(product: Product) -> dict[str, Any]:
+    return {"processing:level": f"L{product.level}"}
+
+
+def scene_kind(
+    maker: LevelMaker,
+    export: Export,
+    geometry_trees: tuple[str, ...],
+    *sections: Section,
+    stripes: bool = False,
+) -> ProductKind:
+    """The kind of a scene level made by ``maker``: its export, the geometry trees its
+    products carry, its ``inspect`` sections; its figures the scene levels'; its notes
+    the stripes (``stripes``: 1A) or its control points (when its quality has them)."""
+    return ProductKind(
+        name=str(maker.name),
+        doc=maker.doc,
+        unit=Unit.SCENE,
+        on_map=maker.map_grid is not no_map_grid,
+        geometry_trees=geometry_trees,
+        export=export,
+        inspect=_inspection(*sections),
+        requires=maker.requires,
+        figures=SCENE_FIGURES,
+        notes=_stripe_notes if stripes else _control_notes,
+        stac=_scene_stac,
+        maker=maker,
+    )
