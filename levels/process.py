@@ -32,7 +32,7 @@ import json
 import logging
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -75,6 +75,7 @@ __all__ = [
     "geo_pass",
     "make_scene",
     "nominal_pixel_size_m",
+    "pair_kinds_of",
     "pass_dem",
     "passes_of",
     "plan",
@@ -223,11 +224,13 @@ def plan_levels(levels: Sequence[str]) -> tuple[LevelMaker, ...]:
     """The makers of the ``levels`` asked and of the levels they require
     (:attr:`LevelMaker.requires`), each after those it requires, otherwise in the order of
     :func:`levels.registry.level_names`."""
-    from levels.registry import level_names
+    from levels.kinds import Unit
+    from levels.registry import kind, level_names
 
     order = {name: k for k, name in enumerate(level_names())}
     wanted: dict[str, LevelMaker] = {}
-    todo = list(levels)
+    # a pair's kinds are made by the block's driver (levels.block), of the scenes' levels
+    todo = [lv for lv in levels if lv not in order or kind(lv).unit is Unit.SCENE]
     while todo:
         name = todo.pop()
         if name not in wanted:
@@ -247,6 +250,30 @@ def plan_levels(levels: Sequence[str]) -> tuple[LevelMaker, ...]:
         out.append(ready)
         pending.remove(ready)
     return tuple(out)
+
+
+def _recorded(options: ProcessingOptions, out: Path, root: Path) -> ProcessingOptions:
+    """The options as a product records them: a DEM inside the published directory ``root``
+    as a path relative to the products' directory ``out`` (a staging directory's name is
+    renamed away when published), one outside it as given."""
+    import os
+
+    if not options.dem_path:
+        return options
+    dem = Path(options.dem_path).absolute()
+    if not dem.is_relative_to(Path(root).absolute()):
+        return options
+    return replace(options, dem_path=os.path.relpath(dem, Path(out).absolute()))
+
+
+def pair_kinds_of(options: ProcessingOptions) -> list[Any]:
+    """The kinds of a pair the options ask for (:attr:`levels.kinds.Unit.PAIR`: made of two
+    passes by :func:`levels.block.process_block`, not by a pass's scene tasks)."""
+    from levels.kinds import Unit
+    from levels.registry import kind, kind_names
+
+    known = set(kind_names())
+    return [kind(lv) for lv in options.levels if lv in known and kind(lv).unit is Unit.PAIR]
 
 
 def _needs(makers: Sequence[LevelMaker]) -> frozenset[Need]:
@@ -296,6 +323,11 @@ class ProcessingRequest:
     dem
         The DEM of level 3 when already read; by default :func:`pass_dem` reads the
         options'.
+    root
+        The directory the products are published in (a run's, a reprocessing's; by default
+        ``out_dir``): a file inside it (the DEM) is recorded in the products' provenance
+        relative to their own directory, so that a run records the same bytes wherever it
+        is staged and published.
     """
 
     archives: tuple[L0Archive, ...]
@@ -306,6 +338,7 @@ class ProcessingRequest:
     gcps: tuple[ControlPointSet | None, ...] = ()
     provenance: Mapping[str, Any] = field(default_factory=dict)
     dem: Dem | None = None
+    root: Path | None = None
 
     def __post_init__(self) -> None:
         n = len(self.archives)
@@ -386,6 +419,12 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
     :func:`levels.adjust.adjust_strips`, so that control points in one HRV serve the
     other), the output directory."""
     opt, archives = request.options, request.archives
+    pairs = [k.name for k in pair_kinds_of(opt)]
+    if pairs:
+        raise OptionsError(
+            f"{pairs[0]} is made of a pair of passes (levels.block): give the archives of two "
+            "passes over one ground, with level 2"
+        )
     makers = plan_levels(opt.levels)
     needs = _needs(makers)
     if Need.ADJUSTMENT in needs and any(g is None for g in request.gcps):
@@ -561,7 +600,7 @@ def _plan_archive(
     prov = {
         "software": f"spot-station {__version__}",
         "inputs": Path(archive.path).name,
-        "processing": json.dumps(asdict(options)),
+        "processing": json.dumps(asdict(_recorded(options, out, request.root or out))),
         **archive.provenance,
         **request.provenance,
     }

@@ -99,15 +99,17 @@ def unregister_kind(name: str) -> None:
 
 
 def level_names() -> tuple[str, ...]:
-    """Every scene level that can be asked for: the built-in ones, then those registered."""
-    return kind_names(Unit.SCENE)
+    """Every level ``[processing] levels`` can ask for: the kinds of a scene and of a pair
+    of passes (made from archives; a SAR frame's are not), the built-in ones, then those
+    registered."""
+    return tuple(n for n in kind_names() if kind(n).unit in (Unit.SCENE, Unit.PAIR))
 
 
 def level_maker(name: str) -> LevelMaker:
     """The maker of scene level ``name``; :class:`KeyError` naming the known levels if
     none."""
-    if name not in level_names():
-        raise KeyError(f"no level {name!r}; known: {', '.join(level_names())}")
+    if name not in kind_names(Unit.SCENE):
+        raise KeyError(f"no level {name!r}; known: {', '.join(kind_names(Unit.SCENE))}")
     maker: LevelMaker = kind(name).maker
     return maker
 

@@ -26,11 +26,8 @@ with the same scenario and seed give identical products and the same report
 
 from __future__ import annotations
 
-import functools
-import itertools
 import json
 import logging
-import operator
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -557,11 +554,8 @@ def run_block(
     two passes whose 2A scenes overlap (:mod:`levels.tiepoints`, ``<out>/ties/``); then, with
     level 2 asked and ``adjustment = "block"``, every pass's level 2 on one adjustment
     (``<out>/block/``, checkpoints against each pass's truth). Published whole, as a run."""
-    import dataclasses
 
-    from levels.process import all_made, run_plans
     from station.catalog import write_catalog
-    from station.sipc.process import plan_reprocess
 
     name, scns, processing = block_scenarios(path)
     inputs = [i for s in scns for i in s.inputs()]
@@ -577,41 +571,9 @@ def run_block(
             reports.append(_run(s, stage / s.name, quicklooks, progress, runner, False))
         if scns[0].gcps.shared:
             _share_control_points(stage, scns)
-        _log.info("block %s: tie points between the passes' 2A scenes", name)
-        ties = _block_ties(stage, scns)
-        _log.info("block %s: %d tie points", name, sum(p["points"] for p in ties["pairs"]))
-        block: dict[str, Any] = {}
-        stereo: dict[str, Any] = {}
-        if "2" in processing.levels and processing.adjustment == "block":
-            opts = processing
-            first = scns[0].name
-            if not opts.dem_path and scns[0].dem is not None:  # the first pass's export
-                opts = dataclasses.replace(opts, dem_path=str(stage / first / f"{first}.dem.tif"))
-            keep = tuple(lv for lv in opts.levels if lv in ("2", "3"))
-            if processing.stereo:  # level 3 waits for the pair's own DEM
-                keep = ("2",)
-            opts = dataclasses.replace(opts, levels=keep)
-            l0s = [stage / s.name / f"{s.name}.l0.h5" for s in scns]
-
-            def make(o: Any) -> Any:
-                plans = plan_reprocess(
-                    l0s, stage / "block", options=o, scenario=scns, ties_dir=stage / "ties"
-                )
-                return all_made(run_plans(plans, runner))
-
-            _log.info("block %s: level 2 of every pass on one adjustment", name)
-            made = make(opts)
-            if processing.stereo:
-                _log.info("block %s: the pair's DEM by dense matching", name)
-                stereo = _block_stereo(stage, scns)
-                if "3" in processing.levels and stereo["dems"]:
-                    _log.info("block %s: level 3 over the pair's own DEM", name)
-                    dem = stage / "stereo" / stereo["dems"][0]["geotiff"]
-                    made = make(
-                        dataclasses.replace(
-                            opts, levels=("2", "3"), dem_path=str(dem), dem_vertical="ellipsoid"
-                        )
-                    )
+        done = _block(stage, scns, processing, runner, name)
+        block, stereo = {}, {}
+        if done.passes:
             block = {
                 "products": [
                     {
@@ -620,11 +582,24 @@ def run_block(
                         **product_entry(stage / "block" / p.name, "block/"),
                         "quality": sc.quality[level],
                     }
-                    for s, pp in zip(scns, made, strict=True)
+                    for s, pp in zip(scns, done.passes, strict=True)
                     for sc in pp.scenes
                     for level, p in sc.paths.items()
                 ],
             }
+        if processing.stereo:
+            stereo = {
+                "dems": [
+                    {
+                        **product_entry(p.path, "stereo/"),
+                        "geotiff": p.export.name if p.export else None,
+                        "quality": p.quality,
+                        "timings_s": {k: round(v, 4) for k, v in p.timings_s.items()},
+                    }
+                    for p in done.pairs
+                ]
+            }
+        ties = done.ties
         if quicklooks:
             _quicklooks(stage, ("block", "stereo"))
         report = {
@@ -643,6 +618,49 @@ def run_block(
     return report
 
 
+def _block(
+    stage: Path, scns: list[Scenario], processing: Any, runner: Runner | None, name: str
+) -> Any:
+    """The block's tie points, level 2 and 3 and the pair's DEM (:func:`levels.block.
+    process_block`) on the passes' runs in ``stage``, measured against each pass's truth."""
+    import dataclasses
+
+    from levels.block import BlockRequest, process_block
+    from levels.readers.gcp import read_gcps
+    from levels.readers.l0 import read_l0
+    from station.sipc.process import truth_for
+    from station.sipc.stereo import StereoTruth, stereo_quality
+
+    archives = [read_l0(stage / s.name / f"{s.name}.l0.h5", lazy=True) for s in scns]
+    truths = [truth_for(s, a) for s, a in zip(scns, archives, strict=True)]
+    opts = processing
+    if processing.adjustment != "block":  # each pass's own adjustment: the ties alone
+        opts = dataclasses.replace(opts, levels=("2A",), stereo=False)
+    elif not opts.dem_path and scns[0].dem is not None:  # the first pass's export
+        first = scns[0].name
+        opts = dataclasses.replace(opts, dem_path=str(stage / first / f"{first}.dem.tif"))
+    request = BlockRequest(
+        tuple(archives),
+        tuple(s.name for s in scns),
+        tuple(
+            read_gcps(stage / s.name / f"{s.name}.gcp.csv", a.n_lines, a.n_columns)
+            for s, a in zip(scns, archives, strict=True)
+        ),
+        tuple(stage / s.name for s in scns),
+        opts,
+        stage,
+        checkpoints=tuple(truths),
+    )
+    truth = StereoTruth(*truths[:2]) if len(truths) == 2 else None
+
+    def measure(dem: Any) -> dict[str, Any]:
+        assert truth is not None  # a pair's products take two passes (levels.block)
+        return stereo_quality(dem, truth, truth.a.acq.world)
+
+    _log.info("block %s: tie points, level 2 and the pair's products", name)
+    return process_block(request, runner, measure)
+
+
 def _quicklooks(stage: Path, subdirs: tuple[str, ...]) -> None:
     """A quicklook of every product in ``subdirs`` of a run, in ``<subdir>/quicklooks/``."""
     from levels.products import is_product_file
@@ -652,100 +670,6 @@ def _quicklooks(stage: Path, subdirs: tuple[str, ...]) -> None:
         for path in sorted((stage / sub).glob("*")) if (stage / sub).is_dir() else []:
             if is_product_file(path):
                 write_quicklook(read_product(path), path.parent / "quicklooks" / f"{path.stem}.png")
-
-
-def _block_ties(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
-    """Tie points between every two passes' overlapping 2A scenes, each pass's merged into
-    ``<stage>/ties/<pass>.tie.csv``; what was found, per pair."""
-    from levels.errors import GeometryError
-    from levels.readers.gcp import write_gcps
-    from levels.tiepoints import MapView, match_views
-
-    views = {
-        s.name: [
-            MapView.of_product(read_product(p)) for p in sorted((stage / s.name).glob("*_2A.nc"))
-        ]
-        for s in scns
-    }
-    per: dict[str, list[Any]] = {s.name: [] for s in scns}
-    pairs = []
-    for a, b in itertools.combinations([s.name for s in scns], 2):
-        for va, vb in itertools.product(views[a], views[b]):
-            try:
-                tp = match_views(va, vb)
-            except GeometryError:  # these two scenes do not overlap
-                continue
-            if not len(tp):
-                continue
-            per[a].append(tp.control_points("a"))
-            per[b].append(tp.control_points("b"))
-            pair = {"a": a, "b": b, "scene_a": va.scene, "scene_b": vb.scene}
-            pairs.append({**pair, "points": len(tp), "counts": tp.counts})
-    (stage / "ties").mkdir(exist_ok=True)
-    for n, sets in per.items():
-        if sets:
-            comment = f"tie points of {n} (docs/gcp.md)"
-            write_gcps(
-                stage / "ties" / f"{n}.tie.csv", functools.reduce(operator.add, sets), comment
-            )
-    return {"pairs": pairs}
-
-
-def _block_stereo(stage: Path, scns: list[Scenario]) -> dict[str, Any]:
-    """The DEM of every overlapping pair of scenes of the block's first two passes
-    (:mod:`levels.stereo`), on their level 2 (``<stage>/block/``), 1A and tie points, into
-    ``<stage>/stereo/`` with its GeoTIFF, measured against each pass's truth."""
-    from levels.errors import GeometryError
-    from levels.export import write_geotiff
-    from levels.makers.dem import dem_name, dem_product
-    from levels.products import write_product
-    from levels.readers.gcp import read_gcps
-    from levels.readers.l0 import read_l0
-    from levels.stereo import StereoView, disparity_range, epipolar_pair
-    from levels.stereo import stereo_dem as make_dem
-    from station.errors import ScenarioError
-    from station.sipc.process import truth_for
-    from station.sipc.stereo import StereoTruth, stereo_quality
-
-    if len(scns) != 2:
-        raise ScenarioError(f"stereo takes a block of two passes, got {len(scns)}")
-    a, b = scns
-    truth = StereoTruth(
-        *(truth_for(s, read_l0(stage / s.name / f"{s.name}.l0.h5", lazy=True)) for s in scns)
-    )
-    ties = [read_gcps(stage / "ties" / f"{s.name}.tie.csv") for s in scns]
-    out = stage / "stereo"
-    out.mkdir(exist_ok=True)
-    dems = []
-    for pa, pb in itertools.product(
-        sorted((stage / "block").glob(f"{a.name}_s*_2.nc")),
-        sorted((stage / "block").glob(f"{b.name}_s*_2.nc")),
-    ):
-        views = [
-            StereoView.of_products(
-                read_product(p), read_product(stage / s.name / p.name.replace("_2.nc", "_1A.h5"))
-            )
-            for p, s in ((pa, a), (pb, b))
-        ]
-        try:
-            pair = epipolar_pair(*views)
-        except GeometryError:  # these two scenes do not overlap
-            continue
-        dem = make_dem(pair, disparity_range(pair, *ties))
-        quality = stereo_quality(dem, truth, truth.a.acq.world)
-        name = dem_name(dem)
-        product = dem_product(dem, quality, inputs=[pa.name, pb.name])
-        write_product(out / name, product)
-        tif = write_geotiff(product, out / name.replace(".nc", ".tif"))
-        dems.append(
-            {
-                **product_entry(out / name, "stereo/"),
-                "geotiff": tif.name,
-                "quality": quality,
-                "timings_s": {k: round(v, 4) for k, v in dem.timings_s.items()},
-            }
-        )
-    return {"dems": dems}
 
 
 def _share_control_points(stage: Path, scns: list[Scenario]) -> None:

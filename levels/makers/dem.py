@@ -10,11 +10,15 @@ measured them.
 from __future__ import annotations
 
 import datetime as dt
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from levels import __version__
+from levels.block import Measure, PairMade, PairMaker, PairScene
+from levels.choices import Level
+from levels.errors import GeometryError
 from levels.kinds import (
     BandSpec,
     Browse,
@@ -66,6 +70,33 @@ def _stac(product: Product) -> dict[str, Any]:
     }
 
 
+def _make(a: PairScene, b: PairScene, out: Path, measure: Measure | None) -> PairMade | None:
+    """The DEM of two scenes (their level 2 and 1A products, their passes' tie points) into
+    ``out``, with its GeoTIFF; None when their epipolar frames do not overlap."""
+    from levels.export import write_geotiff
+    from levels.products import read_product, write_product
+    from levels.stereo import StereoView, disparity_range, epipolar_pair, stereo_dem
+
+    va, vb = (
+        StereoView.of_products(
+            read_product(s.products[Level.L2]), read_product(s.products[Level.L1A])
+        )
+        for s in (a, b)
+    )
+    try:
+        pair = epipolar_pair(va, vb)
+    except GeometryError:  # these two scenes do not overlap
+        return None
+    dem = stereo_dem(pair, disparity_range(pair, a.ties, b.ties))
+    quality = measure(dem) if measure is not None else {}
+    name = dem_name(dem)
+    inputs = [s.products[Level.L2].name for s in (a, b)]
+    product = dem_product(dem, quality, inputs=inputs)
+    path = write_product(out / name, product)
+    tif = write_geotiff(product, out / name.replace(".nc", ".tif"))
+    return PairMade(path, tif, quality, dict(dem.timings_s))
+
+
 KIND = ProductKind(
     name="DEM",
     doc="a stereo pair's DEM: heights above the ellipsoid, triangulated",
@@ -84,7 +115,7 @@ KIND = ProductKind(
     # the raster level 3 and any GIS read as a DEM: its heights alone, NaN GDAL's nodata
     export_bands=("height_m",),
     export_tags=("vertical",),
-    requires=("1A", "2"),
+    requires=(Level.L1A, Level.L2),
     figures=(
         # against the true terrain: as made (its datum from the control points), and its
         # own error with the datum (bias and tilt) taken off; the disparity's own error
@@ -97,6 +128,7 @@ KIND = ProductKind(
     ),
     browse=Browse("height_m", "terrain", "height above the WGS84 ellipsoid (m)"),
     stac=_stac,
+    maker=PairMaker(_make),
     # heights in metres: a different CPU's last bits, never a centimetre
     tolerances={"pixels": {"quantity_max_abs": 0.01, "quantity_rms": 0.001}},
 )
