@@ -23,6 +23,7 @@ An Item says, from the product alone:
 from __future__ import annotations
 
 import datetime as dt
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,8 @@ import numpy as np
 from levels.kinds import Unit
 from levels.products import Product, is_product_file, read_product
 from levels.registry import kind_of
+
+_log = logging.getLogger(__name__)
 
 __all__ = ["CATALOG_FILE", "EXTENSIONS", "footprint_geojson", "item_of", "write_catalog"]
 
@@ -144,8 +147,14 @@ def _grid_item(product: Product, path: Path, props: dict[str, Any]) -> Any:
     import pystac
 
     grid = product.map_grid
-    if grid is None:
-        raise ValueError(f"{path}: a {product.level} product without a map grid")
+    if grid is None or not (props.get("datetime") or props.get("start_datetime")):
+        # neither a scene's sensor model nor a map grid and a time: nothing to place it by
+        _log.warning(
+            "%s: a %s product says neither where nor when it is; not in the catalogue",
+            path.name,
+            product.level,
+        )
+        return None
     gt, (rows, cols) = grid.geotransform, grid.shape
     x = np.array([gt[0], gt[0] + cols * gt[1], gt[0] + cols * gt[1], gt[0]])
     y = np.array([gt[3], gt[3], gt[3] + rows * gt[5], gt[3] + rows * gt[5]])
@@ -283,8 +292,10 @@ def _fill(catalog: Any, directory: Path, root: Path) -> int:
 
     n = 0
     for path in sorted(p for p in directory.iterdir() if p.is_file() and is_product_file(p)):
-        catalog.add_item(item_of(path, root))
-        n += 1
+        item = item_of(path, root)
+        if item is not None:
+            catalog.add_item(item)
+            n += 1
     for sub in sorted(p for p in directory.iterdir() if p.is_dir() and p.name != "stac"):
         child = pystac.Catalog(id=sub.name, description=f"the products of {sub.name}")
         if _fill(child, sub, root):

@@ -10,6 +10,7 @@ against bounds measured on it with margin (named below); the full-size figures a
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -279,3 +280,87 @@ def test_compare_of_two_stereo_runs_names_a_dem_raised_half_a_metre(
     assert main(["compare", str(stereo_run), str(edited)]) == EXIT_DIFFERENT
     out = capsys.readouterr().out
     assert f"{entry['file']}: bands/height_m/max_abs = 0.5" in out, out
+
+
+def _archives(run: Path) -> list[str]:
+    return [str(run / n / f"{n}.l0.h5") for n in ("stereo_pair_a", "stereo_pair_b")]
+
+
+def test_station_process_makes_the_runs_dem_and_level_3_from_its_archives(
+    stereo_run: Path, tmp_path: Path
+) -> None:
+    """The library plans several archives itself: `station process A B --levels 2,DEM,3`
+    with the block's scenario (for the truth) makes the run's tie points, level 2, DEM and
+    level 3, which `compare` finds within tolerance (exit 0)."""
+    from station.cli import main
+
+    out = tmp_path / "proc"
+    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "stereo" / "stereo_pair.toml"
+    args = ["process", *_archives(stereo_run), "--levels", "2,DEM,3", "--scenario", str(scenario)]
+    assert main([*args, "--out", str(out), "-q"]) == 0
+    report = json.loads((stereo_run / "report.json").read_text())
+    (entry,) = report["stereo"]["dems"]
+    made = [entry["file"], *(f"block/stereo_pair_{s}_s000_{lv}.nc" for s in "ab" for lv in "23")]
+    for name in made:
+        assert main(["compare", str(stereo_run / name), str(out / name), "-q"]) == 0, name
+    done = json.loads((out / "process.json").read_text())
+    assert done["ties"]["pairs"][0]["points"] == report["ties"]["pairs"][0]["points"]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Toy:
+    """A toy kind of a pair, declared in this test module alone: the two scenes' level 2
+    means, as one pixel of counts."""
+
+    @staticmethod
+    def make(a, b, out: Path, measure) -> object:
+        from levels.block import PairMade
+        from levels.products import BandImage, Product, read_product, write_product
+
+        means = [
+            float(p.bands["P"].image[p.bands["P"].valid].mean())
+            for p in (read_product(s.products["2"]) for s in (a, b))
+        ]
+        mean = np.array([[round(sum(means) / 2)]], np.uint8)
+        product = Product(
+            attrs={"level": "toy", "name": f"{a.name}_{b.name}", "n_rows": 1, "n_cols": 1},
+            bands={"P": BandImage(mean, np.ones((1, 1), bool))},
+            quality={"means": np.array(means)},
+        )
+        path = write_product(out / f"{a.name}_{b.name}_toy.h5", product)
+        return PairMade(path, None, {"means": means}, {})
+
+
+def test_a_kind_of_pair_registered_here_is_made_by_station_process(
+    stereo_run: Path, tmp_path: Path
+) -> None:
+    """A new kind is one declaration and one registry entry: a toy pair kind registered
+    from this module is planned after level 2 and made by `station process` of two
+    archives, with no change to the library; its product reads back."""
+    from levels.block import PairMaker
+    from levels.kinds import Export, Inspection, ProductKind, Unit
+    from levels.products import read_product
+    from levels.registry import register_kind, unregister_kind
+    from station.cli import main
+
+    toy = ProductKind(
+        name="toy",
+        doc="the mean of a pair's level 2 (a toy kind)",
+        unit=Unit.PAIR,
+        on_map=False,
+        geometry_trees=(),
+        export=Export.NONE,
+        inspect=lambda p: Inspection(f"toy of {p.attrs['name']}"),
+        requires=("2",),
+        maker=PairMaker(_Toy.make, needs=("2",)),
+    )
+    register_kind(toy)
+    try:
+        out = tmp_path / "toy"
+        args = ["process", *_archives(stereo_run), "--levels", "2,toy", "--out", str(out), "-q"]
+        assert main(args) == 0
+        made = read_product(out / "stereo" / "stereo_pair_a_stereo_pair_b_toy.h5")
+        assert made.level == "toy" and made.bands["P"].image.shape == (1, 1)
+        assert main(["inspect", str(out / "stereo" / "stereo_pair_a_stereo_pair_b_toy.h5")]) == 0
+    finally:
+        unregister_kind("toy")

@@ -135,13 +135,14 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
 def _process(args: argparse.Namespace) -> int:
     from levels.files import staged_dir, write_json
     from levels.options import ProcessingOptions
+    from levels.process import pair_kinds_of
     from station.catalog import write_catalog
     from station.outdir import replaceable_dir
     from station.scenario import check_name, load_scenario
     from station.sipc.process import l0_stem, process_scenario, reprocess_pass
 
     sources = [Path(s) for s in args.source]
-    scenarios = [load_scenario(s) for s in args.scenario or []]
+    scenarios, block_options = _scenarios(args, sources)
     if len(scenarios) > 1 and len(scenarios) != len(sources):
         raise StationError(
             f"--scenario given {len(scenarios)} times for {len(sources)} source(s): once for "
@@ -178,7 +179,7 @@ def _process(args: argparse.Namespace) -> int:
                 "once per archive, or not at all"
             )
         base = scenario.processing if scenario is not None else ProcessingOptions()
-        options = _options(args, base)
+        options = _options(args, block_options or base)
         names = [args.name] if args.name else [l0_stem(s) for s in sources]
         inputs = [*sources, *(args.gcps or []), *([options.dem_path] if options.dem_path else [])]
     out = Path(args.out) if args.out else Path(f"{names[0]}_products")
@@ -194,6 +195,8 @@ def _process(args: argparse.Namespace) -> int:
     if args.check:
         emit(args, found, lambda f: f"checks passed: {json.dumps(f, default=str)}")
         return 0
+    if not from_scenario and len(sources) > 1 and pair_kinds_of(options):
+        return _process_block(args, sources, scenarios, names, options, out)
     with staged_dir(out) as stage, runner_of(args) as runner:
         if from_scenario:
             products, l0 = process_scenario(scn, stage, runner=runner)
@@ -219,6 +222,88 @@ def _process(args: argparse.Namespace) -> int:
         write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
     emit(args, report, _text)
     return exit_made(sum(len(d["products"]) for d in data), "station process")
+
+
+def _scenarios(args: argparse.Namespace, sources: list[Path]) -> tuple[list[Any], Any]:
+    """The ``--scenario`` files: a pass's scenario per archive (or one for the archives of
+    one pass); or a block's (``[[passes]]``), whose passes are matched to the archives by
+    name and whose ``[processing]`` is the options' base."""
+    from station.run import block_scenarios, is_block_file
+    from station.scenario import load_scenario
+    from station.sipc.process import l0_stem
+
+    given = args.scenario or []
+    if len(given) == 1 and is_block_file(given[0]):
+        _, scns, processing = block_scenarios(given[0])
+        by_name = {s.name: s for s in scns}
+        stems = [l0_stem(s) for s in sources]
+        missing = [n for n in stems if n not in by_name]
+        if missing:
+            raise StationError(
+                f"--scenario {given[0]}: its passes are {', '.join(by_name)}; no pass "
+                f"{missing[0]!r} made the archive {sources[stems.index(missing[0])]}"
+            )
+        return [by_name[n] for n in stems], processing
+    return [load_scenario(s) for s in given], None
+
+
+def _process_block(
+    args: argparse.Namespace,
+    sources: list[Path],
+    scenarios: list[Any],
+    names: list[str],
+    options: Any,
+    out: Path,
+) -> int:
+    """Several passes to a pair's products (``station.sipc.process.reprocess_block``):
+    every pass's scene levels in ``<out>/<name>/``, the tie points, the block's level 2
+    and 3 and the pair's DEM in ``ties/``, ``block/`` and ``stereo/``."""
+    from levels.files import staged_dir, write_json
+    from station.catalog import write_catalog
+    from station.run import product_entry
+    from station.sipc.process import reprocess_block
+
+    with staged_dir(out) as stage, runner_of(args) as runner:
+        passes, block = reprocess_block(
+            sources,
+            stage,
+            options=options,
+            scenarios=scenarios or None,
+            names=names,
+            gcps=args.gcps,
+            runner=runner,
+        )
+        data = [
+            _archive_data(l0, out / n, products)
+            for l0, n, products in zip(sources, names, passes, strict=True)
+        ]
+        level2 = [
+            _archive_data(l0, out / "block", products)
+            for l0, products in zip(sources, block.passes, strict=True)
+        ]
+        pairs = [{**product_entry(p.path, "stereo/"), "quality": p.quality} for p in block.pairs]
+        report = {"archives": data, "block": level2, "ties": block.ties, "pairs": pairs}
+        write_json(
+            stage / PROCESS_REPORT,
+            {"format": "spot-station-process", "format_version": 1, "names": names, **report},
+        )
+        write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
+    emit(args, report, _block_text)
+    made = sum(len(d["products"]) for d in data + level2) + len(pairs)
+    return exit_made(made, "station process")
+
+
+def _block_text(report: dict[str, Any]) -> str:
+    from station.tables import product_table
+
+    lines = [_text({"archives": report["archives"]})]
+    if report["block"]:
+        lines.append("the block's adjustment:")
+        lines.append(_text({"archives": report["block"]}))
+    if report["pairs"]:
+        lines.append("the pair's products:")
+        lines += product_table(report["pairs"], [])
+    return "\n".join(lines)
 
 
 def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace, out: Path) -> dict:
@@ -331,30 +416,27 @@ def _archive_data(l0: Path, out: Path, products: Any) -> dict[str, Any]:
 def _text(data: dict[str, Any]) -> str:
     if "archives" in data:
         return "\n".join(_text(d) for d in data["archives"])
-    from levels.quality import Headline
+    from station.tables import product_table
 
     t = data["timings_s"]
     lines = [
         f"{len(data['products'])} product(s) from {data['l0']} into {data['out']}/; "
-        f"GEO {t['geo']:.3f} s, all {t['total']:.1f} s",
-        f"{'scene':>5} {'level':>5} {'LOS rms m':>10} {'max px':>7} {'ground rms m':>13} "
-        f"{'approx max px':>14}  stripes raw → 1A",
+        f"GEO {t['geo']:.3f} s, all {t['total']:.1f} s"
     ]
-
-    def number(x: float | None) -> float:
-        return float("nan") if x is None else x
-
-    for r in data["products"]:
-        h = Headline.of(r)
-        stripes = (
-            f"{h.stripes_counts[0]:.2f} → {h.stripes_counts[1]:.2f}" if h.stripes_counts else ""
-        )
-        lines.append(
-            f"{r['scene']:5d} {r['level']:>5} {number(h.los_rms_m):10.1f} "
-            f"{number(h.los_max_px):7.2f} {number(h.ground_rms_m):13.1f} "
-            f"{number(h.approx_max_px):14.4f}  {stripes}"
-        )
-        lines.append(f"{'':11}{r['path']}")
+    rows = [
+        {
+            "scene": r["scene"],
+            "level": r["level"],
+            "file": Path(r["path"]).name,
+            "quality": {k: v for k, v in r.items() if k not in _ROW_KEYS},
+        }
+        for r in data["products"]
+    ]
+    lines += product_table(rows, [("scene", "scene")])
     for k in data["skipped"]:
         lines.append(f"{k['index']:5d}  skipped: {k['reason']}")
     return "\n".join(lines)
+
+
+#: What a product's row of ``process.json`` holds beside its quality figures.
+_ROW_KEYS = ("scene", "level", "path", "timings_s")

@@ -11,6 +11,7 @@ products are then those of the run, bit for bit.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +46,7 @@ __all__ = [
     "measured_control_points",
     "plan_reprocess",
     "process_scenario",
+    "reprocess_block",
     "reprocess_l0",
     "reprocess_pass",
     "run_dem",
@@ -353,3 +355,74 @@ def process_scenario(
     )
     [products] = process(request, runner)
     return products, l0
+
+
+def reprocess_block(
+    l0_paths: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    options: ProcessingOptions,
+    scenarios: list[Scenario] | None = None,
+    names: list[str] | None = None,
+    gcps: list[str | Path] | None = None,
+    runner: Runner | None = None,
+) -> tuple[list[PassProducts], Any]:
+    """Several recorded passes over one ground, to the kinds of a pair (a stereo DEM) as
+    ``station run`` of a block makes them (:func:`levels.block.process_block`): each
+    pass's scene levels into ``<out>/<name>/`` (2A for the tie points, 1A for a pair: its
+    scenario's own ``[processing]`` when given, as its run made them), then the tie points,
+    the block's level 2, the pair's products and level 3 over the pair's DEM into
+    ``<out>/ties``, ``block`` and ``stereo``. With the scenarios (one per archive), every
+    product is measured against their truth and is the run's, bit for bit."""
+    from levels.block import BlockRequest, process_block
+    from levels.choices import Level
+    from levels.process import pair_kinds_of
+    from station.sipc.stereo import StereoTruth, stereo_quality
+
+    paths = [Path(p) for p in l0_paths]
+    out = Path(out_dir)
+    names = names or [l0_stem(p) for p in paths]
+    archives = [read_l0(p, lazy=True) for p in paths]
+    per: list[Scenario | None] = list(scenarios) if scenarios else [None] * len(paths)
+    if len(per) != len(paths):
+        raise L0Error(f"{len(paths)} L0 archives but {len(per)} scenarios")
+    pair = pair_kinds_of(options)
+    needed = {lv for k in pair for lv in k.maker.needs} | {Level.L2A}
+    scene_levels = tuple(
+        lv
+        for lv in ("1A", "1B", "2A")
+        if lv in needed or (lv in options.levels and lv not in (Level.L2, Level.L3))
+    )
+    passes = []
+    for p, name, scn in zip(paths, names, per, strict=True):
+        base = scn.processing if scn is not None else options
+        opts = dataclasses.replace(base, levels=scene_levels)
+        passes += reprocess_pass(
+            [p], out / name, options=opts, scenario=scn, names=[name], runner=runner
+        )
+    truths = [
+        truth_for(s, a) if s is not None else None for s, a in zip(per, archives, strict=True)
+    ]
+    where = (
+        [Path(g) for g in gcps] if gcps else [p.with_name(f"{l0_stem(p)}.gcp.csv") for p in paths]
+    )
+    if not options.dem_path and per[0] is not None and per[0].dem is not None:
+        options = dataclasses.replace(options, dem_path=str(run_dem(paths[0], archives[0])))
+    request = BlockRequest(
+        tuple(archives),
+        tuple(names),
+        tuple(read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)),
+        tuple(out / n for n in names),
+        options,
+        out,
+        checkpoints=tuple(truths),
+    )
+    measure = None
+    a, b = [*truths, None, None][:2]
+    if len(truths) == 2 and a is not None and b is not None:
+        truth = StereoTruth(a, b)
+
+        def measure(dem: Any) -> dict[str, Any]:
+            return stereo_quality(dem, truth, truth.a.acq.world)
+
+    return passes, process_block(request, runner, measure)
