@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from levels.geometry.ellipsoid import WGS84
 from levels.products import Product, read_product
+from levels.readers.dimap import AttitudeChoice
 from station.errors import StationError
 
 __all__ = ["PACK_FILE", "PackResult", "write_pack"]
@@ -216,10 +217,10 @@ def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) 
 
     # checkpoints: whole pixels of a lattice, the ground each truly sees
     n = CHECKPOINTS_PER_SIDE
-    rows, cols = np.meshgrid(
+    grid_rows, grid_cols = np.meshgrid(
         np.rint(np.linspace(1, scene.n_rows, n)), np.rint(np.linspace(1, scene.n_cols, n))
     )
-    rows, cols = rows.ravel(), cols.ravel()
+    rows, cols = grid_rows.ravel(), grid_cols.ravel()
     t = acq.line_times_s[0] + (first + rows - 1) * period
     pts, ok = trace_pixels(acq.orbit, acq.attitude, acq.hrv.bands[0], acq.world, t, cols - 1)
     lat, lon, h = np.degrees(pts[:, 0]), np.degrees(pts[:, 1]), pts[:, 2]
@@ -255,7 +256,7 @@ def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) 
         | {f"{x}_rad": _f(angles[:, i], "+.10e") for i, x in enumerate(("roll", "pitch", "yaw"))},
     )
     det = np.arange(acq.hrv.n_columns, dtype=np.float64)
-    looks = {name: [] for name in ("band", "detector_id", "psi_x_rad", "psi_y_rad")}
+    looks: dict[str, list[str]] = {n: [] for n in ("band", "detector_id", "psi_x_rad", "psi_y_rad")}
     for band in acq.hrv.bands:
         px, py = band.look_true.angles_rad(det)
         looks["band"] += [band.name] * det.size
@@ -268,10 +269,11 @@ def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) 
     back = read_dimap(stage / "METADATA.DIM")
     truth_ecef = WGS84.to_ecef(pts[ok, 0], pts[ok, 1], pts[ok, 2])
     scores = {}
-    for choice, label in (
+    choices: tuple[tuple[AttitudeChoice, str], ...] = (
         ("integrated_zeroed", "station model (INPE attitude)"),
         ("none", "null attitude (SPOT 1–4 producer)"),
-    ):
+    )
+    for choice, label in choices:
         g = back.model(attitude=choice).image_to_ground(rows[ok] - 1, cols[ok] - 1, h[ok])
         d = WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - truth_ecef
         e = apply(enu_from_ecef(pts[ok, 0], pts[ok, 1]), d)
@@ -301,7 +303,9 @@ def _control_points(
     # then DIMAP's 1-based row and col
     ids = [f"g{i:04d}" for i in k]
 
-    def where(lon: NDArray, lat: NDArray, h: NDArray, ln: NDArray, col: NDArray) -> dict:
+    def where(
+        lon: NDArray, lat: NDArray, h: NDArray, ln: NDArray, col: NDArray
+    ) -> tuple[dict[str, list[str]], dict[str, list[str]]]:
         """A point's ground and image columns: docs/gcp.md's, then DIMAP's row and col."""
         return {
             "lon_deg": _f(np.degrees(lon[k]), ".9f"),

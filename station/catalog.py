@@ -204,9 +204,9 @@ def item_of(path: Path, root: Path) -> Any:
 
     product = read_product(path, images=False)
     known = kind_of(product)
-    props = known.stac(product) if known is not None else {}
+    declared = known.stac(product) if known is not None else {}
     if known is None or known.unit is not Unit.SCENE:  # a pair's DEM, a SAR frame's
-        return _grid_item(product, path, dict(props))
+        return _grid_item(product, path, dict(declared))
     a, scene = product.attrs, product.geometry["scene"]
     geometry, bbox = footprint_geojson(scene["corners_lat_deg"], scene["corners_lon_deg"])
     view = _centre_view(product)
@@ -222,7 +222,7 @@ def item_of(path: Path, root: Path) -> Any:
         "spot:mirror_step": int(a.get("mirror_step", 48)),
         "view:off_nadir": abs(float(np.degrees(mirror_angle_rad(int(a.get("mirror_step", 48)))))),
         **view,
-        "processing:level": props.get("processing:level", f"L{level}"),
+        "processing:level": declared.get("processing:level", f"L{level}"),
         "processing:facility": "spot-station SIPC (emulated)",
         "processing:software": {"spot-station": __version__},
         "spot:quality": _quality(product, path),

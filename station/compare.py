@@ -254,7 +254,7 @@ def _compare_l0s(a: Path, b: Path) -> list[Finding]:
         out.append(Finding("files", "L0 archives", ok=False, a="none", b="none"))
     for name in sorted(set(la) & set(lb)):
         x, y = read_l0(la[name]), read_l0(lb[name])
-        pairs = {
+        pairs: dict[str, tuple[Any, Any]] = {
             "lines/t_s": (x.line_t_s, y.line_t_s),
             "lines/line_counter": (x.line_counter, y.line_counter),
             "ephemeris/r_ecef_m": (x.ephemeris.r_ecef_m, y.ephemeris.r_ecef_m),

@@ -80,12 +80,12 @@ def check_frame(path: str | Path, attitude: AttitudeChoice = "auto") -> FrameChe
     if is_dimap2(path):
         v2 = read_dimap2(path)
         model: Any = v2.model()
-        name, attitude = v2.name, _PRODUCER_RPC
+        name, used = v2.name, _PRODUCER_RPC
         row, col, h = v2.frame_row, v2.frame_col, v2.frame_h_m
         lat, lon = v2.frame_lat_deg, v2.frame_lon_deg
     else:
         scene = read_dimap(path)
-        model, name = scene.model(attitude=attitude), scene.name
+        model, name, used = scene.model(attitude=attitude), scene.name, str(attitude)
         row = np.append(scene.frame_row, scene.center_row)
         col = np.append(scene.frame_col, scene.center_col)
         lat = np.append(scene.frame_lat_deg, scene.center_lat_deg)
@@ -96,7 +96,7 @@ def check_frame(path: str | Path, attitude: AttitudeChoice = "auto") -> FrameChe
     _, _, dist = _GEOD.inv(lon, lat, plon, plat)
     back = model.ground_to_image(ground.lat_rad, ground.lon_rad, h)
     roundtrip = np.hypot(back.line - (row - 1.0), back.column - (col - 1.0))
-    return FrameCheck(name, attitude, row, col, lat, lon, plat, plon, dist, roundtrip)
+    return FrameCheck(name, used, row, col, lat, lon, plat, plon, dist, roundtrip)
 
 
 #: What ``attitude`` says for a DIMAP v2 scene, whose model is its producer's RPC.
@@ -218,12 +218,12 @@ def check_gcps(
 
     if model not in ("rigorous", "rpc"):
         raise StationError(f"model {model!r}: expected 'rigorous' or 'rpc'")
-    name, rigorous, attitude = _scene_model(path, attitude)
+    name, rigorous, used = _scene_model(path, attitude)
     g = read_gcps(gcp_path, rigorous.n_lines, rigorous.n_columns)
     back = rigorous.ground_to_image(g.lat_rad, g.lon_rad, g.h_m, first_line=g.line)
     line, column = back.line, back.column
     extra: dict = {}
-    if model == "rpc" and attitude != _PRODUCER_RPC:  # a DIMAP v2 model is an RPC already
+    if model == "rpc" and used != _PRODUCER_RPC:  # a DIMAP v2 model is an RPC already
         heights = (float(g.h_m.min()) - GCP_RPC_MARGIN_M, float(g.h_m.max()) + GCP_RPC_MARGIN_M)
         rpc = rpc_of_model(rigorous, heights)
         line, column = rpc.image_of(np.degrees(g.lat_rad), np.degrees(g.lon_rad), g.h_m)
@@ -235,7 +235,7 @@ def check_gcps(
     plat, plon = np.degrees(ground.lat_rad), np.degrees(ground.lon_rad)
     _, _, dist = _GEOD.inv(np.degrees(g.lon_rad), np.degrees(g.lat_rad), plon, plat)
     check = GcpCheck(
-        name, attitude, g.id, g.line, g.column, line, column, np.asarray(dist), model, **extra
+        name, used, g.id, g.line, g.column, line, column, np.asarray(dist), model, **extra
     )
     _judge(check, g.sigma_ground_m)
     return check
@@ -288,14 +288,14 @@ def write_rpc(
 
         ossim = read_ossim_geom(path)
         name, model = f"{ossim.sensor} ({Path(path).name})", ossim.model
-        attitude = "ossim"  # the keyword list's own attitude samples
+        used = "ossim"  # the keyword list's own attitude samples
     elif is_dimap2(path):  # its model is an RPC: written as it is
         v2 = read_dimap2(path)
-        name, attitude, rpc = v2.name, _PRODUCER_RPC, v2.rpc
+        name, used, rpc = v2.name, _PRODUCER_RPC, v2.rpc
     else:
         scene = read_dimap(path)
-        name, model = scene.name, scene.model(attitude=attitude)
-    if attitude != _PRODUCER_RPC:
+        name, model, used = scene.name, scene.model(attitude=attitude), str(attitude)
+    if used != _PRODUCER_RPC:
         rpc = rpc_of_model(model, heights_m)
     target = Path(out)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -304,7 +304,7 @@ def write_rpc(
         Path(tmp).write_text(text)
     return {
         "scene": name,
-        "attitude": attitude,
+        "attitude": used,
         "path": str(target),
         "fit_error_px": rpc.fit_error_px,
         "gdal_metadata": rpc.gdal_metadata(),

@@ -202,7 +202,7 @@ def reprocess_l0(
 
 
 def reprocess_pass(
-    l0_paths: list[str | Path],
+    l0_paths: Sequence[str | Path],
     out_dir: str | Path,
     *,
     options: ProcessingOptions | None = None,
@@ -229,7 +229,7 @@ def reprocess_pass(
 
 
 def plan_reprocess(
-    l0_paths: list[str | Path],
+    l0_paths: Sequence[str | Path],
     out_dir: str | Path,
     *,
     options: ProcessingOptions | None = None,
@@ -284,7 +284,7 @@ def plan_reprocess(
     return plan(request)
 
 
-def with_exported_dem(scn: Scenario, acqs: list[Acquisition], out: Path) -> ProcessingOptions:
+def with_exported_dem(scn: Scenario, acqs: Sequence[Acquisition], out: Path) -> ProcessingOptions:
     """The scenario's processing options, after its ``[dem]`` (if any) is exported as
     ``<name>.dem.tif`` into ``out``: the DEM level 3 then uses unless ``dem_path`` names
     another."""

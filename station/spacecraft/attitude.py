@@ -130,7 +130,7 @@ class TruthAttitude:
         """Draw a truth attitude: Westin drift (× ``drift_scale``, variance scales by its
         square), jitter with random phases, the given offsets."""
         n = int(np.ceil((t_end_s - t_start_s) / drift_step_s)) + 1
-        t = t_start_s + drift_step_s * np.arange(n)
+        t = np.asarray(t_start_s + drift_step_s * np.arange(n), dtype=np.float64)
         drift = np.zeros((n, 3))
         for axis in range(3):
             for c, alpha in WESTIN_POWER[axis]:
@@ -184,7 +184,7 @@ def sample_gyros(
     rng: np.random.Generator,
 ) -> GyroRecord:
     """Gyro rates every ``period_s`` from ``t_first_s`` (module docstring)."""
-    t = t_first_s + period_s * np.arange(n_samples)
+    t = np.asarray(t_first_s + period_s * np.arange(n_samples), dtype=np.float64)
     before = attitude.angles_rad(t - period_s / 2)
     after = attitude.angles_rad(t + period_s / 2)
     rates = (after - before) / period_s + noise_rad_per_s * rng.standard_normal((n_samples, 3))

@@ -12,6 +12,7 @@ flagged by the imaging kernel, never given a made-up height.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -68,7 +69,7 @@ _NODATA = -32768.0
 _EARTH_RADIUS_M = 6371e3  # mean: sizes the grid and the error's correlation in nodes
 
 
-def footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]:
+def footprint_rad(acqs: Sequence[Acquisition]) -> tuple[float, float, float, float]:
     """South, north, west, east bounds (rad) of the terrain the strips truly see; across
     the antimeridian, west or east beyond ±π."""
     from station.spacecraft.imaging import trace_pixels
@@ -94,7 +95,7 @@ def footprint_rad(acqs: list[Acquisition]) -> tuple[float, float, float, float]:
     return float(la.min()), float(la.max()), float(lo.min()), float(lo.max())
 
 
-def export_dem(acqs: list[Acquisition], cfg: DemConfig, seed: int, path: str | Path) -> Path:
+def export_dem(acqs: Sequence[Acquisition], cfg: DemConfig, seed: int, path: str | Path) -> Path:
     """The world's terrain under the pass as a GeoTIFF DEM of known quality (``[dem]``).
 
     The grid is geographic (WGS84, ellipsoidal heights, north-up), every

@@ -300,7 +300,7 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
     p_size = np.concatenate([np.full(g[1].size, g[0].shape[1]) for g in groups])[img]
     return Transmission(
         cadus=frames_to_cadus(frames),
-        slot_t_s=t_session + slot_s * np.arange(n_slots),
+        slot_t_s=np.asarray(t_session + slot_s * np.arange(n_slots), dtype=np.float64),
         vc=vc,
         count=count,
         data_vc=data_vc,

@@ -331,7 +331,10 @@ def emulate_pass(
     for k in chosen:  # one HRV each: two at most
         hrv = hrvs[k]
         _, rng_noise_k, rng_gcp_k = per_hrv[k]
-        line_times = t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s
+        line_times = np.asarray(
+            t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s,
+            dtype=np.float64,
+        )
         bands: tuple[RenderedBand, ...] = ()
         if render:
             bands = tuple(

@@ -255,7 +255,7 @@ def emulate_frame(
 ) -> tuple[SarImage, SarTruth]:
     """A frame's detected slant-range image with its annotation, and the truth behind it
     (module docstring); ``render=False``: the geometry alone, the image zero."""
-    epoch = Epoch(f"{frame.date_utc}T00:00:00", "frame day")
+    epoch = Epoch(np.datetime64(f"{frame.date_utc}T00:00:00", "ns"), "frame day")
     inc_mid = np.radians(0.5 * sum(instrument.incidence_deg))
     look = _look_of_incidence(inc_mid, instrument.altitude_m)
     period, raan_rate = phased_targets(*instrument.repeat)

@@ -151,7 +151,7 @@ def _reflectance(x: float, y: float, band: np.int64, seed: np.int64) -> float:
         return _REFLECTANCE[5, band]
     fn, _fx, _fy = _noise(x / _FOREST_WAVELENGTH_M, y / _FOREST_WAVELENGTH_M, seed + 202)
     if fn > 0.35:
-        cls = 4
+        cls = np.int64(4)
     else:
         cls = np.int64((_hash(np.int64(iu), np.int64(iv), seed + 303) + 1.0) * 2.0)  # 0..3
     tex, _tx, _ty = _noise(x / 37.0, y / 37.0, seed + 404)

@@ -50,7 +50,7 @@ def _word_at(stream: NDArray[np.uint8], bit: int) -> int:
     for i in range(5):
         w <<= 8
         if b + i < stream.size:
-            w |= np.int64(stream[b + i])
+            w |= int(stream[b + i])
     return (w >> (8 - s)) & 0xFFFFFFFF
 
 

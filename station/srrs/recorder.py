@@ -87,7 +87,8 @@ def write_l0(
     shift_s = (
         float(
             (
-                np.datetime64(bulletin_epoch_utc, "ns") - np.datetime64(decoded.epoch_utc, "ns")
+                np.asarray(bulletin_epoch_utc).astype("datetime64[ns]")
+                - np.asarray(decoded.epoch_utc).astype("datetime64[ns]")
             ).astype(np.int64)
         )
         / 1e9
@@ -110,7 +111,7 @@ def _write(
     a = f.attrs
     a["format"] = L0_FORMAT
     a["format_version"] = L0_VERSION
-    a["epoch_utc"] = str(np.datetime64(d.epoch_utc, "ms"))
+    a["epoch_utc"] = str(np.asarray(d.epoch_utc).astype("datetime64[ms]"))
     a["hrv"] = d.hrv
     a["mode"] = d.mode
     a["mirror_step"] = d.mirror_step

@@ -14,6 +14,7 @@ Layers, outside in
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = [
     "APID_AUX",
@@ -73,7 +74,7 @@ def vc_of_hrv(hrv: int) -> int:
     return int(hrv)
 
 
-def u24(values: np.ndarray) -> np.ndarray:
+def u24(values: ArrayLike) -> np.ndarray:
     """24-bit unsigned values (…) → their 3 big-endian bytes (…, 3)."""
     v = np.asarray(values, np.int64)
     return np.stack([v >> 16, (v >> 8) & 0xFF, v & 0xFF], axis=-1).astype(np.uint8)
@@ -87,7 +88,7 @@ def from_u24(octets: np.ndarray) -> np.ndarray:
 
 def ms_since_cnes_epoch(t0_utc: np.datetime64, t_s: np.ndarray) -> np.ndarray:
     """Time codes: whole milliseconds since 1950-01-01 (truncated, as a counter latches)."""
-    base_ns = (np.datetime64(t0_utc, "ns") - CNES_EPOCH).astype(np.int64)
+    base_ns = (np.asarray(t0_utc).astype("datetime64[ns]") - CNES_EPOCH).astype(np.int64)
     ns = base_ns + np.floor(np.asarray(t_s, np.float64) * 1e9).astype(np.int64)
     return ns // 1_000_000
 

@@ -97,7 +97,7 @@ class RsTables:
         # Dual-basis bits z_i = Tr(z β'^i), z_0 the most significant (CCSDS Annex F).
         z = np.arange(256)
         bits = [trace(mul(z, alpha[(DUAL_BETA_LOG_ALPHA * i) % 255])) for i in range(8)]
-        self.to_dual = sum(b << (7 - i) for i, b in enumerate(bits)).astype(np.uint8)
+        self.to_dual = np.asarray(sum(b << (7 - i) for i, b in enumerate(bits))).astype(np.uint8)
         self.to_conv = np.zeros(256, np.uint8)
         self.to_conv[self.to_dual] = np.arange(256, dtype=np.uint8)
 
