@@ -197,6 +197,8 @@ class ProductKind:
         Product attributes its GeoTIFF also carries as tags.
     requires
         Kinds its products are made from (made before it).
+    needs
+        What it needs from outside: ``"dem"`` (a DEM: a GTC's terrain).
     figures
         Its headline figures (:class:`Figure`): the console's columns.
     notes
@@ -224,6 +226,7 @@ class ProductKind:
     export_bands: tuple[str, ...] = ()
     export_tags: tuple[str, ...] = ()
     requires: tuple[str, ...] = ()
+    needs: frozenset[str] = frozenset()
     figures: tuple[Figure, ...] = ()
     notes: Callable[[Mapping[str, Any]], tuple[str, ...]] = _no_notes
     browse: Browse = Browse()

@@ -104,10 +104,15 @@ def product_name(name: str, scene_index: int, level: str, on_map: bool = False) 
     return f"{name}_s{scene_index:03d}_{level}{MAP_SUFFIX if on_map else IMAGE_SUFFIX}"
 
 
+#: Files of HDF5 that are inputs, not products: an L0 archive, a SAR frame.
+INPUT_SUFFIXES = (".l0.h5", ".frame.h5")
+
+
 def is_product_file(path: str | Path) -> bool:
-    """A file named as a product (``.nc`` or ``.h5``, not an L0 archive ``.l0.h5``)."""
+    """A file named as a product (``.nc`` or ``.h5``, not an input: an L0 archive
+    ``.l0.h5``, a SAR frame ``.frame.h5``)."""
     n = Path(path).name
-    return n.endswith(PRODUCT_SUFFIXES) and not n.endswith(".l0.h5") and not n.startswith(".")
+    return n.endswith(PRODUCT_SUFFIXES) and not n.endswith(INPUT_SUFFIXES) and not n.startswith(".")
 
 
 def units_of(name: str) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 import pyproj
 
 from levels.options import build_section, option
-from station.errors import ScenarioError
+from station.errors import ScenarioError, StationError
 from station.scenario import DemConfig, WorldConfig, check_name, read_toml
 
 _log = logging.getLogger(__name__)
@@ -328,6 +328,94 @@ def _mask_figures(g: Any, truth: Any) -> dict[str, Any]:
     return out
 
 
+#: The instrument a frame's file and products name.
+ERS_INSTRUMENT = "ERS-1 AMI SAR"
+#: What the report keeps of a product's quality: the truth's figures (the product holds
+#: more: its anchors' error, the masks' shares).
+_TRUTH_KEYS = ("checkpoints", "relief_displacement", "masks", "gamma0")
+
+
+def frame_options(scn: SarScenario) -> Any:
+    """The processing of a scenario's frame (:class:`levels.frame.FrameOptions`): its
+    ``[sar]`` levels, pixel, reference height and flattening; the grid's margin three
+    times the world's relief (how far relief can move a pixel and more)."""
+    from levels.frame import FrameOptions
+
+    return FrameOptions(
+        levels=tuple(scn.sar.levels),
+        pixel_size_m=scn.sar.pixel_size_m,
+        reference_height_m=scn.reference_height_m,
+        margin_m=3.0 * _world(scn).relief_m,
+        flatten=scn.sar.flatten,
+    )
+
+
+def truth_quality(
+    scn: SarScenario, level: str, g: Any, gamma0: Any, image: Any, truth: Any
+) -> dict[str, Any]:
+    """A geocoded frame against the truth: its checkpoints; GEC's displacement by relief
+    against Δh / tan θ; a product's masks against the truth's; γ⁰ against the world's
+    reflectance where the emulator's law makes it so (``backscatter = "gamma"``)."""
+    ref, pixel = scn.reference_height_m, g.grid.pixel_size_m
+    cp = checkpoint_errors(g, truth)
+    quality: dict[str, Any] = {"checkpoints": cp["figures"]}
+    from levels.registry import kind
+
+    if "dem" not in kind(level).needs:  # on the ellipsoid: moved by the relief
+        moved = np.hypot(cp["di"], cp["dj"]) * pixel
+        predicted = np.abs(cp["height_m"] - ref) / np.tan(cp["incidence_rad"])
+        big = predicted > 2.0 * pixel
+        quality["relief_displacement"] = {
+            "points": int(big.sum()),
+            "predicted_rms_m": float(np.sqrt(np.mean(predicted**2))) if predicted.size else 0.0,
+            "worst_ratio_error": float(np.max(np.abs(moved[big] / predicted[big] - 1.0)))
+            if big.any()
+            else None,
+        }
+    else:
+        quality["masks"] = _mask_figures(g, truth)
+        if gamma0 is not None:
+            quality["gamma0"] = (  # against the truth where γ⁰ is the reflectance
+                flattening_figures(g, gamma0, image, truth)
+                if scn.sar.backscatter == "gamma"
+                else {"valid_fraction": float(np.isfinite(gamma0).mean())}
+            )
+    return quality
+
+
+def scenario_provenance(scn: SarScenario) -> dict[str, Any]:
+    """What a SAR product records of the scenario behind its frame."""
+    return {
+        "scenario": scn.name,
+        "scenario_file": Path(scn.source).name,
+        "scenario_sha256": scn.source_sha256,
+        "seed": scn.seed,
+    }
+
+
+def frame_quality(scn: SarScenario, frame: Any) -> Any:
+    """The truth of the frame a SAR scenario made, as a frame's ``measure``
+    (:data:`levels.frame.Measure`): the scenario's frame emulated again (its geometry
+    alone), checked to be the frame given (its annotation), and each product held to it."""
+    from station.spacecraft.sar import emulate_frame
+
+    image = frame.image()
+    emulated, truth = emulate_frame(_frame(scn), _world(scn), render=False)
+    a, b = emulated.annotation, image.annotation
+    if (
+        a.shape != b.shape
+        or not np.allclose(a.state_t_s, b.state_t_s)
+        or (a.first_line_s != b.first_line_s)
+    ):
+        raise StationError(
+            f"{getattr(frame, 'path', frame.name)} was not made by scenario {scn.name!r} "
+            f"(its frame {b.shape[0]} × {b.shape[1]} from {b.first_line_s:.3f} s; the "
+            f"scenario's {a.shape[0]} × {a.shape[1]} from {a.first_line_s:.3f} s): give the "
+            "scenario that made it"
+        )
+    return lambda level, g, gamma0: truth_quality(scn, level, g, gamma0, image, truth)
+
+
 def run_sar(scn: SarScenario, out_dir: str | Path, *, quicklooks: bool = False) -> dict[str, Any]:
     """Run a SAR scenario into ``out_dir`` (module docstring); returns the report (also in
     ``report.json``). Built in a staging directory that replaces ``out_dir`` only when
@@ -346,11 +434,11 @@ def run_sar(scn: SarScenario, out_dir: str | Path, *, quicklooks: bool = False) 
 def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
     from levels import __version__
     from levels.files import write_json
-    from levels.makers.sar import sar_product
-    from levels.products import write_product
+    from levels.frame import process_frame
     from levels.quicklook import write_quicklook
     from levels.readers.dem import read_dem
-    from levels.sar import frame_grid, geocode, terrain_flattening
+    from levels.readers.sar import read_sar_frame
+    from levels.writers.sar import write_sar_frame
     from station.catalog import CATALOG_FILE, write_catalog
     from station.run import scenario_entry
     from station.spacecraft.dem import export_dem_over
@@ -376,69 +464,37 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
         dem = read_dem(dem_path, "ellipsoid")
         dem_row = {"file": dem_path.name, **dataclasses.asdict(scn.dem)}
         timings["dem_export"] = clock() - t
+    t = clock()
+    frame_path = write_sar_frame(out / f"{scn.name}.frame.h5", image, scn.name, ERS_INSTRUMENT)
+    frame = read_sar_frame(frame_path)  # the reader is on every run's path
+    timings["frame_file"] = clock() - t
+    made = process_frame(
+        frame,
+        frame_options(scn),
+        out,
+        dem=dem,
+        dem_source=dem_row.get("file", ""),
+        measure=lambda level, g, gamma0: truth_quality(scn, level, g, gamma0, image, truth),
+        provenance=scenario_provenance(scn),
+    )
     rows = []
-    for level in scn.sar.levels:
-        t = clock()
-        grid = frame_grid(ann, scn.sar.pixel_size_m, ref, 3.0 * world.relief_m)
-        g = geocode(image, grid, dem=dem if level == "GTC" else None, reference_height_m=ref)
-        timings[f"geocode_{level}"] = clock() - t
-        _log.info("%s geocoded in %.1f s; measuring it against the truth", level, clock() - t)
-        t = clock()
-        cp = checkpoint_errors(g, truth)
-        quality: dict[str, Any] = {"checkpoints": cp["figures"]}
-        if level == "GEC":  # what its height off the reference predicts: Δh / tan θ
-            moved = np.hypot(cp["di"], cp["dj"]) * grid.pixel_size_m
-            predicted = np.abs(cp["height_m"] - ref) / np.tan(cp["incidence_rad"])
-            big = predicted > 2.0 * grid.pixel_size_m
-            quality["relief_displacement"] = {
-                "points": int(big.sum()),
-                "predicted_rms_m": float(np.sqrt(np.mean(predicted**2))) if predicted.size else 0.0,
-                "worst_ratio_error": float(np.max(np.abs(moved[big] / predicted[big] - 1.0)))
-                if big.any()
-                else None,
-            }
-        gamma0 = None
-        if level == "GTC":
-            quality["masks"] = _mask_figures(g, truth)
-            if scn.sar.flatten:
-                t_f = clock()
-                gamma0 = terrain_flattening(g, image)
-                timings["flatten"] = clock() - t_f
-                quality["gamma0"] = (  # against the truth where γ⁰ is the reflectance
-                    flattening_figures(g, gamma0, image, truth)
-                    if scn.sar.backscatter == "gamma"
-                    else {"valid_fraction": float(np.isfinite(gamma0).mean())}
-                )
-        timings[f"truth_{level}"] = clock() - t - timings.get("flatten", 0.0)
-        product = sar_product(
-            g,
-            image,
-            f"{scn.name}_{level}",
-            quality=quality,
-            dem_source=dem_row.get("file", ""),
-            provenance={
-                "scenario": scn.name,
-                "scenario_file": Path(scn.source).name,
-                "scenario_sha256": scn.source_sha256,
-                "seed": scn.seed,
-                "inputs": dem_row.get("file", "") if level == "GTC" else "",
-            },
-            gamma0=gamma0,
-        )
-        path = write_product(out / f"{scn.name}_{level}.nc", product)
+    for m in made:
+        for k, v in m.timings_s.items():
+            timings[f"{k}_{m.level}"] = v
         if quicklooks:
-            write_quicklook(product, out / "quicklooks" / f"{path.stem}.png")
+            write_quicklook(m.product, out / "quicklooks" / f"{m.path.stem}.png")
+        grid = m.geocoded.grid
         rows.append(
             {
-                "level": level,
-                "file": path.name,
+                "level": m.level,
+                "file": m.path.name,
                 "n_rows": grid.n_rows,
                 "n_cols": grid.n_cols,
                 "pixel_size_m": grid.pixel_size_m,
-                "valid_fraction": round(float(np.isfinite(g.intensity).mean()), 6),
-                "size_mb": round(path.stat().st_size / 1e6, 3),
-                "anchor_error_px": g.anchor_error,
-                "quality": quality,
+                "valid_fraction": round(float(np.isfinite(m.geocoded.intensity).mean()), 6),
+                "size_mb": round(m.path.stat().st_size / 1e6, 3),
+                "anchor_error_px": m.geocoded.anchor_error,
+                "quality": {k: v for k, v in m.product.quality.items() if k in _TRUTH_KEYS},
             }
         )
     t = clock()

@@ -15,6 +15,7 @@ import pyproj
 import pytest
 
 from levels.geo.maps import MapGrid
+from levels.products import read_product
 from levels.sar import Geocoded, frame_grid, geocode
 from station.run_sar import checkpoint_errors
 from station.spacecraft.dem import world_dem
@@ -303,7 +304,6 @@ def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path, capsys) -> None:
     tan θ, layover against the truth's. The terrain's γ⁰ the world's reflectance (the
     ``gamma`` law, no speckle): the product's γ⁰ by terrain flattening on it whatever the
     slope, where σ⁰ on the ellipsoid is not."""
-    from levels.products import read_product
     from station.run_sar import run_sar
 
     scn = _reduced(
@@ -328,6 +328,47 @@ def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path, capsys) -> None:
     _compare_sees_a_band_shifted_one_pixel(tmp_path / "run", gtc["file"], tmp_path / "shifted")
     out = capsys.readouterr().out
     assert f"DIFFERS  {gtc['file']}: bands/intensity/max_abs" in out, out
+    _the_frame_file_alone_makes_the_runs_products(scn, tmp_path / "run", tmp_path / "alone")
+
+
+def _the_frame_file_alone_makes_the_runs_products(scn, run: Path, out: Path) -> None:
+    """The run wrote its frame (``<name>.frame.h5``) and processed it from the file; the
+    file processed alone by the library (``levels.frame``, no emulator: the run's options,
+    its DEM file) gives the run's GEC and GTC, byte for byte; `station process FRAME --dem
+    DEM` makes both from the file and the DEM, with the DEM's own options."""
+    from levels.compare import compare_products
+    from levels.frame import process_frame
+    from levels.readers.dem import read_dem
+    from levels.readers.sar import read_sar_frame
+    from station.cli import main
+    from station.run_sar import frame_options, scenario_provenance
+
+    frame = read_sar_frame(run / f"{scn.name}.frame.h5")
+    out.mkdir()
+    made = process_frame(
+        frame,
+        frame_options(scn),
+        out,
+        dem=read_dem(run / f"{scn.name}.dem.tif", "ellipsoid"),
+        dem_source=f"{scn.name}.dem.tif",
+        provenance=scenario_provenance(scn),
+    )
+    for m in made:  # the same images, masks and geometry (its quality: no truth here)
+        a = read_product(run / m.path.name)
+        for band, image in m.product.bands.items():
+            assert np.array_equal(image.image, a.bands[band].image, equal_nan=True), band
+        found = compare_products(a, read_product(m.path))
+        bad = [f.text() for f in found if not f.ok and f.kind in ("pixels", "geometry", "metadata")]
+        assert not bad, bad
+    cli = ["process", str(run / f"{scn.name}.frame.h5"), "--dem", str(run / f"{scn.name}.dem.tif")]
+    assert main([*cli, "--out", str(out / "cli"), "-q"]) == 0
+    no_dem = ["process", str(run / f"{scn.name}.frame.h5"), "--levels", "GTC", "-q"]
+    assert main([*no_dem, "--out", str(out / "no_dem")]) == 2  # GTC needs the DEM
+    assert not (out / "no_dem").exists()
+    assert {p.name for p in (out / "cli").glob("*.nc")} == {
+        f"{scn.name}_GEC.nc",
+        f"{scn.name}_GTC.nc",
+    }
 
 
 def _compare_sees_a_band_shifted_one_pixel(run: Path, gtc: str, edited: Path) -> None:

@@ -129,6 +129,7 @@ GTC = ProductKind(
     name="GTC",
     doc="a SAR frame geocoded over a DEM, with layover and shadow masks (and γ⁰)",
     bands=(*_BANDS, _GAMMA0),
+    needs=frozenset({"dem"}),
     figures=(
         *_CHECKPOINTS,
         Figure("layover IoU", "12.3f", figure_at("masks/layover/iou")),
@@ -148,6 +149,7 @@ def sar_product(
     dem_source: str = "",
     provenance: dict[str, Any] | None = None,
     gamma0: NDArray[np.float32] | None = None,
+    instrument: str = "ERS-1 AMI SAR",
 ) -> Product:
     """A geocoded frame as a map product of the house format (level ``GEC`` or ``GTC``):
     bands ``intensity``, ``layover`` and ``shadow`` (1 or 0), and ``gamma0`` when given
@@ -186,7 +188,7 @@ def sar_product(
         attrs={
             "level": g.kind,
             "name": name,
-            "instrument": "ERS-1 AMI SAR",
+            "instrument": instrument,
             "time_utc": str(ann.epoch.utc(np.array([t_mid]))[0]),
             "n_rows": g.grid.n_rows,
             "n_cols": g.grid.n_cols,

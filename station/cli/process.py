@@ -10,6 +10,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from station.cli._options import add_json, add_out, add_runner, emit, exit_made, runner_of
 from station.errors import StationError
 
@@ -68,6 +70,11 @@ def register(sub: Any) -> None:
         metavar="DIR",
         help="with --adjustment block: the directory of the passes' tie files "
         "(<name>.tie.csv, station tie; default: beside each archive)",
+    )
+    p.add_argument(
+        "--dem",
+        metavar="DEM.tif",
+        help="a SAR frame's DEM for GTC (heights above the ellipsoid; a GeoTIFF)",
     )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     p.add_argument(
@@ -142,6 +149,12 @@ def _process(args: argparse.Namespace) -> int:
     from station.sipc.process import l0_stem, process_scenario, reprocess_pass
 
     sources = [Path(s) for s in args.source]
+    if len(sources) == 1 and _is_frame(sources[0]):
+        return _process_frame(args, sources[0])
+    if args.dem:
+        raise StationError(
+            "--dem is a SAR frame's DEM; a pass's level 3 reads [processing] dem_path"
+        )
     scenarios, block_options = _scenarios(args, sources)
     if len(scenarios) > 1 and len(scenarios) != len(sources):
         raise StationError(
@@ -222,6 +235,97 @@ def _process(args: argparse.Namespace) -> int:
         write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
     emit(args, report, _text)
     return exit_made(sum(len(d["products"]) for d in data), "station process")
+
+
+def _is_frame(path: Path) -> bool:
+    from levels.readers.sar import is_sar_frame
+
+    return path.suffix == ".h5" and is_sar_frame(path)
+
+
+def _process_frame(args: argparse.Namespace, source: Path) -> int:
+    """A SAR frame file (``levels.readers.sar``) to its geocoded products
+    (``levels.frame``): its levels, pixel and reference height from ``--scenario`` (the SAR
+    scenario that made it: its products measured against the truth, and the run's), else
+    ``--levels`` and the DEM's."""
+    from levels.files import staged_dir, write_json
+    from levels.frame import FrameOptions, margin_of_dem, process_frame
+    from levels.readers.dem import read_dem
+    from levels.readers.sar import read_sar_frame
+    from station.catalog import write_catalog
+    from station.outdir import replaceable_dir
+    from station.run_sar import (
+        frame_options,
+        frame_quality,
+        load_sar_scenario,
+        scenario_provenance,
+    )
+
+    frame = read_sar_frame(source)
+    scn = load_sar_scenario(args.scenario[0]) if args.scenario else None
+    dem = read_dem(args.dem, "ellipsoid") if args.dem else None
+    levels = tuple(lv.strip() for lv in args.levels.split(",")) if args.levels else None
+    if scn is not None:
+        options = frame_options(scn)
+        options = dataclasses.replace(options, levels=levels or options.levels)
+    else:
+        ref = float(np.nanmedian(dem.height_m)) if dem is not None else 0.0
+        options = FrameOptions(
+            levels=levels or (("GEC", "GTC") if dem is not None else ("GEC",)),
+            reference_height_m=ref,
+            margin_m=margin_of_dem(dem, ref) if dem is not None else 0.0,
+        )
+    out = Path(args.out) if args.out else Path(f"{frame.name}_products")
+    inputs = [source, *([Path(args.dem)] if args.dem else [])]
+    replaceable_dir(
+        out,
+        PROCESS_REPORT,
+        lambda r: r["names"],
+        [frame.name],
+        lambda n: f"products of {n}",
+        inputs,
+    )
+    with staged_dir(out) as stage:
+        made = process_frame(
+            frame,
+            options,
+            stage,
+            dem=dem,
+            dem_source=Path(args.dem).name if args.dem else "",
+            measure=frame_quality(scn, frame) if scn is not None else None,
+            provenance=scenario_provenance(scn) if scn is not None else None,
+        )
+        rows = [
+            {
+                "level": m.level,
+                "file": m.path.name,
+                "n_rows": m.geocoded.grid.n_rows,
+                "n_cols": m.geocoded.grid.n_cols,
+                "valid": round(float(np.isfinite(m.geocoded.intensity).mean()), 6),
+                "quality": m.product.quality,
+            }
+            for m in made
+        ]
+        report = {"frame": str(source), "out": str(out), "products": rows}
+        write_json(
+            stage / PROCESS_REPORT,
+            {
+                "format": "spot-station-process",
+                "format_version": 1,
+                "names": [frame.name],
+                **report,
+            },
+        )
+        write_catalog(stage, out.name, f"the products of the SAR frame {frame.name}")
+    emit(args, report, _frame_text)
+    return exit_made(len(rows), "station process")
+
+
+def _frame_text(report: dict[str, Any]) -> str:
+    from station.tables import product_table
+
+    lines = [f"{len(report['products'])} product(s) of {report['frame']} into {report['out']}/"]
+    return "\n".join(lines + product_table(report["products"], []))
 
 
 def _scenarios(args: argparse.Namespace, sources: list[Path]) -> tuple[list[Any], Any]:
