@@ -48,6 +48,7 @@ import numpy as np
 import pyproj
 from numpy.typing import NDArray
 
+from levels.choices import Level
 from levels.cor.epipolar import resample_epipolar, shift_rows, window_solve
 from levels.errors import GeometryError
 from levels.geo.inverse_grid import bilinear_grid
@@ -128,7 +129,7 @@ class StereoView:
         its level 1A (the raw pixels)."""
         from levels.geo.scenes import models_of_tree
 
-        if level2.level != "2" or level1a.level != "1A":
+        if level2.level != Level.L2 or level1a.level != Level.L1A:
             raise GeometryError(
                 f"a stereo view is made of a level 2 and a level 1A, got {level2.level} and "
                 f"{level1a.level}"

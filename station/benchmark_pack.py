@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from levels.choices import Level
 from levels.geometry.ellipsoid import WGS84
 from levels.products import Product, read_product
 from levels.readers.dimap import AttitudeChoice
@@ -125,7 +126,7 @@ def write_pack(
 
     src = Path(product_path)
     product = read_product(src)
-    if product.level != "1A":
+    if product.level != Level.L1A:
         raise StationError(
             f"{src}: a level {product.level} product; the DIMAP v1 scene is made from a 1A"
         )

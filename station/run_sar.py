@@ -31,7 +31,9 @@ from typing import Any
 import numpy as np
 import pyproj
 
+from levels.kinds import Unit
 from levels.options import build_section, option
+from levels.registry import kind, kind_names
 from station.errors import ScenarioError, StationError
 from station.scenario import DemConfig, WorldConfig, check_name, read_toml
 
@@ -94,7 +96,9 @@ class SarConfig:
     state_drift_m_per_s: tuple[float, float, float] = option(
         [0.0, 0.0, 0.0], "state_drift_m_per_s", "its drift, the same axes"
     )
-    levels: tuple[str, ...] = option(("GEC",), "levels", "products to make", choices=("GEC", "GTC"))
+    levels: tuple[str, ...] = option(
+        ("GEC",), "levels", "products to make", choices=lambda: kind_names(Unit.FRAME)
+    )
     pixel_size_m: float = option(25.0, "pixel_size_m", "output pixel (UTM)", 1.0, 1.0, 1000.0)
     reference_height_m: float = option(
         float("nan"),
@@ -125,9 +129,11 @@ class SarScenario:
 
     def __post_init__(self) -> None:
         check_name(self.name)
-        if "GTC" in self.sar.levels and self.dem is None:
+        over = [lv for lv in self.sar.levels if "dem" in kind(lv).needs]
+        if over and self.dem is None:
             raise ScenarioError(
-                "[sar] levels has 'GTC': it needs the DEM the station is handed, a [dem] table"
+                f"[sar] levels has {over[0]!r}: it needs the DEM the station is handed, a "
+                "[dem] table"
             )
 
     def path(self, relative: str) -> Path:

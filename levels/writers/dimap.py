@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from levels.choices import Level
 from levels.errors import DimapError, ProductError
 from levels.geometry.attitude import SampledAttitude
 from levels.geometry.times import Epoch
@@ -387,7 +388,7 @@ def dimap_scene_of(
     """
     from levels.geo.scenes import models_of_tree
 
-    if product.level != "1A":
+    if product.level != Level.L1A:
         raise ProductError(f"level {product.level}: a DIMAP v1 scene is made from a 1A product")
     epoch0, models = models_of_tree(product.geometry)
     model = next(iter(models.values()))

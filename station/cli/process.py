@@ -271,7 +271,7 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
     else:
         ref = float(np.nanmedian(dem.height_m)) if dem is not None else 0.0
         options = FrameOptions(
-            levels=levels or (("GEC", "GTC") if dem is not None else ("GEC",)),
+            levels=levels or _frame_kinds(dem is not None),
             reference_height_m=ref,
             margin_m=margin_of_dem(dem, ref) if dem is not None else 0.0,
         )
@@ -319,6 +319,14 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
         write_catalog(stage, out.name, f"the products of the SAR frame {frame.name}")
     emit(args, report, _frame_text)
     return exit_made(len(rows), "station process")
+
+
+def _frame_kinds(with_dem: bool) -> tuple[str, ...]:
+    """A SAR frame's kinds, those that need a DEM only ``with_dem``."""
+    from levels.kinds import Unit
+    from levels.registry import kind, kind_names
+
+    return tuple(n for n in kind_names(Unit.FRAME) if with_dem or "dem" not in kind(n).needs)
 
 
 def _frame_text(report: dict[str, Any]) -> str:
@@ -425,7 +433,7 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace,
 
     archives = [read_l0(s, lazy=True) for s in sources]
     makers = plan_levels(options.levels)
-    if args.check and "2" in {m.name for m in makers}:
+    if args.check and any(Need.ADJUSTMENT in m.needs for m in makers):
         where = args.gcps or [s.with_name(f"{l0_stem(s)}.gcp.csv") for s in sources]
         for w, a in zip(where, archives, strict=True):
             read_gcps(w, a.n_lines, a.n_columns)

@@ -19,6 +19,7 @@ import numpy as np
 
 from levels.errors import L0Error
 from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
+from levels.makers.base import Need
 from levels.options import ProcessingOptions
 from levels.process import (
     PassPlan,
@@ -27,6 +28,7 @@ from levels.process import (
     all_made,
     nominal_pixel_size_m,
     plan,
+    plan_levels,
     process,
     run_plans,
 )
@@ -255,10 +257,11 @@ def plan_reprocess(
     truths = [
         truth_for(s, a) if s is not None else None for s, a in zip(per, archives, strict=True)
     ]
-    if "3" in opts.levels and not opts.dem_path:
+    needs = {n for m in plan_levels(opts.levels) for n in m.needs}
+    if Need.DEM in needs and not opts.dem_path:
         opts = dataclasses.replace(opts, dem_path=str(run_dem(paths[0], archives[0])))
     points = None
-    if "2" in opts.levels:
+    if Need.ADJUSTMENT in needs:
         where = (
             [Path(g) for g in gcps]
             if gcps
