@@ -27,13 +27,12 @@ LEVELS = ("1A", "1B", "2A")
 
 
 def test_levels_alone_processes_an_l0_archive(run_dir: Path, tmp_path: Path) -> None:
-    """The driver runs with ``station`` never imported (a fresh interpreter says so)."""
+    """The driver runs through the library's public face (``levels.api``) with ``station``
+    never imported (a fresh interpreter says so)."""
     code = textwrap.dedent(f"""
         import json, sys
-        from levels.options import ProcessingOptions
-        from levels.process import ProcessingRequest, process
-        from levels.products import read_product
-        from levels.readers.l0 import read_l0
+        from levels.api import ProcessingOptions, ProcessingRequest, process, read_l0
+        from levels.api import read_product
         [made] = process(ProcessingRequest.of(read_l0({str(run_dir / "small_test.l0.h5")!r}),
                           ProcessingOptions(levels=("1A", "2A")), {str(tmp_path)!r},
                           "alone"))
