@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
-import levels.adjust as la
+import levels.adjust.model as la
+from levels.adjust.passes import _nodes
 from levels.options import ProcessingOptions
 from station.scenario import scenario_from_dict
 from station.sipc.process import control_points, emulated_pass
@@ -26,7 +29,7 @@ def _problem():
     acq = emulate(scn, render=False)
     pg, scenes = emulated_pass(acq, 6000)
     strips = [la.Strip(pg, scenes, control_points(acq))]
-    nodes = la._nodes(strips)
+    nodes = _nodes(strips)
     t_ref = float(np.mean(pg.line_t_s[[0, -1]]))
     prob, _lost = la._problem(
         strips, nodes.has, nodes.point_node, nodes.t_node, t_ref, ProcessingOptions()
@@ -54,6 +57,6 @@ def test_kernels_reproduce_the_numpy_condition_and_its_partials() -> None:
     ground = prob.ground_jacobian(x, p, enu)
     f0 = la._condition_numpy(p, *corr)
     for k in range(3):
-        moved = la.dataclasses.replace(p, g_ecef_m=p.g_ecef_m + la._STEP_M * enu[:, k])
+        moved = dataclasses.replace(p, g_ecef_m=p.g_ecef_m + la._STEP_M * enu[:, k])
         ref = (la._condition_numpy(moved, *corr) - f0) / la._STEP_M
         assert np.max(np.abs(ground[:, :, k] - ref)) < JACOBIAN_TOL * np.max(np.abs(ref))

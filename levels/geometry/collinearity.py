@@ -5,7 +5,7 @@ every point at every iteration, and 24 times more for the parameters' Jacobian (
 differences in 12 parameters). As numpy stacks that is about 30 array passes per
 evaluation; here it is one pass over the points, and the Jacobian one kernel call.
 
-The arithmetic is the numpy version's (:func:`levels.adjust._condition_numpy`, kept as the
+The arithmetic is the numpy version's (:func:`levels.adjust.model._condition_numpy`, kept as the
 reference the tests compare with): the orbital frame rebuilt on the corrected state
 (SPOT Geometry Handbook: ``Z = P/|P|``, ``X = V × Z / |V × Z|``, ``Y = Z × X``), the body
 frame by :func:`levels.geometry.frames.orbital_from_body`, the direction to the ground
