@@ -31,6 +31,7 @@ def main() -> int:
     ap.add_argument("--flatten", action="store_true", help="time γ⁰ by terrain flattening too")
     args = ap.parse_args()
     import levels.sar as sar
+    import levels.sar.geocoding as geocoding  # where geocode finds its stages
     from levels.threads import thread_count
     from station.spacecraft.dem import world_dem
     from station.spacecraft.sar import ErsFrame, emulate_frame
@@ -60,7 +61,7 @@ def main() -> int:
     stages: dict[str, float] = {}
     original = {}
     for name in ("_dem_surface", "_anchors", "_profiles"):
-        original[name] = getattr(sar, name)
+        original[name] = getattr(geocoding, name)
 
         def timed(*a, _f=original[name], _n=name, **k):
             t = time.perf_counter()
@@ -68,12 +69,12 @@ def main() -> int:
             stages[_n] = stages.get(_n, 0.0) + time.perf_counter() - t
             return out
 
-        setattr(sar, name, timed)
+        setattr(geocoding, name, timed)
     t = time.perf_counter()
     g = sar.geocode(image, grid, dem=dem)
     total = time.perf_counter() - t
     for name, f in original.items():
-        setattr(sar, name, f)
+        setattr(geocoding, name, f)
     rest = total - sum(stages.values())
     for name, v in stages.items():
         print(f"  {name:20s} {v:6.1f} s")
