@@ -19,7 +19,8 @@ import pytest
 from scipy import ndimage
 
 from levels.cor.epipolar import WINDOW_SUMS, resample_epipolar, shift_rows, window_solve
-from levels.stereo import _window_sums, blunder_cells, closest_approach, match
+from levels.stereo import blunder_cells, closest_approach, match
+from levels.stereo.matching import _window_sums
 
 #: The exact disparity's v-parallax on the reduced pair: the epipolar grid's own error plus
 #: the adjusted models' relative error across the rows (measured 0.012 px; 0.11 px at full
