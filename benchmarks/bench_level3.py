@@ -109,7 +109,7 @@ def bench_gdal(l0: Path, dem_path: Path) -> None:
     from affine import Affine
     from rasterio.enums import Resampling
 
-    from levels.cor.resample import resample_3
+    from levels.cor.ortho import resample_3
 
     archive = read_l0(l0)
     opts = dataclasses.replace(ProcessingOptions(), reference_height_m=REFERENCE_HEIGHT_M)

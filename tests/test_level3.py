@@ -116,7 +116,7 @@ def test_level_3_puts_pixels_on_the_terrain(rugged, rugged_level3) -> None:
 def test_level_3_resampling_follows_its_geometry(rugged, rugged_level3) -> None:
     """The kernel's densification is the geometry's: with nearest-neighbour resampling each
     valid output pixel holds the raw pixel that :meth:`Level3Geometry.raw_of` names."""
-    from levels.cor.resample import resample_3
+    from levels.cor.ortho import resample_3
 
     _acq, scene, _res = rugged
     geom, _crs = rugged_level3
@@ -143,7 +143,7 @@ WALL_CELL_DEG = 1 / 1200  # the wall's DEM spacing (3", about 93 m)
 def wall(rugged) -> dict:
     """A 1500 m wall, three DEM cells (250 m) thick, along the meridian through the scene's
     centre, seen at 27°; level 3 of a flat image over it (nearest neighbour)."""
-    from levels.cor.resample import resample_3
+    from levels.cor.ortho import resample_3
     from levels.readers.dem import Dem
 
     _acq, scene, res = rugged

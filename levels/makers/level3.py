@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from levels.choices import Level
-from levels.cor.resample import resample_3
+from levels.cor.ortho import resample_3
 from levels.geo.level3 import Level3Geometry
 from levels.kinds import Export
 from levels.makers.base import BandPixels, LevelMaker, Need, SceneWork
