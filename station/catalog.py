@@ -182,15 +182,7 @@ def _grid_item(product: Product, path: Path, props: dict[str, Any]) -> Any:
         },
         stac_extensions=list(EXTENSIONS),
     )
-    item.add_asset(
-        "data",
-        pystac.Asset(
-            href=str(path.resolve()),
-            media_type=_MEDIA.get(path.suffix, "application/x-hdf5"),
-            roles=["data"],
-            title=f"{product.level} product of {description}".strip(),
-        ),
-    )
+    _add_assets(item, path, f"{product.level} product of {description}".strip())
     return item
 
 
@@ -227,22 +219,7 @@ def item_of(path: Path, root: Path) -> Any:
         "processing:software": {"spot-station": __version__},
         "spot:quality": _quality(product, path),
     }
-    grid = product.map_grid
-    if grid is not None:
-        import pyproj
-
-        crs = pyproj.CRS.from_wkt(grid.crs_wkt)
-        epsg = crs.to_epsg()
-        props["proj:code"] = f"EPSG:{epsg}" if epsg else None
-        if not epsg:
-            props["proj:wkt2"] = crs.to_wkt()
-        gt = grid.geotransform
-        props["proj:shape"] = [int(a["n_rows"]), int(a["n_cols"])]
-        props["proj:transform"] = [gt[1], gt[2], gt[0], gt[4], gt[5], gt[3]]
-        props["gsd"] = float(abs(gt[1]))
-    else:
-        props["proj:code"] = None  # image geometry: located by its RPCs (asset "rpc")
-        props["proj:shape"] = [int(a["n_rows"]), int(a["n_cols"])]
+    props.update(_projection(product))
     item = pystac.Item(
         id=path.stem,
         geometry=geometry,
@@ -251,13 +228,43 @@ def item_of(path: Path, root: Path) -> Any:
         properties=props,
         stac_extensions=list(EXTENSIONS),
     )
+    _add_assets(item, path, f"level {level} product")
+    return item
+
+
+def _projection(product: Product) -> dict[str, Any]:
+    """The ``proj`` properties of a scene's product: a map level's EPSG code (or WKT2),
+    shape and transform; an image-geometry level's shape, ``proj:code`` null (located by
+    its RPCs, the asset ``rpc``)."""
+    a, grid = product.attrs, product.map_grid
+    props: dict[str, Any] = {"proj:shape": [int(a["n_rows"]), int(a["n_cols"])]}
+    if grid is None:
+        return {"proj:code": None, **props}
+    import pyproj
+
+    crs = pyproj.CRS.from_wkt(grid.crs_wkt)
+    epsg = crs.to_epsg()
+    props["proj:code"] = f"EPSG:{epsg}" if epsg else None
+    if not epsg:
+        props["proj:wkt2"] = crs.to_wkt()
+    gt = grid.geotransform
+    props["proj:transform"] = [gt[1], gt[2], gt[0], gt[4], gt[5], gt[3]]
+    props["gsd"] = float(abs(gt[1]))
+    return props
+
+
+def _add_assets(item: Any, path: Path, title: str) -> None:
+    """An Item's assets: the product (``data``), its RPC sidecar (``rpc``) and its
+    quicklook (``thumbnail``) where they are beside it."""
+    import pystac
+
     item.add_asset(
         "data",
         pystac.Asset(
             href=str(path.resolve()),
             media_type=_MEDIA.get(path.suffix, "application/x-hdf5"),
             roles=["data"],
-            title=f"level {level} product",
+            title=title,
         ),
     )
     sidecar = Path(f"{path}.aux.xml")
@@ -279,10 +286,9 @@ def item_of(path: Path, root: Path) -> Any:
                 href=str(quicklook.resolve()),
                 media_type=pystac.MediaType.PNG,
                 roles=["thumbnail"],
-                title="quicklook with checkpoint errors",
+                title="quicklook",
             ),
         )
-    return item
 
 
 def _fill(catalog: Any, directory: Path, root: Path) -> int:

@@ -95,79 +95,31 @@ def _run(
     runner: Runner | None,
     warm_up: bool,
 ) -> dict[str, Any]:
-    """:func:`run_scenario` into ``out`` (its staging directory)."""
+    """:func:`run_scenario` into ``out`` (its staging directory): the pass emulated and
+    received, GEO and COR, the products' rows (and quicklooks), the catalogue, the report."""
     from tqdm import tqdm
 
-    from levels.quicklook import write_quicklook
-    from levels.warmup import start_warm_up, stop_warm_up, wait_for_warm_up
     from station.catalog import CATALOG_FILE, write_catalog
-    from station.sipc.process import with_exported_dem
-    from station.spacecraft.emulator import emulate_pass
 
-    warming = start_warm_up() if warm_up else None
     clock = time.perf_counter
     timings: dict[str, Any] = {}
     t_start = clock()
-    n_hrv = len(scn.instruments)
     stages = tqdm(
-        total=1 + 3 * n_hrv + quicklooks,
+        total=1 + 3 * len(scn.instruments) + quicklooks,
         desc="emulate",
         unit="stage",
         disable=not progress,
         leave=False,
     )
-    try:  # a failed or interrupted run ends the warm-up it started
-        t = clock()
-        _log.info("emulating %s: %d HRV(s)", scn.name, n_hrv)
-        acqs = emulate_pass(scn)
-        timings["emulate"] = clock() - t
-        _log.info("emulated in %.1f s", timings["emulate"])
-        stages.update()
-        t = clock()
-        options = with_exported_dem(scn, acqs, out)
-        if scn.dem is not None:
-            timings["dem_export"] = clock() - t
-        tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
-        received = [
-            _receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)
-        ]
-        t = clock()
-        wait_for_warm_up(warming)  # its kernels are cached: the processing loads them
-        if warming is not None:
-            timings["warm_up_wait"] = clock() - t
-    except BaseException:
-        stop_warm_up(warming)
-        raise
+    acqs, received, tags, options = _emulate_and_receive(scn, out, warm_up, timings, stages)
     passes = _process(acqs, received, tags, options, timings, stages, progress, runner)
     hrvs, made = [], []
     for acq, rec, products in zip(acqs, received, passes, strict=True):
         hrvs.append(_section(acq, rec, products))
         made += [(acq.hrv.number, s) for s in products.scenes]
-    rows = []
     t = clock()
-    for hrv, s in made:
-        for level, path in s.paths.items():
-            p = read_product(path)
-            row: dict[str, Any] = {
-                "hrv": hrv,
-                "scene": s.index,
-                "level": level,
-                "first_line": s.first_line,
-                "n_lines": s.n_lines,
-                "file": path.name,
-                "n_rows": p.attrs["n_rows"],
-                "n_cols": p.attrs["n_cols"],
-                "bands": list(p.bands),
-                "valid_fraction": {
-                    b: round(float(im.valid.mean()), 6) for b, im in p.bands.items()
-                },
-                "size_mb": round(path.stat().st_size / 1e6, 3),
-                "quality": s.quality[level],
-            }
-            if quicklooks:
-                ql = write_quicklook(p, out / "quicklooks" / f"{path.stem}.png")
-                row["quicklook"] = str(ql.relative_to(out))
-            rows.append(row)
+    rows = [_product_row(hrv, s, level, path, out, quicklooks) for hrv, s in made
+            for level, path in s.paths.items()]  # fmt: skip
     if quicklooks:
         timings["quicklooks"] = clock() - t
         _log.info("quicklooks drawn in %.1f s", timings["quicklooks"])
@@ -195,6 +147,71 @@ def _run(
     write_json(out / "report.json", report)
     stages.close()
     return report
+
+
+def _emulate_and_receive(
+    scn: Scenario, out: Path, warm_up: bool, timings: dict[str, Any], stages: Any
+) -> tuple[Any, list[_Received], list[str], Any]:
+    """The pass emulated, its DEM exported, each HRV's channel and L0 archive, while the
+    kernels compile in the background (``warm_up``): the acquisitions, what was received,
+    each HRV's tag and the processing options; adds the wall times to ``timings``."""
+    from levels.warmup import start_warm_up, stop_warm_up, wait_for_warm_up
+    from station.sipc.process import with_exported_dem
+    from station.spacecraft.emulator import emulate_pass
+
+    clock = time.perf_counter
+    warming = start_warm_up() if warm_up else None
+    n_hrv = len(scn.instruments)
+    try:  # a failed or interrupted run ends the warm-up it started
+        t = clock()
+        _log.info("emulating %s: %d HRV(s)", scn.name, n_hrv)
+        acqs = emulate_pass(scn)
+        timings["emulate"] = clock() - t
+        _log.info("emulated in %.1f s", timings["emulate"])
+        stages.update()
+        t = clock()
+        options = with_exported_dem(scn, acqs, out)
+        if scn.dem is not None:
+            timings["dem_export"] = clock() - t
+        tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
+        received = [
+            _receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)
+        ]
+        t = clock()
+        wait_for_warm_up(warming)  # its kernels are cached: the processing loads them
+        if warming is not None:
+            timings["warm_up_wait"] = clock() - t
+    except BaseException:
+        stop_warm_up(warming)
+        raise
+    return acqs, received, tags, options
+
+
+def _product_row(
+    hrv: int, s: Any, level: str, path: Path, out: Path, quicklooks: bool
+) -> dict[str, Any]:
+    """What a run's report says of one product (its quicklook drawn if asked)."""
+    from levels.quicklook import write_quicklook
+
+    p = read_product(path)
+    row: dict[str, Any] = {
+        "hrv": hrv,
+        "scene": s.index,
+        "level": level,
+        "first_line": s.first_line,
+        "n_lines": s.n_lines,
+        "file": path.name,
+        "n_rows": p.attrs["n_rows"],
+        "n_cols": p.attrs["n_cols"],
+        "bands": list(p.bands),
+        "valid_fraction": {b: round(float(im.valid.mean()), 6) for b, im in p.bands.items()},
+        "size_mb": round(path.stat().st_size / 1e6, 3),
+        "quality": s.quality[level],
+    }
+    if quicklooks:
+        ql = write_quicklook(p, out / "quicklooks" / f"{path.stem}.png")
+        row["quicklook"] = str(ql.relative_to(out))
+    return row
 
 
 def scenario_entry(scn: Any) -> dict[str, Any]:
