@@ -442,12 +442,10 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
     from levels.files import write_json
     from levels.frame import process_frame
     from levels.quicklook import write_quicklook
-    from levels.readers.dem import read_dem
     from levels.readers.sar import read_sar_frame
     from levels.writers.sar import write_sar_frame
     from station.catalog import CATALOG_FILE, write_catalog
     from station.run import scenario_entry
-    from station.spacecraft.dem import export_dem_over
     from station.spacecraft.sar import emulate_frame
 
     clock = time.perf_counter
@@ -459,16 +457,9 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
     _log.info("SAR frame %s emulated in %.1f s", scn.name, timings["emulate"])
     ann = image.annotation
     ref = scn.reference_height_m
-    dem = None
-    dem_row: dict[str, Any] = {}
-    if scn.dem is not None:
-        t = clock()
-        lo, hi = (ref - 3.0 * world.relief_m - 500.0, ref + 3.0 * world.relief_m + 500.0)
-        dem_path = export_dem_over(
-            world, _footprint_rad(ann, (lo, hi)), scn.dem, scn.seed, out / f"{scn.name}.dem.tif"
-        )
-        dem = read_dem(dem_path, "ellipsoid")
-        dem_row = {"file": dem_path.name, **dataclasses.asdict(scn.dem)}
+    t = clock()
+    dem, dem_row = _exported_dem(scn, world, ann, out)
+    if dem is not None:
         timings["dem_export"] = clock() - t
     t = clock()
     frame_path = write_sar_frame(out / f"{scn.name}.frame.h5", image, scn.name, ERS_INSTRUMENT)
@@ -489,20 +480,7 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
             timings[f"{k}_{m.level}"] = v
         if quicklooks:
             write_quicklook(m.product, out / "quicklooks" / f"{m.path.stem}.png")
-        grid = m.geocoded.grid
-        rows.append(
-            {
-                "level": m.level,
-                "file": m.path.name,
-                "n_rows": grid.n_rows,
-                "n_cols": grid.n_cols,
-                "pixel_size_m": grid.pixel_size_m,
-                "valid_fraction": round(float(np.isfinite(m.geocoded.intensity).mean()), 6),
-                "size_mb": round(m.path.stat().st_size / 1e6, 3),
-                "anchor_error_px": m.geocoded.anchor_error,
-                "quality": {k: v for k, v in m.product.quality.items() if k in _TRUTH_KEYS},
-            }
-        )
+        rows.append(_product_row(m))
     t = clock()
     write_catalog(out, scn.name, f"the products of a run of SAR scenario {scn.name} (spot-station)")
     timings["catalog"] = clock() - t
@@ -512,7 +490,8 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
         "software": f"spot-station {__version__}",
         "scenario": scenario_entry(scn),
         "frame": {
-            "instrument": "ERS-1 AMI SAR",
+            "file": frame_path.name,
+            "instrument": ERS_INSTRUMENT,
             "lines": ann.shape[0],
             "samples": ann.shape[1],
             "line_interval_s": ann.line_interval_s,
@@ -530,6 +509,40 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
     }
     write_json(out / "report.json", report)
     return report
+
+
+def _exported_dem(scn: SarScenario, world: Any, ann: Any, out: Path) -> tuple[Any, dict[str, Any]]:
+    """With ``[dem]``: the world's terrain over the frame (and as far as its relief can
+    reach) exported as ``<name>.dem.tif``, read back as the station is handed it, and what
+    the report says of it; else nothing."""
+    from levels.readers.dem import read_dem
+    from station.spacecraft.dem import export_dem_over
+
+    if scn.dem is None:
+        return None, {}
+    ref = scn.reference_height_m
+    lo, hi = (ref - 3.0 * world.relief_m - 500.0, ref + 3.0 * world.relief_m + 500.0)
+    dem_path = export_dem_over(
+        world, _footprint_rad(ann, (lo, hi)), scn.dem, scn.seed, out / f"{scn.name}.dem.tif"
+    )
+    return read_dem(dem_path, "ellipsoid"), {"file": dem_path.name, **dataclasses.asdict(scn.dem)}
+
+
+def _product_row(m: Any) -> dict[str, Any]:
+    """What a SAR run's report says of a product (:class:`levels.frame.FrameMade`): its
+    size, valid share, anchors' error and the truth's figures."""
+    grid = m.geocoded.grid
+    return {
+        "level": m.level,
+        "file": m.path.name,
+        "n_rows": grid.n_rows,
+        "n_cols": grid.n_cols,
+        "pixel_size_m": grid.pixel_size_m,
+        "valid_fraction": round(float(np.isfinite(m.geocoded.intensity).mean()), 6),
+        "size_mb": round(m.path.stat().st_size / 1e6, 3),
+        "anchor_error_px": m.geocoded.anchor_error,
+        "quality": {k: v for k, v in m.product.quality.items() if k in _TRUTH_KEYS},
+    }
 
 
 def sar_summary(report: dict[str, Any], out: Path) -> str:
