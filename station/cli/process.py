@@ -140,13 +140,9 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
 
 
 def _process(args: argparse.Namespace) -> int:
-    from levels.files import staged_dir, write_json
-    from levels.options import ProcessingOptions
     from levels.process import pair_kinds_of
-    from station.catalog import write_catalog
     from station.outdir import replaceable_dir
-    from station.scenario import check_name, load_scenario
-    from station.sipc.process import l0_stem, process_scenario, reprocess_pass
+    from station.scenario import check_name
 
     sources = [Path(s) for s in args.source]
     if len(sources) == 1 and _is_frame(sources[0]):
@@ -161,40 +157,14 @@ def _process(args: argparse.Namespace) -> int:
             f"--scenario given {len(scenarios)} times for {len(sources)} source(s): once for "
             "one pass, or once per archive"
         )
-    scenario = scenarios[0] if scenarios else None
     if args.name:
         check_name(args.name, "--name")
     from_scenario = any(s.suffix == ".toml" for s in sources)
     if from_scenario:
-        if len(sources) > 1:
-            raise StationError("give one scenario (.toml), or L0 archives (.h5), not both")
-        if scenario is not None:
-            raise StationError(
-                "give --scenario only with an L0 archive; a .toml SOURCE is the scenario"
-            )
-        if args.gcps:
-            raise StationError(
-                "give --gcps only with an L0 archive; a scenario draws its own control points"
-            )
-        scn = load_scenario(sources[0])
-        scn = dataclasses.replace(
-            scn, processing=_options(args, scn.processing), name=args.name or scn.name
-        )
-        names, inputs = [scn.name], scn.inputs()
+        scn = _scenario_source(args, sources, scenarios)
+        options, names, inputs = scn.processing, [scn.name], scn.inputs()
     else:
-        if args.name and len(sources) > 1:
-            raise StationError(
-                "--name names one archive's products; several are named after theirs"
-            )
-        if args.gcps and len(args.gcps) != len(sources):
-            raise StationError(
-                f"--gcps given {len(args.gcps)} time(s) for {len(sources)} L0 archive(s): "
-                "once per archive, or not at all"
-            )
-        base = scenario.processing if scenario is not None else ProcessingOptions()
-        options = _options(args, block_options or base)
-        names = [args.name] if args.name else [l0_stem(s) for s in sources]
-        inputs = [*sources, *(args.gcps or []), *([options.dem_path] if options.dem_path else [])]
+        options, names, inputs = _archive_sources(args, sources, scenarios, block_options)
     out = Path(args.out) if args.out else Path(f"{names[0]}_products")
     replaceable_dir(
         out, PROCESS_REPORT, lambda r: r["names"], names, lambda n: f"products of {n}", inputs
@@ -210,8 +180,71 @@ def _process(args: argparse.Namespace) -> int:
         return 0
     if not from_scenario and len(sources) > 1 and pair_kinds_of(options):
         return _process_block(args, sources, scenarios, names, options, out)
+    return _process_pass(
+        args, sources, scenarios, names, options, out, scn if from_scenario else None
+    )
+
+
+def _scenario_source(args: argparse.Namespace, sources: list[Path], scenarios: list[Any]) -> Any:
+    """A scenario given as the SOURCE (emulated and received first), its options and name
+    as the command's arguments set them."""
+    from station.scenario import load_scenario
+
+    if len(sources) > 1:
+        raise StationError("give one scenario (.toml), or L0 archives (.h5), not both")
+    if scenarios:
+        raise StationError(
+            "give --scenario only with an L0 archive; a .toml SOURCE is the scenario"
+        )
+    if args.gcps:
+        raise StationError(
+            "give --gcps only with an L0 archive; a scenario draws its own control points"
+        )
+    scn = load_scenario(sources[0])
+    return dataclasses.replace(
+        scn, processing=_options(args, scn.processing), name=args.name or scn.name
+    )
+
+
+def _archive_sources(
+    args: argparse.Namespace, sources: list[Path], scenarios: list[Any], block_options: Any
+) -> tuple[Any, list[str], list[Path]]:
+    """L0 archives as the SOURCE: the options (the scenario's or the block's, then the
+    command's), the names of their products and the files they read."""
+    from levels.options import ProcessingOptions
+    from station.sipc.process import l0_stem
+
+    if args.name and len(sources) > 1:
+        raise StationError("--name names one archive's products; several are named after theirs")
+    if args.gcps and len(args.gcps) != len(sources):
+        raise StationError(
+            f"--gcps given {len(args.gcps)} time(s) for {len(sources)} L0 archive(s): "
+            "once per archive, or not at all"
+        )
+    base = scenarios[0].processing if scenarios else ProcessingOptions()
+    options = _options(args, block_options or base)
+    names = [args.name] if args.name else [l0_stem(s) for s in sources]
+    given = [*(args.gcps or []), *([options.dem_path] if options.dem_path else [])]
+    return options, names, [*sources, *(Path(g) for g in given)]
+
+
+def _process_pass(
+    args: argparse.Namespace,
+    sources: list[Path],
+    scenarios: list[Any],
+    names: list[str],
+    options: Any,
+    out: Path,
+    scn: Any,
+) -> int:
+    """A pass (one archive per HRV, or a block's archives with their ties) reprocessed, or
+    a scenario's pass emulated and processed (``scn``), into ``out``, published whole."""
+    from levels.files import staged_dir, write_json
+    from station.catalog import write_catalog
+    from station.sipc.process import process_scenario, reprocess_pass
+
     with staged_dir(out) as stage, runner_of(args) as runner:
-        if from_scenario:
+        if scn is not None:
             products, l0 = process_scenario(scn, stage, runner=runner)
             made = [(out / l0.name, products)]
         else:
@@ -219,7 +252,7 @@ def _process(args: argparse.Namespace) -> int:
                 sources,
                 stage,
                 options=options,
-                scenario=scenarios if len(scenarios) > 1 else scenario,
+                scenario=scenarios if len(scenarios) > 1 else (scenarios or [None])[0],
                 names=names,
                 gcps=args.gcps,
                 runner=runner,
