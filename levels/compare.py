@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,6 +61,7 @@ __all__ = [
     "compare_products",
     "compare_stored",
     "load_tolerances",
+    "only_in_one",
 ]
 
 DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
@@ -105,6 +107,21 @@ class Finding:
         if self.tolerance is not None:
             s += f" (tolerance {_num(self.tolerance)})"
         return s
+
+
+def only_in_one(kind: str, label: str, a: Collection[str], b: Collection[str]) -> list[Finding]:
+    """A difference for each name in ``a`` or ``b`` but not both: ``<label><name>``,
+    present in one and missing in the other."""
+    return [
+        Finding(
+            kind,
+            f"{label}{n}",
+            ok=False,
+            a="present" if n in a else "missing",
+            b="present" if n in b else "missing",
+        )
+        for n in sorted(set(a) ^ set(b))
+    ]
 
 
 def _num(x: Any) -> str:
@@ -235,16 +252,7 @@ def compare_directories(
     pa, pb = _products_in(a), _products_in(b)
     if require_products and not pa and not pb:
         raise CompareError(f"no level products (*.nc, *.h5) in {a} or {b}")
-    out.findings[""] = [
-        Finding(
-            "files",
-            f"product {name}",
-            ok=False,
-            a="present" if name in pa else "missing",
-            b="present" if name in pb else "missing",
-        )
-        for name in sorted(set(pa) ^ set(pb))
-    ]
+    out.findings[""] = only_in_one("files", "product ", pa, pb)
     out.findings[""] += compare_point_files(a, b, tol)
     for name in sorted(set(pa) & set(pb)):
         out.findings[name] = compare_products(read_product(pa[name]), read_product(pb[name]), tol)
@@ -263,16 +271,7 @@ def compare_point_files(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> l
         for side, d in (("a", a), ("b", b))
     }
     fa, fb = names["a"], names["b"]
-    out = [
-        Finding(
-            "files",
-            f"points {n}",
-            ok=False,
-            a="present" if n in fa else "missing",
-            b="present" if n in fb else "missing",
-        )
-        for n in sorted(set(fa) ^ set(fb))
-    ]
+    out = only_in_one("files", "points ", fa, fb)
     g = tol["geometry"]
     for n in sorted(set(fa) & set(fb)):
         x, y = read_gcps(fa[n]), read_gcps(fb[n])
@@ -415,16 +414,7 @@ def _schema(a: Product, b: Product) -> list[Finding]:
     out = []
     for tree in ("geometry", "quality"):
         pa, pb = _paths(getattr(a, tree)), _paths(getattr(b, tree))
-        for path in sorted(pa ^ pb):
-            out.append(
-                Finding(
-                    "schema",
-                    f"{tree}/{path}",
-                    ok=False,
-                    a="present" if path in pa else "missing",
-                    b="present" if path in pb else "missing",
-                )
-            )
+        out += only_in_one("schema", f"{tree}/", pa, pb)
     return out
 
 

@@ -20,6 +20,7 @@ from levels.compare import (
     compare_directories,
     compare_paths,
     load_tolerances,
+    only_in_one,
 )
 from levels.readers.l0 import read_l0
 
@@ -193,18 +194,8 @@ def _compare_blocks(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> Compa
         side: {p.name for p in d.iterdir() if p.is_dir() and p.name not in _DERIVED}
         for side, d in (("a", a), ("b", b))
     }
-    for name in sorted(subs["a"] | subs["b"]):
-        if name not in subs["a"] or name not in subs["b"]:
-            out.findings[""].append(
-                Finding(
-                    "files",
-                    f"directory {name}/",
-                    ok=False,
-                    a="present" if name in subs["a"] else "missing",
-                    b="present" if name in subs["b"] else "missing",
-                )
-            )
-            continue
+    out.findings[""] += only_in_one("files", "directory ", subs["a"], subs["b"])
+    for name in sorted(subs["a"] & subs["b"]):
         ka, kb = directory_kind(a / name), directory_kind(b / name)
         if ka != kb:
             out.findings[""].append(Finding("files", f"{name}/", ok=False, a=ka, b=kb))
@@ -240,16 +231,7 @@ def _compare_l0s(a: Path, b: Path) -> list[Finding]:
     data). A damaged archive is bad input (its checksums, ``levels.readers.l0``)."""
     la = {p.name: p for p in sorted(a.glob("*.l0.h5"))}
     lb = {p.name: p for p in sorted(b.glob("*.l0.h5"))}
-    out = [
-        Finding(
-            "files",
-            f"L0 {n}",
-            ok=False,
-            a="present" if n in la else "missing",
-            b="present" if n in lb else "missing",
-        )
-        for n in sorted(set(la) ^ set(lb))
-    ]
+    out = only_in_one("files", "L0 ", la, lb)
     if not la and not lb and not _is_sar_run(a):  # a SAR frame's run records none
         out.append(Finding("files", "L0 archives", ok=False, a="none", b="none"))
     for name in sorted(set(la) & set(lb)):
