@@ -308,6 +308,27 @@ def test_a_bad_control_point_file_is_named(edit, message, run_dir: Path, tmp_pat
         read_gcps(bad)
 
 
+def test_a_control_point_file_from_a_spreadsheet_reads_and_refusals_name_its_line(
+    run_dir: Path, tmp_path
+) -> None:
+    """A spreadsheet's UTF-8 byte-order mark before the header is no part of the column
+    ``id``; a refusal names the file's line (a comment and the header before the first
+    point: its first point is line 3), not the row's rank among the points."""
+    from levels.errors import GcpError
+    from levels.readers.gcp import read_gcps
+
+    text = (run_dir / "small_test.gcp.csv").read_text()
+    bom = tmp_path / "bom.gcp.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert len(read_gcps(bom)) == len(read_gcps(run_dir / "small_test.gcp.csv"))
+    lines = text.splitlines()
+    first = next(k for k, ln in enumerate(lines, start=1) if ln.startswith("hrv1_p0000,"))
+    bad = tmp_path / "bad.gcp.csv"
+    bad.write_text(text.replace(",8,5,0.3,1\n", ",8,5,nan,1\n", 1))
+    with pytest.raises(GcpError, match=f"line {first}: sigma_px = 'nan'"):
+        read_gcps(bad)
+
+
 def test_a_control_point_outside_the_image_is_refused(run_dir: Path) -> None:
     from levels.errors import GcpError
     from levels.readers.gcp import read_gcps

@@ -107,26 +107,27 @@ class ControlPointSet:
         )
 
 
-def _bad(where: Path, row: int, msg: str) -> GcpError:
-    return GcpError(f"{where}: row {row}: {msg}")
+def _bad(where: Path, line: int, msg: str) -> GcpError:
+    return GcpError(f"{where}: line {line}: {msg}")
 
 
-def read_gcps(
-    path: str | Path, n_lines: int | None = None, n_columns: int | None = None
-) -> ControlPointSet:
-    """Read and check a control-point file (module docstring); with the image's size,
-    points outside it (beyond half a pixel of its edges) are refused too."""
-    where = Path(path)
+def _rows(where: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
+    """The file's header and its rows, each with its line number in the file (comments
+    and blank lines skipped; a UTF-8 byte-order mark, as spreadsheets write it, ignored)."""
     try:
-        text = where.read_text(encoding="utf-8")
+        text = where.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise GcpError(f"{where}: no such control-point file") from None
     except (UnicodeDecodeError, IsADirectoryError):
         raise GcpError(f"{where}: not a text (UTF-8) control-point file") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
+    numbered = [
+        (k, ln)
+        for k, ln in enumerate(text.splitlines(), start=1)
+        if ln.strip() and not ln.lstrip().startswith("#")
+    ]
+    if not numbered:
         raise GcpError(f"{where}: no header and no control point")
-    reader = csv.DictReader(lines)
+    reader = csv.DictReader([ln for _, ln in numbered])
     header = [h.strip() for h in (reader.fieldnames or [])]
     missing = [c for c in GCP_COLUMNS if c not in header]
     if missing:
@@ -134,56 +135,69 @@ def read_gcps(
             f"{where}: column {missing[0]!r} is missing; the header must name "
             f"{', '.join(GCP_COLUMNS)} (docs/gcp.md)"
         )
-    cols: dict[str, list] = {c: [] for c in GCP_COLUMNS}
-    kinds: list[bool] = []
-    for k, raw in enumerate(reader, start=1):
+    rows = []
+    for (line, _), raw in zip(numbered[1:], reader, strict=True):
         if None in raw:  # csv's restkey: the row has more fields than the header
-            raise _bad(where, k, f"{len(header) + len(raw[None])} fields for {len(header)} columns")
-        rec = {(key or "").strip(): (v or "").strip() for key, v in raw.items()}
+            fields_ = len(header) + len(raw[None])
+            raise _bad(where, line, f"{fields_} fields for {len(header)} columns")
+        rows.append((line, {(key or "").strip(): (v or "").strip() for key, v in raw.items()}))
+    return header, rows
+
+
+def _point(where: Path, k: int, rec: dict[str, str]) -> dict[str, float]:
+    """One row's numbers, each checked: finite, on the Earth, its σ positive and within
+    what a measurement is, its HRV 1 or 2."""
+    v: dict[str, float] = {}
+    for c in GCP_COLUMNS[1:]:
+        try:
+            v[c] = float(rec[c])
+        except ValueError:
+            raise _bad(where, k, f"{c} = {rec[c]!r} is not a number") from None
+        if not math.isfinite(v[c]):
+            raise _bad(where, k, f"{c} = {rec[c]!r} is not finite")
+    if not (-180.0 <= v["lon_deg"] <= 360.0 and -90.0 <= v["lat_deg"] <= 90.0):
+        raise _bad(where, k, f"lon_deg, lat_deg = {v['lon_deg']}, {v['lat_deg']}: not on the Earth")
+    sigmas = [v[c] for c in ("sigma_ground_m", "sigma_h_m", "sigma_px")]
+    if min(sigmas) <= 0:
+        raise _bad(
+            where, k, "every sigma must be positive (a point known exactly cannot be weighted)"
+        )
+    if any(s > cap for s, cap in zip(sigmas, SIGMA_CAPS, strict=True)):
+        caps = zip(GCP_COLUMNS[6:9], SIGMA_CAPS, strict=True)
+        limits = ", ".join(f"{c} {cap:g}" for c, cap in caps)
+        raise _bad(where, k, f"a sigma beyond {limits}: that is no measurement")
+    h_lo, h_hi = EARTH_HEIGHTS_M
+    if not h_lo <= v["h_m"] <= h_hi:
+        raise _bad(
+            where, k, f"h_m = {rec['h_m']!r}: not a height on Earth ({h_lo:g} to {h_hi:g} m)"
+        )
+    if v["hrv"] not in (1.0, 2.0):
+        raise _bad(where, k, f"hrv = {rec['hrv']!r}: expected 1 or 2")
+    return v
+
+
+def read_gcps(
+    path: str | Path, n_lines: int | None = None, n_columns: int | None = None
+) -> ControlPointSet:
+    """Read and check a control-point file (module docstring); with the image's size,
+    points outside it (beyond half a pixel of its edges) are refused too. A refusal names
+    the file's line."""
+    where = Path(path)
+    _, rows = _rows(where)
+    ids: list[str] = []
+    values: list[dict[str, float]] = []
+    kinds: list[bool] = []
+    for k, rec in rows:
         pid = rec["id"]
         if not pid:
             raise _bad(where, k, "empty id")
-        if pid in cols["id"]:
+        if pid in ids:
             raise _bad(where, k, f"id {pid!r} given twice")
-        cols["id"].append(pid)
-        for c in GCP_COLUMNS[1:]:
-            try:
-                v = float(rec[c])
-            except ValueError:
-                raise _bad(where, k, f"{c} = {rec[c]!r} is not a number") from None
-            if not math.isfinite(v):
-                raise _bad(where, k, f"{c} = {rec[c]!r} is not finite")
-            cols[c].append(v)
-        lon, lat = cols["lon_deg"][-1], cols["lat_deg"][-1]
-        if not (-180.0 <= lon <= 360.0 and -90.0 <= lat <= 90.0):
-            raise _bad(where, k, f"lon_deg, lat_deg = {lon}, {lat}: not on the Earth")
-        if min(cols["sigma_ground_m"][-1], cols["sigma_h_m"][-1], cols["sigma_px"][-1]) <= 0:
-            raise _bad(
-                where, k, "every sigma must be positive (a point known exactly cannot be weighted)"
-            )
-        sigmas = (cols[c][-1] for c in ("sigma_ground_m", "sigma_h_m", "sigma_px"))
-        if any(v > cap for v, cap in zip(sigmas, SIGMA_CAPS, strict=True)):
-            raise _bad(
-                where,
-                k,
-                "a sigma beyond "
-                + ", ".join(
-                    f"{c} {cap:g}" for c, cap in zip(GCP_COLUMNS[6:9], SIGMA_CAPS, strict=True)
-                )
-                + ": that is no measurement",
-            )
-        h_lo, h_hi = EARTH_HEIGHTS_M
-        if not h_lo <= cols["h_m"][-1] <= h_hi:
-            raise _bad(
-                where, k, f"h_m = {rec['h_m']!r}: not a height on Earth ({h_lo:g} to {h_hi:g} m)"
-            )
-        if cols["hrv"][-1] not in (1.0, 2.0):
-            raise _bad(where, k, f"hrv = {rec['hrv']!r}: expected 1 or 2")
+        v = _point(where, k, rec)
         kind = rec.get("kind", "") or "gcp"
         if kind not in ("gcp", "tie"):
             raise _bad(where, k, f"kind = {kind!r}: expected gcp or tie")
-        kinds.append(kind == "tie")
-        line, col = cols["line"][-1], cols["column"][-1]
+        line, col = v["line"], v["column"]
         if (n_lines is not None and not -0.5 <= line <= n_lines - 0.5) or (
             n_columns is not None and not -0.5 <= col <= n_columns - 0.5
         ):
@@ -193,9 +207,12 @@ def read_gcps(
                 f"line, column = {line}, {col}: outside the image of "
                 f"{n_lines} lines × {n_columns} columns",
             )
-    a = {c: np.asarray(cols[c], dtype=np.float64) for c in GCP_COLUMNS[1:]}
+        ids.append(pid)
+        values.append(v)
+        kinds.append(kind == "tie")
+    a = {c: np.asarray([v[c] for v in values], dtype=np.float64) for c in GCP_COLUMNS[1:]}
     return ControlPointSet(
-        tuple(cols["id"]),
+        tuple(ids),
         np.radians(a["lon_deg"]),
         np.radians(a["lat_deg"]),
         a["h_m"],
