@@ -22,6 +22,11 @@ PROCESS_REPORT = "process.json"
 
 
 def register(sub: Any) -> None:
+    _add_process(sub)
+    _add_campaign(sub)
+
+
+def _add_process(sub: Any) -> None:
     p = sub.add_parser(
         "process",
         help="make level products of an L0 archive (or of a scenario's pass)",
@@ -31,12 +36,16 @@ def register(sub: Any) -> None:
         "against its truth and the products are those of its run, bit for bit. "
         "SOURCE may also be a scenario (.toml), emulated and received first. Several "
         "archives, one per HRV of one pass, are processed together: with "
-        '[processing] adjustment = "twin", level 2 adjusts both HRVs at once.',
+        '[processing] adjustment = "twin", level 2 adjusts both HRVs at once. Two passes '
+        "over one ground with --levels 2,DEM,3 make the pair's DEM and level 3 over it "
+        "(tie points, the block's level 2, the DEM; --scenario BLOCK.toml for the truth). "
+        "A SAR frame file (.frame.h5) makes GEC and GTC (--dem for GTC).",
     )
     p.add_argument(
         "source",
         nargs="+",
-        help="an L0 archive (.h5), both HRVs' archives of one pass, or a scenario (.toml)",
+        help="an L0 archive (.h5), both HRVs' archives of one pass, two passes' archives, "
+        "a scenario (.toml), or a SAR frame (.frame.h5)",
     )
     p.add_argument(
         "--scenario",
@@ -87,6 +96,9 @@ def register(sub: Any) -> None:
     add_runner(p)
     add_json(p)
     p.set_defaults(func=_process)
+
+
+def _add_campaign(sub: Any) -> None:
     c = sub.add_parser(
         "campaign",
         help="reprocess many L0 archives as one campaign, with one report",
