@@ -266,6 +266,35 @@ def emulate_pass(
         tuple(g.spawn(3)) for g in rng_more.spawn(len(configs))[1:]
     ]
     hrvs = [build_hrv(c, scn.calibration, per_hrv[k][0]) for k, c in enumerate(configs)]
+    platform = _platform(scn, hrvs, rng_att, rng_gyro)
+    out = []
+    for k in chosen:  # one HRV each: two at most
+        _, rng_noise_k, rng_gcp_k = per_hrv[k]
+        out.append(_acquisition(scn, platform, hrvs[k], k, render, rng_noise_k, rng_gcp_k))
+    return tuple(out)
+
+
+@dataclass(frozen=True, eq=False)
+class _Platform:
+    """What every HRV of a pass shares: the day's epoch, the orbit and the strip's centre
+    instant, the truth attitude and its gyro record, the bulletins, the world, the Sun at
+    the centre and the station's passes over the day."""
+
+    epoch: Epoch
+    orbit: TruthOrbit
+    t_c: float
+    attitude: TruthAttitude
+    gyros: GyroRecord
+    bulletins: Ephemeris
+    world: World
+    sun: NDArray[np.float64]
+    passes: tuple[Pass, ...]
+
+
+def _platform(
+    scn: Scenario, hrvs: list[Hrv], rng_att: np.random.Generator, rng_gyro: np.random.Generator
+) -> _Platform:
+    """The platform of a pass (:class:`_Platform`), spanning every HRV's lines."""
     first = hrvs[0]
     tle = _tle(scn) if scn.orbit.kind == "tle" else None
     if tle is not None:  # the TLE's day: its orbit is where it is
@@ -305,8 +334,6 @@ def emulate_pass(
         ac.gyro_lsb_rad_per_s,
         rng_gyro,
     )
-    world = _world(scn)
-    sun = sun_direction_ecef(epoch, [t_c])[0]
     bc = scn.bulletins
     bulletins = make_bulletins(
         orbit,
@@ -327,38 +354,46 @@ def emulate_pass(
         if scn.pass_.ground_pass_days > 0
         else ()
     )
-    out = []
-    for k in chosen:  # one HRV each: two at most
-        hrv = hrvs[k]
-        _, rng_noise_k, rng_gcp_k = per_hrv[k]
-        line_times = np.asarray(
-            t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s,
-            dtype=np.float64,
+    sun = sun_direction_ecef(epoch, [t_c])[0]
+    return _Platform(epoch, orbit, t_c, attitude, gyros, bulletins, _world(scn), sun, passes)
+
+
+def _acquisition(
+    scn: Scenario,
+    p: _Platform,
+    hrv: Hrv,
+    k: int,
+    render: bool,
+    rng_noise: np.random.Generator,
+    rng_gcp: np.random.Generator,
+) -> Acquisition:
+    """HRV ``k``'s acquisition on the platform: its line times, rendered bands (``render``)
+    and control points."""
+    line_times = np.asarray(
+        p.t_c + (np.arange(hrv.n_lines) - (hrv.n_lines - 1) / 2) * hrv.line_period_s,
+        dtype=np.float64,
+    )
+    bands: tuple[RenderedBand, ...] = ()
+    if render:
+        bands = tuple(
+            render_band(p.orbit, p.attitude, hrv, b, p.world, line_times, p.sun, rng_noise)
+            for b in hrv.bands
         )
-        bands: tuple[RenderedBand, ...] = ()
-        if render:
-            bands = tuple(
-                render_band(orbit, attitude, hrv, b, world, line_times, sun, rng_noise_k)
-                for b in hrv.bands
-            )
-        gcps = _control_points(scn.gcps, hrv, line_times, orbit, attitude, world, rng_gcp_k)
-        out.append(
-            Acquisition(
-                scenario=scn,
-                epoch=epoch,
-                orbit=orbit,
-                attitude=attitude,
-                hrv=hrv,
-                world=world,
-                t_centre_s=t_c,
-                line_times_s=line_times,
-                bands=bands,
-                gyros=gyros,
-                bulletins=bulletins,
-                gcps=gcps,
-                passes=passes,
-                sun_ecef=sun,
-                index=k,
-            )
-        )
-    return tuple(out)
+    gcps = _control_points(scn.gcps, hrv, line_times, p.orbit, p.attitude, p.world, rng_gcp)
+    return Acquisition(
+        scenario=scn,
+        epoch=p.epoch,
+        orbit=p.orbit,
+        attitude=p.attitude,
+        hrv=hrv,
+        world=p.world,
+        t_centre_s=p.t_c,
+        line_times_s=line_times,
+        bands=bands,
+        gyros=p.gyros,
+        bulletins=p.bulletins,
+        gcps=gcps,
+        passes=p.passes,
+        sun_ecef=p.sun,
+        index=k,
+    )
