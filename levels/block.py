@@ -40,11 +40,18 @@ from levels.choices import AdjustmentScope, Level
 from levels.errors import GeometryError, OptionsError
 from levels.kinds import ProductKind, Unit
 from levels.options import ProcessingOptions
-from levels.process import PassProducts, ProcessingRequest, all_made, plan, run_plans
+from levels.process import (
+    PassProducts,
+    ProcessingRequest,
+    all_made,
+    pair_kinds_of,
+    plan,
+    run_plans,
+)
 from levels.quality import CheckpointSource
 from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
 from levels.readers.l0 import L0Archive
-from levels.registry import kind
+from levels.registry import kind, kind_names
 from levels.tasks import Runner
 
 _log = logging.getLogger(__name__)
@@ -56,6 +63,7 @@ __all__ = [
     "PairMaker",
     "PairScene",
     "pair_kinds",
+    "pass_levels",
     "process_block",
     "tie_points",
 ]
@@ -158,11 +166,25 @@ class BlockProducts:
 
 
 def pair_kinds(options: ProcessingOptions) -> list[ProductKind]:
-    """The kinds of a pair the options ask for (``levels``; ``stereo``: the DEM)."""
-    names = [lv for lv in options.levels if kind(lv).unit is Unit.PAIR]
-    if options.stereo and "DEM" not in names:
-        names.append("DEM")
-    return [kind(n) for n in names]
+    """The kinds of a pair the options ask for (``levels``: :func:`levels.process.
+    pair_kinds_of`; ``stereo``: the stereo pair's DEM, :mod:`levels.makers.dem`)."""
+    from levels.makers.dem import KIND as DEM
+
+    kinds = pair_kinds_of(options)
+    return [*kinds, DEM] if options.stereo and DEM not in kinds else kinds
+
+
+def pass_levels(options: ProcessingOptions) -> list[str]:
+    """What each pass of a block makes on its own, before the block: the scene levels asked
+    that need nothing of the block (not level 2's adjustment, not level 3's DEM), the 2A its
+    tie points are matched on, and the scene levels the pair's kinds read (a DEM: the 1A's
+    raw pixels), in processing order."""
+    scene = kind_names(Unit.SCENE)
+    wanted = {lv for lv in options.levels if lv in scene and not kind(lv).maker.needs}
+    wanted |= {Level.L2A} | {
+        lv for k in pair_kinds(options) for lv in k.maker.needs if not kind(lv).maker.needs
+    }
+    return [lv for lv in scene if lv in wanted]
 
 
 def tie_points(scene_dirs: dict[str, Path], out: Path) -> dict[str, Any]:

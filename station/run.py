@@ -33,9 +33,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from levels.choices import Level
+from levels.block import pass_levels
 from levels.files import json_default, staged_dir, write_json
-from levels.options import ProcessingOptions
 from levels.products import read_product
 from levels.tasks import Runner
 from station import __version__
@@ -510,23 +509,6 @@ def is_block_file(path: str | Path) -> bool:
 
     data, _ = read_toml(path)
     return BLOCK_KEY in data
-
-
-def pass_levels(block: ProcessingOptions) -> list[str]:
-    """What each pass of a block makes in its own run: the scene levels asked that need
-    nothing of the block (not level 2's adjustment, not level 3's DEM), the 2A its tie
-    points are matched on, and the levels the pair's kinds read (a DEM: the 1A's raw
-    pixels), in processing order."""
-    from levels.block import pair_kinds
-    from levels.kinds import Unit
-    from levels.registry import kind, kind_names, level_maker
-
-    scene = kind_names(Unit.SCENE)
-    wanted = {lv for lv in block.levels if lv in scene and not level_maker(lv).needs}
-    wanted |= {Level.L2A} | {
-        lv for k in pair_kinds(block) for lv in k.maker.needs if not kind(lv).maker.needs
-    }
-    return [lv for lv in scene if lv in wanted]
 
 
 def block_scenarios(path: str | Path) -> tuple[str, list[Scenario], Any]:

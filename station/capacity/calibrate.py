@@ -36,6 +36,7 @@ import numpy as np
 from levels.files import write_json
 from levels.spot import MODES
 from station import __version__
+from station.capacity.model import LEVELS
 
 __all__ = [
     "FULL_BIT_RATE_BIT_PER_S",
@@ -131,11 +132,9 @@ def calibrate() -> dict[str, Any]:
         "raw": raw,
         "ingest_s_per_signal_s": float(per_bit * FULL_BIT_RATE_BIT_PER_S),
         "geo_s_per_scene": {m: r["geo_s"] for m, r in raw.items()},
-        "cor_s": {
-            m: {lv: r[f"{lv}_s"] * scale[m] for lv in ("1A", "1B", "2A")} for m, r in raw.items()
-        },
+        "cor_s": {m: {str(lv): r[f"{lv}_s"] * scale[m] for lv in LEVELS} for m, r in raw.items()},
         "archive_s": {
-            m: {lv: r["write_s"] / r["products"] * scale[m] for lv in ("1A", "1B", "2A")}
+            m: {str(lv): r["write_s"] / r["products"] * scale[m] for lv in LEVELS}
             for m, r in raw.items()
         },
         "raw_lines_per_2a_row": {m: raw_lines_per_2a_row(m) for m in _REDUCED},

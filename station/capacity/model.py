@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import simpy
 
+from levels.choices import Level
 from levels.spot import MODES
 from station.capacity.config import CapacityScenario, ServiceConfig
 from station.capacity.passes import PassPattern, pass_pattern
@@ -54,7 +55,7 @@ __all__ = [
 
 #: The levels ordered from the station (level 2 needs control points and its service time
 #: is not calibrated yet: not in the capacity model).
-LEVELS = ("1A", "1B", "2A")
+LEVELS = (Level.L1A, Level.L1B, Level.L2A)
 
 _DAY = 86400.0
 
@@ -213,13 +214,13 @@ class StationSimulation:
         level = LEVELS[int(np.searchsorted(self.mix, rng.random() * self.mix[-1], side="right"))]
         urgent = rng.random() < od.urgent_fraction
         # analog (film) 1A and 1B products, as INPE made them (paper 004_…)
-        film = od.film_fraction > 0 and level != "2A" and rng.random() < od.film_fraction
+        film = od.film_fraction > 0 and level != Level.L2A and rng.random() < od.film_fraction
         yield env.timeout(delay)
         t_order = env.now
         if not geo_done.triggered:
             yield geo_done
         cor_s = self.service.cor_s[mode][level] * sv.scale_cor
-        if level == "2A":  # the north-up rotation's window of raw lines (INPE's 950 / 475)
+        if level == Level.L2A:  # the north-up rotation's window of raw lines (INPE's 950 / 475)
             cor_s += self.extra_2a_s[mode]
         yield from stages["cor"].serve(
             _gamma(self.rng_service, cor_s, sv.cv), priority=0 if urgent else 1
@@ -374,7 +375,7 @@ class StationSimulation:
         levels = {}
         for lv in LEVELS:
             x = np.asarray(self.latency[lv]) / 3600.0
-            levels[lv] = {
+            levels[str(lv)] = {
                 "products": int(x.size),
                 **(
                     {f"latency_p{q}_h": float(np.percentile(x, q)) for q in (50, 90, 95, 99)}

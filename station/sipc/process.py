@@ -377,9 +377,7 @@ def reprocess_block(
     the block's level 2, the pair's products and level 3 over the pair's DEM into
     ``<out>/ties``, ``block`` and ``stereo``. With the scenarios (one per archive), every
     product is measured against their truth and is the run's, bit for bit."""
-    from levels.block import BlockRequest, process_block
-    from levels.choices import Level
-    from levels.process import pair_kinds_of
+    from levels.block import BlockRequest, pass_levels, process_block
     from station.sipc.stereo import StereoTruth, stereo_quality
 
     paths = [Path(p) for p in l0_paths]
@@ -389,13 +387,7 @@ def reprocess_block(
     per: list[Scenario | None] = list(scenarios) if scenarios else [None] * len(paths)
     if len(per) != len(paths):
         raise L0Error(f"{len(paths)} L0 archives but {len(per)} scenarios")
-    pair = pair_kinds_of(options)
-    needed = {lv for k in pair for lv in k.maker.needs} | {Level.L2A}
-    scene_levels = tuple(
-        lv
-        for lv in ("1A", "1B", "2A")
-        if lv in needed or (lv in options.levels and lv not in (Level.L2, Level.L3))
-    )
+    scene_levels = tuple(pass_levels(options))
     passes = []
     for p, name, scn in zip(paths, names, per, strict=True):
         base = scn.processing if scn is not None else options
