@@ -48,6 +48,7 @@ from levels.process import (
     plan,
     run_plans,
 )
+from levels.products import product_name
 from levels.quality import CheckpointSource
 from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
 from levels.readers.l0 import L0Archive
@@ -250,33 +251,36 @@ def _adjusted(
     return all_made(run_plans(plan(block), runner))
 
 
-def _pair_scenes(request: BlockRequest, k: int, ties: Path, needs: Sequence[str]) -> list[Any]:
-    """Pass ``k``'s scenes as sides of a pair: each scene's products of the kinds the
-    pair's maker ``needs`` (level 2 in ``block/``, the others in the pass's own directory)."""
+def _pair_scenes(
+    request: BlockRequest, k: int, ties: Path, needs: Sequence[str], level2: PassProducts
+) -> list[PairScene]:
+    """Pass ``k``'s scenes as sides of a pair: each scene the block's level 2 made
+    (``level2``), with its products of the kinds the pair's maker ``needs`` (level 2's in
+    ``block/``, the others in the pass's own directory, named as the driver names them)."""
     name, archive = request.names[k], request.archives[k]
-    tie_file = ties / f"{name}.tie.csv"
-    own = read_gcps(tie_file, archive.n_lines, archive.n_columns)
-    out = []
-    for p in sorted((request.out_dir / LEVEL2).glob(f"{name}_s*_{Level.L2}.nc")):
-        scene = int(p.name[len(name) + 2 :].split("_")[0])
-        products = {
-            lv: p
-            if lv == Level.L2
-            else request.scene_dirs[k] / p.name.replace(f"_{Level.L2}.nc", f"_{lv}{_suffix(lv)}")
-            for lv in needs
-        }
-        out.append(PairScene(name, scene, products, own))
-    return out
-
-
-def _suffix(level: str) -> str:
-    from levels.products import IMAGE_SUFFIX, MAP_SUFFIX
-
-    return MAP_SUFFIX if kind(level).on_map else IMAGE_SUFFIX
+    own = read_gcps(ties / f"{name}.tie.csv", archive.n_lines, archive.n_columns)
+    return [
+        PairScene(
+            name,
+            sc.index,
+            {
+                lv: sc.paths[lv]
+                if lv in sc.paths
+                else request.scene_dirs[k] / product_name(name, sc.index, lv, kind(lv).on_map)
+                for lv in needs
+            },
+            own,
+        )
+        for sc in level2.scenes
+    ]
 
 
 def _pairs(
-    request: BlockRequest, kinds: list[ProductKind], ties: Path, measure: Measure | None
+    request: BlockRequest,
+    kinds: list[ProductKind],
+    ties: Path,
+    level2: list[PassProducts],
+    measure: Measure | None,
 ) -> list[PairMade]:
     """Every pair kind's products of the first two passes' overlapping scenes."""
     if len(request.archives) != 2:
@@ -288,7 +292,7 @@ def _pairs(
     out.mkdir(parents=True, exist_ok=True)
     for pair_kind in kinds:
         maker: PairMaker = pair_kind.maker
-        a, b = (_pair_scenes(request, k, ties, maker.needs) for k in (0, 1))
+        a, b = (_pair_scenes(request, k, ties, maker.needs, level2[k]) for k in (0, 1))
         for sa, sb in itertools.product(a, b):
             _log.info("%s of %s scene %d and %s scene %d", pair_kind.name, *_sides(sa, sb))
             done = maker.make(sa, sb, out, measure)
@@ -323,7 +327,7 @@ def process_block(
         levels = (Level.L2, Level.L3) if later else (Level.L2,)
         passes = _adjusted(request, ties, _level2_options(request, levels), runner)
         if kinds:
-            pairs = _pairs(request, kinds, ties, measure)
+            pairs = _pairs(request, kinds, ties, passes, measure)
             dems = [p.export for p in pairs if p.export is not None]
             if Level.L3 in opts.levels and dems:
                 _log.info("block: level 3 over the pair's own DEM")

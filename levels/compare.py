@@ -704,7 +704,8 @@ def _finite_difference(xa: NDArray[Any], xb: NDArray[Any]) -> tuple[float, float
     elif not (np.isfinite(fa) | same).all() or not (np.isfinite(fb) | same).all():
         d = math.inf
     else:
-        d = float(np.max(np.abs(fa - fb), where=~same, initial=0.0))
+        diff = np.subtract(fa, fb, out=np.zeros_like(fa), where=~same)
+        d = float(np.max(np.abs(diff)))
     finite = np.isfinite(fa)
     scale = float(np.max(np.abs(fa), where=finite, initial=0.0))
     return d, scale

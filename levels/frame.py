@@ -121,14 +121,14 @@ def process_frame(
     ann = image.annotation
     ref = options.reference_height_m
     made = []
-    source = getattr(frame, "path", None)
+    # one grid for every kind: the footprint at the reference height and the relief's reach
+    grid = frame_grid(ann, options.pixel_size_m, ref, options.margin_m)
     for level in options.levels:
         over_dem = "dem" in kind(level).needs
         if over_dem and dem is None:
             raise DemError(f"{level} geocodes over terrain: give the DEM under the frame")
         timings: dict[str, float] = {}
         t = time.perf_counter()
-        grid = frame_grid(ann, options.pixel_size_m, ref, options.margin_m)
         g = geocode(image, grid, dem=dem if over_dem else None, reference_height_m=ref)
         timings["geocode"] = time.perf_counter() - t
         _log.info("%s of %s geocoded in %.1f s", level, frame.name, timings["geocode"])
@@ -140,7 +140,7 @@ def process_frame(
         quality = dict(measure(level, g, gamma0)) if measure is not None else {}
         if gamma0 is not None and "gamma0" not in quality:
             quality["gamma0"] = {"valid_fraction": float(np.isfinite(gamma0).mean())}
-        inputs = [Path(source).name if source else frame.name]
+        inputs = [frame.path.name if frame.path else frame.name]
         inputs += [dem_source] if over_dem and dem_source else []
         product = sar_product(
             g,

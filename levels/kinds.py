@@ -119,17 +119,11 @@ class Figure:
 
 
 def figure_at(*keys: str) -> Callable[[Mapping[str, Any]], float | None]:
-    """A figure's reader: the first of ``keys`` the flattened quality has, as a float
-    (``{band}`` in a key: the first band that has it)."""
+    """A figure's reader: the first of ``keys`` the flattened quality has, as a float."""
 
     def value(figures: Mapping[str, Any]) -> float | None:
         for key in keys:
-            if "{band}" in key:
-                head, tail = key.split("{band}")
-                found = [v for k, v in figures.items() if k.startswith(head) and k.endswith(tail)]
-                v = found[0] if found else None
-            else:
-                v = figures.get(key)
+            v = figures.get(key)
             if isinstance(v, int | float) and not isinstance(v, bool):
                 return float(v)
         return None
@@ -240,8 +234,3 @@ class ProductKind:
             if b.name == name:
                 return b
         return counts_band(self.name, name)
-
-    @property
-    def counts(self) -> bool:
-        """Its bands are the instrument's counts (no fixed bands)."""
-        return not self.bands

@@ -412,9 +412,9 @@ def _write_band(
 def _required_trees(level: str) -> tuple[str, ...]:
     """The geometry trees a product of kind ``level`` must carry (none for a kind not
     known here)."""
-    from levels.registry import BUILT_IN, kind, kind_names
+    from levels.registry import kind, kind_names
 
-    return kind(level).geometry_trees if level in BUILT_IN or level in kind_names() else ()
+    return kind(level).geometry_trees if level in kind_names() else ()
 
 
 def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> None:

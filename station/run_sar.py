@@ -380,12 +380,10 @@ def truth_quality(
         }
     else:
         quality["masks"] = _mask_figures(g, truth)
-        if gamma0 is not None:
-            quality["gamma0"] = (  # against the truth where γ⁰ is the reflectance
-                flattening_figures(g, gamma0, image, truth)
-                if scn.sar.backscatter == "gamma"
-                else {"valid_fraction": float(np.isfinite(gamma0).mean())}
-            )
+        if gamma0 is not None and scn.sar.backscatter == "gamma":
+            # against the truth where γ⁰ is the reflectance (levels.frame gives the rest
+            # their valid share)
+            quality["gamma0"] = flattening_figures(g, gamma0, image, truth)
     return quality
 
 
@@ -414,7 +412,7 @@ def frame_quality(scn: SarScenario, frame: Any) -> Any:
         or (a.first_line_s != b.first_line_s)
     ):
         raise StationError(
-            f"{getattr(frame, 'path', frame.name)} was not made by scenario {scn.name!r} "
+            f"{frame.path or frame.name} was not made by scenario {scn.name!r} "
             f"(its frame {b.shape[0]} × {b.shape[1]} from {b.first_line_s:.3f} s; the "
             f"scenario's {a.shape[0]} × {a.shape[1]} from {a.first_line_s:.3f} s): give the "
             "scenario that made it"

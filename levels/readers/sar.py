@@ -75,6 +75,11 @@ class SarFrame(Protocol):
         """The instrument, as the products' attributes name it."""
         ...
 
+    @property
+    def path(self) -> Path | None:
+        """The file it was read from (the products' ``inputs`` name it), if any."""
+        ...
+
     def state_vectors(self) -> tuple[NDArray[np.float64], ...]:
         """Times (s since the annotation's epoch), ECEF positions and Earth-fixed
         velocities of the orbit's state vectors."""
