@@ -46,7 +46,7 @@ from levels.hdf5 import (
     deflated_dataset,
     new_hdf5,
 )
-from levels.kinds import BandSpec, counts_band
+from levels.kinds import BandSpec, Unit, counts_band
 
 __all__ = [
     "PRODUCT_FORMAT",
@@ -267,15 +267,24 @@ def cf_global_attrs(product: Product) -> dict[str, str]:
     scene = f", scene {a['scene_index']}" if "scene_index" in a else ""
     hrv = f"SPOT HRV{a['hrv']} {a.get('mode', '')}".strip() if "hrv" in a else "SPOT HRV"
     hrv = str(a.get("instrument", hrv))  # another sensor's product names its own
+    origin = "pass, L0 archive" if _unit(product) != Unit.FRAME else "frame"
     return {
         "Conventions": CF_CONVENTIONS,
         "title": f"{hrv} {what} product{scene} of {a.get('name', 'a pass')}",
         "institution": "spot-station: an emulated SPOT direct-receiving station and "
         "processing centre (levels)",
-        "source": f"{hrv} pass, L0 archive {prov.get('inputs', '')}".rstrip(),
+        "source": f"{hrv} {origin} {prov.get('inputs', '')}".rstrip(),
         "history": f"{prov.get('software', 'levels')}: {what} made from "
-        f"{prov.get('inputs', 'its L0 archive')}",
+        f"{prov.get('inputs', 'its ' + origin)}",
     }
+
+
+def _unit(product: Product) -> Unit | None:
+    """The unit of work of a product's kind (None for a level no registry declares)."""
+    from levels.registry import kind_of
+
+    known = kind_of(product)
+    return known.unit if known is not None else None
 
 
 def write_product(path: str | Path, product: Product, deflate_level: int = DEFLATE_LEVEL) -> Path:

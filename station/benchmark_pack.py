@@ -187,7 +187,6 @@ def write_pack(
 def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) -> dict:
     """Write the truth files and return the scores of this station's model at the
     checkpoints (the DIMAP scene read back, INPE's attitude and the null one)."""
-    from levels.geometry.frames import apply, enu_from_ecef
     from levels.readers.dimap import read_dimap
     from station.scenario import DemConfig
     from station.spacecraft.dem import export_dem
@@ -213,9 +212,6 @@ def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) 
         truth_dir / "dem.tif",
     )
 
-    def utc(t: NDArray) -> list[str]:
-        return [str(u) for u in np.datetime_as_string(acq.epoch.utc(t), unit="ns")]
-
     # checkpoints: whole pixels of a lattice, the ground each truly sees
     n = CHECKPOINTS_PER_SIDE
     grid_rows, grid_cols = np.meshgrid(
@@ -230,7 +226,7 @@ def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) 
         truth_dir / "checkpoints.csv",
         {
             "id": [f"c{i:04d}" for i in k],
-            "time_utc": utc(t[k]),
+            "time_utc": _utc(acq.epoch, t[k]),
             "row": _f(rows[k], ".0f"),
             "col": _f(cols[k], ".0f"),
             "lon_deg": _f(lon[k], ".9f"),
@@ -239,13 +235,27 @@ def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) 
         },
     )
     _control_points(stage, truth_dir, acq, first, scene, scn)
+    _truth_tables(truth_dir, acq, first, scene)
+    return _scores(read_dimap(stage / "METADATA.DIM"), pts, ok, rows, cols)
+
+
+def _utc(epoch: Any, t: NDArray) -> list[str]:
+    """Product seconds as UTC strings to the nanosecond."""
+    return [str(u) for u in np.datetime_as_string(epoch.utc(t), unit="ns")]
+
+
+def _truth_tables(truth_dir: Path, acq: Any, first: int, scene: Any) -> None:
+    """The true ephemeris, attitude and look angles over the scene (and
+    :data:`TRUTH_MARGIN_S` about it) as CSV files in ``truth_dir``."""
+    period = acq.hrv.line_period_s
+
     t_first = acq.line_times_s[0] + first * period
     t_last = t_first + (scene.n_rows - 1) * period
     te = np.arange(t_first - TRUTH_MARGIN_S, t_last + TRUTH_MARGIN_S, EPHEMERIS_STEP_S)
     r, v = acq.orbit.frame_state_ecef(te)
     _csv(
         truth_dir / "ephemeris.csv",
-        {"time_utc": utc(te)}
+        {"time_utc": _utc(acq.epoch, te)}
         | {f"{x}_m": _f(r[:, i], ".4f") for i, x in enumerate("xyz")}
         | {f"v{x}_m_per_s": _f(v[:, i], ".6f") for i, x in enumerate("xyz")},
     )
@@ -253,7 +263,7 @@ def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) 
     angles = acq.attitude.angles_rad(ta)
     _csv(
         truth_dir / "attitude.csv",
-        {"time_utc": utc(ta)}
+        {"time_utc": _utc(acq.epoch, ta)}
         | {f"{x}_rad": _f(angles[:, i], "+.10e") for i, x in enumerate(("roll", "pitch", "yaw"))},
     )
     det = np.arange(acq.hrv.n_columns, dtype=np.float64)
@@ -266,8 +276,16 @@ def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) 
         looks["psi_y_rad"] += _f(py, "+.10e")
     _csv(truth_dir / "look_angles.csv", looks)
 
-    # this station's scores: its model, read back from the DIMAP, at the true heights
-    back = read_dimap(stage / "METADATA.DIM")
+
+def _scores(
+    back: Any, pts: NDArray, ok: NDArray, rows: NDArray, cols: NDArray
+) -> dict[str, dict[str, Any]]:
+    """This station's scores at the checkpoints (``pts``: their true latitude, longitude
+    and height; ``ok`` those seen): the model of the DIMAP scene read back (``back``),
+    with INPE's attitude and with the null one, at the true heights."""
+    from levels.geometry.frames import apply, enu_from_ecef
+
+    h = pts[:, 2]
     truth_ecef = WGS84.to_ecef(pts[ok, 0], pts[ok, 1], pts[ok, 2])
     scores = {}
     choices: tuple[tuple[AttitudeChoice, str], ...] = (

@@ -74,3 +74,60 @@ def test_the_receiving_station_never_imports_the_emulator(path: Path) -> None:
     passes lives in ``station.chain``."""
     bad = sorted(n for n in _imports(path) if n.startswith("station.spacecraft"))
     assert not bad, f"{path.relative_to(ROOT)} imports {bad}: the station sees bytes only"
+
+
+#: What the emulator may take from ``levels``: checked primitives only (geometry, threads,
+#: files, SPOT's facts, and the SAR annotation: the range–Doppler frame geometry the
+#: emulator writes as ERS's annotation and the processing reads). Never a processing
+#: stage: the truth must not be the model it checks.
+EMULATOR_MAY_IMPORT = (
+    "levels.geometry",
+    "levels.threads",
+    "levels.files",
+    "levels.spot",
+    "levels.sar.annotation",
+)
+
+
+@pytest.mark.parametrize(
+    "path", _modules("station/spacecraft"), ids=lambda p: str(p.relative_to(ROOT))
+)
+def test_the_emulator_takes_only_primitives_from_levels(path: Path) -> None:
+    bad = sorted(
+        n
+        for n in _imports(path)
+        if _top(n) == "levels"
+        and not any(n == a or n.startswith(a + ".") for a in EMULATOR_MAY_IMPORT)
+    )
+    assert not bad, f"{path.relative_to(ROOT)} imports {bad}: the emulator takes primitives only"
+
+
+#: Size bounds of the house (issue 48): a function a reader takes in at once, a module
+#: a reader can hold; numba kernels (one loop nest each, split only at a cost) excepted.
+MAX_FUNCTION_LINES = 80
+MAX_MODULE_LINES = 800
+
+
+def _is_kernel(node: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
+    for d in node.decorator_list:
+        f = d.func if isinstance(d, ast.Call) else d
+        if isinstance(f, ast.Attribute) and f.attr == "njit":
+            return True
+    return False
+
+
+@pytest.mark.parametrize(
+    "path", _modules("levels") + _modules("station"), ids=lambda p: str(p.relative_to(ROOT))
+)
+def test_functions_and_modules_stay_readable(path: Path) -> None:
+    text = path.read_text()
+    assert text.count("\n") <= MAX_MODULE_LINES, f"{path.relative_to(ROOT)}: over 800 lines"
+    long = [
+        f"{n.name} ({n.end_lineno - n.lineno + 1} lines)"
+        for n in ast.walk(ast.parse(text))
+        if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)
+        and n.end_lineno is not None
+        and n.end_lineno - n.lineno + 1 > MAX_FUNCTION_LINES
+        and not _is_kernel(n)
+    ]
+    assert not long, f"{path.relative_to(ROOT)}: {', '.join(long)} over {MAX_FUNCTION_LINES}"

@@ -170,7 +170,7 @@ def test_a_ridge_folds_in_range_and_casts_shadow_where_the_geometry_says() -> No
     whose range another point of the profile shares: the plain before the face down to
     the top's range, the face, and the back face down to the foot's range; shadow the back
     face and the plain behind it up to where the ray over the top lands."""
-    from levels.sar import layover_and_shadow
+    from station.spacecraft.sar_masks import layover_and_shadow
 
     height, x0, dx = 785e3, 330e3, 25.0
     n = np.arange(400)

@@ -359,6 +359,20 @@ def _dem_spacing_m(dem: Dem, lat_rad: float) -> float:
     return float(min(sx, sy))
 
 
+def _height_levels(scene: SceneGeometry, dem: Dem, footprint: MapGrid) -> NDArray[np.float64]:
+    """The heights of level 3's 2A grids: :data:`HEIGHT_LEVELS` from the lowest to the
+    highest of the DEM under the scene's footprint at its reference height (a bilinear
+    surface peaks at its nodes), :data:`HEIGHT_MARGIN_M` beyond."""
+    probe_dem = _ellipsoidal(_dem_window(dem, footprint))
+    if not np.isfinite(probe_dem).any():
+        raise GeometryError(
+            f"level 3: the DEM {dem.source or ''} has only voids under scene {scene.cut.index}"
+        )
+    lo = float(np.nanmin(probe_dem)) - HEIGHT_MARGIN_M
+    hi = float(np.nanmax(probe_dem)) + HEIGHT_MARGIN_M
+    return np.linspace(lo, hi, HEIGHT_LEVELS)
+
+
 @one_blas_thread
 def level3_geometry(
     scene: SceneGeometry,
@@ -375,50 +389,33 @@ def level3_geometry(
     """GEO for level 3 (module docstring): the anchor spacing is halved from 2A's until
     its error is at most :data:`ANCHOR_TOLERANCE_PX` (``inverse_step_px`` fixes it)."""
     b = band or next(iter(scene.models))
-    # the scene's footprint at its reference height tells which DEM heights it spans
-    probe = level2a_geometry(
-        scene, pixel_size_m, crs, method, grid_rows=grid_rows, band=b, grid_columns=grid_columns
-    )
-    spacing = _dem_spacing_m(dem, scene.centre_lat_rad)
-    # the heights' range over the footprint (a bilinear surface peaks at its nodes)
-    probe_dem = _ellipsoidal(_dem_window(dem, probe.map_grid))
-    if not np.isfinite(probe_dem).any():
-        raise GeometryError(
-            f"level 3: the DEM {dem.source or ''} has only voids under scene {scene.cut.index}"
+
+    def grid_2a(s: SceneGeometry, like_2a: Level2AGeometry | None = None) -> Level2AGeometry:
+        return level2a_geometry(
+            s,
+            pixel_size_m,
+            crs,
+            method,
+            grid_rows=grid_rows,
+            band=b,
+            like=like_2a,
+            grid_columns=grid_columns,
         )
-    lo = float(np.nanmin(probe_dem)) - HEIGHT_MARGIN_M
-    hi = float(np.nanmax(probe_dem)) + HEIGHT_MARGIN_M
-    heights = np.linspace(lo, hi, HEIGHT_LEVELS)
+
+    spacing = _dem_spacing_m(dem, scene.centre_lat_rad)
+    heights = _height_levels(scene, dem, grid_2a(scene).map_grid)
     # one map grid for every level: the union of the footprints at the lowest and highest
     at = [replace(scene, reference_height_m=float(h)) for h in heights]
     if like is not None:
         template = like.template
     else:
-        ends = [
-            level2a_geometry(
-                s, pixel_size_m, crs, method, grid_rows=grid_rows, band=b, grid_columns=grid_columns
-            )
-            for s in (at[0], at[-1])
-        ]
-        template = _union_grid(ends, inverse_step_px)
+        template = _union_grid([grid_2a(s) for s in (at[0], at[-1])], inverse_step_px)
     window = _dem_window(dem, template.map_grid)
     ellipsoidal = _ellipsoidal(window)
     coordinates = _dem_coordinates(window, template.map_grid, DEM_COORD_STEP)
     best: tuple[Level3Geometry, dict[str, float]] | None = None
     while True:
-        levels = tuple(
-            level2a_geometry(
-                s,
-                pixel_size_m,
-                crs,
-                method,
-                grid_rows=grid_rows,
-                band=b,
-                like=template,
-                grid_columns=grid_columns,
-            )
-            for s in at
-        )
+        levels = tuple(grid_2a(s, template) for s in at)
         geom = Level3Geometry(
             levels, heights, window, ellipsoidal, coordinates, DEM_COORD_STEP, spacing, {}
         )

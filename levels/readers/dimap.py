@@ -250,18 +250,9 @@ def _angles(elems: list[ET.Element], source: Path) -> NDArray[np.float64]:
     )
 
 
-def read_dimap(path: str | Path) -> DimapScene:
-    """Read a SPOT level-1A ``METADATA.DIM`` (DIMAP v1).
-
-    Raises
-    ------
-    DimapError
-        If the file is not XML, not a DIMAP document, lacks a needed element, or has
-        inconsistent sizes; the message names the file and the element.
-    FileNotFoundError
-        If ``path`` does not exist.
-    """
-    source = Path(path)
+def _dimap_v1_root(source: Path) -> ET.Element:
+    """The root of a SPOT 1–5 DIMAP v1 document, refused in one line (naming the file)
+    when it is not XML, not DIMAP, or DIMAP v2."""
     try:
         root = ET.parse(source).getroot()
     except ET.ParseError as exc:
@@ -286,7 +277,22 @@ def read_dimap(path: str | Path) -> DimapScene:
             f"{source}: <Dimap_Document> without Metadata_Id/METADATA_FORMAT DIMAP "
             f"(found {fmt!r}): not a SPOT 1–5 DIMAP v1 METADATA.DIM"
         )
+    return root
 
+
+def read_dimap(path: str | Path) -> DimapScene:
+    """Read a SPOT level-1A ``METADATA.DIM`` (DIMAP v1).
+
+    Raises
+    ------
+    DimapError
+        If the file is not XML, not a DIMAP document, lacks a needed element, or has
+        inconsistent sizes; the message names the file and the element.
+    FileNotFoundError
+        If ``path`` does not exist.
+    """
+    source = Path(path)
+    root = _dimap_v1_root(source)
     n_cols = _number(root, "Raster_Dimensions/NCOLS", source, int)
     n_rows = _number(root, "Raster_Dimensions/NROWS", source, int)
     vertices = root.findall("Dataset_Frame/Vertex")

@@ -30,10 +30,11 @@ output pixel its height (GEC: the reference; GTC: the DEM bilinearly in its own 
 height (as a polynomial), and the slant image bilinearly there. The anchor grid's error
 against the exact location is measured on a lattice between the anchors and returned.
 
-**Layover and shadow** over a DEM (:func:`layover_and_shadow`'s definitions): the
-terrain's zero-Doppler profiles sampled along the image's lines (:func:`_profiles`), each
-output pixel judged against them inside the geocoding kernel; :func:`layover_and_shadow`
-itself, on continuous profiles of scattered terrain points, is the truth's.
+**Layover and shadow** over a DEM (the standard definitions, Kropatsch & Strobl 1990): the
+terrain's zero-Doppler profiles sampled along the image's lines (:mod:`levels.sar.masks`),
+each output pixel judged against them inside the geocoding kernel; the truth's own, on
+continuous profiles of the world's terrain, is the emulator's
+(:mod:`station.spacecraft.sar_masks`).
 """
 
 from levels.sar.annotation import (
@@ -43,12 +44,13 @@ from levels.sar.annotation import (
     SPEED_OF_LIGHT_M_PER_S,
     SarAnnotation,
     SarImage,
+    frame_grid,
     line_spacing_m,
     nominal_cell_m2,
 )
-from levels.sar.geocoding import Geocoded, frame_grid, geocode
-from levels.sar.masks import layover_and_shadow, mask_oversample
-from levels.sar.radiometry import splat_bilinear, terrain_flattening
+from levels.sar.geocoding import Geocoded, geocode
+from levels.sar.masks import mask_oversample
+from levels.sar.radiometry import terrain_flattening
 
 __all__ = [
     "ANCHOR_STEP_PX",
@@ -60,10 +62,8 @@ __all__ = [
     "SarImage",
     "frame_grid",
     "geocode",
-    "layover_and_shadow",
     "line_spacing_m",
     "mask_oversample",
     "nominal_cell_m2",
-    "splat_bilinear",
     "terrain_flattening",
 ]

@@ -14,7 +14,7 @@ import pyproj
 from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError
-from levels.geo.maps import MapGrid
+from levels.geo.maps import MapGrid, map_crs
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.times import Epoch
@@ -333,3 +333,20 @@ def line_spacing_m(ann: SarAnnotation) -> float:
     t = ann.first_line_s + 0.5 * ann.shape[0] * ann.line_interval_s
     s, v = ann.ephemeris.interpolate(np.array([t]))
     return float(np.linalg.norm(v) * WGS84.a_m / np.linalg.norm(s) * ann.line_interval_s)
+
+
+def frame_grid(
+    ann: SarAnnotation, pixel_size_m: float, height_m: float = 0.0, margin_m: float = 0.0
+) -> MapGrid:
+    """A north-up UTM grid (the zone of the frame's centre) of ``pixel_size_m`` covering the
+    frame's footprint at ``height_m``, widened by ``margin_m`` each side."""
+    lat, lon = ann.edge_ground(height_m)
+    crs = map_crs("utm", float(np.mean(lat)), float(np.mean(lon)))
+    to_map = pyproj.Transformer.from_crs(pyproj.CRS.from_epsg(4326), crs, always_xy=True)
+    x, y = to_map.transform(np.degrees(lon), np.degrees(lat))
+    res = float(pixel_size_m)
+    x0 = np.floor((np.min(x) - margin_m) / res) * res
+    y1 = np.ceil((np.max(y) + margin_m) / res) * res
+    n_cols = int(np.ceil((np.max(x) + margin_m - x0) / res))
+    n_rows = int(np.ceil((y1 - np.min(y) + margin_m) / res))
+    return MapGrid.north_up(crs.to_wkt(), x0, y1, res, n_rows, n_cols)

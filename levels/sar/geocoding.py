@@ -11,12 +11,11 @@ from typing import Any
 
 import numba as nb
 import numpy as np
-import pyproj
 from numpy.typing import NDArray
 
 from levels.errors import GeometryError
 from levels.geo.inverse_grid import bilinear_grid
-from levels.geo.maps import MapGrid, map_crs
+from levels.geo.maps import MapGrid
 from levels.geometry.dem import Dem
 from levels.geometry.ellipsoid import WGS84
 from levels.sar.annotation import (
@@ -125,7 +124,7 @@ class Geocoded:
     """A geocoded SAR image: intensity on a map grid (NaN outside the frame or over a
     void), each pixel's height (float32: a millimetre; NaN outside the frame over a DEM),
     the anchor grid's error (slant pixels), and the layover and shadow masks of the
-    terrain the DEM gives (:func:`layover_and_shadow`'s definitions; none on the
+    terrain the DEM gives (the standard definitions, :mod:`levels.sar.masks`; none on the
     ellipsoid); each pixel's (line, column) in the slant image on first asking (the
     geocoding's own arithmetic, from its anchors: 1.5 GB for a full frame that the
     product does not hold)."""
@@ -155,23 +154,6 @@ class Geocoded:
     def column(self) -> NDArray[np.float64]:
         """Each pixel's column in the slant image (NaN over a void)."""
         return self._located[1]
-
-
-def frame_grid(
-    ann: SarAnnotation, pixel_size_m: float, height_m: float = 0.0, margin_m: float = 0.0
-) -> MapGrid:
-    """A north-up UTM grid (the zone of the frame's centre) of ``pixel_size_m`` covering the
-    frame's footprint at ``height_m``, widened by ``margin_m`` each side."""
-    lat, lon = ann.edge_ground(height_m)
-    crs = map_crs("utm", float(np.mean(lat)), float(np.mean(lon)))
-    to_map = pyproj.Transformer.from_crs(pyproj.CRS.from_epsg(4326), crs, always_xy=True)
-    x, y = to_map.transform(np.degrees(lon), np.degrees(lat))
-    res = float(pixel_size_m)
-    x0 = np.floor((np.min(x) - margin_m) / res) * res
-    y1 = np.ceil((np.max(y) + margin_m) / res) * res
-    n_cols = int(np.ceil((np.max(x) + margin_m - x0) / res))
-    n_rows = int(np.ceil((y1 - np.min(y) + margin_m) / res))
-    return MapGrid.north_up(crs.to_wkt(), x0, y1, res, n_rows, n_cols)
 
 
 def _exact(
@@ -293,7 +275,7 @@ def _kernel_geocode(
     of the range inwards, rows of lines ``frame[0] + k·frame[1]``, columns of ground
     range ``frame[2] + m·frame[3]``: the column at the middle height): the two rows about
     its line, interpolated, up to the sample before it (from there on after it):
-    :func:`layover_and_shadow`'s definitions, ``tol_r`` and ``tol_look`` their
+    the standard definitions (:mod:`levels.sar.masks`), ``tol_r`` and ``tol_look`` their
     tolerances; none where a row has no terrain there (the grid's or the DEM's edge)."""
     n_lev, _, na, nb = anchors.shape
     n_l, n_s = image_shape

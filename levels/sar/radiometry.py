@@ -13,26 +13,6 @@ from levels.sar.annotation import SarImage, _to_geo, nominal_cell_m2
 from levels.sar.geocoding import Geocoded
 from levels.threads import over_blocks
 
-
-def splat_bilinear(
-    out: NDArray[np.float64], line: NDArray, col: NDArray, value: NDArray, n_l: int, n_s: int
-) -> None:
-    """Add each point's ``value`` to the four cells of an ``n_l`` × ``n_s`` image (``out``,
-    flat) around its (line, column), bilinearly; what falls outside is dropped."""
-    l0, c0 = np.floor(line).astype(np.int64), np.floor(col).astype(np.int64)
-    fl, fc = line - l0, col - c0
-    for dl, dc, w in (
-        (0, 0, (1 - fl) * (1 - fc)),
-        (1, 0, fl * (1 - fc)),
-        (0, 1, (1 - fl) * fc),
-        (1, 1, fl * fc),
-    ):
-        ll, cc = l0 + dl, c0 + dc
-        ok = (ll >= 0) & (ll < n_l) & (cc >= 0) & (cc < n_s)
-        idx = ll[ok] * n_s + cc[ok]
-        out += np.bincount(idx, weights=(w * value)[ok], minlength=n_l * n_s)
-
-
 #: Cells where the terrain shows the radar less than this share of their nominal area
 #: (seen edge-on, or all hidden) are not flattened: NaN.
 FLATTEN_MIN_AREA = 0.05

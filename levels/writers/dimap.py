@@ -393,8 +393,7 @@ def dimap_scene_of(
     epoch0, models = models_of_tree(product.geometry)
     model = next(iter(models.values()))
     n_rows, n_cols = model.n_lines, model.n_columns
-    center_row, center_col = n_rows // 2, n_cols // 2  # 1-based, as the real files
-    t_c = float(model.clock.time_s(center_row - 1.0))
+    t_c = float(model.clock.time_s(n_rows // 2 - 1.0))  # the centre row, 1-based
     centre_utc = _utc(epoch0, t_c)[0]
     epoch = Epoch(np.datetime64(centre_utc, "ns"), name="SCENE_CENTER_TIME")
     shift = float(epoch0.seconds(epoch.t0_utc))  # product seconds of the new epoch
@@ -405,12 +404,7 @@ def dimap_scene_of(
     rates = rates_reproducing(t_att, att.angles_rad_samples)
     ends = np.array([0, t_att.size - 1])
     aocs = SampledAttitude(t_att[ends], att.angles_rad_samples[ends])
-    rows = np.array([1, 1, n_rows, n_rows, center_row])
-    cols = np.array([1, n_cols, n_cols, 1, center_col])
-    g = model.image_to_ground(rows - 1.0, cols - 1.0, 0.0)
-    if not np.all(g.ok):
-        raise ProductError("the product's model does not locate its corners on the ellipsoid")
-    lat, lon = np.degrees(g.lat_rad), np.degrees(g.lon_rad)
+    rows, cols, lat, lon = _frame(model)
     a = product.attrs
     bands = {BAND_INDEX.get(name, k + 1): name for k, name in enumerate(models)}
     return DimapScene(
@@ -426,14 +420,14 @@ def dimap_scene_of(
         frame_col=cols[:4].astype(np.int64),
         frame_lat_deg=lat[:4],
         frame_lon_deg=lon[:4],
-        center_row=center_row,
-        center_col=center_col,
+        center_row=int(rows[4]),
+        center_col=int(cols[4]),
         center_lat_deg=float(lat[4]),
         center_lon_deg=float(lon[4]),
         epoch=epoch,
         line_period_s=model.clock.period_s,
-        scene_center_line=float(center_row),
-        scene_center_col=float(center_col),
+        scene_center_line=float(rows[4]),
+        scene_center_col=float(cols[4]),
         ephemeris=eph,
         aocs_attitude=aocs,
         angular_speeds_t_s=t_att,
@@ -448,6 +442,18 @@ def dimap_scene_of(
             for index, name in bands.items()
         },
     )
+
+
+def _frame(model: Any) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """The frame's four corners and its centre (1-based rows and columns, the centre
+    ``n // 2`` as the real files) located by the model on the ellipsoid (degrees)."""
+    n_rows, n_cols = model.n_lines, model.n_columns
+    rows = np.array([1, 1, n_rows, n_rows, n_rows // 2])
+    cols = np.array([1, n_cols, n_cols, 1, n_cols // 2])
+    g = model.image_to_ground(rows - 1.0, cols - 1.0, 0.0)
+    if not np.all(g.ok):
+        raise ProductError("the product's model does not locate its corners on the ellipsoid")
+    return rows, cols, np.degrees(g.lat_rad), np.degrees(g.lon_rad)
 
 
 def _look_table(model: Any, n_cols: int) -> Any:

@@ -105,6 +105,26 @@ def _gamma(rng: np.random.Generator, mean: float, cv: float) -> float:
     return float(rng.gamma(k, mean / k))
 
 
+#: The counters of a replication (events of the horizon after the warm-up).
+COUNTERS = (
+    "passes",
+    "imaging_passes",
+    "segments",
+    "segments_lost",
+    "scenes",
+    "orders",
+    "products",
+    "film_products",
+    "landsat_passes_tracked",
+    "landsat_passes_missed",
+    "tm_jobs",
+    "ers_passes_tracked",
+    "ers_passes_missed",
+    "sar_frames_recorded",
+    "sar_frames",
+)
+
+
 class StationSimulation:
     """One replication of a capacity scenario as a simpy model (module docstring): the
     stages, the random streams, the counters; :meth:`run` runs it to the end."""
@@ -119,13 +139,34 @@ class StationSimulation:
         rng = np.random.default_rng(np.random.SeedSequence(scn.seed, spawn_key=(replication,)))
         self.rng_plan, self.rng_service, rng_fail, self.rng_orders = rng.spawn(4)
         self.scn, self.service = scn, service
-        sim, res = scn.simulation, scn.resources
+        sim = scn.simulation
         self.warmup = sim.warmup_days * _DAY
         self.t_end = self.warmup + sim.days * _DAY
         spot, landsat, ers = patterns or pass_patterns(scn)
         self.pattern = spot
         self.env = env = simpy.Environment()
-        sh = scn.shifts
+        self.stages = self._stages(rng_fail)
+        self.latency: dict[str, list[float]] = {lv: [] for lv in LEVELS}
+        self.in_sla: dict[str, list[bool]] = {lv: [] for lv in LEVELS}
+        self.counts = dict.fromkeys(COUNTERS, 0)
+        self.mix = np.cumsum(scn.orders.mix)
+        # streams of their own, after the first four: scenarios without Landsat or film
+        # draw exactly as before
+        self.rng_landsat, self.rng_tm = rng.spawn(2)
+        self.extra_2a_s = {m: cor_window_s(service, scn.service, m) for m in ("P", "XS")}
+        ls = scn.landsat
+        if landsat is not None:
+            env.process(self.shared_passes(landsat, ls.antenna_share, self.rng_landsat, "landsat"))
+        if ls.tm_jobs_per_day > 0 and ls.tm_job_s > 0:
+            env.process(self.tm_jobs())
+        self.rng_ers = rng.spawn(1)[0]  # after the others: runs without ERS draw as before
+        self._ers_passes(ers)
+
+    def _stages(self, rng_fail: np.random.Generator) -> dict[str, Stage]:
+        """The station's stages (a recorder's transcription only on tape, a film recorder
+        only for analog products), each with its staffed shift, failures and outage."""
+        scn, env = self.scn, self.env
+        res, sh = scn.resources, scn.shifts
         shift = Shift(
             sh.start_h,
             sh.end_h,
@@ -133,7 +174,7 @@ class StationSimulation:
             scn.ground_station.lon_rad,
             self.pattern.weekday0,
         )
-        sample = sim.queue_sample_h * 3600.0
+        sample = scn.simulation.queue_sample_h * 3600.0
         units = {
             "antenna": res.antennas,
             "recorder": res.recorders,
@@ -146,59 +187,32 @@ class StationSimulation:
         }
         if scn.orders.film_fraction == 0:
             del units["film"]  # no analog products: no film recorder
-        self.stages = {
+        if res.recording == "disk":
+            del units["transcription"]
+        stages = {
             name: Stage(env, name, n, self.warmup, shift if name in sh.staffed else None, sample)
             for name, n in units.items()
         }
-        if res.recording == "disk":
-            del self.stages["transcription"]
         fl = scn.failures
-        for name, st in self.stages.items():
+        for name, st in stages.items():
             mtbf, mttr = getattr(fl, f"{name}_mtbf_s"), getattr(fl, f"{name}_mttr_s")
             if mtbf > 0 and mttr > 0:
                 env.process(st.failures(mtbf, mttr, rng_fail.spawn(1)[0]))
         og = scn.outage
-        if og.days > 0 and og.stage in self.stages:
-            env.process(
-                self.stages[og.stage].outage(self.warmup + og.start_day * _DAY, og.days * _DAY)
-            )
-        self.latency: dict[str, list[float]] = {lv: [] for lv in LEVELS}
-        self.in_sla: dict[str, list[bool]] = {lv: [] for lv in LEVELS}
-        self.counts = {
-            "passes": 0,
-            "imaging_passes": 0,
-            "segments": 0,
-            "segments_lost": 0,
-            "scenes": 0,
-            "orders": 0,
-            "products": 0,
-            "film_products": 0,
-            "landsat_passes_tracked": 0,
-            "landsat_passes_missed": 0,
-            "tm_jobs": 0,
-            "ers_passes_tracked": 0,
-            "ers_passes_missed": 0,
-            "sar_frames_recorded": 0,
-            "sar_frames": 0,
-        }
-        self.mix = np.cumsum(scn.orders.mix)
-        # streams of their own, after the first four: scenarios without Landsat or film
-        # draw exactly as before
-        self.rng_landsat, self.rng_tm = rng.spawn(2)
-        self.extra_2a_s = {m: cor_window_s(service, scn.service, m) for m in ("P", "XS")}
-        ls = scn.landsat
-        if landsat is not None:
-            env.process(self.shared_passes(landsat, ls.antenna_share, self.rng_landsat, "landsat"))
-        if ls.tm_jobs_per_day > 0 and ls.tm_job_s > 0:
-            env.process(self.tm_jobs())
-        self.rng_ers = rng.spawn(1)[0]  # after the others: runs without ERS draw as before
+        if og.days > 0 and og.stage in stages:
+            env.process(stages[og.stage].outage(self.warmup + og.start_day * _DAY, og.days * _DAY))
+        return stages
+
+    def _ers_passes(self, ers: Any) -> None:
+        """ERS-1's passes sharing the antenna (none when ``ers`` is None)."""
+        scn = self.scn
         if ers is not None:
-            if scn.ers.gtc_fraction > 0 and service.sar_gtc_s_per_frame <= 0:
+            if scn.ers.gtc_fraction > 0 and self.service.sar_gtc_s_per_frame <= 0:
                 raise ScenarioError(
                     "[ers]: the service-time file predates SAR geocoding's "
                     "(no sar_gtc_s_per_frame); run `station capacity calibrate`"
                 )
-            env.process(
+            self.env.process(
                 self.shared_passes(ers, scn.ers.antenna_share, self.rng_ers, "ers", self.ers_frames)
             )
 

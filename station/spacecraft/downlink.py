@@ -221,6 +221,40 @@ def _frame_headers(
     frames[:, : tf.FRAME_HEADER_BYTES] = head.view(np.uint8).reshape(-1, tf.FRAME_HEADER_BYTES)
 
 
+def _first_header_pointers(
+    n_data: int, sorted_start: NDArray[np.int64], idle_at: int
+) -> NDArray[np.int64]:
+    """Each data frame's first header pointer: where the first packet header in its zone
+    starts (packets laid out in sending order, ``sorted_start`` their first bytes in the
+    zone stream, the idle packet's at ``idle_at``), else ``FHP_NONE``."""
+    frame_start = np.arange(n_data) * tf.ZONE_BYTES
+    headers = np.append(sorted_start, idle_at)  # every packet header, the idle one last
+    nxt = headers[np.minimum(np.searchsorted(headers, frame_start), headers.size - 1)]
+    return np.where(
+        (nxt >= frame_start) & (nxt < frame_start + tf.ZONE_BYTES), nxt - frame_start, tf.FHP_NONE
+    )
+
+
+def _slots(
+    t_sorted: NDArray[np.float64],
+    sorted_start: NDArray[np.int64],
+    n_data: int,
+    times: NDArray[np.float64],
+    cfg: DownlinkConfig,
+) -> tuple[NDArray[np.int64], float, float]:
+    """The slot of each data frame: the first after the frame is full (the time of the
+    packet holding its last byte), never before the frame before it; the session's start
+    (the first packet's time less the preamble) and the slot's duration."""
+    last_byte = np.arange(n_data) * tf.ZONE_BYTES + tf.ZONE_BYTES - 1
+    holder = np.searchsorted(sorted_start, last_byte, side="right") - 1
+    ready = t_sorted[holder]
+    slot_s = 8.0 * tf.CADU_BYTES / cfg.bit_rate_bit_per_s
+    t_session = float(times.min()) - cfg.preamble_s
+    earliest = np.ceil((ready - t_session) / slot_s).astype(np.int64)
+    slot_of_frame = np.arange(n_data) + np.maximum.accumulate(earliest - np.arange(n_data))
+    return slot_of_frame, t_session, slot_s
+
+
 def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) -> Transmission:
     """Packetise, frame and schedule an acquisition's data (module docstring)."""
     if not acq.bands:
@@ -253,25 +287,9 @@ def transmit(acq: Acquisition, cfg: DownlinkConfig, rng: np.random.Generator) ->
     _sequence_counts(zone, start, order)
 
     n_data = zone.size // tf.ZONE_BYTES
-    frame_start = np.arange(n_data) * tf.ZONE_BYTES
-    sorted_start = start[order]  # packets in sending order are laid out in order
-    headers = np.append(sorted_start, idle_at)  # every packet header, the idle one last
-    nxt = headers[np.minimum(np.searchsorted(headers, frame_start), headers.size - 1)]
-    fhp = np.where(
-        (nxt >= frame_start) & (nxt < frame_start + tf.ZONE_BYTES), nxt - frame_start, tf.FHP_NONE
-    )
-
-    # When each data frame is full: the time of the packet holding its last byte.
-    t_sorted = times[order]
-    last_byte = frame_start + tf.ZONE_BYTES - 1
-    holder = np.searchsorted(sorted_start, last_byte, side="right") - 1
-    ready = t_sorted[holder]
-    slot_s = 8.0 * tf.CADU_BYTES / cfg.bit_rate_bit_per_s
-    t_session = float(times.min()) - cfg.preamble_s
-    earliest = np.ceil((ready - t_session) / slot_s).astype(np.int64)
-    slot_of_frame = np.arange(n_data) + np.maximum.accumulate(earliest - np.arange(n_data))
+    fhp = _first_header_pointers(n_data, start[order], idle_at)
+    slot_of_frame, t_session, slot_s = _slots(times[order], start[order], n_data, times, cfg)
     n_slots = int(slot_of_frame[-1]) + 1 + int(np.ceil(cfg.postamble_s / slot_s))
-
     vc = np.full(n_slots, tf.VC_FILL, np.int64)
     vc[slot_of_frame] = data_vc
     is_fill = vc == tf.VC_FILL

@@ -17,7 +17,7 @@ detected slant-range image of a frame rendered from the world (issue 38, ADRIN `
   carrying the backscatter of its local incidence angle ``θ`` (``σ⁰ = ρ·cos²θ``, ``ρ`` the
   world's texture; or ``ρ·cos θ``, whose γ⁰ is ``ρ``) times its area on the terrain, is
   summed into the slant-range cell where the truth images it (bilinear weights,
-  :func:`levels.sar.splat_bilinear`): two slopes at one range add up (layover), a facet
+  :func:`splat_bilinear`): two slopes at one range add up (layover), a facet
   the terrain hides from the antenna gives nothing (shadow: of the facets on one line at
   one look angle, only the nearest is seen). The sum over the cell's nominal area on the
   ellipsoid is σ⁰ where the ground is flat; multiplicative speckle of ``looks`` looks
@@ -40,19 +40,18 @@ from numpy.typing import NDArray
 
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.times import Epoch
-from levels.sar import (
+from levels.sar.annotation import (
     MASK_TOLERANCE_PX,
     SPEED_OF_LIGHT_M_PER_S,
     SarAnnotation,
     SarImage,
     frame_grid,
-    layover_and_shadow,
     line_spacing_m,
     nominal_cell_m2,
-    splat_bilinear,
 )
 from station.spacecraft.orbit import TruthOrbit, node_state, phased_targets
 from station.spacecraft.placement import place_orbit
+from station.spacecraft.sar_masks import layover_and_shadow
 from station.spacecraft.world import World
 
 __all__ = ["ERS1", "ErsFrame", "SarInstrument", "SarTruth", "emulate_frame", "sar_view"]
@@ -189,7 +188,8 @@ class SarTruth:
 
     def masks(self, grid: Any, oversample: int = 4) -> tuple[NDArray, NDArray]:
         """The true layover and shadow at the centre of every pixel of a map grid: the
-        definitions of :func:`levels.sar.layover_and_shadow` on the world's own terrain,
+        definitions of :func:`~station.spacecraft.sar_masks.layover_and_shadow` on the
+        world's own terrain,
         sampled ``oversample`` times finer than the grid (a profile every fine node along
         the track), each node's line, range, look angle and ground range (its column at
         the map across the track) by the truth's own solution on the integrated orbit."""
@@ -382,3 +382,22 @@ def _visible(
     seen = np.empty(r.size, dtype=bool)
     seen[order] = rs <= rs[nearest] + range_spacing_m
     return seen
+
+
+def splat_bilinear(
+    out: NDArray[np.float64], line: NDArray, col: NDArray, value: NDArray, n_l: int, n_s: int
+) -> None:
+    """Add each point's ``value`` to the four cells of an ``n_l`` × ``n_s`` image (``out``,
+    flat) around its (line, column), bilinearly; what falls outside is dropped."""
+    l0, c0 = np.floor(line).astype(np.int64), np.floor(col).astype(np.int64)
+    fl, fc = line - l0, col - c0
+    for dl, dc, w in (
+        (0, 0, (1 - fl) * (1 - fc)),
+        (1, 0, fl * (1 - fc)),
+        (0, 1, (1 - fl) * fc),
+        (1, 1, fl * fc),
+    ):
+        ll, cc = l0 + dl, c0 + dc
+        ok = (ll >= 0) & (ll < n_l) & (cc >= 0) & (cc < n_s)
+        idx = ll[ok] * n_s + cc[ok]
+        out += np.bincount(idx, weights=(w * value)[ok], minlength=n_l * n_s)

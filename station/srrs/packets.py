@@ -131,19 +131,22 @@ def packets_of(
     return zone, starts[:n], lengths[:n], int(dropped)
 
 
-def lines_from_packets(
-    zone: NDArray[np.uint8], starts: NDArray[np.int64], lengths: NDArray[np.int64]
-) -> dict:
-    """Sort packets by APID, read the aux records, place the image segments."""
-    pid = ((zone[starts].astype(np.int64) << 8) | zone[starts + 1]) & 0x7FF
-    stats = {"complete": int(starts.size), "idle": int((pid == tf.APID_IDLE).sum())}
+def _aux_records(
+    zone: NDArray[np.uint8],
+    starts: NDArray[np.int64],
+    lengths: NDArray[np.int64],
+    pid: NDArray[np.int64],
+    stats: dict[str, int],
+) -> tuple[NDArray, NDArray, NDArray[np.bool_]]:
+    """The auxiliary records that agree on the strip's shape (what most of them say; a
+    record that disagrees, or whose time is implausible, is rejected), by time; the
+    reference record and which packets are auxiliary. Counts into ``stats``."""
     aux_size = 6 + tf.AUX_DTYPE.itemsize
     is_aux = ((pid & ~0xF) == tf.APID_AUX) & (lengths == aux_size)
     if not is_aux.any():
         raise ReceiverError("no auxiliary packet was received: lines cannot be placed")
     idx = starts[is_aux][:, None] + 6 + np.arange(tf.AUX_DTYPE.itemsize)
     aux = np.ascontiguousarray(zone[idx]).view(tf.AUX_DTYPE).ravel()
-    # The strip's shape is what most aux records say; a record that disagrees is rejected.
     keys = ["first_line", "n_lines", "n_detectors", "n_bands", "mode", "hrv", "mirror_step"]
     shape = repack_fields(aux[keys])
     _kinds, first, votes = np.unique(shape, return_index=True, return_counts=True)
@@ -152,6 +155,16 @@ def lines_from_packets(
     stats["aux"] = int(agree.sum())
     stats["aux_rejected"] = int((~agree).sum())
     aux = np.sort(aux[agree], order="time_ms")
+    return aux, ref, is_aux
+
+
+def lines_from_packets(
+    zone: NDArray[np.uint8], starts: NDArray[np.int64], lengths: NDArray[np.int64]
+) -> dict:
+    """Sort packets by APID, read the aux records, place the image segments."""
+    pid = ((zone[starts].astype(np.int64) << 8) | zone[starts + 1]) & 0x7FF
+    stats = {"complete": int(starts.size), "idle": int((pid == tf.APID_IDLE).sum())}
+    aux, ref, is_aux = _aux_records(zone, starts, lengths, pid, stats)
     first_line, n_lines = int(ref["first_line"]), int(ref["n_lines"])
     n_det, n_bands, hrv = int(ref["n_detectors"]), int(ref["n_bands"]), int(ref["hrv"])
     seg_first = np.arange(0, n_det, tf.SEGMENT_DETECTORS)

@@ -124,25 +124,7 @@ def _write(
     a["software"] = f"spot-station {__version__}"
     a["provenance"] = json.dumps(provenance, sort_keys=True)
 
-    bands = f.create_group("bands")
-    _dataset(bands, "segment_first_detector", d.segment_first_detector)
-    chunks = (min(_CHUNK_LINES, n_lines), n_det)
-    for anc, img, ok in zip(ancillary, d.images, d.valid, strict=True):
-        g = bands.create_group(anc.name)
-        # deflated by ISA-L on every core, as the products are: a full P scene in 0.2 s,
-        # not h5py's 1.2 s through zlib on one (5 % larger)
-        counts = deflated_dataset(g, "counts", img, chunks, shuffle=True)
-        entry = _field(g, "counts")
-        _described(counts, entry.units, entry.long_name)
-        _dataset(g, "valid", ok, compression="gzip")
-        look = g.create_group("look_angles")
-        look.attrs["n_columns"] = anc.look.n_columns
-        _dataset(look, "column", anc.look.column)
-        _dataset(look, "psi_x_rad", anc.look.psi_x_rad)
-        _dataset(look, "psi_y_rad", anc.look.psi_y_rad)
-        cal = g.create_group("calibration")
-        _dataset(cal, "gain", anc.gain)
-        _dataset(cal, "offset_counts", anc.offset_counts)
+    _write_bands(f.create_group("bands"), d, ancillary)
 
     lines = f.create_group("lines")
     _dataset(lines, "line_counter", d.line_counter)
@@ -168,7 +150,35 @@ def _write(
     _dataset(eph, "r_ecef_m", bulletins.r_ecef_m)
     _dataset(eph, "v_ecef_m_per_s", bulletins.v_ecef_m_per_s)
 
-    dec = f.create_group("decode")
+    _write_decode(f.create_group("decode"), d)
+
+
+def _write_bands(bands: h5py.Group, d: DecodedPass, ancillary: list[BandAncillary]) -> None:
+    """Each band's counts (deflated, chunked by lines), valid segments, look angles and
+    calibration."""
+    n_lines, n_det = d.images[0].shape
+    _dataset(bands, "segment_first_detector", d.segment_first_detector)
+    chunks = (min(_CHUNK_LINES, n_lines), n_det)
+    for anc, img, ok in zip(ancillary, d.images, d.valid, strict=True):
+        g = bands.create_group(anc.name)
+        # deflated by ISA-L on every core, as the products are: a full P scene in 0.2 s,
+        # not h5py's 1.2 s through zlib on one (5 % larger)
+        counts = deflated_dataset(g, "counts", img, chunks, shuffle=True)
+        entry = _field(g, "counts")
+        _described(counts, entry.units, entry.long_name)
+        _dataset(g, "valid", ok, compression="gzip")
+        look = g.create_group("look_angles")
+        look.attrs["n_columns"] = anc.look.n_columns
+        _dataset(look, "column", anc.look.column)
+        _dataset(look, "psi_x_rad", anc.look.psi_x_rad)
+        _dataset(look, "psi_y_rad", anc.look.psi_y_rad)
+        cal = g.create_group("calibration")
+        _dataset(cal, "gain", anc.gain)
+        _dataset(cal, "offset_counts", anc.offset_counts)
+
+
+def _write_decode(dec: h5py.Group, d: DecodedPass) -> None:
+    """The decoder's account: its counts, each frame's status, each channel's ledger."""
     dec.attrs["status_names"] = json.dumps(list(STATUS_NAMES))
     dec.attrs["bits_in"] = d.bits_in
     dec.attrs["bits_searched"] = d.bits_searched
