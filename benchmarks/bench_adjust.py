@@ -27,8 +27,9 @@ from levels.options import ProcessingOptions
 from levels.process import ProcessingRequest, process
 from levels.readers.gcp import read_gcps, write_gcps
 from levels.readers.l0 import read_l0
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
 from station.spacecraft.emulator import emulate
 
 TARGET_ADJUST_S = 1.0
@@ -71,7 +72,7 @@ def bench_scene() -> None:
         }
     )
     from station.chain.session import downlink, record
-    from station.sipc.truth import Truth
+    from station.truth.optical import Truth
 
     acq = emulate(scn)
     with tempfile.TemporaryDirectory() as tmp:

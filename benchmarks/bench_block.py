@@ -5,7 +5,7 @@ Figures printed (issue 36's target in brackets):
 * a block of 4 adjacent strips × 25 full P scenes (150 000 lines each, nadir tracks over
   one target on 4 dates of the 26-day cycle, the mirror at −1.8°, −0.6°, +0.6°, +1.8°:
   neighbours share about 40 km of their 60 km swaths), 12 control points in the first strip,
-  tie points between neighbours from the truth (0.2 px; ``station.sipc.truth``), the
+  tie points between neighbours from the truth (0.2 px; ``station.truth.optical``), the
   world's DEM every 10″ with 5 m of error under them (observed with the station's default
   ``tie_height_sigma_m``, 10 m, as ``station process --adjustment block`` does with a
   ``dem_path``): the wall time of :func:`levels.adjust.adjust_block` (≤ 2 s), best of 3,
@@ -36,11 +36,12 @@ import numpy as np
 from levels.adjust import Strip, adjust, adjust_block
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
-from station.sipc.truth import Truth, true_tie_points
 from station.spacecraft.dem import world_dem
 from station.spacecraft.emulator import emulate
+from station.truth.optical import Truth, true_tie_points
 
 TARGET_S = 2.0
 DEM_SPACING_DEG = 10 / 3600

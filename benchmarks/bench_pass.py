@@ -41,8 +41,8 @@ from levels.options import ProcessingOptions
 from levels.process import all_made, run_plans
 from levels.products import is_product_file
 from levels.tasks import DaskRunner, InProcess, Runner, dask_runner
+from station.reprocess import plan_reprocess
 from station.scenario import scenario_from_dict
-from station.sipc.process import plan_reprocess
 
 REPEATS = 2
 SCENE_LINES = 6000

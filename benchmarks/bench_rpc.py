@@ -35,8 +35,8 @@ from bench_levels import best  # the same best-of-N timer (run as a script: its 
 from levels.geo.rpc import rpc_of_model
 from levels.quality import image_shift_px
 from levels.readers.dimap import read_dimap
+from station.fixtures import emulated_scene
 from station.scenario import scenario_from_dict
-from station.sipc.process import emulated_scene
 from station.spacecraft.emulator import emulate
 
 HEIGHTS_M = (0.0, 1500.0)

@@ -139,7 +139,7 @@ def main(argv: list[str]) -> int:
     from stereo import pair_and_truth  # tools/stereo.py
 
     from levels.stereo import match
-    from station.sipc.stereo import exact_disparity
+    from station.truth.stereo import exact_disparity
 
     where = Path(argv[0]) if argv else Path(tempfile.mkdtemp(prefix="bench_stereo_"))
     t0 = time.perf_counter()

@@ -33,8 +33,8 @@ from levels.readers.l0 import read_l0
 from levels.tiepoints import MapView, match_views
 from station.cli import main as station
 from station.scenario import load_scenario
-from station.sipc.truth import Truth
 from station.spacecraft.emulator import emulate_pass, truth_model
+from station.truth.optical import Truth
 
 REPEATS = 2
 TARGET_S = 10.0

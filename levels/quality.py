@@ -162,7 +162,7 @@ class CheckpointSource(Protocol):
     """Where checkpoints of a scene truly are, for the ``checkpoints`` quality figures.
 
     The processing driver (:func:`levels.process.make_scene`) asks it for the errors of
-    each band's 1B and 2A geometry; the emulator's truth is one (``station.sipc.truth``),
+    each band's 1B and 2A geometry; the emulator's truth is one (``station.truth.optical``),
     surveyed points of a real scene would be another. Each method returns a tree: the
     :func:`error_stats` of the line of sight and of the ground, and the lattice behind them.
     """

@@ -85,7 +85,7 @@ def run_campaign(
     counts scenes (``total``: those of the archives planned so far): called while
     planning, after each scene, and at the end.
     """
-    from station.sipc.process import l0_stem
+    from station.reprocess import l0_stem
 
     names = [l0_stem(a) for a in archives]
     clashes = sorted({n for n in names if names.count(n) > 1})
@@ -128,7 +128,7 @@ def _run(
 ) -> dict[str, Any]:
     """:func:`run_campaign` into ``stage``, the report naming the paths in ``target``."""
     from levels.process import run_plans
-    from station.sipc.process import plan_reprocess
+    from station.reprocess import plan_reprocess
 
     clock = time.perf_counter
     t0 = clock()

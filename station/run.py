@@ -155,7 +155,7 @@ def _emulate_and_receive(
     kernels compile in the background (``warm_up``): the acquisitions, what was received,
     each HRV's tag and the processing options; adds the wall times to ``timings``."""
     from levels.warmup import start_warm_up, stop_warm_up, wait_for_warm_up
-    from station.sipc.process import with_exported_dem
+    from station.reprocess import with_exported_dem
     from station.spacecraft.emulator import emulate_pass
 
     clock = time.perf_counter
@@ -268,9 +268,9 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
     """One HRV's channel, its L0 archive and its control-point file; adds the wall times
     to ``timings``."""
     from levels.readers.l0 import read_l0
+    from station.chain.gcps import measured_control_points
     from station.chain.report import downlink_report
     from station.chain.session import downlink, record
-    from station.sipc.process import measured_control_points
 
     clock = time.perf_counter
     stages.set_description(f"downlink HRV{acq.hrv.number}")
@@ -643,8 +643,8 @@ def _block(
     from levels.block import BlockRequest, process_block
     from levels.readers.gcp import read_gcps
     from levels.readers.l0 import read_l0
-    from station.sipc.process import truth_for
-    from station.sipc.stereo import StereoTruth, stereo_quality
+    from station.truth.optical import truth_for
+    from station.truth.stereo import StereoTruth, stereo_quality
 
     archives = [read_l0(stage / s.name / f"{s.name}.l0.h5", lazy=True) for s in scns]
     truths = [truth_for(s, a) for s, a in zip(scns, archives, strict=True)]
@@ -696,7 +696,7 @@ def _share_control_points(stage: Path, scns: list[Scenario]) -> None:
 
     from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
     from levels.readers.l0 import read_l0
-    from station.sipc.process import truth_for
+    from station.truth.optical import truth_for
 
     first = scns[0]
     l0 = read_l0(stage / first.name / f"{first.name}.l0.h5", lazy=True)

@@ -16,10 +16,11 @@ from levels.products import read_product
 from levels.readers.gcp import GCP_COLUMNS, read_gcps
 from levels.readers.l0 import read_l0
 from levels.spot import MODES
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
-from station.sipc.truth import Truth
 from station.spacecraft.emulator import emulate, emulate_pass
+from station.truth.optical import Truth
 
 SCENE = 6000  # a full P scene: the figures below are in 10 m pixels
 PIXEL_M = 10.0
@@ -126,7 +127,7 @@ def test_geo_holds_the_attitude_across_lost_records() -> None:
 
 
 def test_level_2_products_need_points_and_carry_their_adjustment(tmp_path) -> None:
-    from station.sipc.process import process_scenario
+    from station.reprocess import process_scenario
 
     scn = scenario_from_dict(
         {

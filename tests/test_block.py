@@ -2,7 +2,7 @@
 0° and +8.4°, full P geometry (no image), tied by points; measured against the truth.
 
 The first pass has 12 control points, the second none. Tie points come from the truth
-(``station.sipc.truth.true_tie_points``: a 15 × 15 lattice, 0.2 px of image noise, the
+(``station.truth.optical.true_tie_points``: a 15 × 15 lattice, 0.2 px of image noise, the
 matcher's figure): the adjustment is tested here, the matcher in ``test_tiepoints.py``.
 """
 
@@ -20,11 +20,12 @@ from levels.errors import GeometryError
 from levels.geometry.dem import Dem
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
-from station.sipc.truth import Truth, true_tie_points
 from station.spacecraft.dem import world_dem
 from station.spacecraft.emulator import emulate, truth_model
+from station.truth.optical import Truth, true_tie_points
 
 PIXEL_M = 10.0
 #: The issue's bar for a block's scenes (ADRIN: 25–105 m at 10 m pixels).

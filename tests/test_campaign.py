@@ -61,10 +61,10 @@ def test_archives_are_planned_one_after_another_in_process(archives, tmp_path, m
     """A year of passes is never planned all at once: in process, each archive's scenes
     are made before the next archive is read (what a worker holds stays one pass)."""
     import levels.process
-    import station.sipc.process
+    import station.reprocess
 
     events = []
-    plan, scene = station.sipc.process.plan_reprocess, levels.process.make_scene
+    plan, scene = station.reprocess.plan_reprocess, levels.process.make_scene
 
     def planned(paths, *a, **k):
         events.append(("plan", Path(paths[0]).name))
@@ -74,7 +74,7 @@ def test_archives_are_planned_one_after_another_in_process(archives, tmp_path, m
         events.append(("scene", ctx.name))
         return scene(ctx, s)
 
-    monkeypatch.setattr(station.sipc.process, "plan_reprocess", planned)
+    monkeypatch.setattr(station.reprocess, "plan_reprocess", planned)
     monkeypatch.setattr(levels.process, "make_scene", made)
     good = [archives / "pass_a.l0.h5", archives / "older" / "pass_b.l0.h5"]
     assert main(["campaign", *map(str, good), "--out", str(tmp_path / "o"), "--quiet"]) == 0

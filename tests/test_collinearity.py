@@ -9,8 +9,9 @@ import numpy as np
 import levels.adjust.model as la
 from levels.adjust.passes import _nodes
 from levels.options import ProcessingOptions
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
 from station.spacecraft.emulator import emulate
 
 #: Kernel against numpy, same formulas in another order of operations: the condition in

@@ -17,8 +17,8 @@ from levels.cor.radiometry import (
 from levels.cor.resample import resample_1b, resample_2a, with_nan
 from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import level2a_geometry, map_crs
+from station.fixtures import emulated_scene
 from station.scenario import scenario_from_dict
-from station.sipc.process import emulated_scene
 from station.spacecraft.emulator import emulate
 
 #: float32 image values against float64 references: 1e-3 counts is far below the 8-bit step.

@@ -14,10 +14,10 @@ from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import INVERSE_METHODS, butting_columns, level2a_geometry, map_crs
 from levels.geo.polynomial import Poly1D, Poly2D
 from levels.geo.scenes import cut_scenes
+from station.fixtures import emulated_scene
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
-from station.sipc.process import emulated_scene
-from station.sipc.truth import Truth, checkpoints_1b, checkpoints_2a
 from station.spacecraft.emulator import emulate
+from station.truth.optical import Truth, checkpoints_1b, checkpoints_2a
 
 #: The issue's bound on the 2A inverse from the four nearest direct-grid points.
 MAX_INVERSE_PX = 0.05

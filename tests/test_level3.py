@@ -12,11 +12,11 @@ from levels.geo.level2a import level2a_geometry
 from levels.geo.level3 import ANCHOR_TOLERANCE_PX, level3_geometry
 from levels.geo.maps import map_crs
 from levels.readers.dem import DemError, egm96_grid_installed, read_dem
+from station.fixtures import emulated_scene
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
-from station.sipc.process import emulated_scene
-from station.sipc.truth import Truth, checkpoints_2a, checkpoints_3
 from station.spacecraft.dem import read_hgt
 from station.spacecraft.emulator import emulate
+from station.truth.optical import Truth, checkpoints_2a, checkpoints_3
 
 #: The issue's figures for an exact DEM with the errors off: RMS and max (output pixels).
 EXACT_RMS_PX, EXACT_MAX_PX = 0.1, 0.3
@@ -289,7 +289,7 @@ def test_station_process_finds_the_runs_dem(dem_errors_run, tmp_path) -> None:
 
     from levels.options import ProcessingOptions
     from levels.products import read_product
-    from station.sipc.process import reprocess_l0
+    from station.reprocess import reprocess_l0
 
     out, _ = dem_errors_run
     opts = dataclasses.replace(

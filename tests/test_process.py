@@ -270,8 +270,8 @@ def test_control_points_reach_the_station_as_measured(run_dir: Path) -> None:
     from levels.readers.gcp import read_gcps
     from levels.readers.l0 import read_l0
     from station.scenario import load_scenario
-    from station.sipc.process import truth_for
     from station.spacecraft.emulator import emulate
+    from station.truth.optical import truth_for
 
     archive = read_l0(run_dir / "small_test.l0.h5")
     n_cols = archive.bands["P"].counts.shape[1]

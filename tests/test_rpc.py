@@ -12,8 +12,8 @@ from _frames import frame_gcps
 
 from levels.geo.rpc import Rpc, rpc_of_model
 from levels.geometry.sensor import LookAngleTable
+from station.fixtures import emulated_scene
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
-from station.sipc.process import emulated_scene
 from station.spacecraft.emulator import emulate
 
 #: The issue's figures for the algebraic model against the rigorous one (pixels).

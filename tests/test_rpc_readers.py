@@ -18,8 +18,8 @@ from levels.readers.rpc import (
     read_rpc_txt,
     rpc_from_gdal,
 )
+from station.fixtures import emulated_scene
 from station.scenario import scenario_from_dict
-from station.sipc.process import emulated_scene
 from station.spacecraft.emulator import emulate
 
 #: Image agreement of two evaluations of the same coefficients (pixels): round-off only.

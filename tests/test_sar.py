@@ -17,10 +17,10 @@ import pytest
 from levels.geo.maps import MapGrid
 from levels.products import read_product
 from levels.sar import Geocoded, frame_grid, geocode
-from station.run_sar import checkpoint_errors
 from station.spacecraft.dem import world_dem
 from station.spacecraft.sar import ErsFrame, SarTruth, emulate_frame
 from station.spacecraft.world import DemGrid, World
+from station.truth.sar import checkpoint_errors
 
 #: Ground → image against the truth's own solution on the integrated orbit (the issue's
 #: 1e-3 px; measured 7e-9 px: the annotation's state vectors every 10 s, Lagrange).
@@ -103,7 +103,7 @@ def cliffs() -> tuple:
 
 def _checkpoints(g: Geocoded, truth: SarTruth) -> tuple:
     """Where the product puts terrain points minus where they are (output pixels), their
-    heights and incidence (:func:`station.run_sar.checkpoint_errors`, what a run reports)."""
+    heights and incidence (:func:`station.truth.sar.checkpoint_errors`, what a run reports)."""
     cp = checkpoint_errors(g, truth)
     return cp["di"], cp["dj"], cp["height_m"], cp["incidence_rad"]
 

@@ -24,8 +24,8 @@ from levels.readers.l0 import read_l0
 from levels.tiepoints import MapView, TiePoints, match_views
 from station.cli import main
 from station.scenario import load_scenario
-from station.sipc.truth import Truth
 from station.spacecraft.emulator import emulate_pass, truth_model
+from station.truth.optical import Truth
 
 #: The issue's bar: matched position against the true corresponding point, RMS.
 TIE_RMS_PX = 0.2

@@ -5,7 +5,7 @@ Geometry only (no image): a block of two adjacent strips × three full P scenes 
 (nadir tracks over one target, the mirror at −1.2° and +1.2°: about 25 km of the 60 km
 swaths in common), the default
 errors drawn independently per pass; **one control point**, at the start of the first
-strip; tie points between the strips from the truth (``station.sipc.truth.true_tie_points``,
+strip; tie points between the strips from the truth (``station.truth.optical.true_tie_points``,
 0.2 px of noise: the matcher's figure, ``docs/blocks.md``) and the world's 3″ DEM with 5 m
 of error under them. Each scene's model against the truth's line of sight, 11 × 11 lattice.
 
@@ -31,11 +31,12 @@ from overrides import scenario_changes  # tools/overrides.py
 
 from levels.adjust import Strip, adjust, adjust_block
 from levels.options import ProcessingOptions
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import merge_tables, scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
-from station.sipc.truth import Truth, true_tie_points
 from station.spacecraft.dem import world_dem
 from station.spacecraft.emulator import emulate
+from station.truth.optical import Truth, true_tie_points
 
 SCENE = 6000
 PIXEL_M = 10.0

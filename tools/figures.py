@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from levels.geo.level2a import Level2AGeometry
+from station.fixtures import emulated_scene
 from station.scenario import ERRORS_OFF, merge_tables
-from station.sipc.process import emulated_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 REFDATA = Path(os.environ.get("SPOT_REFDATA", ROOT.parent / "shared" / "refdata"))
@@ -252,8 +252,8 @@ def levels_figures() -> Iterator[Row]:
     from levels.geo.level2a import level2a_geometry
     from levels.geo.maps import map_crs
     from station.scenario import scenario_from_dict
-    from station.sipc.truth import Truth, checkpoints_1b, checkpoints_2a
     from station.spacecraft.emulator import emulate
+    from station.truth.optical import Truth, checkpoints_1b, checkpoints_2a
 
     def scene(data: dict):
         acq = emulate(scenario_from_dict(data), render=False)

@@ -29,10 +29,11 @@ from levels.adjust import Strip, adjust, adjust_strips
 from levels.geometry.attitude import westin_variogram_rad2
 from levels.options import ProcessingOptions
 from levels.spot import MODES, ORBIT_ALTITUDE_M
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
-from station.sipc.truth import Truth
 from station.spacecraft.emulator import emulate, emulate_pass
+from station.truth.optical import Truth
 
 SCENE = 6000  # lines and detectors of a full P scene
 LINE_S = MODES["P"].line_period_s

@@ -34,11 +34,12 @@ from levels.geo.level3 import direct_method_error, level3_geometry
 from levels.geo.maps import map_crs
 from levels.options import ProcessingOptions
 from levels.readers.dem import read_dem
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import ERRORS_OFF, DemConfig, merge_tables, scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
-from station.sipc.truth import Truth, checkpoints_3
 from station.spacecraft.dem import export_dem
 from station.spacecraft.emulator import emulate
+from station.truth.optical import Truth, checkpoints_3
 
 ROOT = Path(__file__).resolve().parents[1]
 TILE = ROOT.parent / "shared" / "refdata" / "dem" / "N00E010.hgt"

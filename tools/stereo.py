@@ -64,8 +64,8 @@ def pair_and_truth(where: Path) -> tuple[Any, Any, tuple[float, float]]:
     from levels.readers.l0 import read_l0
     from levels.stereo import StereoView, disparity_range, epipolar_pair
     from station.run import block_scenarios
-    from station.sipc.process import truth_for
-    from station.sipc.stereo import StereoTruth
+    from station.truth.optical import truth_for
+    from station.truth.stereo import StereoTruth
 
     run = run_full(where)
     _, scns, _ = block_scenarios(where / "stereo_pair.toml")
@@ -93,7 +93,7 @@ def _xdem_nmad(run: Path, dem_file: str, truth: Any) -> dict[str, float] | None:
     import rasterio
 
     from levels.products import read_product
-    from station.sipc.stereo import SLOPE_CLASSES_DEG, true_heights
+    from station.truth.stereo import SLOPE_CLASSES_DEG, true_heights
 
     product = read_product(run / dem_file)
 

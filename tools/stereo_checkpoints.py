@@ -4,7 +4,7 @@ The pair of ``scenarios/stereo/stereo_pair.toml`` at full size (6000 × 6000, mi
 and +27°, 400 m of relief), the default errors drawn anew per draw: five control points of
 the first pass, each also measured in the second's image with the scenario's pointing
 error (``[gcps] shared``), tie points from the truth
-(``station.sipc.truth.true_tie_points``: a 10 × 10 lattice, 0.2 px of noise, the
+(``station.truth.optical.true_tie_points``: a 10 × 10 lattice, 0.2 px of noise, the
 matcher's figure), one block adjustment; then 25 checkpoints of the terrain, their true
 image positions in both scenes with ``--pointing`` px of error (default 0.3, the control
 points'), triangulated on the adjusted models (``levels.stereo.triangulate_raw``: the
@@ -30,10 +30,11 @@ from levels.geometry.ellipsoid import WGS84
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
 from levels.stereo import triangulate_raw
+from station.chain.gcps import control_points
+from station.fixtures import emulated_pass
 from station.scenario import merge_tables, scenario_from_dict
-from station.sipc.process import control_points, emulated_pass
-from station.sipc.truth import Truth, true_tie_points
 from station.spacecraft.emulator import emulate, truth_model
+from station.truth.optical import Truth, true_tie_points
 
 SCENE = 6000
 TIE_SIGMA_PX = 0.2

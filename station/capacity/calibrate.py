@@ -171,8 +171,8 @@ def raw_lines_per_2a_row(mode: str) -> float:
     only, from this code's GEO on the emulated SPOT 1–4 (inertial attitude frame)."""
     from levels.geo.level2a import level2a_geometry
     from levels.geo.maps import map_crs
+    from station.fixtures import emulated_scene
     from station.scenario import scenario_from_dict
-    from station.sipc.process import emulated_scene
     from station.spacecraft.emulator import emulate
 
     scn = scenario_from_dict({"instrument": {"mode": mode}, "pass": {"ground_pass_days": 0.0}})

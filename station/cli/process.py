@@ -224,7 +224,7 @@ def _archive_sources(
     """L0 archives as the SOURCE: the options (the scenario's or the block's, then the
     command's), the names of their products and the files they read."""
     from levels.options import ProcessingOptions
-    from station.sipc.process import l0_stem
+    from station.reprocess import l0_stem
 
     if args.name and len(sources) > 1:
         raise StationError("--name names one archive's products; several are named after theirs")
@@ -253,7 +253,7 @@ def _process_pass(
     a scenario's pass emulated and processed (``scn``), into ``out``, published whole."""
     from levels.files import staged_dir, write_json
     from station.catalog import write_catalog
-    from station.sipc.process import process_scenario, reprocess_pass
+    from station.reprocess import process_scenario, reprocess_pass
 
     with staged_dir(out) as stage, runner_of(args) as runner:
         if scn is not None:
@@ -385,9 +385,9 @@ def _scenarios(args: argparse.Namespace, sources: list[Path]) -> tuple[list[Any]
     """The ``--scenario`` files: a pass's scenario per archive (or one for the archives of
     one pass); or a block's (``[[passes]]``), whose passes are matched to the archives by
     name and whose ``[processing]`` is the options' base."""
+    from station.reprocess import l0_stem
     from station.run import block_scenarios, is_block_file
     from station.scenario import load_scenario
-    from station.sipc.process import l0_stem
 
     given = args.scenario or []
     if len(given) == 1 and is_block_file(given[0]):
@@ -412,13 +412,13 @@ def _process_block(
     options: Any,
     out: Path,
 ) -> int:
-    """Several passes to a pair's products (``station.sipc.process.reprocess_block``):
+    """Several passes to a pair's products (``station.reprocess.reprocess_block``):
     every pass's scene levels in ``<out>/<name>/``, the tie points, the block's level 2
     and 3 and the pair's DEM in ``ties/``, ``block/`` and ``stereo/``."""
     from levels.files import staged_dir, write_json
     from station.catalog import write_catalog
+    from station.reprocess import reprocess_block
     from station.run import product_entry
-    from station.sipc.process import reprocess_block
 
     with staged_dir(out) as stage, runner_of(args) as runner:
         passes, block = reprocess_block(
@@ -474,7 +474,7 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace,
     from levels.readers.gcp import read_gcps
     from levels.readers.l0 import read_l0
     from station.preflight import check_needs, scene_needs
-    from station.sipc.process import l0_stem, run_dem
+    from station.reprocess import l0_stem, run_dem
 
     archives = [read_l0(s, lazy=True) for s in sources]
     makers = plan_levels(options.levels)

@@ -1,11 +1,11 @@
-"""The processing centre on an emulated pass: ``levels`` makes the products, the truth
-measures them.
+"""The processing centre on recorded archives: ``levels`` makes the products, the truth
+(when the scenario that made an archive is given) measures them.
 
-:func:`process_scenario` emulates, downlinks and records a scenario's pass, then hands the
-L0 archive to :func:`levels.process.process` with the emulator's truth as the
-checkpoint source (:class:`station.sipc.truth.Truth`). :func:`reprocess_l0` processes an
-archive already recorded, with the truth when the scenario that made it is given: the
-products are then those of the run, bit for bit.
+:func:`reprocess_l0` and :func:`reprocess_pass` process archives already recorded (one
+pass, its HRVs), :func:`reprocess_block` the archives of several passes (a block, a
+stereo pair), with the truth when the scenario that made them is given: the products are
+then those of the run, bit for bit. :func:`process_scenario` emulates, downlinks and
+records a scenario's pass first (``station process --scenario`` alone).
 """
 
 from __future__ import annotations
@@ -15,10 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from levels.errors import L0Error
-from levels.geo.scenes import PassGeometry, SceneGeometry, cut_scenes, pass_geometry
 from levels.makers.base import Need
 from levels.options import ProcessingOptions
 from levels.process import (
@@ -26,151 +23,29 @@ from levels.process import (
     PassProducts,
     ProcessingRequest,
     all_made,
-    nominal_pixel_size_m,
     plan,
     plan_levels,
     process,
     run_plans,
 )
-from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
+from levels.readers.gcp import read_gcps
 from levels.readers.l0 import L0Archive, read_l0
 from levels.tasks import Runner
-from station.errors import ScenarioError
+from station.chain.gcps import measured_control_points
 from station.scenario import Scenario
-from station.sipc.truth import Truth
 from station.spacecraft.emulator import Acquisition, emulate
+from station.truth.optical import truth_for
 
 __all__ = [
-    "control_points",
-    "emulated_pass",
-    "emulated_scene",
     "l0_stem",
-    "measured_control_points",
     "plan_reprocess",
     "process_scenario",
     "reprocess_block",
     "reprocess_l0",
     "reprocess_pass",
     "run_dem",
-    "truth_for",
     "with_exported_dem",
 ]
-
-
-def control_points(acq: Acquisition, row_offset: int = 0) -> ControlPointSet:
-    """The control points of an acquisition as a user would have them (``docs/gcp.md``):
-    the map positions and image measurements the emulator drew with their errors (never
-    the truth), their 1σ from the scenario's ``[gcps]``, lines in the L0 archive's rows
-    (the emulator's line minus ``row_offset``, ``Truth.row_offset``)."""
-    g, cfg, n = acq.gcps, acq.scenario.gcps, acq.gcps.line.size
-    return ControlPointSet(
-        tuple(f"hrv{acq.hrv.number}_p{k:04d}" for k in range(n)),
-        g.lon_rad.copy(),
-        g.lat_rad.copy(),
-        g.h_m.copy(),
-        g.line - row_offset,
-        g.column.copy(),
-        np.full(n, max(cfg.horizontal_error_m, 0.01)),
-        np.full(n, max(cfg.vertical_error_m, 0.01)),
-        np.full(n, max(cfg.pointing_error_px, 0.01)),
-        np.full(n, acq.hrv.number, np.int64),
-    )
-
-
-def emulated_pass(
-    acq: Acquisition,
-    scene_lines: int = 0,
-    reference_height_m: float = 450.0,
-    lost: tuple[int, ...] = (),
-) -> tuple[PassGeometry, list[SceneGeometry]]:
-    """GEO of an emulated acquisition without the downlink: its pass geometry from the
-    emulator's hand-over (line times, bulletins, gyros, nominal look angles of every band)
-    and its scenes of ``scene_lines`` (the whole strip by default). The scenes ``lost``
-    are taken away with the attitude records over them, as an outage of the station does.
-    The geometry studies (tests, tools, benchmarks) start here."""
-    n = scene_lines or acq.hrv.n_lines
-    t = acq.gyros.t_s
-    keep = np.ones(t.size, dtype=bool)
-    if lost:
-        t0, t1 = acq.line_times_s[[min(lost) * n, (max(lost) + 1) * n - 1]]
-        keep = (t < t0) | (t > t1)
-    pg = pass_geometry(
-        acq.epoch,
-        acq.line_times_s,
-        acq.hrv.line_period_s,
-        acq.bulletins,
-        t[keep],
-        acq.gyros.rates_rad_per_s[keep],
-        {b.name: b.look_nominal for b in acq.hrv.bands},
-    )
-    cuts = [c for c in cut_scenes(pg.n_lines, n) if c.index not in lost]
-    return pg, [pg.scene(c, reference_height_m) for c in cuts]
-
-
-def emulated_scene(
-    acq: Acquisition, scene_lines: int = 0, reference_height_m: float = 450.0
-) -> tuple[PassGeometry, SceneGeometry, float]:
-    """:func:`emulated_pass` and its first scene (the whole strip by default), with the
-    nominal pixel."""
-    pg, scenes = emulated_pass(acq, scene_lines, reference_height_m)
-    return pg, scenes[0], nominal_pixel_size_m(acq.hrv.bands[0].look_nominal)
-
-
-def measured_control_points(
-    acq: Acquisition, archive: L0Archive, path: str | Path
-) -> tuple[Truth, ControlPointSet]:
-    """The truth behind a recorded archive, and the acquisition's control points written
-    to ``path`` as a user has them (``docs/gcp.md``, lines on the archive's rows) and read
-    back the way the processing centre reads them."""
-    truth = Truth.of(acq, archive)
-    written = write_gcps(
-        path,
-        control_points(acq, truth.row_offset),
-        f"control points of {acq.scenario.name}, HRV{acq.hrv.number}, as measured (docs/gcp.md)",
-    )
-    return truth, read_gcps(written, archive.n_lines, archive.n_columns)
-
-
-def truth_for(scn: Scenario, archive: L0Archive) -> Truth:
-    """The truth behind ``archive``, emulated again from the scenario that made it.
-
-    The scenario must be the archive's (same name and, when both are known, the same
-    SHA-256 of its file) and must image the archive's HRV.
-    """
-    prov = archive.provenance
-    if prov.get("scenario", scn.name) != scn.name or (
-        prov.get("scenario_sha256")
-        and scn.source_sha256
-        and prov["scenario_sha256"] != scn.source_sha256
-    ):
-        raise ScenarioError(
-            f"{archive.path} was recorded from scenario {prov.get('scenario')!r} "
-            f"(sha256 {str(prov.get('scenario_sha256', '?'))[:12]}…), not from {scn.source} "
-            f"({scn.name!r}, {scn.source_sha256[:12]}…); give the scenario that made it"
-        )
-    numbers = [i.hrv for i in scn.instruments]
-    if archive.hrv not in numbers:
-        raise ScenarioError(
-            f"{archive.path} holds HRV{archive.hrv}; scenario {scn.name!r} images with HRV{numbers}"
-        )
-    # geometry only: the truth of a checkpoint is where its pixel looks, not what it saw;
-    # emulated once per scenario and HRV (a block run asks for it at each of its stages)
-    key = (scn.name, scn.source_sha256, scn.seed, archive.hrv)
-    if scn.source_sha256 and key in _TRUTHS:
-        acq = _TRUTHS[key]
-    else:
-        acq = emulate(scn, render=False, instrument=numbers.index(archive.hrv))
-        if scn.source_sha256:
-            _TRUTHS[key] = acq
-            while len(_TRUTHS) > _TRUTHS_KEPT:
-                _TRUTHS.pop(next(iter(_TRUTHS)))
-    return Truth.of(acq, archive)
-
-
-#: Geometry-only acquisitions emulated for the truth, by scenario (its file's SHA-256) and
-#: HRV; the last few kept (a full pass's geometry is a few MB).
-_TRUTHS: dict[tuple[str, str, int, int], Any] = {}
-_TRUTHS_KEPT = 8
 
 
 def reprocess_l0(
@@ -378,7 +253,7 @@ def reprocess_block(
     ``<out>/ties``, ``block`` and ``stereo``. With the scenarios (one per archive), every
     product is measured against their truth and is the run's, bit for bit."""
     from levels.block import BlockRequest, pass_levels, process_block
-    from station.sipc.stereo import StereoTruth, stereo_quality
+    from station.truth.stereo import StereoTruth, stereo_quality
 
     paths = [Path(p) for p in l0_paths]
     out = Path(out_dir)

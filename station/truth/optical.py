@@ -32,10 +32,19 @@ from levels.geometry.frames import apply, enu_from_ecef
 from levels.geometry.model import PushbroomModel
 from levels.quality import error_stats
 from levels.readers.l0 import L0Archive
-from station.spacecraft.emulator import Acquisition, truth_model
+from station.errors import ScenarioError
+from station.scenario import Scenario
+from station.spacecraft.emulator import Acquisition, emulate, truth_model
 from station.spacecraft.imaging import trace_pixels
 
-__all__ = ["Truth", "checkpoints_1b", "checkpoints_2a", "checkpoints_3", "true_tie_points"]
+__all__ = [
+    "Truth",
+    "checkpoints_1b",
+    "checkpoints_2a",
+    "checkpoints_3",
+    "true_tie_points",
+    "truth_for",
+]
 
 
 @dataclass(eq=False)
@@ -302,3 +311,45 @@ def true_tie_points(
         measured(line[inside], col[inside], acq_a.hrv.number),
         measured(back.line[inside], back.column[inside], acq_b.hrv.number),
     )
+
+
+def truth_for(scn: Scenario, archive: L0Archive) -> Truth:
+    """The truth behind ``archive``, emulated again from the scenario that made it.
+
+    The scenario must be the archive's (same name and, when both are known, the same
+    SHA-256 of its file) and must image the archive's HRV.
+    """
+    prov = archive.provenance
+    if prov.get("scenario", scn.name) != scn.name or (
+        prov.get("scenario_sha256")
+        and scn.source_sha256
+        and prov["scenario_sha256"] != scn.source_sha256
+    ):
+        raise ScenarioError(
+            f"{archive.path} was recorded from scenario {prov.get('scenario')!r} "
+            f"(sha256 {str(prov.get('scenario_sha256', '?'))[:12]}…), not from {scn.source} "
+            f"({scn.name!r}, {scn.source_sha256[:12]}…); give the scenario that made it"
+        )
+    numbers = [i.hrv for i in scn.instruments]
+    if archive.hrv not in numbers:
+        raise ScenarioError(
+            f"{archive.path} holds HRV{archive.hrv}; scenario {scn.name!r} images with HRV{numbers}"
+        )
+    # geometry only: the truth of a checkpoint is where its pixel looks, not what it saw;
+    # emulated once per scenario and HRV (a block run asks for it at each of its stages)
+    key = (scn.name, scn.source_sha256, scn.seed, archive.hrv)
+    if scn.source_sha256 and key in _TRUTHS:
+        acq = _TRUTHS[key]
+    else:
+        acq = emulate(scn, render=False, instrument=numbers.index(archive.hrv))
+        if scn.source_sha256:
+            _TRUTHS[key] = acq
+            while len(_TRUTHS) > _TRUTHS_KEPT:
+                _TRUTHS.pop(next(iter(_TRUTHS)))
+    return Truth.of(acq, archive)
+
+
+#: Geometry-only acquisitions emulated for the truth, by scenario (its file's SHA-256) and
+#: HRV; the last few kept (a full pass's geometry is a few MB).
+_TRUTHS: dict[tuple[str, str, int, int], Any] = {}
+_TRUTHS_KEPT = 8

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from levels.geometry.ellipsoid import WGS84
 from levels.quality import error_stats
 from levels.stereo import EpipolarPair, StereoDem, StereoView, triangulate_raw
-from station.sipc.truth import Truth
+from station.truth.optical import Truth
 
 __all__ = [
     "SLOPE_CLASSES_DEG",
