@@ -29,7 +29,7 @@ SCENARIO = ROOT / "scenarios" / "quickstart.toml"
 _WITHOUT_WARM_UP = """
 import sys
 from station.run import run_scenario
-from station.scenario import load_scenario
+from station.loader import load_scenario
 run_scenario(load_scenario(sys.argv[1]), sys.argv[2], warm_up=False)
 """
 

@@ -32,7 +32,7 @@ from levels.products import read_product
 from levels.readers.l0 import read_l0
 from levels.tiepoints import MapView, match_views
 from station.cli import main as station
-from station.scenario import load_scenario
+from station.loader import load_scenario
 from station.spacecraft.emulator import emulate_pass, truth_model
 from station.truth.optical import Truth
 

@@ -20,8 +20,8 @@ from pathlib import Path
 
 from station.chain.report import comparable, downlink_report
 from station.chain.session import downlink
+from station.loader import load_scenario
 from station.run import comparable_report, run_scenario
-from station.scenario import load_scenario
 from station.spacecraft.emulator import emulate_pass
 from station.spacecraft.summary import summarize
 

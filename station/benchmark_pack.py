@@ -120,8 +120,8 @@ def write_pack(
     is found; its SHA-256 must be the product's."""
     from levels.files import staged_dir
     from levels.writers.dimap import band_descriptions, dimap_scene_of, write_dimap
+    from station.loader import load_scenario
     from station.outdir import replaceable_dir
-    from station.scenario import load_scenario
     from station.spacecraft.instrument import COUNTS_PER_RADIANCE
 
     src = Path(product_path)

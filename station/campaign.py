@@ -30,14 +30,14 @@ from levels.errors import LevelsError
 from levels.files import staged_dir, write_json
 from levels.options import ProcessingOptions
 from levels.tasks import Runner
-from station import __version__
 from station.catalog import write_catalog
 from station.errors import StationError
 from station.outdir import replaceable_dir
+from station.reports import CAMPAIGN
 
 __all__ = ["CAMPAIGN_FORMAT", "campaign_archives", "run_campaign"]
 
-CAMPAIGN_FORMAT = "spot-station-campaign"
+CAMPAIGN_FORMAT = CAMPAIGN.name
 _L0_SUFFIX = ".l0.h5"
 
 
@@ -178,9 +178,7 @@ def _run(
         progress(total, total, "")
     failed = [e for e in entries if e["status"] != "ok"]
     report = {
-        "format": CAMPAIGN_FORMAT,
-        "format_version": 1,
-        "software": f"spot-station {__version__}",
+        **CAMPAIGN.header(),
         "options": dataclasses.asdict(options),
         "workers": workers,
         "archives": entries,

@@ -23,43 +23,31 @@ from levels.compare import (
     only_in_one,
 )
 from levels.readers.l0 import read_l0
+from station.errors import StationError
+from station.reports import BLOCK_RUN, CAMPAIGN, PROCESS, SAR_RUN, ReportFormat, report_of
 
 __all__ = ["compare_campaigns", "compare_inputs", "compare_runs", "directory_kind"]
 
 
-#: What wrote a directory, by the report at its root and, for ``report.json``, its format:
-#: each kind is compared its own way (:func:`compare_inputs`) and never with another.
-_REPORTS = {
-    "report.json": "run",
-    "process.json": "a reprocessing",
-    "campaign.json": "a campaign",
-}
-_RUN_FORMATS = {
-    "spot-station-run": "the run of a pass",
-    "spot-station-block-run": "the run of a block",
-    "spot-station-sar-run": "the run of a SAR frame",
-}
+#: A directory with no report (:mod:`station.reports`): products alone.
 _PRODUCTS = "a directory of products"
 #: Sub-directories of a run that hold no results: compared through what they are made from.
 _DERIVED = ("stac", "quicklooks")
 
 
 def directory_kind(d: Path) -> str:
-    """What wrote directory ``d``, in words: the run of a pass, of a block (a stereo pair is
-    one), of a SAR frame; a reprocessing (``station process``); a campaign; or, with no
-    report, a directory of products."""
-    report = next((name for name in _REPORTS if (d / name).is_file()), None)
-    if report is None:
-        return _PRODUCTS
-    if _REPORTS[report] != "run":
-        return _REPORTS[report]
-    fmt = _read_report(d / report).get("format")
-    if fmt not in _RUN_FORMATS:
-        raise CompareError(
-            f"{d / report}: format {fmt!r} is no run report this version knows "
-            f"({', '.join(_RUN_FORMATS)})"
-        )
-    return _RUN_FORMATS[fmt]
+    """What wrote directory ``d``, in words (its report's, :mod:`station.reports`): the run
+    of a pass, of a block (a stereo pair is one), of a SAR frame; a reprocessing
+    (``station process``); a campaign; or, with no report, a directory of products."""
+    report = _report(d)
+    return report.what if report is not None else _PRODUCTS
+
+
+def _report(d: Path) -> ReportFormat | None:
+    try:
+        return report_of(d)
+    except StationError as exc:
+        raise CompareError(str(exc)) from None
 
 
 def compare_inputs(
@@ -74,32 +62,36 @@ def compare_inputs(
     pa, pb = Path(a), Path(b)
     if not (pa.is_dir() and pb.is_dir()):
         return compare_paths(pa, pb, tolerances)
-    ka, kb = directory_kind(pa), directory_kind(pb)
-    if ka != kb:
+    ra, rb = _report(pa), _report(pb)
+    if ra != rb:
         raise CompareError(
-            f"{pa} is {ka} and {pb} {kb}: different kinds of directory, nothing to compare "
-            "them by; compare two of one kind"
+            f"{pa} is {directory_kind(pa)} and {pb} {directory_kind(pb)}: different kinds of "
+            "directory, nothing to compare them by; compare two of one kind"
         )
-    return _compare_directory(pa, pb, ka, tolerances or load_tolerances(None))
+    return _compare_directory(pa, pb, ra, tolerances or load_tolerances(None))
 
 
 def _compare_directory(
-    a: Path, b: Path, kind: str, tol: dict[str, dict[str, float]], top: bool = True
+    a: Path,
+    b: Path,
+    report: ReportFormat | None,
+    tol: dict[str, dict[str, float]],
+    top: bool = True,
 ) -> Comparison:
-    """Two directories of one kind, compared as that kind is."""
-    if kind == "a campaign":
+    """Two directories of one kind (their ``report``), compared as that kind is."""
+    if report is CAMPAIGN:
         return compare_campaigns(a, b, tol)
-    if kind == "the run of a block":
+    if report is BLOCK_RUN:
         return _compare_blocks(a, b, tol)
-    if kind == "a reprocessing":
+    if report is PROCESS:
         out = compare_directories(a, b, tol)
         out.findings[""] += _compare_made(
-            _read_report(a / "process.json"), _read_report(b / "process.json")
+            _read_report(a / PROCESS.file), _read_report(b / PROCESS.file)
         )
         if list(a.glob("*.l0.h5")) or list(b.glob("*.l0.h5")):  # a scenario's pass
             out.findings[""] += _compare_l0s(a, b)
         return out
-    if kind == _PRODUCTS:
+    if report is None:
         return compare_directories(a, b, tol, require_products=top)
     return compare_runs(a, b, tol)
 
@@ -196,11 +188,19 @@ def _compare_blocks(a: Path, b: Path, tol: dict[str, dict[str, float]]) -> Compa
     }
     out.findings[""] += only_in_one("files", "directory ", subs["a"], subs["b"])
     for name in sorted(subs["a"] & subs["b"]):
-        ka, kb = directory_kind(a / name), directory_kind(b / name)
-        if ka != kb:
-            out.findings[""].append(Finding("files", f"{name}/", ok=False, a=ka, b=kb))
+        sa, sb = _report(a / name), _report(b / name)
+        if sa != sb:
+            out.findings[""].append(
+                Finding(
+                    "files",
+                    f"{name}/",
+                    ok=False,
+                    a=directory_kind(a / name),
+                    b=directory_kind(b / name),
+                )
+            )
             continue
-        sub = _compare_directory(a / name, b / name, ka, tol, top=False)
+        sub = _compare_directory(a / name, b / name, sa, tol, top=False)
         for key, found in sub.findings.items():
             out.findings[f"{name}/{key}" if key else f"{name}/"] = found
     return out
@@ -220,7 +220,7 @@ def _block_made(report: dict[str, Any], key: str) -> Any:
 def _is_sar_run(d: Path) -> bool:
     """Whether ``d`` is the run of a SAR frame (``station.run_sar``), which records no L0."""
     try:
-        return directory_kind(d) == "the run of a SAR frame"
+        return _report(d) is SAR_RUN
     except (OSError, CompareError):  # no report, or not one: compared as a pass's run
         return False
 

@@ -33,17 +33,16 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from levels.block import pass_levels
 from levels.files import json_default, staged_dir, write_json
 from levels.products import read_product
 from levels.tasks import Runner
-from station import __version__
+from station.loader import BlockScenario
 from station.outdir import replaceable_dir
+from station.reports import BLOCK_RUN, PASS_RUN
 from station.scenario import Scenario
 from station.tables import product_table
 
 __all__ = [
-    "REPORT_FORMAT",
     "check_run",
     "comparable_report",
     "prepare_run_dir",
@@ -54,8 +53,6 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-REPORT_FORMAT = "spot-station-run"
-REPORT_VERSION = 2  # 2: one section per HRV ("hrvs"), products tagged by HRV
 #: Report keys that vary from one run to the next (wall times, sizes on disk).
 _VARYING = ("timings_s", "size_mb", "receive_speed_x_real_time")
 
@@ -129,10 +126,7 @@ def _run(
     timings["catalog"] = clock() - t
     timings["total"] = clock() - t_start
     report = {
-        "format": REPORT_FORMAT,
-        "format_version": REPORT_VERSION,
-        "software": f"spot-station {__version__}",
-        "scenario": scenario_entry(scn),
+        **PASS_RUN.header(scenario=scenario_entry(scn)),
         "hrvs": hrvs,
         **(
             {"dem": {"file": f"{scn.name}.dem.tif", **asdict(scn.dem)}}
@@ -498,73 +492,15 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
     return "\n".join(lines)
 
 
-#: The key of a scenario file that makes it a block: an array of tables, one per pass.
-BLOCK_KEY = "passes"
-BLOCK_FORMAT = "spot-station-block-run"
-
-
-def is_block_file(path: str | Path) -> bool:
-    """Whether a scenario file describes a block (``[[passes]]``)."""
-    from station.scenario import read_toml
-
-    data, _ = read_toml(path)
-    return BLOCK_KEY in data
-
-
-def block_scenarios(path: str | Path) -> tuple[str, list[Scenario], Any]:
-    """A block file's name, each pass's scenario and the block's processing options.
-
-    Each ``[[passes]]`` table is merged over the file's other tables (the world, the
-    instrument, the errors…): its own ``name`` (``p1``, ``p2``… by default) names the pass
-    ``<block>_<name>``, its ``seed`` (default: the block's plus its rank) draws its errors
-    independently. A pass's run makes the levels of one pass (level 2's adjustment and
-    level 3 are the block's, made after on every pass together): its ``[processing]
-    levels`` less ``2`` and ``3``, with ``2A``, on which its tie points are matched."""
-    import dataclasses
-    import hashlib
-
-    from station.errors import ScenarioError
-    from station.scenario import check_name, merge_tables, read_toml, scenario_from_dict
-
-    p = Path(path)
-    data, raw = read_toml(p)
-    passes = data.pop(BLOCK_KEY)
-    if not isinstance(passes, list) or len(passes) < 2:
-        raise ScenarioError(f"{p}: [[{BLOCK_KEY}]] must be given twice or more (a block)")
-    name = check_name(str(data.get("name", p.stem)))
-    seed = int(data.get("seed", 0))
-    block = scenario_from_dict(data, p.resolve().parent)  # the shared tables, checked
-    scns = []
-    for k, over in enumerate(passes):
-        if not isinstance(over, dict):
-            raise ScenarioError(f"{p}: [[{BLOCK_KEY}]] {k + 1} is not a table")
-        over = dict(over)
-        tag = check_name(str(over.pop("name", f"p{k + 1}")), f"[[{BLOCK_KEY}]] name")
-        table = merge_tables(data, over)
-        table["name"] = f"{name}_{tag}"
-        if "seed" not in over:
-            table["seed"] = seed + k + 1
-        processing = dict(table.get("processing", {}))
-        processing["levels"] = pass_levels(block.processing)
-        processing["adjustment"] = "pass"
-        table["processing"] = processing
-        scn = scenario_from_dict(table, p.resolve().parent)
-        digest = hashlib.sha256(raw + tag.encode()).hexdigest()  # the pass's own
-        scns.append(dataclasses.replace(scn, source=str(p.resolve()), source_sha256=digest))
-    if len({s.name for s in scns}) != len(scns):
-        raise ScenarioError(f"{p}: two [[{BLOCK_KEY}]] named alike")
-    return name, scns, block.processing
-
-
 def run_block(
-    path: str | Path,
+    blk: BlockScenario,
     out_dir: str | Path,
     *,
     quicklooks: bool = True,
     progress: bool = False,
     runner: Runner | None = None,
 ) -> dict[str, Any]:
-    """Run a block (``[[passes]]``, :func:`block_scenarios`) end to end into ``out_dir``:
+    """Run a block (``[[passes]]``, :func:`station.loader.load_block`) end to end into ``out_dir``:
     each pass as ``station run`` runs one (``<out>/<pass>/``); the tie points between every
     two passes whose 2A scenes overlap (:mod:`levels.tiepoints`, ``<out>/ties/``); then, with
     level 2 asked and ``adjustment = "block"``, every pass's level 2 on one adjustment
@@ -572,9 +508,8 @@ def run_block(
 
     from station.catalog import write_catalog
 
-    name, scns, processing = block_scenarios(path)
-    inputs = [i for s in scns for i in s.inputs()]
-    out = prepare_run_dir(out_dir, name, inputs)
+    name, scns, processing = blk.name, list(blk.passes), blk.processing
+    out = prepare_run_dir(out_dir, name, blk.inputs())
     for s in scns:
         check_run(s, out)
     t0 = time.perf_counter()
@@ -618,10 +553,13 @@ def run_block(
         if quicklooks:
             _quicklooks(stage, ("block", "stereo"))
         report = {
-            "format": BLOCK_FORMAT,
-            "format_version": 1,
-            "software": f"spot-station {__version__}",
-            "scenario": {"name": name, "file": Path(path).name, "passes": [s.name for s in scns]},
+            **BLOCK_RUN.header(
+                scenario={
+                    "name": name,
+                    "file": Path(blk.source).name,
+                    "passes": [s.name for s in scns],
+                }
+            ),
             "passes": reports,
             "ties": ties,
             "block": block,

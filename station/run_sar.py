@@ -21,7 +21,6 @@ pass's run does. Each product's report row gives:
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import logging
 import time
 from dataclasses import dataclass, field
@@ -34,24 +33,17 @@ from levels.kinds import Unit
 from levels.options import build_section, option
 from levels.registry import kind, kind_names
 from station.errors import ScenarioError, StationError
-from station.scenario import DemConfig, WorldConfig, check_name, read_toml
+from station.reports import SAR_RUN
+from station.scenario import DemConfig, WorldConfig, check_name
 
 _log = logging.getLogger(__name__)
 
 __all__ = [
-    "SAR_KEY",
     "SarConfig",
     "SarScenario",
-    "is_sar_file",
-    "load_sar_scenario",
     "run_sar",
+    "sar_scenario_from_dict",
 ]
-
-#: The table that makes a scenario a SAR frame's.
-SAR_KEY = "sar"
-#: Report format of a SAR run (``report.json``).
-SAR_REPORT_FORMAT = "spot-station-sar-run"
-SAR_REPORT_VERSION = 1
 
 
 @dataclass(frozen=True)
@@ -147,16 +139,10 @@ class SarScenario:
 _SECTIONS = {"sar": SarConfig, "world": WorldConfig, "dem": DemConfig}
 
 
-def is_sar_file(path: str | Path) -> bool:
-    """Whether a scenario file describes a SAR frame (a ``[sar]`` table)."""
-    data, _ = read_toml(path)
-    return SAR_KEY in data
-
-
-def load_sar_scenario(path: str | Path) -> SarScenario:
-    """Read and check a SAR scenario file; :class:`ScenarioError` says what is wrong."""
-    p = Path(path)
-    data, raw = read_toml(p)
+def sar_scenario_from_dict(data: dict[str, Any], p: Path) -> SarScenario:
+    """A SAR scenario from its file's table (``p`` the file: its directory the base of
+    its paths, its stem the default name); :class:`ScenarioError` says what is wrong.
+    :func:`station.loader.load_any` reads the file."""
     kwargs: dict[str, Any] = {"base_dir": str(p.resolve().parent)}
     for key, value in data.items():
         if key in ("name", "seed"):
@@ -172,10 +158,7 @@ def load_sar_scenario(path: str | Path) -> SarScenario:
             allowed = ", ".join(["name", "seed", *_SECTIONS])
             raise ScenarioError(f"{p}: unknown key {key!r} in a SAR scenario; allowed: {allowed}")
     kwargs.setdefault("name", p.stem)
-    scn = SarScenario(**kwargs)
-    return dataclasses.replace(
-        scn, source=str(p.resolve()), source_sha256=hashlib.sha256(raw).hexdigest()
-    )
+    return SarScenario(**kwargs)
 
 
 def _world(scn: SarScenario) -> Any:
@@ -295,7 +278,6 @@ def run_sar(scn: SarScenario, out_dir: str | Path, *, quicklooks: bool = False) 
 
 
 def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
-    from levels import __version__
     from levels.files import write_json
     from levels.frame import process_frame
     from levels.quicklook import write_quicklook
@@ -342,10 +324,7 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
     write_catalog(out, scn.name, f"the products of a run of SAR scenario {scn.name} (spot-station)")
     timings["catalog"] = clock() - t
     report = {
-        "format": SAR_REPORT_FORMAT,
-        "format_version": SAR_REPORT_VERSION,
-        "software": f"spot-station {__version__}",
-        "scenario": scenario_entry(scn),
+        **SAR_RUN.header(scenario=scenario_entry(scn)),
         "frame": {
             "file": frame_path.name,
             "instrument": ERS_INSTRUMENT,

@@ -15,8 +15,6 @@ apart.
 
 from __future__ import annotations
 
-import dataclasses
-import hashlib
 import math
 import re
 import tomllib
@@ -49,7 +47,6 @@ __all__ = [
     "WorldConfig",
     "check_name",
     "describe_keys",
-    "load_scenario",
     "merge_tables",
     "read_toml",
     "scenario_from_dict",
@@ -648,7 +645,7 @@ def scenario_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Scen
         elif key == "passes":
             raise ScenarioError(
                 "[[passes]] makes a block of several passes: `station run` runs it "
-                "(station.run.block_scenarios reads it), not as one pass"
+                "(station.loader.load_any reads it), not as one pass"
             )
         else:
             raise ScenarioError(f"unknown key {key!r}; allowed: {', '.join(allowed)}")
@@ -674,16 +671,6 @@ def read_toml(path: str | Path, what: str = "scenario") -> tuple[dict[str, Any],
         raise ScenarioError(f"{p}: not a text file (UTF-8)") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{p}: not valid TOML ({exc})") from None
-
-
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file; :class:`ScenarioError` says what is wrong."""
-    p = Path(path)
-    data, raw = read_toml(p)
-    scn = scenario_from_dict(data, p.resolve().parent)
-    return dataclasses.replace(
-        scn, source=str(p.resolve()), source_sha256=hashlib.sha256(raw).hexdigest()
-    )
 
 
 def describe_keys() -> str:

@@ -236,7 +236,7 @@ def test_station_process_adjusts_a_twin_pass_from_both_archives(tmp_path, capsys
     )
     scn_path = tmp_path / "tw.toml"
     scn_path.write_text(text)
-    from station.scenario import load_scenario
+    from station.loader import load_scenario
 
     report = run_scenario(load_scenario(scn_path), tmp_path / "run", quicklooks=False)
     assert [h["adjustment"]["mode"] for h in report["hrvs"]] == ["twin", "twin"]

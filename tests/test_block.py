@@ -273,7 +273,7 @@ def test_station_runs_a_block_scenario(tmp_path) -> None:
     from levels.products import read_product
     from station.cli import main
     from station.errors import ScenarioError
-    from station.scenario import load_scenario
+    from station.loader import load_scenario
 
     path = Path(__file__).resolve().parents[1] / "scenarios" / "blocks" / "two_passes.toml"
     out = tmp_path / "run"

@@ -269,7 +269,7 @@ def test_control_points_reach_the_station_as_measured(run_dir: Path) -> None:
     measurements, never the truth, on the L0 archive's rows."""
     from levels.readers.gcp import read_gcps
     from levels.readers.l0 import read_l0
-    from station.scenario import load_scenario
+    from station.loader import load_scenario
     from station.spacecraft.emulator import emulate
     from station.truth.optical import truth_for
 

@@ -16,6 +16,7 @@ import pytest
 from _cli import one_line, tree
 
 from station.cli import EXIT_BAD_INPUT, EXIT_DIFFERENT, main
+from station.reports import REPORTS
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "scenarios" / "small_test.toml"
@@ -167,6 +168,17 @@ def test_compare_process_and_campaign_directories(run_dir, tmp_path, capsys) -> 
     one_line(capsys, code, EXIT_BAD_INPUT, "is a reprocessing", "a campaign", "different kinds")
     code = main(["compare", str(run_dir), str(a)])  # a run and a reprocessing
     one_line(capsys, code, EXIT_BAD_INPUT, "the run of a pass", "a reprocessing")
+    # every report opens with one header (station.reports); an unknown format is named
+    for d in (a, c1, run_dir):
+        report = next(r for r in REPORTS if (d / r.file).is_file())
+        head = json.loads((d / report.file).read_text())
+        assert list(head)[:3] == ["format", "format_version", "software"]
+        assert (head["format"], head["format_version"]) == (report.name, report.version)
+    odd = tmp_path / "odd"
+    odd.mkdir()
+    (odd / "process.json").write_text('{"format": "someone-elses"}')
+    code = main(["compare", str(odd), str(a)])
+    one_line(capsys, code, EXIT_BAD_INPUT, "someone-elses", "no report this version knows")
 
 
 def test_compare_of_level_2_names_one_control_point_moved(run_dir, tmp_path, capsys) -> None:

@@ -16,7 +16,8 @@ from levels.compare import compare_paths
 from levels.products import read_product
 from levels.quality import image_shift_px
 from station.cli import main
-from station.run import REPORT_FORMAT, comparable_report
+from station.reports import PASS_RUN
+from station.run import comparable_report
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "scenarios" / "small_test.toml"
@@ -46,7 +47,7 @@ def run_dir(tmp_path_factory) -> Path:
 
 def test_run_writes_products_report_and_quicklooks(run_dir: Path, capsys) -> None:
     report = json.loads((run_dir / "report.json").read_text())
-    assert report["format"] == REPORT_FORMAT and report["scenario"]["name"] == "small_test"
+    assert report["format"] == PASS_RUN.name and report["scenario"]["name"] == "small_test"
     assert report["scenario"]["sha256"] and report["scenario"]["file"] == "small_test.toml"
     (hrv,) = report["hrvs"]
     assert (run_dir / hrv["l0"]["file"]).is_file() and hrv["hrv"] == 1

@@ -253,12 +253,12 @@ def test_a_gtc_product_opens_georeferenced_in_gdal(rugged, gtc, tmp_path) -> Non
 
 def _reduced(tmp_path, name: str, **sar) -> object:
     """The shipped scenario ``scenarios/sar/<name>.toml`` with ``[sar]`` keys replaced (a
-    reduced frame), as :func:`station.run_sar.load_sar_scenario` reads it."""
+    reduced frame), as :func:`station.loader.load_sar` reads it."""
     import dataclasses
 
-    from station.run_sar import load_sar_scenario
+    from station.loader import load_sar
 
-    scn = load_sar_scenario(ROOT / "scenarios" / "sar" / f"{name}.toml")
+    scn = load_sar(ROOT / "scenarios" / "sar" / f"{name}.toml")
     return dataclasses.replace(scn, sar=dataclasses.replace(scn.sar, **sar))
 
 

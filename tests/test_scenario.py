@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
+from station.loader import load_scenario
 from station.scenario import (
     Scenario,
     ScenarioError,
     describe_keys,
-    load_scenario,
     scenario_from_dict,
 )
 
@@ -106,3 +106,41 @@ def test_every_key_is_described() -> None:
 @pytest.mark.parametrize("path", sorted((ROOT / "scenarios").glob("*.toml")), ids=str)
 def test_shipped_scenarios_load(path: Path) -> None:
     assert isinstance(load_scenario(path), Scenario)
+
+
+def test_one_loader_reads_each_file_once_and_says_what_it_is(monkeypatch) -> None:
+    """``station.loader.load_any``: a pass, a block and a SAR frame from one read of their
+    file each; the typed loaders refuse the other kinds naming what the file is."""
+    import station.loader as loader
+    from station.loader import BlockScenario, load_any, load_block, load_sar
+    from station.run_sar import SarScenario
+
+    reads: list[Path] = []
+    real = loader.read_toml
+
+    def counted(path, what="scenario"):
+        reads.append(Path(path))
+        return real(path, what)
+
+    monkeypatch.setattr(loader, "read_toml", counted)
+    files = {
+        Scenario: ROOT / "scenarios" / "small_test.toml",
+        BlockScenario: ROOT / "scenarios" / "blocks" / "two_passes.toml",
+        SarScenario: ROOT / "scenarios" / "sar" / "ers_gec.toml",
+    }
+    for want, path in files.items():
+        reads.clear()
+        got = load_any(path)
+        assert isinstance(got, want) and reads == [path]
+        assert got.source == str(path.resolve()) and len(got.source_sha256) == 64
+    blk = load_block(files[BlockScenario])
+    assert len(blk.passes) >= 2 and all(isinstance(s, Scenario) for s in blk.passes)
+    assert len({s.source_sha256 for s in blk.passes}) == len(blk.passes)  # each its own
+    with pytest.raises(
+        ScenarioError, match=r"a block of several passes \(\[\[passes\]\]\), not one"
+    ):
+        load_scenario(files[BlockScenario])
+    with pytest.raises(ScenarioError, match=r"describes one pass, not a SAR frame"):
+        load_sar(files[Scenario])
+    with pytest.raises(ScenarioError, match=r"a SAR frame \(\[sar\]\), not a block"):
+        load_block(files[SarScenario])

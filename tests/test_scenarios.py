@@ -11,7 +11,7 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from station.scenario import load_scenario
+from station.loader import load_scenario
 from station.spacecraft.emulator import emulate_pass
 from station.spacecraft.summary import summarize
 

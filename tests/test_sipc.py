@@ -13,8 +13,8 @@ from levels.errors import ProductError
 from levels.process import ProcessingRequest, process
 from levels.products import PRODUCT_FORMAT, read_product
 from levels.readers.l0 import read_l0
+from station.loader import load_scenario
 from station.reprocess import process_scenario
-from station.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 #: 1A leaves the stripes of the calibration table's errors (0.2 % of gain, 0.2 counts) and

@@ -163,9 +163,10 @@ def test_a_sar_runs_catalogue_is_valid(tmp_path: Path) -> None:
     valid catalogue, over the map grid's footprint, at the frame's time."""
     import dataclasses
 
-    from station.run_sar import load_sar_scenario, run_sar
+    from station.loader import load_sar
+    from station.run_sar import run_sar
 
-    scn = load_sar_scenario(Path(__file__).resolve().parents[1] / "scenarios/sar/ers_gec.toml")
+    scn = load_sar(Path(__file__).resolve().parents[1] / "scenarios/sar/ers_gec.toml")
     scn = dataclasses.replace(scn, sar=dataclasses.replace(scn.sar, lines=64, samples=64))
     run_sar(scn, tmp_path / "run")
     (item,) = _check_catalog(tmp_path / "run")

@@ -23,7 +23,7 @@ from levels.readers.gcp import read_gcps, write_gcps
 from levels.readers.l0 import read_l0
 from levels.tiepoints import MapView, TiePoints, match_views
 from station.cli import main
-from station.scenario import load_scenario
+from station.loader import load_scenario
 from station.spacecraft.emulator import emulate_pass, truth_model
 from station.truth.optical import Truth
 

@@ -96,8 +96,8 @@ def test_a_failed_run_ends_the_warm_up_it_started(monkeypatch, tmp_path: Path) -
     started (killed, not left to finish) and the error comes through."""
     import levels.warmup
     import station.spacecraft.emulator
+    from station.loader import load_scenario
     from station.run import run_scenario
-    from station.scenario import load_scenario
 
     started = []
     real_start = levels.warmup.start_warm_up

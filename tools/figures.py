@@ -126,7 +126,7 @@ def emulator() -> Iterator[Row]:
     worst, swath = {}, {}
     for name, over in cases.items():
         if name == "SRTM DEM":
-            from station.scenario import load_scenario
+            from station.loader import load_scenario
 
             base = load_scenario(rugged)
             scn = dataclasses.replace(
@@ -387,7 +387,7 @@ def levels_figures() -> Iterator[Row]:
     from levels.process import ProcessingRequest, process
     from levels.readers.l0 import read_l0
     from station.chain.session import downlink, record
-    from station.scenario import load_scenario
+    from station.loader import load_scenario
 
     scn = load_scenario(ROOT / "scenarios" / "small_test.toml")
     acq = emulate(scn)

@@ -333,8 +333,8 @@ FULL_RUN_PIXELS = 2e5
 
 def full_run(argv: list[str]) -> list[str] | None:
     """``argv`` (a ``run --check``) without ``--check`` when its scenario is small."""
+    from station.loader import load_scenario
     from station.preflight import run_needs
-    from station.scenario import load_scenario
 
     if run_needs(load_scenario(argv[1])).pixels > FULL_RUN_PIXELS:
         return None

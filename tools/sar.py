@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def main(argv: list[str] | None = None) -> int:
     from levels.options import build_section
     from station.errors import ScenarioError
-    from station.run_sar import _SECTIONS, load_sar_scenario, run_sar, sar_summary
+    from station.loader import load_sar
+    from station.run_sar import _SECTIONS, run_sar, sar_summary
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("names", nargs="*", default=["ers_gec", "ers_gtc"])
@@ -38,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     changes = scenario_changes(args.set)
     for name in args.names:
         path = ROOT / "scenarios" / "sar" / f"{name}.toml"
-        scn = load_sar_scenario(path)
+        scn = load_sar(path)
         table = tomllib.loads(path.read_text())
         for section, keys in changes.items():
             if section not in _SECTIONS:

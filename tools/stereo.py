@@ -63,12 +63,12 @@ def pair_and_truth(where: Path) -> tuple[Any, Any, tuple[float, float]]:
     from levels.readers.gcp import read_gcps
     from levels.readers.l0 import read_l0
     from levels.stereo import StereoView, disparity_range, epipolar_pair
-    from station.run import block_scenarios
+    from station.loader import load_block
     from station.truth.optical import truth_for
     from station.truth.stereo import StereoTruth
 
     run = run_full(where)
-    _, scns, _ = block_scenarios(where / "stereo_pair.toml")
+    scns = list(load_block(where / "stereo_pair.toml").passes)
     views = [
         StereoView.of_products(
             read_product(run / "block" / f"{s.name}_s000_2.nc"),

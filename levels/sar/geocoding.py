@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba as nb
 import numpy as np
@@ -65,6 +65,37 @@ class _Model:
         return out[0], out[1]
 
 
+class _Anchors(NamedTuple):
+    """The anchors :func:`_kernel_geocode` reads (numba takes a named tuple of arrays and
+    numbers as it takes its fields)."""
+
+    step: int  # output pixels between anchors
+    coef: NDArray[np.float64]  # (levels, 3, na, nb): line, column, look in height
+    h_mid: float  # the height polynomials' centre (m)
+    inv_span: float  # 1 / their half-range (m⁻¹)
+    xs: NDArray[np.float64]  # the height levels, scaled
+    image_shape: tuple[int, int]  # the slant image's lines and samples
+
+
+class _Surface(NamedTuple):
+    """The DEM :func:`_kernel_geocode` samples (``on``), as level 3 does."""
+
+    on: bool
+    nodes: NDArray[np.float64]  # (2, na, nb): the DEM's (row, column) at output nodes
+    step: int  # output pixels between those nodes
+    z: NDArray[np.float64]  # the DEM's heights above the ellipsoid
+
+
+class _Profiles(NamedTuple):
+    """The terrain's profiles each pixel is judged against for the masks (``on``)."""
+
+    on: bool
+    profiles: NDArray[np.float32]  # (rows, samples, 3): :func:`levels.sar.masks._profiles`
+    frame: NDArray[np.float64]  # (line0, per, u0, du)
+    tol_r: float  # range tolerance (columns)
+    tol_look: float  # look angle tolerance (rad)
+
+
 def _geocode_rows(
     model: _Model,
     height: NDArray[np.float32],
@@ -91,27 +122,22 @@ def _geocode_rows(
     over_blocks(
         _kernel_geocode,
         n_rows,
-        model.step,
-        model.coef,
-        model.h_mid,
-        model.inv_span,
-        (model.levels - model.h_mid) * model.inv_span,
-        model.image_shape,
-        nodes,
-        DEM_COORD_STEP,
-        z,
-        surface is not None,
+        _Anchors(
+            model.step,
+            model.coef,
+            model.h_mid,
+            model.inv_span,
+            (model.levels - model.h_mid) * model.inv_span,
+            model.image_shape,
+        ),
+        _Surface(surface is not None, nodes, DEM_COORD_STEP, z),
+        _Profiles(masks is not None, profiles, frame, tol_r, tol_look),
         height,
         np.ascontiguousarray(image32, dtype=np.float32),
         out is not None,
         out if out is not None else image32,
         located is not None,
         *(located or (none2, none2)),
-        masks is not None,
-        profiles,
-        frame,
-        tol_r,
-        tol_look,
         layover,
         shadow,
         grain=64,
@@ -250,9 +276,7 @@ def _dem_surface(
 
 @nb.njit(cache=True, nogil=True)
 def _kernel_geocode(
-    lo, hi, step, anchors, h_mid, inv_span, xs, image_shape, dem_nodes, dem_step, z,
-    from_dem, height, image, imaged, out, located, line, col, masks, profiles, frame,
-    tol_r, tol_look, layover, shadow,
+    lo, hi, anc, srf, prof, height, image, imaged, out, located, line, col, layover, shadow
 ):  # fmt: skip
     """Rows ``lo … hi − 1`` of the output: each pixel's (line, column, look) from the
     anchors (bilinear, then the polynomial in height through the levels,
@@ -276,7 +300,12 @@ def _kernel_geocode(
     range ``frame[2] + m·frame[3]``: the column at the middle height): the two rows about
     its line, interpolated, up to the sample before it (from there on after it):
     the standard definitions (:mod:`levels.sar.masks`), ``tol_r`` and ``tol_look`` their
-    tolerances; none where a row has no terrain there (the grid's or the DEM's edge)."""
+    tolerances; none where a row has no terrain there (the grid's or the DEM's edge).
+    The inputs grouped: ``anc`` (:class:`_Anchors`), ``srf`` (:class:`_Surface`),
+    ``prof`` (:class:`_Profiles`)."""
+    step, anchors, h_mid, inv_span, xs, image_shape = anc
+    from_dem, dem_nodes, dem_step, z = srf
+    masks, profiles, frame, tol_r, tol_look = prof
     n_lev, _, na, nb = anchors.shape
     n_l, n_s = image_shape
     n_p, n_u = profiles.shape[0], profiles.shape[1]

@@ -14,11 +14,12 @@ import numpy as np
 
 from station.cli._options import add_json, add_out, add_runner, emit, exit_made, runner_of
 from station.errors import StationError
+from station.reports import PROCESS
 
 __all__ = ["PROCESS_REPORT", "register"]
 
 #: The report ``station process`` writes into its output directory (what it made).
-PROCESS_REPORT = "process.json"
+PROCESS_REPORT = PROCESS.file
 
 
 def register(sub: Any) -> None:
@@ -200,7 +201,7 @@ def _process(args: argparse.Namespace) -> int:
 def _scenario_source(args: argparse.Namespace, sources: list[Path], scenarios: list[Any]) -> Any:
     """A scenario given as the SOURCE (emulated and received first), its options and name
     as the command's arguments set them."""
-    from station.scenario import load_scenario
+    from station.loader import load_scenario
 
     if len(sources) > 1:
         raise StationError("give one scenario (.toml), or L0 archives (.h5), not both")
@@ -275,7 +276,7 @@ def _process_pass(
         report = data[0] if len(data) == 1 else {"archives": data}
         write_json(
             stage / PROCESS_REPORT,
-            {"format": "spot-station-process", "format_version": 1, "names": names, **report},
+            PROCESS.header(names=names, **report),
         )
         write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
     emit(args, report, _text)
@@ -298,16 +299,12 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
     from levels.readers.dem import read_dem
     from levels.readers.sar import read_sar_frame
     from station.catalog import write_catalog
+    from station.loader import load_sar
     from station.outdir import replaceable_dir
-    from station.run_sar import (
-        frame_options,
-        frame_quality,
-        load_sar_scenario,
-        scenario_provenance,
-    )
+    from station.run_sar import frame_options, frame_quality, scenario_provenance
 
     frame = read_sar_frame(source)
-    scn = load_sar_scenario(args.scenario[0]) if args.scenario else None
+    scn = load_sar(args.scenario[0]) if args.scenario else None
     dem = read_dem(args.dem, "ellipsoid") if args.dem else None
     levels = tuple(lv.strip() for lv in args.levels.split(",")) if args.levels else None
     if scn is not None:
@@ -354,12 +351,7 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
         report = {"frame": str(source), "out": str(out), "products": rows}
         write_json(
             stage / PROCESS_REPORT,
-            {
-                "format": "spot-station-process",
-                "format_version": 1,
-                "names": [frame.name],
-                **report,
-            },
+            PROCESS.header(names=[frame.name], **report),
         )
         write_catalog(stage, out.name, f"the products of the SAR frame {frame.name}")
     emit(args, report, _frame_text)
@@ -385,13 +377,15 @@ def _scenarios(args: argparse.Namespace, sources: list[Path]) -> tuple[list[Any]
     """The ``--scenario`` files: a pass's scenario per archive (or one for the archives of
     one pass); or a block's (``[[passes]]``), whose passes are matched to the archives by
     name and whose ``[processing]`` is the options' base."""
+    from station.loader import BlockScenario, load_any
     from station.reprocess import l0_stem
-    from station.run import block_scenarios, is_block_file
-    from station.scenario import load_scenario
+    from station.scenario import Scenario
 
     given = args.scenario or []
-    if len(given) == 1 and is_block_file(given[0]):
-        _, scns, processing = block_scenarios(given[0])
+    loaded = [load_any(s) for s in given]  # each file read once
+    blk = loaded[0] if len(loaded) == 1 else None
+    if isinstance(blk, BlockScenario):
+        scns, processing = list(blk.passes), blk.processing
         by_name = {s.name: s for s in scns}
         stems = [l0_stem(s) for s in sources]
         missing = [n for n in stems if n not in by_name]
@@ -401,7 +395,11 @@ def _scenarios(args: argparse.Namespace, sources: list[Path]) -> tuple[list[Any]
                 f"{missing[0]!r} made the archive {sources[stems.index(missing[0])]}"
             )
         return [by_name[n] for n in stems], processing
-    return [load_scenario(s) for s in given], None
+    for path, scn in zip(given, loaded, strict=True):
+        if not isinstance(scn, Scenario):
+            what = "a block's" if isinstance(scn, BlockScenario) else "a SAR frame's"
+            raise StationError(f"--scenario {path}: {what} scenario, not a pass's")
+    return loaded, None
 
 
 def _process_block(
@@ -442,7 +440,7 @@ def _process_block(
         report = {"archives": data, "block": level2, "ties": block.ties, "pairs": pairs}
         write_json(
             stage / PROCESS_REPORT,
-            {"format": "spot-station-process", "format_version": 1, "names": names, **report},
+            PROCESS.header(names=names, **report),
         )
         write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
     emit(args, report, _block_text)

@@ -44,8 +44,9 @@ def register(sub: Any) -> None:
 def _run(args: argparse.Namespace) -> int:
     import json
 
+    from station.loader import BlockScenario, load_any
     from station.run import run_scenario, summary_table
-    from station.scenario import load_scenario
+    from station.run_sar import SarScenario
 
     path = Path(args.scenario) if args.scenario else DEFAULT_SCENARIO
     if not args.scenario and not path.is_file():
@@ -53,14 +54,11 @@ def _run(args: argparse.Namespace) -> int:
             f"the default scenario {path} is not there (an install without "
             "the repository's scenarios/); give a scenario file"
         )
-    from station.run import is_block_file
-    from station.run_sar import is_sar_file
-
-    if is_block_file(path):
-        return _run_block(path, args)
-    if is_sar_file(path):
-        return _run_sar(path, args)
-    scn = load_scenario(path)
+    scn = load_any(path)  # the file read once: a pass, a block or a SAR frame
+    if isinstance(scn, BlockScenario):
+        return _run_block(scn, path, args)
+    if isinstance(scn, SarScenario):
+        return _run_sar(scn, path, args)
     out = Path(args.out) if args.out else Path("runs") / scn.name
     if args.check:
         return _check(scn, out, args)
@@ -79,14 +77,14 @@ def _run(args: argparse.Namespace) -> int:
     return exit_made(len(report["products"]), "the run")
 
 
-def _run_block(path: Path, args: argparse.Namespace) -> int:
+def _run_block(blk: Any, path: Path, args: argparse.Namespace) -> int:
     """A block scenario (``[[passes]]``): every pass, their tie points, the block."""
     import json
 
-    from station.run import block_scenarios, run_block, summary_table
+    from station.run import run_block, summary_table
     from station.tables import product_table
 
-    name, scns, _ = block_scenarios(path)
+    name, scns = blk.name, blk.passes
     out = Path(args.out) if args.out else Path("runs") / name
     if args.check:
         for scn in scns:
@@ -96,7 +94,7 @@ def _run_block(path: Path, args: argparse.Namespace) -> int:
         print(f"running the block {path} ({len(scns)} passes) into {out}/ ...", file=sys.stderr)
     with runner_of(args) as runner:
         report = run_block(
-            path,
+            blk,
             out,
             quicklooks=not args.no_quicklooks,
             progress=not args.quiet and sys.stderr.isatty(),
@@ -126,13 +124,12 @@ def _run_block(path: Path, args: argparse.Namespace) -> int:
     return exit_made(made, "the block")
 
 
-def _run_sar(path: Path, args: argparse.Namespace) -> int:
+def _run_sar(scn: Any, path: Path, args: argparse.Namespace) -> int:
     """A SAR frame's scenario (``[sar]``): the frame, its GEC and GTC, the truth's figures."""
     import json
 
-    from station.run_sar import load_sar_scenario, run_sar, sar_summary
+    from station.run_sar import run_sar, sar_summary
 
-    scn = load_sar_scenario(path)
     out = Path(args.out) if args.out else Path("runs") / scn.name
     if args.check:
         from station.run import prepare_run_dir

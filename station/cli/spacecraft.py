@@ -38,7 +38,7 @@ def register(sub: Any) -> None:
 
 
 def _emulate(args: argparse.Namespace) -> int:
-    from station.scenario import load_scenario
+    from station.loader import load_scenario
     from station.spacecraft.emulator import emulate
     from station.spacecraft.summary import summarize
 
@@ -96,7 +96,7 @@ def _emulate_text(summary: dict[str, Any]) -> str:
 def _downlink(args: argparse.Namespace) -> int:
     from station.chain.report import downlink_report
     from station.chain.session import downlink, record
-    from station.scenario import load_scenario
+    from station.loader import load_scenario
     from station.spacecraft.emulator import emulate
 
     start = time.perf_counter()

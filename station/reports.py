@@ -1,0 +1,80 @@
+"""The station's reports, declared once: which file a directory's report is, its format's
+name and version, what it says the directory is, and the one header every report opens
+with (format, version, the software that wrote it).
+
+``station run`` writes ``report.json`` (a pass, a block of passes, a SAR frame),
+``station process`` ``process.json``, ``station campaign`` ``campaign.json``;
+``station compare`` tells what wrote a directory by them (:func:`report_of`) and compares
+only directories of one kind.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from station import __version__
+from station.errors import StationError
+
+__all__ = [
+    "BLOCK_RUN",
+    "CAMPAIGN",
+    "PASS_RUN",
+    "PROCESS",
+    "REPORTS",
+    "SAR_RUN",
+    "ReportFormat",
+    "report_of",
+]
+
+
+@dataclass(frozen=True)
+class ReportFormat:
+    """A report: its file in the directory, its format's name and version, and what the
+    directory holding it is (in words, for messages)."""
+
+    file: str
+    name: str
+    version: int
+    what: str
+
+    def header(self, **fields: Any) -> dict[str, Any]:
+        """The report's opening: its format, version and the software that wrote it, then
+        ``fields`` (in order)."""
+        return {
+            "format": self.name,
+            "format_version": self.version,
+            "software": f"spot-station {__version__}",
+            **fields,
+        }
+
+
+#: 2: one section per HRV ("hrvs"), products tagged by HRV.
+PASS_RUN = ReportFormat("report.json", "spot-station-run", 2, "the run of a pass")
+BLOCK_RUN = ReportFormat("report.json", "spot-station-block-run", 1, "the run of a block")
+SAR_RUN = ReportFormat("report.json", "spot-station-sar-run", 1, "the run of a SAR frame")
+PROCESS = ReportFormat("process.json", "spot-station-process", 1, "a reprocessing")
+CAMPAIGN = ReportFormat("campaign.json", "spot-station-campaign", 1, "a campaign")
+#: Every report this version writes.
+REPORTS = (PASS_RUN, BLOCK_RUN, SAR_RUN, PROCESS, CAMPAIGN)
+
+
+def report_of(d: Path) -> ReportFormat | None:
+    """The report at the root of directory ``d`` (None if it has none); a report file of
+    a format this version does not know is refused, naming it."""
+    for file in dict.fromkeys(r.file for r in REPORTS):
+        path = d / file
+        if not path.is_file():
+            continue
+        try:
+            fmt = json.loads(path.read_text(encoding="utf-8")).get("format")
+        except (ValueError, UnicodeDecodeError, AttributeError):
+            raise StationError(f"{path}: not a report (JSON object)") from None
+        known = [r for r in REPORTS if r.file == file and r.name == fmt]
+        if not known:
+            names = ", ".join(r.name for r in REPORTS if r.file == file)
+            raise StationError(f"{path}: format {fmt!r} is no report this version knows ({names})")
+        return known[0]
+    return None
