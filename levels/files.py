@@ -53,7 +53,9 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     except OSError as exc:  # a full disk, a lost permission: say which file
         if exc.filename is not None:
             raise
-        raise OSError(exc.errno, f"{exc.strerror} (writing {target})") from None
+        said = f"{exc.strerror or exc or type(exc).__name__} (writing {target})"
+        # GDAL's errors (rasterio's) carry no errno: the message alone, no "[Errno None]"
+        raise (OSError(exc.errno, said) if exc.errno is not None else OSError(said)) from None
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
+import unicodedata
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -585,9 +586,16 @@ def check_name(name: str, what: str = "name") -> str:
     """A scenario's name, which names its files and run directory: letters, digits, ``_``,
     ``.``, ``-``, starting with a letter or digit, at most 100 characters; never a path."""
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        odd = sorted({c for c in str(name) if not c.isascii()})
+        hint = ""
+        if odd and isinstance(name, str):
+            plain = unicodedata.normalize("NFKD", name).encode("ascii", "ignore").decode()
+            hint = f" ({', '.join(map(repr, odd))} not ASCII"
+            hint += f"; e.g. {plain!r})" if NAME_PATTERN.fullmatch(plain) else ")"
         raise ScenarioError(
-            f"{what} = {name!r}: expected letters, digits, '_', '.' or '-', starting with a "
-            "letter or a digit (at most 100): it names the run's files and directory"
+            f"{what} = {name!r}: expected ASCII letters, digits, '_', '.' or '-', starting "
+            f"with a letter or a digit (at most 100): it names the run's files and "
+            f"directory{hint}"
         )
     return name
 

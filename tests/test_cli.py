@@ -107,8 +107,9 @@ def test_process_writes_products_and_reports(tmp_path: Path, capsys) -> None:
 def test_verbose_says_each_stage_and_quiet_says_nothing(
     run_dir: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
-    """``-v`` (before or after the command) logs GEO and each scene on stderr; ``-q`` leaves
-    stderr empty; by default neither is said."""
+    """``-v`` (before or after the command) logs GEO and each scene on stderr; ``-q`` says
+    nothing at all (no table either: the exit code says how it went), unless ``--json``
+    asks for the report; by default neither is said."""
     l0 = str(run_dir / "small_test.l0.h5")
     args = ["process", l0, "--levels", "1A", "--out"]
     assert main(["-v", *args, str(tmp_path / "a")]) == 0
@@ -120,4 +121,7 @@ def test_verbose_says_each_stage_and_quiet_says_nothing(
     assert main([*args, str(tmp_path / "c")]) == 0
     assert "GEO of" not in capfd.readouterr().err
     assert main(["-q", *args, str(tmp_path / "d")]) == 0
-    assert capfd.readouterr().err == ""
+    assert capfd.readouterr() == ("", "")
+    assert main(["-q", *args, str(tmp_path / "e"), "--json"]) == 0
+    out, err = capfd.readouterr()
+    assert err == "" and json.loads(out)["products"]

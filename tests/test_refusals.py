@@ -232,12 +232,19 @@ def test_user_errors_are_not_bugs(run_dir, tmp_path, refdata, monkeypatch, capsy
     one_line(capsys, code, EXIT_BAD_INPUT, "nonsense")
     code = _process(run_dir, tmp_path / "o3", "--workers", "4096")
     one_line(capsys, code, EXIT_BAD_INPUT, "4096 workers", "cores")
+    for n in ("0", "-1"):  # both refused alike (0 was taken as "in this process")
+        code = _process(run_dir, tmp_path / "o3", "--workers", n)
+        one_line(capsys, code, EXIT_BAD_INPUT, f"--workers {n}", "positive number")
     tle = tmp_path / "binary.tle"
     tle.write_bytes(bytes(range(256)) * 4)
     scn = tmp_path / "tle.toml"
     scn.write_text(f'name = "t"\n[orbit]\nkind = "tle"\ntle_path = "{tle}"\n')
     code = main(["run", str(scn), "--out", str(tmp_path / "o4"), "-q"])
     one_line(capsys, code, EXIT_BAD_INPUT, "not a TLE file")
+    accented = tmp_path / "accented.toml"
+    accented.write_text('name = "Cuiabá"\n', encoding="utf-8")
+    code = main(["run", str(accented), "--out", str(tmp_path / "o5"), "--check"])
+    one_line(capsys, code, EXIT_BAD_INPUT, "ASCII letters", "'á' not ASCII", "'Cuiaba'")
     dim = refdata / "dimap" / REFDATA_DIMAP
     code = main(["locate", str(dim), "--rpc", str(tmp_path / "x_RPC.TXT"), "--heights", "0,1e9"])
     one_line(capsys, code, EXIT_BAD_INPUT, "--heights '0,1e9'")
@@ -251,7 +258,7 @@ def test_user_errors_are_not_bugs(run_dir, tmp_path, refdata, monkeypatch, capsy
     code = main(["inspect", "x.h5"])
     one_line(capsys, code, EXIT_BAD_INPUT, "out of memory", "22.0 GiB")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-        ["nocrs.tif", "opts.toml", "binary.tle", "tle.toml"]
+        ["nocrs.tif", "opts.toml", "binary.tle", "tle.toml", "accented.toml"]
     )
 
 
@@ -455,3 +462,22 @@ def test_a_control_point_far_off_is_one_console_line(run_dir, tmp_path, capsys) 
     assert code == 0, err
     said = [ln for ln in err.splitlines() if "control point" in ln]
     assert len(said) == 1 and "hrv1_p0000" in said[0] and "not used" in said[0], err
+
+
+def test_export_says_where_it_cannot_write(run_dir, tmp_path, capsys) -> None:
+    """``--out`` under a file: exit 2 naming the file; ``--out`` a directory: the product's
+    name in it; GDAL's errors, which carry no errno, said without "[Errno None] None"."""
+    from levels.files import atomic_path
+
+    product = run_dir / "small_test_s000_2A.nc"
+    blocked = tmp_path / "a_file"
+    blocked.write_text("")
+    code = main(["export", str(product), "--geotiff", "--out", str(blocked / "x.tif")])
+    one_line(capsys, code, EXIT_BAD_INPUT, f"{blocked} is a file, not a directory")
+    into = tmp_path / "exports"
+    into.mkdir()
+    assert main(["export", str(product), "--geotiff", "--out", str(into)]) == 0
+    assert (into / "small_test_s000_2A.tif").is_file()
+    with pytest.raises(OSError) as caught, atomic_path(tmp_path / "y.tif"):
+        raise OSError("Attempt to create new tiff file failed: Permission denied")
+    assert "Errno" not in str(caught.value) and "Permission denied (writing" in str(caught.value)

@@ -18,6 +18,8 @@ Exit codes, the same for every command (``docs/compare.md``):
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import logging
 import os
 import sys
@@ -58,7 +60,8 @@ def _add_verbosity(parser: argparse.ArgumentParser, default: object) -> None:
         "--quiet",
         action="store_true",
         default=default if default is argparse.SUPPRESS else False,
-        help="no progress bars, nothing but errors on stderr",
+        help="nothing but errors: no progress, no table (the exit code says how it went; "
+        "--json still prints what it asks for)",
     )
 
 
@@ -114,7 +117,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args([*given, "run"])
     _configure_logging(args.verbose, args.quiet)
     try:
-        return args.func(args)
+        if args.quiet and not getattr(args, "json", False):
+            with contextlib.redirect_stdout(io.StringIO()):  # -q: nothing but errors
+                return int(args.func(args))
+        return int(args.func(args))
     except BrokenPipeError:  # `station compare … | head`: the reader had enough
         _quiet_broken_pipe()
         return EXIT_OK

@@ -41,7 +41,7 @@ def add_runner(parser: argparse.ArgumentParser, what: str = "scenes") -> None:
     g.add_argument(
         "--workers",
         type=int,
-        default=0,
+        default=None,
         metavar="N",
         help="start a local Dask cluster of N worker processes, one task each at a time",
     )
@@ -58,11 +58,14 @@ def runner_of(args: argparse.Namespace) -> Iterator[Any]:
     from levels.tasks import dask_runner
     from station.errors import StationError
 
-    if args.workers < 0:
-        raise StationError(f"--workers {args.workers}: give a positive number of workers")
+    if args.workers is not None and args.workers < 1:
+        raise StationError(
+            f"--workers {args.workers}: give a positive number of workers (without "
+            "--workers the tasks run in this process)"
+        )
     if args.workers and args.scheduler:
         raise StationError("give --workers (a local cluster) or --scheduler, not both")
-    with dask_runner(args.scheduler, args.workers) as runner:
+    with dask_runner(args.scheduler, args.workers or 0) as runner:
         yield runner
 
 

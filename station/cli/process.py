@@ -488,7 +488,7 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace,
     a = archives[0]
     lines = min(options.scene_lines or a.n_columns, a.n_lines)
     n_scenes = sum(-(-x.n_lines // lines) for x in archives)
-    needs = scene_needs(lines, a.n_columns, len(a.bands), len(makers), n_scenes, args.workers)
+    needs = scene_needs(lines, a.n_columns, len(a.bands), len(makers), n_scenes, args.workers or 0)
     return {"archives": [str(s) for s in sources], **check_needs(needs, out)}
 
 

@@ -155,5 +155,10 @@ def _export(args: argparse.Namespace) -> int:
     if args.scenario:
         raise StationError("--scenario goes with --dimap")
     out = Path(args.out) if args.out else src.with_suffix(".tif")
+    if out.is_dir():  # a directory: the product's name in it
+        out = out / src.with_suffix(".tif").name
+    above = next((d for d in out.parents if d.exists()), None)
+    if above is not None and not above.is_dir():
+        raise StationError(f"--out {out}: {above} is a file, not a directory")
     print(f"wrote {write_geotiff(read_product(src), out)}")
     return 0
