@@ -11,7 +11,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["MODES", "ORBIT_ALTITUDE_M", "ORBIT_INCLINATION_DEG", "ORBIT_PERIOD_MIN", "HrvMode"]
+__all__ = [
+    "MODES",
+    "ORBIT_ALTITUDE_M",
+    "ORBIT_INCLINATION_DEG",
+    "ORBIT_PERIOD_MIN",
+    "SERVICE_UTC",
+    "HrvMode",
+]
+
+#: The days SPOT 1–4 imaged: SPOT 1 launched on 22 February 1986; SPOT 4, the last of
+#: them, ended its mission on 11 January 2013 (CNES). A pass outside them is emulated, and
+#: said to be so.
+SERVICE_UTC = ("1986-02-22", "2013-01-11")
 
 #: Mean altitude at the equator, inclination and nodal period of the SPOT 1–4 orbit.
 ORBIT_ALTITUDE_M = 822e3

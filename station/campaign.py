@@ -27,12 +27,12 @@ from pathlib import Path
 from typing import Any
 
 from levels.errors import LevelsError
-from levels.files import staged_dir, write_json
+from levels.files import write_json
 from levels.options import ProcessingOptions
 from levels.tasks import Runner
 from station.catalog import write_catalog
 from station.errors import StationError
-from station.outdir import replaceable_dir
+from station.outdir import published_dir, replaceable_dir
 from station.reports import CAMPAIGN
 
 __all__ = ["CAMPAIGN_FORMAT", "campaign_archives", "run_campaign"]
@@ -102,7 +102,7 @@ def run_campaign(
         [*archives, *([options.dem_path] if options.dem_path else [])],
     )
     previous = target.is_dir() and any(target.iterdir())
-    with staged_dir(target) as stage:  # the previous campaign stays whole until this one is
+    with published_dir(target) as stage:  # the previous campaign stays whole until this one is
         report = _run(archives, names, target, stage, options, progress, runner)
         failed = [a for a in report["archives"] if a["status"] != "ok"]
         if failed and previous:  # never a campaign with failures over a good one

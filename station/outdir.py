@@ -8,18 +8,61 @@ must be absent, empty, or an earlier output of the same command (its report name
 ``report.json`` of a run of the same scenario, ``process.json``, ``campaign.json``).
 Anything else (another scenario's run, the user's own files, the current directory, the
 inputs of the command) is refused before any work starts.
+
+Each output knows its own files: :func:`published_dir` writes their list
+(:data:`MANIFEST`) as it publishes the directory, and a later run into it refuses, naming
+them, the files the station did not write there (a note, an analysis, an export): it never
+deletes what is not its own. GDAL's sidecars of its files (``<file>.aux.xml``) and what a
+killed writer left (``.<file>.<pid>.partial``) are its.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+from levels.files import staged_dir, write_text
 from station.errors import StationError
 
-__all__ = ["replaceable_dir"]
+__all__ = ["MANIFEST", "published_dir", "replaceable_dir"]
+
+#: The list of the files an output directory holds as the station wrote it.
+MANIFEST = ".station-files"
+#: Files GDAL writes beside a file it read (statistics, masks): the file's own.
+_SIDECARS = (".aux.xml",)
+
+
+def _files(d: Path) -> list[str]:
+    return sorted(str(p.relative_to(d)) for p in d.rglob("*") if p.is_file() or p.is_symlink())
+
+
+@contextlib.contextmanager
+def published_dir(target: str | Path) -> Iterator[Path]:
+    """:func:`levels.files.staged_dir` that lists the files it publishes (:data:`MANIFEST`)
+    as the directory's own."""
+    with staged_dir(target) as stage:
+        yield stage
+        write_text(stage / MANIFEST, "".join(f + "\n" for f in [*_files(stage), MANIFEST]))
+
+
+def not_own(d: Path) -> list[str]:
+    """The files in output directory ``d`` that the station did not write (its
+    :data:`MANIFEST` does not list them, nor are they GDAL's sidecars of those); none
+    known for an output written before the manifest."""
+    listed = d / MANIFEST
+    if not listed.is_file():
+        return []
+    own = set(listed.read_text(encoding="utf-8").splitlines())
+    return [
+        f
+        for f in _files(d)
+        if f not in own
+        and not any(f.endswith(s) and f[: -len(s)] in own for s in _SIDECARS)
+        and not (Path(f).name.startswith(".") and f.endswith(".partial"))  # a killed writer's
+    ]
 
 
 def replaceable_dir(
@@ -67,5 +110,13 @@ def replaceable_dir(
         raise StationError(
             f"{d} holds {what(previous)}, not {what(expected)}: give another --out "
             "(or remove that one)"
+        )
+    foreign = not_own(d)
+    if foreign:
+        more = f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
+        raise StationError(
+            f"{d} holds {what(expected)} and files it did not write "
+            f"({', '.join(foreign[:3])}{more}); the output directory is replaced whole: move "
+            "them, or give another --out"
         )
     return d

@@ -15,6 +15,7 @@ compressed): the bounds below.
 
 from __future__ import annotations
 
+import logging
 import os
 import shutil
 from dataclasses import dataclass
@@ -23,6 +24,8 @@ from typing import Any
 
 from station.errors import StationError
 from station.scenario import Scenario
+
+_log = logging.getLogger(__name__)
 
 __all__ = [
     "DISK_L0_BYTES_PER_PIXEL",
@@ -144,6 +147,7 @@ def check_scenario(scn: Scenario) -> list[str]:
     from levels.readers.dem import read_dem
 
     done = []
+    _warn_outside_service(scn)
     if scn.orbit.kind == "tle":
         from station.spacecraft.tle import read_tle
 
@@ -169,6 +173,27 @@ def check_scenario(scn: Scenario) -> list[str]:
     elif scn.dem is None:
         pass_dem(scn.processing)  # a level needing a DEM without one: said now
     return done
+
+
+def _warn_outside_service(scn: Scenario) -> None:
+    """One warning when the pass's day (``[pass] date_utc``; a TLE dates its own) lies
+    outside the days SPOT 1–4 imaged (:data:`levels.spot.SERVICE_UTC`): emulated all the
+    same."""
+    import numpy as np
+
+    from levels.spot import SERVICE_UTC
+
+    if scn.orbit.kind == "tle":
+        return
+    day = np.datetime64(scn.pass_.date_utc, "D")
+    first, last = (np.datetime64(d, "D") for d in SERVICE_UTC)
+    if not first <= day <= last:
+        _log.warning(
+            "[pass] date_utc = %s: no SPOT 1–4 flew then (SPOT 1 from %s, SPOT 4 to %s); "
+            "the pass is emulated all the same",
+            scn.pass_.date_utc,
+            *SERVICE_UTC,
+        )
 
 
 def _check_covers(scn: Scenario, dem: Any) -> None:

@@ -33,11 +33,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from levels.files import json_default, staged_dir, write_json
+from levels.files import json_default, write_json
 from levels.products import read_product
 from levels.tasks import Runner
 from station.loader import BlockScenario
-from station.outdir import replaceable_dir
+from station.outdir import published_dir, replaceable_dir
 from station.reports import BLOCK_RUN, PASS_RUN
 from station.scenario import Scenario
 from station.tables import product_table
@@ -79,7 +79,7 @@ def run_scenario(
     """
     out = prepare_run_dir(out_dir, scn.name, scn.inputs())
     check_run(scn, out)
-    with staged_dir(out) as stage:  # the previous run stays whole until this one is
+    with published_dir(out) as stage:  # the previous run stays whole until this one is
         return _run(scn, stage, quicklooks, progress, runner, warm_up)
 
 
@@ -513,7 +513,7 @@ def run_block(
     for s in scns:
         check_run(s, out)
     t0 = time.perf_counter()
-    with staged_dir(out) as stage:
+    with published_dir(out) as stage:
         reports = []
         for k, s in enumerate(scns, start=1):
             _log.info("block %s: pass %d of %d, %s", name, k, len(scns), s.name)

@@ -266,14 +266,14 @@ def run_sar(scn: SarScenario, out_dir: str | Path, *, quicklooks: bool = False) 
     """Run a SAR scenario into ``out_dir`` (module docstring); returns the report (also in
     ``report.json``). Built in a staging directory that replaces ``out_dir`` only when
     complete: a failure leaves the previous run as it was."""
-    from levels.files import staged_dir
+    from station.outdir import published_dir
     from station.run import prepare_run_dir
 
     out = prepare_run_dir(out_dir, scn.name, scn.inputs())
     for p in scn.inputs():
         if not p.is_file():
             raise ScenarioError(f"{scn.name}: {p} not found")
-    with staged_dir(out) as stage:
+    with published_dir(out) as stage:
         return _run(scn, stage, quicklooks)
 
 

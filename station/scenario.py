@@ -98,6 +98,11 @@ class OrbitConfig:
             raise ScenarioError("[orbit] kind = 'tle' needs tle_path = '<file>'")
 
 
+#: The last day a pass may be asked for (excluded): nanoseconds since 1950 in 64 bits
+#: reach 2242 (the telemetry's time codes, a 2⁴⁴ ms counter, reach 2507).
+LAST_PASS_DAY = np.datetime64("2200-01-01", "D")
+
+
 @dataclass(frozen=True)
 class PassConfig:
     """Where and when the imaged strip is: its centre, on the descending (daylight) branch.
@@ -135,12 +140,21 @@ class PassConfig:
     )
 
     def __post_init__(self) -> None:
+        from station.telemetry.format import CNES_EPOCH
+
         try:
-            np.datetime64(self.date_utc, "D")
+            day = np.datetime64(self.date_utc, "D")
         except ValueError:
             raise ScenarioError(
                 f"[pass] date_utc = {self.date_utc!r}: expected a UTC day 'YYYY-MM-DD'"
             ) from None
+        first = CNES_EPOCH.astype("datetime64[D]")
+        if not first <= day < LAST_PASS_DAY:
+            raise ScenarioError(
+                f"[pass] date_utc = {self.date_utc!r}: give a day from {first} (CNES day 0, "
+                f"where SPOT's time codes start) to {LAST_PASS_DAY - 1} (the emulator's "
+                "nanosecond clocks end in 2242)"
+            )
 
 
 @dataclass(frozen=True)

@@ -355,3 +355,28 @@ def test_stored_image_bands_read_the_same_everywhere(run_dir: Path, tmp_path: Pa
         assert np.array_equal(x.read(1), y.read(1))
     image_bytes = a.bands["P"].image.nbytes
     assert s.stat().st_size - z.stat().st_size > 0.2 * image_bytes
+
+
+def test_a_reprocessing_cuts_the_pass_as_the_run_did(tmp_path, capsys) -> None:
+    """The archive records how the station cut its pass (``L0Archive.scene_cut``): ``station
+    process`` of it alone, with no scenario nor options, makes the run's scenes (it made
+    one square scene of 300 lines where the run made two of 150)."""
+    from levels.readers.l0 import read_l0
+    from station.cli import main
+
+    scn = tmp_path / "cut.toml"
+    scn.write_text(SMALL.read_text() + '\n[processing]\nlevels = ["1A"]\nscene_lines = 150\n')
+    run, again = tmp_path / "run", tmp_path / "again"
+    assert main(["run", str(scn), "--out", str(run), "-q", "--no-quicklooks"]) == 0
+    l0 = run / "small_test.l0.h5"
+    assert read_l0(l0, lazy=True).scene_cut == {"scene_lines": 150, "overlap_lines": 0}
+    assert main(["process", str(l0), "--out", str(again), "-q"]) == 0
+    made = sorted(p.name for p in again.glob("*_1A.h5"))
+    assert (
+        made
+        == sorted(p.name for p in run.glob("*_1A.h5"))
+        == [
+            "small_test_s000_1A.h5",
+            "small_test_s001_1A.h5",
+        ]
+    )

@@ -481,3 +481,34 @@ def test_export_says_where_it_cannot_write(run_dir, tmp_path, capsys) -> None:
     with pytest.raises(OSError) as caught, atomic_path(tmp_path / "y.tif"):
         raise OSError("Attempt to create new tiff file failed: Permission denied")
     assert "Errno" not in str(caught.value) and "Permission denied (writing" in str(caught.value)
+
+
+def test_a_rerun_never_deletes_what_the_station_did_not_write(
+    run_dir, tmp_path, monkeypatch, capsys
+) -> None:
+    """A run lists its own files (``station.outdir.MANIFEST``); a rerun into it refuses
+    (exit 2, naming them) the user's notes and analyses there, and replaces it once they
+    are moved; GDAL's ``.aux.xml`` beside a product is the product's; an export goes to
+    the current directory, not into the run."""
+    from station.outdir import MANIFEST
+
+    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "small_test.toml"
+    out = tmp_path / "run"
+    shutil.copytree(run_dir, out)
+    own = (out / MANIFEST).read_text().splitlines()
+    assert "report.json" in own and "small_test_s000_2A.nc" in own and MANIFEST in own
+    (out / "small_test_s000_2A.nc.aux.xml").write_text("<PAMDataset/>")  # GDAL's
+    (out / "notes.txt").write_text("seen on 27 Nov")
+    (out / "analysis").mkdir()
+    (out / "analysis" / "fig.png").write_bytes(b"")
+    args = ["run", str(scenario), "--out", str(out), "-q", "--no-quicklooks"]
+    code = main(args)
+    one_line(capsys, code, EXIT_BAD_INPUT, "did not write", "analysis/fig.png", "notes.txt")
+    assert (out / "notes.txt").read_text() == "seen on 27 Nov"  # nothing touched
+    monkeypatch.chdir(tmp_path)
+    assert main(["export", str(out / "small_test_s000_2A.nc"), "--geotiff", "-q"]) == 0
+    assert (tmp_path / "small_test_s000_2A.tif").is_file()
+    shutil.move(out / "notes.txt", tmp_path / "notes.txt")
+    shutil.rmtree(out / "analysis")
+    assert main(args) == 0
+    assert not (out / "small_test_s000_2A.nc.aux.xml").exists()  # replaced with its product

@@ -67,7 +67,7 @@ def test_run_writes_products_report_and_quicklooks(run_dir: Path, capsys) -> Non
 
 
 def test_run_prints_a_summary_table(tmp_path: Path, capsys) -> None:
-    assert main(["run", str(SMALL), "--out", str(tmp_path), "--quiet", "--no-quicklooks"]) == 0
+    assert main(["run", str(SMALL), "--out", str(tmp_path), "--no-quicklooks"]) == 0
     out = capsys.readouterr().out
     assert "small_test: HRV1 P" in out and "truth check passed" in out
     rows = [ln for ln in out.splitlines() if ln.rstrip().endswith(("_1A.h5", "_1B.h5", "_2A.nc"))]
@@ -290,7 +290,7 @@ def test_scenes_lost_in_a_fade_are_skipped_and_said(tmp_path: Path, capsys) -> N
         "fade_duration_ms = 15000.0\n"
     )
     out = tmp_path / "run"
-    assert main(["run", str(scn), "--out", str(out), "--quiet", "--no-quicklooks"]) == 0
+    assert main(["run", str(scn), "--out", str(out), "--no-quicklooks"]) == 0
     report = json.loads((out / "report.json").read_text())
     skipped = report["hrvs"][0]["processing"]["skipped"]
     made = {p["scene"] for p in report["products"]}
@@ -319,7 +319,7 @@ def test_a_pass_of_both_hrvs_with_a_gap(tmp_path: Path, capsys) -> None:
         scn = tmp_path / f"both_{outage:g}.toml"
         scn.write_text(text.format(outage))
         runs.append(tmp_path / f"run_{outage:g}")
-        assert main(["run", str(scn), "--out", str(runs[-1]), "--quiet", "--no-quicklooks"]) == 0
+        assert main(["run", str(scn), "--out", str(runs[-1]), "--no-quicklooks"]) == 0
     report = json.loads((runs[0] / "report.json").read_text())
     assert [(h["hrv"], h["mode"]) for h in report["hrvs"]] == [(1, "P"), (2, "XS")]
     for h in report["hrvs"]:

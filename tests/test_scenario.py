@@ -144,3 +144,25 @@ def test_one_loader_reads_each_file_once_and_says_what_it_is(monkeypatch) -> Non
         load_sar(files[Scenario])
     with pytest.raises(ScenarioError, match=r"a SAR frame \(\[sar\]\), not a block"):
         load_block(files[SarScenario])
+
+
+@pytest.mark.parametrize("day", ["1949-12-31", "1066-10-14", "2200-01-01", "2600-01-01"])
+def test_a_day_the_clocks_cannot_take_is_refused_before_work(day: str) -> None:
+    """Before 1950 the time codes are negative (the receiver crashed on them, exit 3);
+    from 2200 the nanosecond clocks near their end: refused with the days allowed."""
+    with pytest.raises(ScenarioError, match=r"give a day from 1950-01-01 .* to 2199-12-31"):
+        scenario_from_dict({"name": "d", "pass": {"date_utc": day}})
+
+
+def test_a_day_outside_spot_service_is_one_warning(monkeypatch) -> None:
+    """1970 and 2150: emulated, with one warning naming the missions' dates; 1998: none."""
+    import station.preflight as preflight
+
+    said: list[str] = []
+    monkeypatch.setattr(preflight._log, "warning", lambda msg, *a: said.append(msg % a))
+    for day, warned in (("1970-06-01", True), ("2150-01-01", True), ("1998-02-20", False)):
+        said.clear()
+        preflight.check_scenario(scenario_from_dict({"name": "d", "pass": {"date_utc": day}}))
+        assert len(said) == warned, said
+        if warned:
+            assert "no SPOT 1–4 flew then" in said[0] and "1986-02-22" in said[0]

@@ -153,6 +153,18 @@ class L0Archive:
         return prov if isinstance(prov, dict) else {}
 
     @property
+    def scene_cut(self) -> dict[str, int]:
+        """How the station that recorded the pass cut it into scenes (``scene_lines``,
+        ``overlap_lines``; 0 lines: as many as detectors), or {} if it did not say."""
+        try:
+            cut = json.loads(str(self.attrs.get("scene_cut", "{}")))
+        except json.JSONDecodeError:
+            raise L0Error(f"{self.path}: root attribute 'scene_cut' is not JSON") from None
+        if not isinstance(cut, dict):
+            return {}
+        return {k: int(cut[k]) for k in ("scene_lines", "overlap_lines") if k in cut}
+
+    @property
     def n_lines(self) -> int:
         return int(self.line_counter.size)
 

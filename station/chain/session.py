@@ -79,4 +79,8 @@ def record(acq: Acquisition, result: DownlinkResult, path: str | Path) -> Path:
         ancillary_of(acq),
         scenario_name=scn.name,
         provenance=scn.provenance(),
+        scene_cut={
+            "scene_lines": scn.processing.scene_lines,
+            "overlap_lines": scn.processing.overlap_lines,
+        },
     )

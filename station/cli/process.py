@@ -224,7 +224,6 @@ def _archive_sources(
 ) -> tuple[Any, list[str], list[Path]]:
     """L0 archives as the SOURCE: the options (the scenario's or the block's, then the
     command's), the names of their products and the files they read."""
-    from levels.options import ProcessingOptions
     from station.reprocess import l0_stem
 
     if args.name and len(sources) > 1:
@@ -234,11 +233,24 @@ def _archive_sources(
             f"--gcps given {len(args.gcps)} time(s) for {len(sources)} L0 archive(s): "
             "once per archive, or not at all"
         )
-    base = scenarios[0].processing if scenarios else ProcessingOptions()
+    base = scenarios[0].processing if scenarios else _recorded_cut(sources)
     options = _options(args, block_options or base)
     names = [args.name] if args.name else [l0_stem(s) for s in sources]
     given = [*(args.gcps or []), *([options.dem_path] if options.dem_path else [])]
     return options, names, [*sources, *(Path(g) for g in given)]
+
+
+def _recorded_cut(sources: list[Path]) -> Any:
+    """The processing options by default: the scenes cut as the station that recorded the
+    archives cut them (``L0Archive.scene_cut``), so that a reprocessing makes the run's
+    scenes; the library's default for archives that do not say, or say differently."""
+    from levels.options import ProcessingOptions
+    from levels.readers.l0 import read_l0
+
+    cuts = [read_l0(s, lazy=True).scene_cut for s in sources]
+    if not cuts or not cuts[0] or any(c != cuts[0] for c in cuts):
+        return ProcessingOptions()
+    return ProcessingOptions(**cuts[0])
 
 
 def _process_pass(
@@ -252,11 +264,12 @@ def _process_pass(
 ) -> int:
     """A pass (one archive per HRV, or a block's archives with their ties) reprocessed, or
     a scenario's pass emulated and processed (``scn``), into ``out``, published whole."""
-    from levels.files import staged_dir, write_json
+    from levels.files import write_json
     from station.catalog import write_catalog
+    from station.outdir import published_dir
     from station.reprocess import process_scenario, reprocess_pass
 
-    with staged_dir(out) as stage, runner_of(args) as runner:
+    with published_dir(out) as stage, runner_of(args) as runner:
         if scn is not None:
             products, l0 = process_scenario(scn, stage, runner=runner)
             made = [(out / l0.name, products)]
@@ -294,13 +307,13 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
     (``levels.frame``): its levels, pixel and reference height from ``--scenario`` (the SAR
     scenario that made it: its products measured against the truth, and the run's), else
     ``--levels`` and the DEM's."""
-    from levels.files import staged_dir, write_json
+    from levels.files import write_json
     from levels.frame import FrameOptions, margin_of_dem, process_frame
     from levels.readers.dem import read_dem
     from levels.readers.sar import read_sar_frame
     from station.catalog import write_catalog
     from station.loader import load_sar
-    from station.outdir import replaceable_dir
+    from station.outdir import published_dir, replaceable_dir
     from station.run_sar import frame_options, frame_quality, scenario_provenance
 
     frame = read_sar_frame(source)
@@ -327,7 +340,7 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
         lambda n: f"products of {n}",
         inputs,
     )
-    with staged_dir(out) as stage:
+    with published_dir(out) as stage:
         made = process_frame(
             frame,
             options,
@@ -413,12 +426,13 @@ def _process_block(
     """Several passes to a pair's products (``station.reprocess.reprocess_block``):
     every pass's scene levels in ``<out>/<name>/``, the tie points, the block's level 2
     and 3 and the pair's DEM in ``ties/``, ``block/`` and ``stereo/``."""
-    from levels.files import staged_dir, write_json
+    from levels.files import write_json
     from station.catalog import write_catalog
+    from station.outdir import published_dir
     from station.reprocess import reprocess_block
     from station.run import product_entry
 
-    with staged_dir(out) as stage, runner_of(args) as runner:
+    with published_dir(out) as stage, runner_of(args) as runner:
         passes, block = reprocess_block(
             sources,
             stage,

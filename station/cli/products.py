@@ -70,7 +70,11 @@ def register(sub: Any) -> None:
         help="with --dimap: the SPOT written as MISSION_INDEX (the emulated HRV flies SPOT "
         "1-3's orbit; default 2)",
     )
-    add_out(expo, "with --geotiff: output file (default: the product's name with .tif)")
+    add_out(
+        expo,
+        "with --geotiff: output file or directory (default: the product's name with .tif, "
+        "in the current directory)",
+    )
     tie = sub.add_parser(
         "tie",
         help="tie points between two passes' 2A products, written as each pass's tie file",
@@ -154,7 +158,8 @@ def _export(args: argparse.Namespace) -> int:
         return 0
     if args.scenario:
         raise StationError("--scenario goes with --dimap")
-    out = Path(args.out) if args.out else src.with_suffix(".tif")
+    # where the user says, else here: never into a run directory the station replaces whole
+    out = Path(args.out) if args.out else Path(src.with_suffix(".tif").name)
     if out.is_dir():  # a directory: the product's name in it
         out = out / src.with_suffix(".tif").name
     above = next((d for d in out.parents if d.exists()), None)

@@ -17,11 +17,11 @@ from station.telemetry import format as tf
 
 __all__ = ["line_clock", "on_the_clock", "plausible_times"]
 
-_MAX_TIME_MS = 2**44  # 557 years after 1950
+_MAX_TIME_MS = tf.TIME_CODE_LIMIT_MS  # 557 years after 1950
 
 
 def plausible_times(aux: NDArray) -> NDArray[np.bool_]:
-    """Time codes within the counter's range (after 1950, before ~2400) and a line time
+    """Time codes within the counter's range (after 1950, before 2507) and a line time
     within a minute of its record's time: anything else is a damaged record."""
     t = aux["time_ms"].astype(np.uint64)
     lt = aux["line_time_ms"].astype(np.uint64)
@@ -68,6 +68,11 @@ def line_clock(
     """
     if method not in ("feasible", "least_squares"):
         raise ValueError(f"line clock method {method!r}: 'feasible' or 'least_squares'")
+    if aux.size == 0:
+        raise ReceiverError(
+            "no auxiliary record with a plausible time code (ms since 1950-01-01, below "
+            "2⁴⁴): the line clock is unknown"
+        )
     aux = aux[on_the_clock(aux, first_line)]
     ms = aux["line_time_ms"].astype(np.int64)
     day_ms = 86_400_000

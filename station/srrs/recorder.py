@@ -72,8 +72,12 @@ def write_l0(
     ancillary: list[BandAncillary],
     scenario_name: str = "",
     provenance: dict | None = None,
+    scene_cut: dict[str, int] | None = None,
 ) -> Path:
     """Write the L0 archive of a pass atomically; returns the path written.
+
+    ``scene_cut``: how the station cuts the pass into scenes (``scene_lines``,
+    ``overlap_lines``), which a reprocessing takes unless told otherwise.
 
     ``bulletins`` carry times in seconds since ``bulletin_epoch_utc``; they are stored on
     the archive's own epoch (00:00 UTC of the pass day, ``decoded.epoch_utc``), with the
@@ -95,6 +99,8 @@ def write_l0(
     )
     with new_hdf5(path) as f:
         _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
+        if scene_cut:
+            f.attrs["scene_cut"] = json.dumps(scene_cut, sort_keys=True)
     return path
 
 

@@ -67,6 +67,9 @@ SEGMENT_DETECTORS = 1500  # detectors per image packet: one CCD's useful part in
 STATUS_MAGIC = b"SES1"
 #: The day SPOT's time codes count from (CNES Julian day 0).
 CNES_EPOCH = np.datetime64("1950-01-01T00:00:00", "ns")
+#: The time codes the receiver takes as plausible: below 2⁴⁴ ms (557 years) after
+#: :data:`CNES_EPOCH`; a pass after that is not one this telemetry can date.
+TIME_CODE_LIMIT_MS = 2**44
 
 
 def vc_of_hrv(hrv: int) -> int:
