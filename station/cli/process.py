@@ -250,7 +250,10 @@ def _recorded_cut(sources: list[Path]) -> Any:
     cuts = [read_l0(s, lazy=True).scene_cut for s in sources]
     if not cuts or not cuts[0] or any(c != cuts[0] for c in cuts):
         return ProcessingOptions()
-    return ProcessingOptions(**cuts[0])
+    cut = cuts[0]
+    return ProcessingOptions(
+        scene_lines=cut.get("scene_lines", 0), overlap_lines=cut.get("overlap_lines", 0)
+    )
 
 
 def _process_pass(
