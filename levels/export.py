@@ -30,8 +30,9 @@ from levels.errors import ProductError
 from levels.files import atomic_path
 from levels.geo.rpc import Rpc
 from levels.kinds import Export
-from levels.products import Product
+from levels.products import Product, band_spec
 from levels.registry import kind_of
+from levels.spot import band_description
 
 __all__ = ["write_geotiff", "write_rpc_sidecar"]
 
@@ -102,8 +103,14 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
     known = kind_of(product)
     names = list(known.export_bands) if known and known.export_bands else list(product.bands)
     tags = known.export_tags if known else ()
-    images = [product.bands[n].image for n in names]
+    specs = [band_spec(product, n, product.bands[n].image.dtype) for n in names]
+    fills = {sp.fill for sp in specs if not sp.quantity and sp.fill is not None}
+    fill = fills.pop() if len(fills) == 1 else None
     valid = np.logical_and.reduce([product.bands[n].valid for n in names])
+    images = [product.bands[n].image for n in names]
+    if fill is not None:  # as the product writes it: the fill where not valid only
+        f = np.asarray(fill, dtype=images[0].dtype)
+        images = [np.where(valid, np.where(im == f, f + 1, im), f) for im in images]
     rows, cols = images[0].shape
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -113,7 +120,11 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
         "height": rows,
         "count": len(names),
         "dtype": str(images[0].dtype),
+        # NaN or the counts' fill: what OTB masks (GDAL and QGIS read the internal mask too)
         **({"nodata": float("nan")} if images[0].dtype.kind == "f" else {}),
+        **({"nodata": fill} if fill is not None else {}),
+        # bands of their own, not a picture: XS1–3 are green, red, near-infrared
+        "photometric": "MINISBLACK",
         **georef,
         "tiled": True,
         "blockxsize": 256,
@@ -128,7 +139,7 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
     ):
         for k, (name, im) in enumerate(zip(names, images, strict=True), start=1):
             ds.write(im, k)
-            ds.set_band_description(k, name)
+            ds.set_band_description(k, band_description(name))
         if images[0].dtype.kind != "f":
             ds.write_mask(valid)
         ds.update_tags(

@@ -99,10 +99,11 @@ class BandSpec:
     optional: bool = False
 
 
-def counts_band(level: str, name: str) -> BandSpec:
-    """A band of counts of the instrument (P, XS1…), as the scene levels hold them."""
+def counts_band(level: str, name: str, fill: int | None = None) -> BandSpec:
+    """A band of counts of the instrument (P, XS1…), as the scene levels hold them; its
+    ``fill`` the count written where it is not valid (None: every count is data)."""
     return BandSpec(
-        name, f"level {level} counts of band {name}", dtype="uint8", quantity=False, fill=None
+        name, f"level {level} counts of band {name}", dtype="uint8", quantity=False, fill=fill
     )
 
 
@@ -207,6 +208,10 @@ class ProductKind:
     maker
         What makes it (:class:`levels.makers.base.LevelMaker` for a scene's level; a
         pair's or a frame's maker), or None where the station makes it.
+    counts_fill
+        The count its counts bands hold where not valid, declared to viewers (netCDF
+        ``_FillValue``, GeoTIFF nodata); a valid pixel of that count is written one above
+        (1 DN). None: every count is data (the raw counts of a 1A).
     """
 
     name: str
@@ -227,10 +232,11 @@ class ProductKind:
     stac: Callable[[Product], dict[str, Any]] = _no_stac
     tolerances: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     maker: Any = None
+    counts_fill: int | None = None
 
     def band(self, name: str) -> BandSpec:
         """The declaration of band ``name`` of a product of this kind."""
         for b in self.bands:
             if b.name == name:
                 return b
-        return counts_band(self.name, name)
+        return counts_band(self.name, name, self.counts_fill)

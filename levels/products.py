@@ -385,8 +385,15 @@ def _write_band(
     kind declares it (:meth:`levels.kinds.ProductKind.band`: counts, or a quantity with
     its units, standard name and fill value)."""
     spec = band_spec(product, name, band.image.dtype)
+    image = band.image
+    if not spec.quantity and spec.fill is not None:
+        # the fill only where not valid: a valid pixel of that count one above (1 DN)
+        fill_count = np.asarray(spec.fill, dtype=image.dtype)
+        image = np.where(
+            band.valid, np.where(image == fill_count, fill_count + 1, image), fill_count
+        )
     for var, data, long_name in (
-        (name, band.image, spec.long_name),
+        (name, image, spec.long_name),
         (
             f"{name}_valid",
             band.valid.view(np.uint8),
@@ -394,9 +401,10 @@ def _write_band(
         ),
     ):
         level = deflate_level if var == name else DEFLATE_LEVEL
-        # a quantity's NaN where not valid is its fill value too: GDAL's netCDF driver read
-        # a DEM's holes as 0 m without it
-        fill = spec.fill if var == name and np.issubdtype(data.dtype, np.floating) else None
+        # the fill where not valid (a quantity's NaN, a resampled level's count 0) declared:
+        # GDAL's netCDF driver read a DEM's holes as 0 m and a 2A's borders as data without
+        declared = np.issubdtype(data.dtype, np.floating) or not spec.quantity
+        fill = spec.fill if var == name and declared else None
         ds = deflated_dataset(f, var, data, chunks, level=level, fillvalue=fill)
         if fill is not None:
             ds.attrs["_FillValue"] = np.array(fill, dtype=data.dtype)

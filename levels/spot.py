@@ -17,7 +17,9 @@ __all__ = [
     "ORBIT_INCLINATION_DEG",
     "ORBIT_PERIOD_MIN",
     "SERVICE_UTC",
+    "SPECTRAL_BANDS",
     "HrvMode",
+    "band_description",
 ]
 
 #: The days SPOT 1–4 imaged: SPOT 1 launched on 22 February 1986; SPOT 4, the last of
@@ -51,3 +53,24 @@ MODES: dict[str, HrvMode] = {
     "P": HrvMode("P", ("P",), 6000, 1.504e-3, 10.0),
     "XS": HrvMode("XS", ("XS1", "XS2", "XS3"), 3000, 3.008e-3, 20.0),
 }
+
+
+#: The HRV's (and SPOT 4 HRVIR's) spectral bands: what each sees and its range (µm), as
+#: SPOT Image's handbook gives them. XS1, XS2, XS3 are green, red and near-infrared, not
+#: red, green and blue: a viewer is told so (:func:`band_description`).
+SPECTRAL_BANDS: dict[str, tuple[str, float, float]] = {
+    "P": ("panchromatic", 0.51, 0.73),
+    "XS1": ("green", 0.50, 0.59),
+    "XS2": ("red", 0.61, 0.68),
+    "XS3": ("near-infrared", 0.79, 0.89),
+    "SWIR": ("short-wave infrared", 1.58, 1.75),
+}
+
+
+def band_description(name: str) -> str:
+    """A band's name with what it sees: ``"XS1 (green, 0.50–0.59 µm)"``; the name alone
+    for a band SPOT has not (a DEM's, a SAR frame's)."""
+    if name not in SPECTRAL_BANDS:
+        return name
+    what, lo, hi = SPECTRAL_BANDS[name]
+    return f"{name} ({what}, {lo:.2f}–{hi:.2f} µm)"

@@ -181,7 +181,19 @@ def test_geotiff_export_puts_checkpoints_where_the_product_says(
         assert np.abs(col - 0.5 - cp["output_col"]).max() < GEOTIFF_ROUNDOFF_PX
         assert np.array_equal(ds.read(1), p.bands["P"].image)
         assert np.array_equal(ds.dataset_mask() > 0, p.bands["P"].valid)
-        assert ds.descriptions == ("P",) and ds.tags()["level"] == "2A"
+        assert ds.descriptions == ("P (panchromatic, 0.51–0.73 µm)",)
+        assert ds.tags()["level"] == "2A"
+        # outside the footprint is no data for every reader: GDAL's mask, OTB's nodata
+        assert ds.nodata == 0 and np.array_equal(ds.read_masks(1) > 0, p.bands["P"].valid)
+        assert ds.tags(ns="IMAGE_STRUCTURE").get("PHOTOMETRIC", "MINISBLACK") == "MINISBLACK"
+    # the .nc band itself, through GDAL's netCDF driver: _FillValue = 0 masks the borders
+    with rasterio.open(f"NETCDF:{src}:P") as nc:
+        mask = nc.read_masks(1) > 0
+        assert nc.nodata == 0 and np.array_equal(
+            mask[::-1] if nc.transform.e > 0 else mask, p.bands["P"].valid
+        )
+        outside = ~p.bands["P"].valid
+        assert outside.mean() > 0.1  # the borders this checks are there
 
 
 #: How far GDAL's RPC warp of the exported 1A may land from our 2A (issue 20's figure,
@@ -343,3 +355,26 @@ def test_a_pass_of_both_hrvs_with_a_gap(tmp_path: Path, capsys) -> None:
     where = {f["what"] for f in found["findings"][""]}
     assert "decode/HRV2/bands/XS1/lines_missing" in where
     assert "product both_hrv2_s001_2A.nc" in where  # made in one run only
+
+
+def test_an_xs_export_says_green_red_near_infrared(tmp_path: Path) -> None:
+    """XS1–3 are green, red and near-infrared: the GeoTIFF names them so, is not tagged as
+    an RGB picture (GDAL's default for three bytes) and masks the borders (nodata 0)."""
+    scn = tmp_path / "xs.toml"
+    scn.write_text(
+        'name = "xs"\n[instrument]\nmode = "XS"\nn_detectors = 150\nn_lines = 150\n'
+        "[downlink]\nbit_rate_mbps = 0.2\npreamble_s = 0.1\npostamble_s = 0.1\n"
+        '[processing]\nlevels = ["2A"]\n'
+    )
+    run = tmp_path / "run"
+    assert main(["run", str(scn), "--out", str(run), "-q", "--no-quicklooks"]) == 0
+    tif = tmp_path / "xs.tif"
+    assert main(["export", str(run / "xs_s000_2A.nc"), "--geotiff", "--out", str(tif)]) == 0
+    with rasterio.open(tif) as ds:
+        assert [d.split(" (")[1].split(",")[0] for d in ds.descriptions] == [
+            "green",
+            "red",
+            "near-infrared",
+        ]
+        assert ds.tags(ns="IMAGE_STRUCTURE").get("PHOTOMETRIC", "MINISBLACK") == "MINISBLACK"
+        assert "red" not in {c.name for c in ds.colorinterp} and ds.nodata == 0

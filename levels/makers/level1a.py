@@ -48,4 +48,4 @@ MAKER = LevelMaker(
 )
 
 #: The level's kind (:mod:`levels.kinds`, named in :mod:`levels.registry`).
-KIND = scene_kind(MAKER, Export.RPC, ("scene",), rpc_section, stripes=True)
+KIND = scene_kind(MAKER, Export.RPC, ("scene",), rpc_section, stripes=True, counts_fill=None)

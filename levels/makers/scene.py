@@ -191,10 +191,13 @@ def scene_kind(
     geometry_trees: tuple[str, ...],
     *sections: Section,
     stripes: bool = False,
+    counts_fill: int | None = 0,
 ) -> ProductKind:
     """The kind of a scene level made by ``maker``: its export, the geometry trees its
     products carry, its ``inspect`` sections; its figures the scene levels'; its notes
-    the stripes (``stripes``: 1A) or its control points (when its quality has them)."""
+    the stripes (``stripes``: 1A) or its control points (when its quality has them); 0
+    its counts' fill where not valid (resampled levels: viewers mask their borders), or
+    None (the raw counts of a 1A, every value data)."""
     return ProductKind(
         name=str(maker.name),
         doc=maker.doc,
@@ -208,4 +211,5 @@ def scene_kind(
         notes=_stripe_notes if stripes else _control_notes,
         stac=_scene_stac,
         maker=maker,
+        counts_fill=counts_fill,
     )
