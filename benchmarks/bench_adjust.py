@@ -9,7 +9,8 @@ Figures printed:
   of each (geometry, resampling, quality, writing), the ratio against the target (level 2
   at most 10 % above 2A). The peer of level 2 is level 2A of the same scene, same run.
 
-Run: ``python benchmarks/bench_adjust.py [scenes]`` (default 74). Emulation (geometry only
+Run: ``python benchmarks/bench_adjust.py [scenes]`` (default 74; ``BENCH_SMOKE=1``: 3
+scenes of 300 lines, a 300 × 300 scene). Emulation (geometry only
 for the pass; one rendered scene for the products) is not timed.
 """
 
@@ -21,6 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _smoke import SMOKE, size
 
 from levels.adjust import adjust
 from levels.options import ProcessingOptions
@@ -34,7 +36,7 @@ from station.spacecraft.emulator import emulate
 
 TARGET_ADJUST_S = 1.0
 TARGET_L2_OVER_2A = 1.10
-SCENE = 6000
+SCENE = size(6000, 300)
 
 
 def bench_adjust(n_scenes: int) -> None:
@@ -69,6 +71,7 @@ def bench_scene() -> None:
             "seed": 6,
             "gcps": {"count": 12},
             "downlink": {"bit_rate_mbps": 25.0},
+            **({"instrument": {"n_detectors": SCENE, "n_lines": SCENE}} if SMOKE else {}),
         }
     )
     from station.chain.session import downlink, record
@@ -107,5 +110,5 @@ def bench_scene() -> None:
 
 
 if __name__ == "__main__":
-    bench_adjust(int(sys.argv[1]) if len(sys.argv) > 1 else 74)
+    bench_adjust(int(sys.argv[1]) if len(sys.argv) > 1 else size(74, 3))
     bench_scene()

@@ -32,6 +32,7 @@ import sys
 import time
 
 import numpy as np
+from _smoke import size
 
 from levels.adjust import Strip, adjust, adjust_block
 from levels.options import ProcessingOptions
@@ -46,7 +47,7 @@ from station.truth.optical import Truth, true_tie_points
 TARGET_S = 2.0
 DEM_SPACING_DEG = 10 / 3600
 DEM_ERROR_M = 5.0
-SCENE = 6000
+SCENE = size(6000, 1000)
 PIXEL_M = 10.0
 STEPS = (45, 47, 49, 51)  # the mirror of each strip: −1.8°, −0.6°, +0.6°, +1.8°
 DATES = ("1998-02-20", "1998-03-18", "1998-04-13", "1998-05-09")
@@ -90,12 +91,12 @@ def tie_dem(acq, ties: list[list[ControlPointSet]]):
 
 
 def main() -> None:
-    n_scenes = int(sys.argv[1]) if len(sys.argv) > 1 else 25
+    n_scenes = int(sys.argv[1]) if len(sys.argv) > 1 else size(25, 2)
     strips = [strip(k, n_scenes) for k in range(len(STEPS))]
     per: list[list[ControlPointSet]] = [[] for _ in strips]
     rng = np.random.default_rng(36)
     for k in range(len(strips) - 1):
-        a, b = true_tie_points(strips[k][0], strips[k + 1][0], 60, 0.2, rng, 450.0)
+        a, b = true_tie_points(strips[k][0], strips[k + 1][0], size(60, 20), 0.2, rng, 450.0)
         per[k].append(renamed(a, f"p{k}_"))
         per[k + 1].append(renamed(b, f"p{k}_"))
     ties = [[functools.reduce(operator.add, sets)] for sets in per]
@@ -104,7 +105,7 @@ def main() -> None:
     n_ties = len({i for t in ties for i in t[0].id})
     dem = tie_dem(strips[0][0], ties)
     times = []
-    for _ in range(3):
+    for _ in range(size(3, 1)):
         t0 = time.perf_counter()
         res = adjust_block(passes, ties, opts, dem=dem, dem_sigma_m=opts.tie_height_sigma_m)
         times.append(time.perf_counter() - t0)

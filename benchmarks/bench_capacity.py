@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 import simpy
+from _smoke import SMOKE
 
 from station.capacity.config import load_capacity, with_value
 from station.capacity.model import pass_pattern, simulate
@@ -31,8 +32,8 @@ SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "capacity" / "cui
 
 def main() -> None:
     scn = load_capacity(SCENARIO)
-    if len(sys.argv) > 1:
-        scn = with_value(scn, "simulation.days", sys.argv[1])
+    if len(sys.argv) > 1 or SMOKE:
+        scn = with_value(scn, "simulation.days", sys.argv[1] if len(sys.argv) > 1 else "10")
     service = load_service(scn)
     t0 = time.perf_counter()
     aos = pass_pattern(scn.ground_station).aos_s

@@ -23,6 +23,7 @@ import time
 
 import numba
 import numpy as np
+from _smoke import SMOKE, size
 
 from station.scenario import scenario_from_dict
 from station.spacecraft.channel import impair
@@ -36,10 +37,11 @@ TARGETS = {1e-6: 10.0, 1e-4: 2.0}
 
 def main() -> None:
     mode = sys.argv[1] if len(sys.argv) > 1 else "P"
-    n_lines = int(sys.argv[2]) if len(sys.argv) > 2 else 0
+    n_lines = int(sys.argv[2]) if len(sys.argv) > 2 else size(0, 300)
     scn = scenario_from_dict(
         {
-            "instrument": {"mode": mode, "n_lines": n_lines},
+            "instrument": {"mode": mode, "n_lines": n_lines}
+            | ({"n_detectors": 600} if SMOKE else {}),
             "pass": {"ground_pass_days": 0.0},
             "gcps": {"count": 0},
         }

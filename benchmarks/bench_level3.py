@@ -30,6 +30,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import pyproj
+from _smoke import SMOKE, size
 from bench_levels import best  # the same best-of-N timer (run as a script: its directory)
 
 from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
@@ -41,7 +42,7 @@ from levels.readers.dem import read_dem
 from levels.readers.l0 import read_l0
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
 
-REPEATS = 2
+REPEATS = size(2, 1)
 GEOLOC_STEP = 16
 REFERENCE_HEIGHT_M = 700.0
 
@@ -61,7 +62,8 @@ def make_inputs(directory: Path) -> tuple[Path, Path]:
             ERRORS_OFF,
             {
                 "name": "bench3",
-                "instrument": {"mirror_step": 93},
+                "instrument": {"mirror_step": 93}
+                | ({"n_detectors": 600, "n_lines": 600} if SMOKE else {}),
                 "world": {"base_height_m": 700.0, "relief_m": 200.0},
                 "dem": {"spacing_arcsec": 1.0},
             },

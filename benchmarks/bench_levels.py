@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from _smoke import SMOKE, size
 
 import levels.threads
 from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
@@ -51,7 +52,7 @@ from levels.process import ProcessingRequest, nominal_pixel_size_m, process
 from levels.readers.l0 import read_l0
 from station.scenario import scenario_from_dict
 
-REPEATS = 3
+REPEATS = size(3, 1)
 
 
 def best(f, repeats: int = REPEATS) -> tuple[float, object]:
@@ -68,7 +69,8 @@ def make_l0(directory: Path) -> Path:
     from station.spacecraft.emulator import emulate
 
     print("emulating and receiving the default P scene …", flush=True)
-    acq = emulate(scenario_from_dict({"name": "bench"}))
+    small = {"instrument": {"n_detectors": 600, "n_lines": 600}} if SMOKE else {}
+    acq = emulate(scenario_from_dict({"name": "bench", **small}))
     return record(acq, downlink(acq), directory / "bench.l0.h5")
 
 
@@ -224,7 +226,7 @@ def _blas_on_its_own_threads():
 def bench_geo() -> None:
     from station.spacecraft.emulator import emulate
 
-    n_scenes = 74
+    n_scenes = size(74, 2)
     scn = scenario_from_dict(
         {"instrument": {"n_lines": 6000 * n_scenes}, "bulletins": {"margin_s": 300.0}}
     )

@@ -23,6 +23,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _smoke import size  # noqa: E402
 from pyproj import Transformer  # noqa: E402
 
 from levels.readers import read_dimap  # noqa: E402
@@ -32,8 +33,8 @@ DEFAULT = (
     / "shared/refdata/dimap/spot5_hrg1_A_20050313_altai_METADATA.DIM"
 )
 TARGET_S = 2.0
-N_POINTS = 1_000_000
-N_INVERSE = 100_000
+N_POINTS = size(1_000_000, 20_000)
+N_INVERSE = size(100_000, 2_000)
 
 
 def _best_of(fn, repeat: int = 3) -> float:

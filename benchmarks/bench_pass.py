@@ -37,6 +37,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _smoke import SMOKE, size
+
 from levels.options import ProcessingOptions
 from levels.process import all_made, run_plans
 from levels.products import is_product_file
@@ -45,7 +47,7 @@ from station.reprocess import plan_reprocess
 from station.scenario import scenario_from_dict
 
 REPEATS = 2
-SCENE_LINES = 6000
+SCENE_LINES = size(6000, 300)
 
 
 def make_pass(directory: Path, n_scenes: int) -> Path:
@@ -59,7 +61,11 @@ def make_pass(directory: Path, n_scenes: int) -> Path:
     print(f"emulating and receiving a pass of {n_scenes} full P scenes …", flush=True)
     t = time.perf_counter()
     scn = scenario_from_dict(
-        {"name": f"pass{n_scenes}", "instrument": {"n_lines": n_scenes * SCENE_LINES}}
+        {
+            "name": f"pass{n_scenes}",
+            "instrument": {"n_lines": n_scenes * SCENE_LINES}
+            | ({"n_detectors": SCENE_LINES} if SMOKE else {}),
+        }
     )
     acq = emulate(scn)
     record(acq, downlink(acq), l0)
@@ -163,7 +169,7 @@ def differences(a: Path, b: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dir", nargs="?", help="where the pass's L0 archive is kept")
-    ap.add_argument("--scenes", type=int, default=4, help="full P scenes in the pass")
+    ap.add_argument("--scenes", type=int, default=size(4, 2), help="full P scenes in the pass")
     args = ap.parse_args()
     keep = Path(args.dir) if args.dir else Path(tempfile.mkdtemp(prefix="bench_pass_"))
     keep.mkdir(parents=True, exist_ok=True)

@@ -21,6 +21,7 @@ import time
 
 import numba
 import numpy as np
+from _smoke import SMOKE, size
 
 from station.scenario import scenario_from_dict
 from station.spacecraft.emulator import emulate
@@ -30,9 +31,12 @@ TARGET_S = 60.0
 
 
 def main() -> None:
-    n_lines = int(sys.argv[1]) if len(sys.argv) > 1 else 6000
+    n_lines = int(sys.argv[1]) if len(sys.argv) > 1 else size(6000, 200)
     scn = scenario_from_dict(
-        {"instrument": {"n_lines": n_lines}, "pass": {"ground_pass_days": 0.0}}
+        {
+            "instrument": {"n_lines": n_lines} | ({"n_detectors": 600} if SMOKE else {}),
+            "pass": {"ground_pass_days": 0.0},
+        }
     )
     t0 = time.perf_counter()
     acq = emulate(scn, render=False)

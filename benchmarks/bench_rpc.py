@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _smoke import size
 from bench_levels import best  # the same best-of-N timer (run as a script: its directory)
 
 from levels.geo.rpc import rpc_of_model
@@ -40,7 +41,7 @@ from station.scenario import scenario_from_dict
 from station.spacecraft.emulator import emulate
 
 HEIGHTS_M = (0.0, 1500.0)
-N_POINTS = 1_000_000
+N_POINTS = size(1_000_000, 20_000)
 REFDATA = Path(__file__).resolve().parents[2] / "shared" / "refdata" / "dimap"
 
 

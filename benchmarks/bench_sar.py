@@ -21,6 +21,7 @@ import argparse
 import time
 
 import numpy as np
+from _smoke import size
 
 TARGET_S = 10.0
 
@@ -38,7 +39,9 @@ def main() -> int:
     from station.spacecraft.world import World
 
     world = World(lon0_rad=np.radians(-56.1), base_height_m=200.0, relief_m=args.relief, seed=3)
-    frame = ErsFrame(n_lines=8300, n_samples=5000, azimuth_looks=3, range_looks=1)
+    frame = ErsFrame(
+        n_lines=size(8300, 300), n_samples=size(5000, 200), azimuth_looks=3, range_looks=1
+    )
     t0 = time.perf_counter()
     image, _ = emulate_frame(frame, world, render=False)
     grid = sar.frame_grid(image.annotation, 12.5, world.base_height_m)

@@ -24,14 +24,15 @@ import argparse
 import time
 
 import numpy as np
+from _smoke import SMOKE, size
 
 TARGET_RATIO = 3.0
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--lines", type=int, default=8300)
-    p.add_argument("--samples", type=int, default=5000)
+    p.add_argument("--lines", type=int, default=size(8300, 300))
+    p.add_argument("--samples", type=int, default=size(5000, 200))
     args = p.parse_args(argv)
     try:
         import sarsen.geocoding
@@ -39,8 +40,8 @@ def main(argv: list[str] | None = None) -> int:
         import sarsen.scene
         import xarray as xr
     except ImportError:
-        print("sarsen is not installed: pip install sarsen")
-        return 1
+        print("sarsen is not installed (pip install 'spot-station[bench]'): no peer")
+        return 0 if SMOKE else 1
     import numba
     from threadpoolctl import threadpool_limits
 

@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _smoke import SMOKE, size
 
 from levels.geometry.ellipsoid import WGS84
 from levels.products import read_product
@@ -36,7 +37,7 @@ from station.loader import load_scenario
 from station.spacecraft.emulator import emulate_pass, truth_model
 from station.truth.optical import Truth
 
-REPEATS = 2
+REPEATS = size(2, 1)
 TARGET_S = 10.0
 PASS = """
 name = "{name}"
@@ -45,6 +46,7 @@ seed = {seed}
 date_utc = "{date}"
 [instrument]
 mirror_step = {step}
+{sizes}
 [world]
 relief_m = 400.0
 [processing]
@@ -58,7 +60,10 @@ def make_runs(d: Path) -> list[tuple[Path, Path, str]]:
     for name, seed, date, step in PASSES:
         scenario, run = d / f"{name}.toml", d / name
         if not (run / f"{name}_s000_2A.nc").is_file():
-            scenario.write_text(PASS.format(name=name, seed=seed, date=date, step=step))
+            sizes = "n_detectors = 600\nn_lines = 600" if SMOKE else ""
+            scenario.write_text(
+                PASS.format(name=name, seed=seed, date=date, step=step, sizes=sizes)
+            )
             args = ["run", str(scenario), "--out", str(run), "-q", "--no-quicklooks"]
             with contextlib.redirect_stdout(io.StringIO()):  # the run's table is not a figure
                 assert station(args) == 0

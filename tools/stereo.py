@@ -37,8 +37,9 @@ FULL = {
 }
 
 
-def run_full(where: Path) -> Path:
-    """The full-size run in ``where/run`` (made once)."""
+def run_full(where: Path, full: bool = True) -> Path:
+    """The full-size run in ``where/run`` (made once); the shipped reduced one without
+    ``full`` (the benchmarks' smoke mode)."""
     from station.cli import main
 
     run = where / "run"
@@ -46,7 +47,7 @@ def run_full(where: Path) -> Path:
         return run
     where.mkdir(parents=True, exist_ok=True)
     text = SCENARIO.read_text()
-    for a, b in FULL.items():
+    for a, b in FULL.items() if full else ():
         if a not in text:
             raise SystemExit(f"{SCENARIO} no longer holds {a!r}: update tools/stereo.py")
         text = text.replace(a, b)
@@ -57,8 +58,9 @@ def run_full(where: Path) -> Path:
     return run
 
 
-def pair_and_truth(where: Path) -> tuple[Any, Any, tuple[float, float]]:
-    """The full run's epipolar pair, its truth and its tie points' disparity range."""
+def pair_and_truth(where: Path, full: bool = True) -> tuple[Any, Any, tuple[float, float]]:
+    """The full run's epipolar pair, its truth and its tie points' disparity range (the
+    reduced run's without ``full``)."""
     from levels.products import read_product
     from levels.readers.gcp import read_gcps
     from levels.readers.l0 import read_l0
@@ -67,7 +69,7 @@ def pair_and_truth(where: Path) -> tuple[Any, Any, tuple[float, float]]:
     from station.truth.optical import truth_for
     from station.truth.stereo import StereoTruth
 
-    run = run_full(where)
+    run = run_full(where, full)
     scns = list(load_block(where / "stereo_pair.toml").passes)
     views = [
         StereoView.of_products(
