@@ -15,7 +15,13 @@ from station.capacity.config import capacity_from_dict, load_capacity, with_valu
 from station.capacity.model import Shift, pass_pattern, simulate
 from station.capacity.stage import mmc_wait_h
 from station.capacity.stats import erlang_c, erlang_c_wait_s, mean_ci, time_weighted
-from station.capacity.study import load_service, run_study
+from station.capacity.study import (
+    MIN_REPLICATIONS_CI,
+    load_service,
+    parse_sweeps,
+    run_study,
+    study_table,
+)
 from station.cli import main
 from station.errors import ScenarioError
 
@@ -159,12 +165,54 @@ def test_a_sweep_finds_where_the_backlog_stops_growing(cuiaba, tmp_path: Path) -
 
 
 def test_replications_give_intervals_and_are_reproducible(cuiaba) -> None:
+    """Five replications give intervals, the same twice; three give means alone (Student's
+    t of two degrees of freedom is 4.3: an interval wider than what it bounds), said so."""
     scn = with_value(_short(cuiaba), "simulation.days", "30")
-    a = run_study(scn, None, replications=3)
-    b = run_study(scn, None, replications=3)
+    a = run_study(scn, None, replications=MIN_REPLICATIONS_CI)
+    b = run_study(scn, None, replications=MIN_REPLICATIONS_CI)
     assert a == b
     cor = a["runs"][0]["stages"]["cor"]["utilisation"]
     assert cor["ci95"] > 0 and math.isfinite(cor["mean"])
+    lat = a["runs"][0]["levels"]["2A"]["latency_p95_h"]
+    assert lat["ci95"] > 0 and f"{lat['mean']:.1f} ±" in study_table(a)  # latency's too
+    few = run_study(scn, None, replications=3)
+    assert math.isnan(few["runs"][0]["stages"]["cor"]["utilisation"]["ci95"])
+    table = study_table(few)
+    assert "no intervals: 5 replications or more" in table and " ±" not in table
+    assert few["runs"][0]["verdict"].startswith("no verdict: 3 replication(s)")
+
+
+def test_an_outage_not_cleared_by_the_horizon_is_censored(cuiaba) -> None:
+    """A backlog that some replications do not clear before the horizon ends: no mean over
+    the others (biased low), the censored count said."""
+    scn = _short(
+        cuiaba,
+        simulation__days="40",
+        resources__cor_workers="2",
+        outage__start_day="36",
+        outage__days="3",
+    )
+    summary = run_study(scn, None, replications=2)
+    clear = summary["runs"][0]["station"]["outage_clear_days"]
+    assert clear["censored"] >= 1 and math.isnan(clear["mean"])
+    assert "not cleared by the end of the horizon in" in study_table(summary)
+
+
+def test_two_sweeps_make_a_grid_with_a_verdict_and_a_figure_each(cuiaba, tmp_path) -> None:
+    """--sweep twice: every combination, each with its verdict and its titled queue figure;
+    a key swept twice refused (a second --sweep silently replaced the first)."""
+    scn = with_value(_short(cuiaba, outage__days="0"), "simulation.days", "30")
+    sweeps = [("resources.cor_workers", ["1", "3"]), ("resources.geo_workers", ["1", "2"])]
+    summary = run_study(scn, tmp_path, sweeps, replications=MIN_REPLICATIONS_CI)
+    assert [r["value"] for r in summary["runs"]] == ["1 × 1", "1 × 2", "3 × 1", "3 × 2"]
+    assert summary["sweep"] == "resources.cor_workers × resources.geo_workers"
+    verdicts = [r["verdict"] for r in summary["runs"]]
+    assert all(v.startswith("saturated: the COR backlog grows by") for v in verdicts[:2])
+    assert not any(v.startswith("saturated") for v in verdicts[2:]), verdicts
+    assert all((tmp_path / f"queues_{k}.png").stat().st_size > 0 for k in range(4))
+    assert "verdict: saturated" in study_table(summary)
+    with pytest.raises(ScenarioError, match="given twice"):
+        parse_sweeps(["resources.cor_workers=1,2", "resources.cor_workers=3"])
 
 
 @pytest.mark.parametrize(

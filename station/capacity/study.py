@@ -3,9 +3,15 @@ outputs (JSON, CSV, PNG): ``station capacity``.
 
 Each replication is an independent run of :func:`~station.capacity.model.simulate` (its own
 random streams); every figure is reported as the mean over the replications and the
-half-width of its 95 % Student-t interval. A sweep repeats that for each value of one key
-of the scenario (``resources.cor_workers=1,2,3,4``), with the same seeds (common random
-numbers: the differences between values are not drowned in noise).
+half-width of its 95 % Student-t interval, given only from :data:`MIN_REPLICATIONS_CI`
+replications on (fewer: the mean alone). A figure some replications cannot give (an
+outage's backlog not cleared by the end of the horizon) is censored: said so, with how
+many, and no mean (the mean of those that cleared would be biased low). A sweep repeats
+that for each value of one key of the scenario (``resources.cor_workers=1,2,3,4``), or
+for every combination of several (``--sweep`` given twice: a grid), with the same seeds
+(common random numbers: the differences between values are not drowned in noise). Each
+value ends with a verdict: stable, saturated (the COR backlog growing by so many jobs a
+day, with its interval), or undecided.
 
 Written to the output directory:
 
@@ -13,13 +19,15 @@ Written to the output directory:
   stages' and levels' figures (mean and CI);
 - ``stages.csv``, ``levels.csv``, ``station.csv``: the same, one row per value and figure;
 - ``queues.csv``: the queue length of every stage over time (first replication);
-- ``queues.png``, ``latency.png`` and, for a sweep, ``sweep.png``: backlog growth of COR,
-  its utilisation and the 2A latency against the swept value.
+- ``queues.png`` (the first value's; for a sweep also ``queues_<k>.png`` for the k-th
+  value, each titled with it), ``latency.png`` and, for a sweep, ``sweep.png``: backlog
+  growth of COR, its utilisation and the 2A latency against the swept value.
 """
 
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import math
 from pathlib import Path
@@ -34,7 +42,23 @@ from station.capacity.model import LEVELS, Replication, Service, pass_patterns, 
 from station.capacity.stats import mean_ci
 from station.errors import ScenarioError
 
-__all__ = ["load_service", "parse_sweep", "run_study", "study_table"]
+__all__ = [
+    "MIN_REPLICATIONS_CI",
+    "STABLE_GROWTH_PER_DAY",
+    "load_service",
+    "parse_sweep",
+    "parse_sweeps",
+    "run_study",
+    "study_table",
+    "verdict",
+]
+
+#: Replications from which a 95 % interval is given: with fewer, Student's t (12.7 for
+#: two, 4.3 for three) makes an interval wider than what it bounds.
+MIN_REPLICATIONS_CI = 5
+#: A COR backlog whose growth lies within ± this many jobs a day (its whole interval) is
+#: stable: the queue's slope over a year of a station that keeps up.
+STABLE_GROWTH_PER_DAY = 0.5
 
 
 def load_service(scn: CapacityScenario) -> Service:
@@ -62,11 +86,29 @@ def parse_sweep(text: str) -> tuple[str, list[str]]:
     return param.strip(), vals
 
 
+def parse_sweeps(texts: list[str]) -> list[tuple[str, list[str]]]:
+    """Several ``--sweep`` (a grid of their values); a key swept twice is refused."""
+    sweeps = [parse_sweep(t) for t in texts]
+    keys = [k for k, _ in sweeps]
+    twice = sorted({k for k in keys if keys.count(k) > 1})
+    if twice:
+        raise ScenarioError(
+            f"--sweep {twice[0]} given twice: give its values once (KEY=V1,V2,...); "
+            "several --sweep of different keys make a grid"
+        )
+    return sweeps
+
+
 def _ci(values: list[float]) -> dict[str, float]:
-    """Mean and 95 % half-width over the replications that have the figure (``n``: how
-    many; an outage's backlog may not clear within a replication)."""
+    """Mean and 95 % half-width over the replications (``n``: how many have the figure).
+    A figure not every replication has is censored (an outage's backlog not cleared by
+    the end of one): no mean, ``censored`` of them; no interval below
+    :data:`MIN_REPLICATIONS_CI` replications."""
+    n = int(np.isfinite(values).sum())
+    if n < len(values):
+        return {"mean": math.nan, "ci95": math.nan, "n": n, "censored": len(values) - n}
     m, h = mean_ci(values)
-    return {"mean": m, "ci95": h, "n": int(np.isfinite(values).sum())}
+    return {"mean": m, "ci95": h if n >= MIN_REPLICATIONS_CI else math.nan, "n": n}
 
 
 def _aggregate(reps: list[Replication]) -> dict[str, Any]:
@@ -85,7 +127,7 @@ def _aggregate(reps: list[Replication]) -> dict[str, Any]:
 def run_study(
     scn: CapacityScenario,
     out_dir: str | Path | None = None,
-    sweep: tuple[str, list[str]] | None = None,
+    sweep: tuple[str, list[str]] | list[tuple[str, list[str]]] | None = None,
     replications: int | None = None,
     plots: bool = True,
     service: Service | None = None,
@@ -96,13 +138,20 @@ def run_study(
     Every replication of every sweep value is a task of ``runner`` (:mod:`levels.tasks`:
     in this process by default, else on a Dask cluster); each draws its own random
     streams from the seed and its number, so the figures do not depend on where it ran.
-    A replication that fails is named once the others ended."""
+    A replication that fails is named once the others ended. ``sweep``: one key and its
+    values, or several (every combination of their values, in order: a grid)."""
     if out_dir is not None:
         writable_dir(out_dir)  # now, not after the simulation
     service = service or load_service(scn)
     n = replications or scn.simulation.replications
-    param, values = sweep if sweep else ("", [""])
-    variants = [(v, with_value(scn, param, v) if param else scn) for v in values]
+    sweeps = [sweep] if isinstance(sweep, tuple) else list(sweep or [])
+    param = " × ".join(k for k, _ in sweeps)
+    variants = []
+    for combo in itertools.product(*(vals for _, vals in sweeps)):
+        variant = scn
+        for (key, _), v in zip(sweeps, combo, strict=True):
+            variant = with_value(variant, key, v)
+        variants.append((" × ".join(combo), variant))
     runner = runner or InProcess()
     shared = runner.share(service)
     handles = {}
@@ -124,6 +173,8 @@ def run_study(
         {"value": value, **_aggregate([reps[k, r] for r in range(n)])}
         for k, (value, _) in enumerate(variants)
     ]
+    for run in runs:
+        run["verdict"] = verdict(run)
     first = reps[0, 0]
     summary = {
         "format": "spot-station-capacity",
@@ -139,6 +190,7 @@ def run_study(
         "warmup_days": scn.simulation.warmup_days,
         "replications": n,
         "sweep": param,
+        "sweeps": [{"key": k, "values": v} for k, v in sweeps],
         "runs": runs,
     }
     if out_dir is not None:
@@ -146,7 +198,7 @@ def run_study(
         out.mkdir(parents=True, exist_ok=True)
         _write(out, summary, first)
         if plots:
-            _plots(out, summary, first)
+            _plots(out, summary, [reps[k, 0] for k in range(len(variants))])
     return summary
 
 
@@ -188,22 +240,28 @@ def _savefig(fig: Any, path: Path) -> None:
         fig.savefig(tmp, dpi=110, format="png")
 
 
-def _plots(out: Path, summary: dict[str, Any], first: Replication | None) -> None:
+def _plots(out: Path, summary: dict[str, Any], firsts: list[Replication]) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     name = summary["scenario"]["name"]
-    if first is not None:
+    sweep = summary["sweep"]
+    for k, first in enumerate(firsts):
+        value = summary["runs"][k]["value"]
         fig, ax = plt.subplots(figsize=(9, 4))
         for stage, (t, q) in first.series.items():
             if max(q, default=0) > 0:
                 ax.step(np.asarray(t) / 86400.0, q, where="post", label=stage, lw=0.8)
-        ax.set(xlabel="day", ylabel="jobs waiting", title=f"{name}: queues (replication 0)")
+        title = f"{name}: queues (replication 0)" + (f", {sweep} = {value}" if sweep else "")
+        ax.set(xlabel="day", ylabel="jobs waiting", title=title)
         ax.legend(loc="upper left", fontsize=8)
         fig.tight_layout()
-        _savefig(fig, out / "queues.png")
+        if k == 0:
+            _savefig(fig, out / "queues.png")
+        if sweep:
+            _savefig(fig, out / f"queues_{k}.png")
         plt.close(fig)
     run = summary["runs"][0]
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -269,12 +327,43 @@ def _sweep_plot(out: Path, summary: dict[str, Any], plt: Any) -> None:
     plt.close(fig)
 
 
+def verdict(run: dict[str, Any]) -> str:
+    """What a run's figures say of the station, in one line: saturated (the COR backlog
+    grows, its whole interval above zero: by how much a day), stable (the whole interval
+    within ± :data:`STABLE_GROWTH_PER_DAY` jobs a day), or undecided; none without an
+    interval (fewer than :data:`MIN_REPLICATIONS_CI` replications)."""
+    g = run["station"]["cor_backlog_growth_per_day"]
+    busy = 100.0 * run["stages"]["cor"]["utilisation"]["mean"]
+    m, h = g["mean"], g["ci95"]
+    if not math.isfinite(h):
+        return (
+            f"no verdict: {g['n']} replication(s), intervals from {MIN_REPLICATIONS_CI} "
+            f"(COR backlog growth {m:+.2f} jobs/day, COR {busy:.0f} % busy)"
+        )
+    if m - h > 0:
+        return (
+            f"saturated: the COR backlog grows by {m:.1f} ± {h:.1f} jobs a day without bound "
+            f"(COR {busy:.0f} % busy)"
+        )
+    if abs(m) + h <= STABLE_GROWTH_PER_DAY:
+        return f"stable: COR backlog growth {m:+.2f} ± {h:.2f} jobs a day (COR {busy:.0f} % busy)"
+    return (
+        f"undecided: COR backlog growth {m:+.2f} ± {h:.2f} jobs a day (COR {busy:.0f} % "
+        "busy); more days or replications"
+    )
+
+
 def study_table(summary: dict[str, Any]) -> str:
     """The human summary of a study: per sweep value, the station, its stages, its levels."""
+    n = summary["replications"]
     lines = [
         f"{summary['scenario']['name']}: {summary['simulated_days']:g} days after "
-        f"{summary['warmup_days']:g} of warm-up, {summary['replications']} replication(s);"
-        " mean ± 95 % CI"
+        f"{summary['warmup_days']:g} of warm-up, {n} replication(s); mean"
+        + (
+            " ± 95 % CI"
+            if n >= MIN_REPLICATIONS_CI
+            else f" (no intervals: {MIN_REPLICATIONS_CI} replications or more give them)"
+        )
     ]
 
     def f(v: dict[str, float], spec: str = ".2f") -> str:
@@ -296,11 +385,13 @@ def study_table(summary: dict[str, Any]) -> str:
         )
         if "outage_clear_days" in st:
             clear = st["outage_clear_days"]
-            lines.append(
-                f"outage: backlog peak {f(st['outage_backlog_peak'], '.0f')} jobs; "
-                f"cleared in {clear['n']} of {summary['replications']} "
-                f"replication(s), {f(clear, '.1f')} days after it ended"
+            when = (
+                f"cleared {f(clear, '.1f')} days after it ended"
+                if not clear.get("censored")
+                else f"not cleared by the end of the horizon in {clear['censored']} of {n} "
+                "replication(s) (censored: no mean; simulate more days)"
             )
+            lines.append(f"outage: backlog peak {f(st['outage_backlog_peak'], '.0f')} jobs; {when}")
         lines.append(
             f"{'stage':>13} {'units':>5} {'busy %':>12} {'down %':>6} "
             f"{'queue mean':>14} {'p95':>5} {'max':>5} {'wait h':>14} {'L/λW':>6}"
@@ -316,14 +407,14 @@ def study_table(summary: dict[str, Any]) -> str:
                 f"{f(s['wait_mean_h']):>14} {little:6.3f}"
             )
         lines.append(
-            f"{'level':>13} {'products':>8} {'p50 h':>8} {'p90 h':>8} {'p95 h':>8} "
-            f"{'p99 h':>8} {'within service level':>21}"
+            f"{'level':>13} {'products':>8} {'p50 h':>12} {'p90 h':>12} {'p95 h':>12} "
+            f"{'p99 h':>12} {'within service level':>21}"
         )
         for lv, v in run["levels"].items():
             lines.append(
-                f"{lv:>13} {v['products']['mean']:8.0f} {v['latency_p50_h']['mean']:8.1f} "
-                f"{v['latency_p90_h']['mean']:8.1f} {v['latency_p95_h']['mean']:8.1f} "
-                f"{v['latency_p99_h']['mean']:8.1f} "
-                f"{f({k: 100 * x for k, x in v['within_service_level'].items()}, '.1f'):>19} %"
+                f"{lv:>13} {v['products']['mean']:8.0f} "
+                + " ".join(f"{f(v[f'latency_p{q}_h'], '.1f'):>12}" for q in (50, 90, 95, 99))
+                + f" {f({k: 100 * x for k, x in v['within_service_level'].items()}, '.1f'):>19} %"
             )
+        lines.append(f"verdict: {run['verdict']}")
     return "\n".join(lines)

@@ -23,7 +23,12 @@ def register(sub: Any) -> None:
         "times on this machine.",
     )
     cap.add_argument("scenario", help="a capacity scenario (.toml), or 'calibrate'")
-    cap.add_argument("--sweep", help="SECTION.KEY=V1,V2,... (e.g. resources.cor_workers=1,2,3,4)")
+    cap.add_argument(
+        "--sweep",
+        action="append",
+        help="SECTION.KEY=V1,V2,... (e.g. resources.cor_workers=1,2,3,4); given for several "
+        "keys, every combination of their values (a grid)",
+    )
     cap.add_argument("--replications", type=int, help="replications (default: the scenario's)")
     add_out(
         cap,
@@ -58,10 +63,10 @@ def _capacity(args: argparse.Namespace) -> int:
         )
         return 0
     from station.capacity.config import load_capacity
-    from station.capacity.study import parse_sweep, run_study, study_table
+    from station.capacity.study import parse_sweeps, run_study, study_table
 
     scn = load_capacity(args.scenario)
-    sweep = parse_sweep(args.sweep) if args.sweep else None
+    sweep = parse_sweeps(args.sweep) if args.sweep else None
     if args.replications is not None and args.replications < 1:
         raise StationError(f"--replications {args.replications}: expected at least 1")
     out = Path(args.out) if args.out else Path("runs") / scn.name
@@ -70,7 +75,10 @@ def _capacity(args: argparse.Namespace) -> int:
             scn, out, sweep, args.replications, plots=not args.no_plots, runner=runner
         )
     files = "summary.json, stages.csv, levels.csv, station.csv, queues.csv" + (
-        "" if args.no_plots else ", queues.png, latency.png" + (", sweep.png" if sweep else "")
+        ""
+        if args.no_plots
+        else ", queues.png, latency.png"
+        + (", queues_<k>.png (the k-th value's), sweep.png" if sweep else "")
     )
     emit(args, summary, lambda s: f"{study_table(s)}\nin {out}/: {files}")
     return 0
