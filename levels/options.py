@@ -256,6 +256,12 @@ class ProcessingOptions:
     interpolation_1b: Interpolation1B = option(
         Interpolation1B.CUBIC, "interpolation_1b", "1B column interpolation"
     )
+    lines_1b: Interpolation1B = option(
+        Interpolation1B.CUBIC,
+        "lines_1b",
+        "1B line interpolation: cubic (the rows on the continuous line its RPCs describe), "
+        "or nearest (INPE's: each row a whole raw line, up to half a line off its RPCs)",
+    )
     resampling_2a: Resampling = option(Resampling.CUBIC, "resampling_2a", "2A resampling")
     inverse_2a: InverseMethod = option(InverseMethod.NEAREST4, "inverse_2a", "2A inverse mapping")
     grid_rows: GridRows = option(

@@ -160,7 +160,7 @@ def test_1b_pixel_is_valid_when_every_raw_pixel_it_reads_is(geometry, interpolat
     rng = np.random.default_rng(2)
     img = (rng.random((400, 400)) * 200).astype(np.float32)
     valid = rng.random((400, 400)) > 0.02
-    out, ok = resample_1b(img, valid, g1, interpolation)
+    out, ok = resample_1b(img, valid, g1, interpolation, lines="nearest")
     i, j = np.mgrid[0 : g1.n_rows, 0 : g1.n_cols]
     line, col = g1.raw_of(i.ravel(), j.ravel())
     li = np.floor(line + 0.5).astype(int)
@@ -174,8 +174,27 @@ def test_1b_pixel_is_valid_when_every_raw_pixel_it_reads_is(geometry, interpolat
     expected = (inside & reads_valid).reshape(ok.shape)
     assert np.array_equal(ok, expected)
     assert 0.3 < ok.mean() < 0.95 and not out[~ok].any()
-    again = resample_1b(with_nan(img, valid), None, g1, interpolation)
+    again = resample_1b(with_nan(img, valid), None, g1, interpolation, lines="nearest")
     assert np.array_equal(again[0], out) and np.array_equal(again[1], ok)
+
+
+def test_1b_along_the_track_too_sits_on_the_continuous_line(geometry) -> None:
+    """``lines = "cubic"`` (the default): each row Keys' four lines about ``f(I)``, not the
+    nearest one; a ramp along the track is reproduced on the continuous line (within a
+    count's rounding), where INPE's nearest line is off by up to half a line's step."""
+    g1, _g2 = geometry
+    img = _ramp(400, 400)
+    valid = np.ones(img.shape, bool)
+    out, ok = resample_1b(img, valid, g1, "cubic")
+    i, j = np.nonzero(ok)
+    line, col = g1.raw_of(i, j)
+    inner = (col >= 1.0) & (col < 398.0) & (line >= 1.0) & (line < 398.0)
+    on_line = 20.0 + 0.3 * line + 0.2 * col
+    assert np.abs(out[i, j] - on_line)[inner].max() <= 0.5 + FLOAT32_COUNTS
+    nearest, _ = resample_1b(img, valid, g1, "cubic", lines="nearest")
+    assert np.abs(nearest[i, j] - on_line)[inner].max() > 0.5 + 0.1  # the half line's step
+    tile, tok = resample_1b(img, valid, g1, "cubic", slice(50, 150), slice(100, 300))
+    assert np.array_equal(tile, out[50:150, 100:300]) and np.array_equal(tok, ok[50:150, 100:300])
 
 
 @pytest.mark.parametrize("interpolation", ["nearest", "cubic"])
@@ -183,7 +202,7 @@ def test_1b_kernel(geometry, interpolation) -> None:
     g1, _g2 = geometry
     img = _ramp(400, 400)
     valid = np.ones(img.shape, bool)
-    out, ok = resample_1b(img, valid, g1, interpolation)
+    out, ok = resample_1b(img, valid, g1, interpolation, lines="nearest")
     i, j = np.nonzero(ok)
     line, col = g1.raw_of(i, j)
     expected = (
@@ -195,7 +214,9 @@ def test_1b_kernel(geometry, interpolation) -> None:
     inner = (col >= 1.0) & (col < 398.0) if interpolation == "cubic" else np.ones(col.size, bool)
     assert np.abs(out[i, j] - expected)[inner].max() <= 0.5 + FLOAT32_COUNTS
     assert np.abs(out[i, j] - expected).max() <= 0.5 + 0.2 + FLOAT32_COUNTS
-    tile, tok = resample_1b(img, valid, g1, interpolation, slice(50, 150), slice(100, 300))
+    tile, tok = resample_1b(
+        img, valid, g1, interpolation, slice(50, 150), slice(100, 300), lines="nearest"
+    )
     assert np.array_equal(tile, out[50:150, 100:300]) and np.array_equal(tok, ok[50:150, 100:300])
     # left skew: h(I) black, invalid pixels start each line, up to where g meets column −½
     rows = np.arange(g1.n_rows, dtype=float)

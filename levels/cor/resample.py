@@ -88,11 +88,30 @@ def _byte(v: float) -> tuple[np.uint8, bool]:
     return np.uint8(np.int32(x + 0.5)), good  # x + 0.5 ≥ 0: truncation is floor
 
 
+@nb.njit(cache=True, inline="always", fastmath=_FAST)
+def _on_line(flat, base, c, n_cols, cubic):
+    """Raw line ``base / n_cols`` at column ``c`` (inside the line): Keys or nearest, the
+    edge columns replicated."""
+    if cubic:
+        cf = np.floor(c)
+        w0, w1, w2, w3 = _keys(c - cf)
+        ic = int(cf)
+        acc = 0.0
+        acc += w0 * flat[base + min(max(ic - 1, 0), n_cols - 1)]
+        acc += w1 * flat[base + min(max(ic, 0), n_cols - 1)]
+        acc += w2 * flat[base + min(max(ic + 1, 0), n_cols - 1)]
+        acc += w3 * flat[base + min(max(ic + 2, 0), n_cols - 1)]
+        return acc
+    return flat[base + min(max(int(np.floor(c + 0.5)), 0), n_cols - 1)]
+
+
 @nb.njit(cache=True, nogil=True, fastmath=_FAST)
-def _kernel_1b(lo, hi, img, f, g, h, row0, col0, cubic, out, ok):
+def _kernel_1b(lo, hi, img, f, g, h, row0, col0, cubic, cubic_lines, out, ok):
     """Rows ``lo … hi − 1`` of a 1B image: ``img`` float32 with NaN where not valid (a pixel
-    is valid if every raw pixel it reads is). A row reads one raw line, ``f(I)`` rounded,
-    at columns ``g(J − h(I))``: those come first, in one loop the compiler vectorises;
+    is valid if every raw pixel it reads is). A row reads the raw line ``f(I)`` at columns
+    ``g(J − h(I))``: ``cubic_lines``, Keys' cubic convolution of the four lines about it
+    (the edge lines replicated); else the nearest line, ``f(I)`` rounded (INPE's: lines
+    repeated or suppressed). The columns come first, in one loop the compiler vectorises;
     then each pixel's taps (edge columns replicated) and a branch-free store."""
     n_lines, n_cols = img.shape
     n_out = out.shape[1]
@@ -100,8 +119,9 @@ def _kernel_1b(lo, hi, img, f, g, h, row0, col0, cubic, out, ok):
     cs = np.empty(n_out)
     for r in range(lo, hi):
         i = float(row0 + r)
-        line = int(np.floor(_poly(f, i) + 0.5))
-        if line < 0 or line >= n_lines:
+        fl = _poly(f, i)
+        line = int(np.floor(fl + 0.5))
+        if fl < -0.5 or fl > n_lines - 0.5 or line < 0 or line >= n_lines:
             for k in range(n_out):
                 out[r, k] = 0
                 ok[r, k] = False
@@ -109,22 +129,25 @@ def _kernel_1b(lo, hi, img, f, g, h, row0, col0, cubic, out, ok):
         skew = _poly(h, i)
         for k in range(n_out):
             cs[k] = _poly(g, float(col0 + k) - skew)
+        lf = np.floor(fl)
+        v0, v1, v2, v3 = _keys(fl - lf)
+        il = int(lf)
+        b0 = min(max(il - 1, 0), n_lines - 1) * n_cols
+        b1 = min(max(il, 0), n_lines - 1) * n_cols
+        b2 = min(max(il + 1, 0), n_lines - 1) * n_cols
+        b3 = min(max(il + 2, 0), n_lines - 1) * n_cols
         base = line * n_cols
         for k in range(n_out):
             c = cs[k]
             inside = c >= -0.5 and c <= n_cols - 0.5
-            if cubic:
-                cf = np.floor(c)
-                w0, w1, w2, w3 = _keys(c - cf)
-                ic = int(cf) if inside else 0
-                acc = 0.0
-                acc += w0 * flat[base + min(max(ic - 1, 0), n_cols - 1)]
-                acc += w1 * flat[base + min(max(ic, 0), n_cols - 1)]
-                acc += w2 * flat[base + min(max(ic + 1, 0), n_cols - 1)]
-                acc += w3 * flat[base + min(max(ic + 2, 0), n_cols - 1)]
+            cc = c if inside else 0.0
+            if cubic_lines:
+                acc = v0 * _on_line(flat, b0, cc, n_cols, cubic)
+                acc += v1 * _on_line(flat, b1, cc, n_cols, cubic)
+                acc += v2 * _on_line(flat, b2, cc, n_cols, cubic)
+                acc += v3 * _on_line(flat, b3, cc, n_cols, cubic)
             else:
-                ci = min(max(int(np.floor(c + 0.5)), 0), n_cols - 1) if inside else 0
-                acc = flat[base + ci]
+                acc = _on_line(flat, base, cc, n_cols, cubic)
             out[r, k], ok[r, k] = _byte(acc if inside else np.nan)
 
 
@@ -135,14 +158,19 @@ def resample_1b(
     interpolation: str = "cubic",
     rows: slice | None = None,
     cols: slice | None = None,
+    lines: str = "cubic",
 ) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
-    """Level 1B image (or a tile of it: ``rows``, ``cols`` of the output) and its mask.
+    """Level 1B image (or a tile of it: ``rows``, ``cols`` of the output) and its mask;
+    ``interpolation`` along the rows (the columns), ``lines`` across them (the nearest
+    line: INPE's 1B, paper ``004_…`` §3.2; cubic: the rows on the continuous line the
+    1B's geometry and RPCs describe).
 
     ``valid=None`` means ``image`` already holds NaN where not valid (:func:`with_nan`), as
     for :func:`resample_2a`: the scene's 1B and map levels read one such image.
     """
-    if interpolation not in INTERPOLATIONS_1B:
-        raise ValueError(f"1B interpolation {interpolation!r}: expected one of {INTERPOLATIONS_1B}")
+    for what in (interpolation, lines):
+        if what not in INTERPOLATIONS_1B:
+            raise ValueError(f"1B interpolation {what!r}: expected one of {INTERPOLATIONS_1B}")
     r0, r1, _ = (rows or slice(0, geom.n_rows)).indices(geom.n_rows)
     c0, c1, _ = (cols or slice(0, geom.n_cols)).indices(geom.n_cols)
     out = np.empty((r1 - r0, c1 - c0), dtype=np.uint8)
@@ -157,6 +185,7 @@ def resample_1b(
         r0,
         c0,
         interpolation == "cubic",
+        lines == "cubic",
         out,
         ok,
     )

@@ -29,7 +29,8 @@ def _prepare(work: SceneWork) -> None:
 
 def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
     g = geometry_1b(work)[band]
-    return BandImage(*resample_1b(px.values, None, g, work.options.interpolation_1b))
+    opts = work.options
+    return BandImage(*resample_1b(px.values, None, g, opts.interpolation_1b, lines=opts.lines_1b))
 
 
 def _quality(work: SceneWork) -> dict[str, Any]:
