@@ -2,9 +2,14 @@
 
     python tools/figures.py                 # every section but the full-size ones (~3 min)
     python tools/figures.py --full          # also the full P scene's downlink figures
-    python tools/figures.py --bench         # also the speed figures (benchmarks/, ~5 min)
+    python tools/figures.py --bench         # also every benchmark and study (~1 hour)
     python tools/figures.py --section levels
     python tools/figures.py --bench --write docs   # docs/accuracy.md and docs/performance.md
+
+``--bench`` runs every benchmark (``benchmarks/``: speed, each beside its peer) and every
+study behind a README figure (``tools/level2.py``, ``level3.py``, ``blocks.py``,
+``spot_benchmark.py``, ``sar.py``, ``stereo.py``: accuracy against the truth), their
+printed lines into the pages.
 
 Each row gives the figure, what this run measured and what the README says; a figure the
 run cannot measure says which tool does (the fuzzer's 130 000 streams are a long campaign:
@@ -534,6 +539,38 @@ def bench() -> Iterator[Row]:
         yield (script.name, f"({time.perf_counter() - t0:.0f} s)", "")
 
 
+#: The studies behind the README's accuracy figures, each its own tool (``tools/``), run
+#: as a user runs it: level 2, level 3, a block, the DIMAP pack, SAR, the stereo pair.
+STUDIES = (
+    ("level2.py", []),
+    ("level3.py", []),
+    ("blocks.py", []),
+    ("spot_benchmark.py", []),
+    ("sar.py", []),
+    ("stereo.py", []),
+)
+
+
+def studies() -> Iterator[Row]:
+    """Every study tool's printed figures (tens of minutes: the stereo pair at full size is
+    ten), each line a row."""
+    for script, args in STUDIES:
+        t0 = time.perf_counter()
+        run = subprocess.run(
+            [sys.executable, str(ROOT / "tools" / script), *args],
+            capture_output=True,
+            text=True,
+            check=False,
+            cwd=ROOT,
+        )
+        for ln in (ln for ln in run.stdout.strip().splitlines() if ln.strip()):
+            yield (script, ln.strip().replace("|", "/"), "README: headline figures")
+        if run.returncode != 0:
+            last = (run.stderr.strip().splitlines() or [""])[-1]
+            yield (script, f"FAILED ({run.returncode}): {last}", "")
+        yield (script, f"({time.perf_counter() - t0:.0f} s)", "")
+
+
 def _header() -> str:
     def git(*args: str) -> str:
         r = subprocess.run(["git", *args], capture_output=True, text=True, cwd=ROOT, check=False)
@@ -561,7 +598,12 @@ def main(argv: list[str] | None = None) -> int:
         help="only these sections (repeatable)",
     )
     p.add_argument("--full", action="store_true", help="full-size receiver figures too")
-    p.add_argument("--bench", action="store_true", help="run the benchmarks too")
+    p.add_argument(
+        "--bench",
+        action="store_true",
+        help="run the benchmarks and the studies too (tools/level2.py … stereo.py: every "
+        "README figure; about an hour)",
+    )
     p.add_argument(
         "--write",
         metavar="DIR",
@@ -592,6 +634,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  ({time.perf_counter() - t0:.0f} s)")
     speeds: list[Row] = []
     if args.bench:
+        print("\n## studies (tools/)")
+        measured["studies"] = []
+        for row in studies():
+            measured["studies"].append(row)
+            print(f"- {row[0]}: {row[1]}", flush=True)
         print("\n## speed (benchmarks/)")
         for row in bench():
             speeds.append(row)
@@ -610,6 +657,7 @@ _TITLES = {
     "receiver": "The station's receiver",
     "levels": "The processing centre's levels",
     "capacity": "The capacity model",
+    "studies": "The studies behind the README's figures (each tool's own lines)",
     "benchmarks": "Each benchmark's figures and its peer, measured in the same run",
 }
 
