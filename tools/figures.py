@@ -431,7 +431,7 @@ def capacity() -> Iterator[Row]:
     from station.capacity.model import simulate
     from station.capacity.stage import mmc_wait_h
     from station.capacity.stats import erlang_c_wait_s, mean_ci
-    from station.capacity.study import load_service, run_study
+    from station.capacity.study import MIN_REPLICATIONS_CI, load_service, run_study
 
     out = []
     for c, rho in ((1, 0.7), (3, 0.85)):
@@ -460,15 +460,16 @@ def capacity() -> Iterator[Row]:
         f"{100 * worst[0]:.2f} % ({worst[1]})",
         "within 0.04 % (COR)",
     )
+    n = MIN_REPLICATIONS_CI  # intervals from there on
     summary = run_study(
-        cuiaba, None, ("resources.cor_workers", ["1", "2", "3", "4"]), 3, plots=False
+        cuiaba, None, ("resources.cor_workers", ["1", "2", "3", "4"]), n, plots=False
     )
     growth = [r["station"]["cor_backlog_growth_per_day"] for r in summary["runs"]]
     busy = [r["stages"]["cor"]["utilisation"]["mean"] for r in summary["runs"]]
     yield (
-        "COR workers 1–4 (3 replications): backlog growth, jobs/day",
+        f"COR workers 1–4 ({n} replications): backlog growth, jobs/day",
         ", ".join(f"{g['mean']:.2f} ± {g['ci95']:.2f}" for g in growth),
-        "11.8 ± 0.9, 0.5 ± 0.7, 0.00 ± 0.02, 0.00 ± 0.01",
+        "about 11.8, 0.5 (saturated), 0.00, 0.00",
     )
     yield (
         "COR workers 1–4: COR busy",
@@ -477,11 +478,12 @@ def capacity() -> Iterator[Row]:
     )
     clear = [r["station"].get("outage_clear_days", {}) for r in summary["runs"]]
     yield (
-        "COR workers 1–4: after the 3-day outage, replications cleared; days after",
+        "COR workers 1–4: after the 3-day outage, replications cleared; days after (a mean "
+        "only where every replication cleared: else censored)",
         ", ".join(f"{c.get('n', 0)}" for c in clear)
-        + " of 3; "
-        + ", ".join("—" if not c.get("n") else f"{c['mean']:.1f}" for c in clear),
-        "0, 1, 3, 3 of 3; —, 188, 5.4, 3.4",
+        + f" of {n}; "
+        + ", ".join("censored" if c.get("censored") else f"{c['mean']:.1f}" for c in clear),
+        "about 0, 1–2, 5, 5 of 5; censored, censored, 5.4, 3.4",
     )
     p95 = [r["levels"]["2A"]["latency_p95_h"] for r in summary["runs"]]
     yield (
@@ -672,22 +674,45 @@ _TITLES = {
 
 
 def _write_doc(path: Path, title: str, header: str, sections: dict[str, list[Row]]) -> None:
-    """A markdown page of the figures measured: one table per section."""
-    lines = [
-        f"# {title}",
-        "",
-        "Written by `python tools/figures.py --bench --write docs`; do not edit by hand.",
-        f"Measured at {header}. `docs/levels.md` says how each figure is made.",
-    ]
+    """A markdown page of the figures measured: one table per section, each saying when it
+    was measured. The page's other sections (``--section`` measured only some) are kept
+    as they were."""
+    kept = _sections_of(path) if path.is_file() else {}
+    blocks: dict[str, list[str]] = {}
     for name, rows in sections.items():
-        lines += ["", f"## {_TITLES.get(name, name)}", ""]
+        lines = ["", f"## {_TITLES.get(name, name)}", "", f"Measured at {header}.", ""]
         if name == "benchmarks":
             lines += ["| benchmark | printed |", "|---|---|"]
             lines += [f"| `{f}` | {m.replace('|', '/')} |" for f, m, _ in rows]
         else:
             lines += ["| figure | measured | expected |", "|---|---|---|"]
             lines += [f"| {f} | {m} | {e} |" for f, m, e in rows]
-    path.write_text("\n".join(lines) + "\n")
+        blocks[_TITLES.get(name, name)] = lines
+    order = [t for t in kept if t not in blocks] + list(blocks)
+    out = [
+        f"# {title}",
+        "",
+        "Written by `python tools/figures.py --bench --write docs`; do not edit by hand.",
+        "`docs/levels.md` says how each figure is made.",
+    ]
+    for t in order:
+        out += blocks.get(t) or kept[t]
+    path.write_text("\n".join(out) + "\n")
+
+
+def _sections_of(path: Path) -> dict[str, list[str]]:
+    """The ``## `` sections of a page this tool wrote, by title, each with its lines."""
+    found: dict[str, list[str]] = {}
+    current: list[str] | None = None
+    for line in path.read_text().splitlines():
+        if line.startswith("## "):
+            current = found.setdefault(line[3:], ["", line])
+        elif current is not None:
+            current.append(line)
+    for lines in found.values():
+        while lines and not lines[-1].strip():
+            lines.pop()
+    return found
 
 
 if __name__ == "__main__":
