@@ -605,7 +605,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--section",
         action="append",
-        choices=["geometry", "emulator", "receiver", "levels", "capacity"],
+        choices=["geometry", "emulator", "receiver", "levels", "capacity", "studies"],
         help="only these sections (repeatable)",
     )
     p.add_argument("--full", action="store_true", help="full-size receiver figures too")
@@ -627,8 +627,9 @@ def main(argv: list[str] | None = None) -> int:
         "receiver": lambda: receiver(args.full),
         "levels": levels_figures,
         "capacity": capacity,
+        "studies": studies,
     }
-    chosen = args.section or list(sections)
+    chosen = args.section or [n for n in sections if n != "studies" or args.bench]
     header = _header()
     print(header)
     measured: dict[str, list[Row]] = {}
@@ -645,11 +646,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  ({time.perf_counter() - t0:.0f} s)")
     speeds: list[Row] = []
     if args.bench:
-        print("\n## studies (tools/)")
-        measured["studies"] = []
-        for row in studies():
-            measured["studies"].append(row)
-            print(f"- {row[0]}: {row[1]}", flush=True)
         print("\n## speed (benchmarks/)")
         for row in bench():
             speeds.append(row)

@@ -95,7 +95,7 @@ def run_case(case: str, seed: int) -> dict[str, Any]:
         "ground_2a_same_points": c3["ground_2a"],
         "dem_error": c3["dem_error"],
         "anchor": geom.anchor_error_px,
-        "anchor_step": geom.grid.inverse_step[0],
+        "anchor_step": geom.template.inverse_step[0],
         "relief_m": geom.terrain_range_m,
         "direct": direct,
         "geometry_s": t_geo,
