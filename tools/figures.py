@@ -700,9 +700,14 @@ def _sections_of(path: Path) -> dict[str, list[str]]:
     """The ``## `` sections of a page this tool wrote, by title, each with its lines."""
     found: dict[str, list[str]] = {}
     current: list[str] | None = None
+    page_measured = ""  # a page written before the sections said when: its own line
     for line in path.read_text().splitlines():
+        if line.startswith("Measured at ") and current is None:
+            page_measured = line.split(". `docs/")[0].rstrip(".") + "."
         if line.startswith("## "):
             current = found.setdefault(line[3:], ["", line])
+            if page_measured:
+                current += ["", page_measured]
         elif current is not None:
             current.append(line)
     for lines in found.values():
