@@ -30,7 +30,7 @@ from levels.errors import ProductError
 from levels.files import atomic_path
 from levels.geo.rpc import Rpc
 from levels.kinds import Export
-from levels.products import Product, band_spec
+from levels.products import Product, band_spec, with_fill
 from levels.registry import kind_of
 from levels.spot import band_description
 
@@ -109,8 +109,7 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
     valid = np.logical_and.reduce([product.bands[n].valid for n in names])
     images = [product.bands[n].image for n in names]
     if fill is not None:  # as the product writes it: the fill where not valid only
-        f = np.asarray(fill, dtype=images[0].dtype)
-        images = [np.where(valid, np.where(im == f, f + 1, im), f) for im in images]
+        images = [with_fill(im, valid, int(fill)) for im in images]
     rows, cols = images[0].shape
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)

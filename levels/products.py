@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import h5py
+import numba as nb
 import numpy as np
 import pyproj
 from numpy.typing import NDArray
@@ -57,6 +58,7 @@ __all__ = [
     "band_spec",
     "product_name",
     "read_product",
+    "with_fill",
     "write_product",
 ]
 
@@ -277,6 +279,27 @@ def cf_global_attrs(product: Product) -> dict[str, str]:
         "history": f"{prov.get('software', 'levels')}: {what} made from "
         f"{prov.get('inputs', 'its ' + origin)}",
     }
+
+
+@nb.njit(cache=True, nogil=True)
+def _kernel_fill(lo, hi, image, valid, fill, out):
+    """Rows ``lo … hi − 1``: the count where valid (the fill's own value one above), the
+    fill where not."""
+    for r in range(lo, hi):
+        for c in range(image.shape[1]):
+            v = image[r, c]
+            out[r, c] = (v if v != fill else fill + 1) if valid[r, c] else fill
+
+
+def with_fill(image: NDArray[Any], valid: NDArray[np.bool_], fill: int) -> NDArray[Any]:
+    """A counts band as written (``_FillValue = fill``): ``fill`` where not valid, and a
+    valid pixel of that count one above (1 DN), so that viewers mask exactly the pixels
+    that are not valid. On every core (a full P band in a few hundredths of a second)."""
+    from levels.threads import over_blocks
+
+    out = np.empty_like(image)
+    over_blocks(_kernel_fill, image.shape[0], image, valid, image.dtype.type(fill), out, grain=64)
+    return out
 
 
 def _unit(product: Product) -> Unit | None:

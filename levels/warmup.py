@@ -48,6 +48,7 @@ WAIT_S = 120.0
 
 def _kernels() -> list:
     """The dispatchers of the kernels a default run calls (levels 1A, 1B, 2A)."""
+    from levels import products
     from levels.cor import radiometry, resample
     from levels.geo import inverse_grid
     from levels.hdf5 import fletcher32
@@ -61,6 +62,7 @@ def _kernels() -> list:
         resample._kernel_nan,
         inverse_grid.invert_nodes,
         fletcher32,
+        products._kernel_fill,
     ]
 
 
