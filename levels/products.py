@@ -48,6 +48,7 @@ from levels.hdf5 import (
     new_hdf5,
 )
 from levels.kinds import BandSpec, Unit, counts_band
+from levels.threads import over_blocks
 
 __all__ = [
     "PRODUCT_FORMAT",
@@ -295,8 +296,6 @@ def with_fill(image: NDArray[Any], valid: NDArray[np.bool_], fill: int) -> NDArr
     """A counts band as written (``_FillValue = fill``): ``fill`` where not valid, and a
     valid pixel of that count one above (1 DN), so that viewers mask exactly the pixels
     that are not valid. On every core (a full P band in a few hundredths of a second)."""
-    from levels.threads import over_blocks
-
     out = np.empty_like(image)
     over_blocks(_kernel_fill, image.shape[0], image, valid, image.dtype.type(fill), out, grain=64)
     return out

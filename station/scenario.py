@@ -28,6 +28,7 @@ import numpy as np
 from levels.options import ProcessingOptions, build_section, describe_section, option
 from levels.spot import MODES
 from station.errors import ScenarioError
+from station.telemetry.format import CNES_EPOCH
 
 __all__ = [
     "ERRORS_OFF",
@@ -140,8 +141,6 @@ class PassConfig:
     )
 
     def __post_init__(self) -> None:
-        from station.telemetry.format import CNES_EPOCH
-
         try:
             day = np.datetime64(self.date_utc, "D")
         except ValueError:

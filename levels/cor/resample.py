@@ -121,7 +121,7 @@ def _kernel_1b(lo, hi, img, f, g, h, row0, col0, cubic, cubic_lines, out, ok):
         i = float(row0 + r)
         fl = _poly(f, i)
         line = int(np.floor(fl + 0.5))
-        if fl < -0.5 or fl > n_lines - 0.5 or line < 0 or line >= n_lines:
+        if line < 0 or line >= n_lines:
             for k in range(n_out):
                 out[r, k] = 0
                 ok[r, k] = False
