@@ -214,10 +214,8 @@ def _map_furniture(ax: Any, grid: MapGrid, extent_km: tuple[float, ...]) -> None
 
 def write_quicklook(product: Product, path: str | Path, max_side: int = 1024) -> Path:
     """Write the quicklook PNG of ``product`` (images loaded) to ``path``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     known = kind_of(product)
     browse = known.browse if known is not None else Browse()
@@ -226,7 +224,9 @@ def write_quicklook(product: Product, path: str | Path, max_side: int = 1024) ->
     grid = product.map_grid
     dpi, head = 100, 60
     side = max(width, 640) + (150 if grid is not None or b.vmin is not None else 0)
-    fig = plt.figure(figsize=(side / dpi, (max(height, 400) + head + 60) / dpi), dpi=dpi)
+    # a Figure of its own, not pyplot's: no global state, so threads may draw side by side
+    fig = Figure(figsize=(side / dpi, (max(height, 400) + head + 60) / dpi), dpi=dpi)
+    FigureCanvasAgg(fig)
     if grid is not None:
         gt = grid.geotransform
         # the browse pixels' extent: k product pixels each (the edge rows a block left out
@@ -263,15 +263,10 @@ def write_quicklook(product: Product, path: str | Path, max_side: int = 1024) ->
     fig.text(0.01, 0.97, title, fontsize=9, va="top")
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        with atomic_path(out) as tmp:  # a kill never leaves a truncated PNG
-            # Pillow's encoder at zlib level 3: a third faster than matplotlib's own
-            # writer and a fifth smaller (0.25 s and 0.6 MB for a 1000² quicklook)
-            fig.savefig(
-                tmp, dpi=dpi, facecolor="white", format="png", pil_kwargs={"compress_level": 3}
-            )
-    finally:
-        plt.close(fig)
+    with atomic_path(out) as tmp:  # a kill never leaves a truncated PNG
+        # Pillow's encoder at zlib level 3: a third faster than matplotlib's own
+        # writer and a fifth smaller (0.25 s and 0.6 MB for a 1000² quicklook)
+        fig.savefig(tmp, dpi=dpi, facecolor="white", format="png", pil_kwargs={"compress_level": 3})
     return out
 
 

@@ -47,6 +47,7 @@ from threadpoolctl import ThreadpoolController
 
 __all__ = [
     "blas_threads",
+    "in_threads",
     "max_threads",
     "one_blas_thread",
     "over_blocks",
@@ -126,6 +127,17 @@ def over_blocks(kernel: Callable[..., Any], n: int, *args: Any, grain: int = 1) 
     wait(futures)
     for f in futures:
         f.result()
+
+
+def in_threads(fn: Callable[[Any], _R], items: list[Any]) -> list[_R]:
+    """``[fn(x) for x in items]`` on :func:`max_threads` threads of their own, in order: for
+    work that releases the GIL in part (matplotlib's Agg drawing and Pillow's PNG encoding:
+    a run's six quicklooks 1.11 → 0.58 s on two threads, 2026-11-27), not for kernels
+    (:func:`over_blocks`). The first exception is raised once every item has finished."""
+    if max_threads() == 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    with ThreadPoolExecutor(min(max_threads(), len(items)), thread_name_prefix="items") as pool:
+        return list(pool.map(fn, items))
 
 
 @cache

@@ -36,6 +36,7 @@ from typing import Any
 from levels.files import json_default, write_json
 from levels.products import read_product
 from levels.tasks import Runner
+from levels.threads import in_threads
 from station.loader import BlockScenario
 from station.outdir import published_dir, replaceable_dir
 from station.reports import BLOCK_RUN, PASS_RUN
@@ -114,8 +115,10 @@ def _run(
         hrvs.append(_section(acq, rec, products))
         made += [(acq.hrv.number, s) for s in products.scenes]
     t = clock()
-    rows = [_product_row(hrv, s, level, path, out, quicklooks) for hrv, s in made
-            for level, path in s.paths.items()]  # fmt: skip
+    rows = in_threads(
+        lambda job: _product_row(*job, out, quicklooks),
+        [(hrv, s, level, path) for hrv, s in made for level, path in s.paths.items()],
+    )
     if quicklooks:
         timings["quicklooks"] = clock() - t
         _log.info("quicklooks drawn in %.1f s", timings["quicklooks"])
@@ -619,10 +622,16 @@ def _quicklooks(stage: Path, subdirs: tuple[str, ...]) -> None:
     from levels.products import is_product_file
     from levels.quicklook import write_quicklook
 
-    for sub in subdirs:
-        for path in sorted((stage / sub).glob("*")) if (stage / sub).is_dir() else []:
-            if is_product_file(path):
-                write_quicklook(read_product(path), path.parent / "quicklooks" / f"{path.stem}.png")
+    paths = [
+        path
+        for sub in subdirs
+        for path in (sorted((stage / sub).glob("*")) if (stage / sub).is_dir() else [])
+        if is_product_file(path)
+    ]
+    in_threads(
+        lambda p: write_quicklook(read_product(p), p.parent / "quicklooks" / f"{p.stem}.png"),
+        paths,
+    )
 
 
 def _share_control_points(stage: Path, scns: list[Scenario]) -> None:
