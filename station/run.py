@@ -116,7 +116,7 @@ def _run(
         made += [(acq.hrv.number, s) for s in products.scenes]
     t = clock()
     rows = in_threads(
-        lambda job: _product_row(*job, out, quicklooks),
+        lambda job: _product_row(job[0], job[1], job[2], job[3], out, quicklooks),
         [(hrv, s, level, path) for hrv, s in made for level, path in s.paths.items()],
     )
     if quicklooks:
