@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 from levels import __version__
 from levels.adjust import Adjustment, Strip, adjust, adjust_block, adjust_strips
 from levels.choices import AdjustmentScope
-from levels.cor.radiometry import calibrate, deconvolution_taps, deconvolve
+from levels.cor.radiometry import calibrate, counts_in_place, deconvolution_taps, deconvolve
 from levels.cor.resample import with_nan
 from levels.errors import DemError, GcpError, GeometryError, LevelsError, OptionsError
 from levels.export import write_rpc_sidecar
@@ -123,7 +123,8 @@ class PassProducts:
 def nominal_pixel_size_m(look: LookAngleTable) -> float:
     """The nominal output pixel: the look table's angular pitch at 822 km, to 10 m (10 m
     for P, 20 m for XS, and proportionally more for a reduced detector count)."""
-    pitch = float(np.median(np.abs(np.diff(look.psi_y_rad))))
+    # per detector: a table of every detector, or of the first and last (a DIMAP's)
+    pitch = float(np.median(np.abs(np.diff(look.psi_y_rad) / np.diff(look.column))))
     return max(10.0, 10.0 * round(pitch * ORBIT_ALTITUDE_M / 10.0))
 
 
@@ -757,6 +758,9 @@ def _band_images(work: SceneWork, band_name: str) -> None:
     if not resampled:
         return
     with work.timed("deconvolution"):
+        # the 1A's counts as written, not the calibration's unrounded values: a level-1A
+        # scene from the archive (levels.readers.scene1a) gives the same levels, byte for byte
+        cal = counts_in_place(cal)
         dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
     nan_dec = with_nan(dec, dvalid)  # what every resampling reads
     del cal, dec  # (a full P scene: 144 MB each) not read again

@@ -39,9 +39,12 @@ from levels.products import Product, read_product
 from levels.readers.dimap import AttitudeChoice
 from station.errors import StationError
 
-__all__ = ["PACK_FILE", "PackResult", "write_pack"]
+__all__ = ["PACK_FILE", "SCENE_FOLDER", "PackResult", "write_pack", "zip_pack"]
 
 PACK_FILE = "pack.json"
+#: The scene's folder in a zipped pack, as SPOT's DIMAP deliveries name it.
+SCENE_FOLDER = "SCENE01"
+_SCENE_FILES = ("METADATA.DIM", "IMAGERY.TIF")
 #: Checkpoints per side of the truth lattice (21 × 21 = 441 points).
 CHECKPOINTS_PER_SIDE = 21
 #: The truth DEM's spacing and margin around the strip.
@@ -63,7 +66,8 @@ class PackResult:
     scores: dict[str, Any]
 
     def text(self) -> str:
-        lines = [f"wrote {self.directory}/ (METADATA.DIM + IMAGERY.TIF)"]
+        where = f"{self.directory}" if self.directory.suffix == ".zip" else f"{self.directory}/"
+        lines = [f"wrote {where} (METADATA.DIM + IMAGERY.TIF)"]
         if not self.truth:
             lines.append("  no truth written: give --scenario (the scenario that made the run)")
         for name, s in self.scores.items():
@@ -117,7 +121,12 @@ def write_pack(
     """Write the benchmark pack of a level-1A product into ``out`` (replaced whole, as
     ``station run`` replaces its output; module docstring). The truth needs the scenario
     that made the product: ``scenario``, or the one the run's ``report.json`` names when it
-    is found; its SHA-256 must be the product's."""
+    is found; its SHA-256 must be the product's.
+
+    ``out`` ending in ``.zip``: the pack as one zip, as SPOT World Heritage delivers a
+    scene (:func:`zip_pack`), which ``station process`` reads in place."""
+    if Path(out).suffix.lower() == ".zip":
+        return zip_pack(product_path, out, scenario=scenario, mission_index=mission_index)
     from levels.files import staged_dir
     from levels.writers.dimap import band_descriptions, dimap_scene_of, write_dimap
     from station.loader import load_scenario
@@ -408,3 +417,40 @@ This station's own models, read back from `METADATA.DIM` and scored that way:
 
 {table}
 """
+
+
+def zip_pack(
+    product_path: str | Path,
+    out: str | Path,
+    *,
+    scenario: str | Path | None = None,
+    mission_index: int = 2,
+) -> PackResult:
+    """The pack of :func:`write_pack` as one zip at ``out``: the scene in
+    ``SCENE01/`` (``METADATA.DIM``, ``IMAGERY.TIF``), as SPOT's DIMAP deliveries and SPOT
+    World Heritage's zips hold it, the rest of the pack (truth, control points, README)
+    at the top. A zip that is not a pack is not replaced (it is named); a pack's is,
+    atomically."""
+    import tempfile
+    import zipfile
+
+    from levels.files import atomic_path
+
+    target = Path(out)
+    if target.exists():
+        is_pack = zipfile.is_zipfile(target) and PACK_FILE in zipfile.ZipFile(target).namelist()
+        if not is_pack:
+            raise StationError(
+                f"{target} exists and is not a DIMAP pack's zip: not replaced (remove it, "
+                "or give another name)"
+            )
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent, prefix=f".{target.name}.") as tmp:
+        built = write_pack(product_path, Path(tmp) / "pack", scenario=scenario,
+                           mission_index=mission_index)  # fmt: skip
+        files = sorted(f for f in built.directory.rglob("*") if f.is_file())
+        with atomic_path(target) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+            for f in files:
+                rel = f.relative_to(built.directory).as_posix()
+                z.write(f, f"{SCENE_FOLDER}/{rel}" if rel in _SCENE_FILES else rel)
+    return PackResult(target, built.truth, built.scores)

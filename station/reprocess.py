@@ -30,6 +30,7 @@ from levels.process import (
 )
 from levels.readers.gcp import read_gcps
 from levels.readers.l0 import L0Archive, read_l0
+from levels.readers.scene1a import open_archive
 from levels.tasks import Runner
 from station.chain.gcps import measured_control_points
 from station.scenario import Scenario
@@ -122,7 +123,7 @@ def plan_reprocess(
     for what, given in (("names", names), ("control-point files", gcps)):
         if given is not None and len(given) != len(paths):
             raise L0Error(f"{len(paths)} L0 archives but {len(given)} {what}")
-    archives = [read_l0(p, lazy=True) for p in paths]
+    archives = [open_archive(p) for p in paths]
     # one scenario for the archives of one pass, or one per archive (a block)
     per = scenario if isinstance(scenario, list) else [scenario] * len(archives)
     if len(per) != len(archives):
@@ -193,11 +194,15 @@ def run_dem(l0_path: Path, archive: L0Archive) -> Path:
 
 
 def l0_stem(path: str | Path) -> str:
-    """The name an L0 archive gives its products: ``<name>.l0.h5`` → ``<name>``."""
+    """The name an archive gives its products: ``<name>.l0.h5`` → ``<name>``; a DIMAP
+    scene's zip ``<name>.zip``, its directory ``<name>/`` or ``<name>/METADATA.DIM`` →
+    ``<name>``."""
     from station.scenario import NAME_PATTERN
 
     p = Path(path)
-    stem = p.name.removesuffix(".h5").removesuffix(".l0")
+    if p.suffix.upper() == ".DIM":
+        p = p.resolve().parent
+    stem = p.name.removesuffix(".h5").removesuffix(".l0").removesuffix(".zip")
     if not NAME_PATTERN.fullmatch(stem):  # ".", "" or a name no file should carry
         raise L0Error(f"{p}: cannot name products after this file ({stem!r}); give --name")
     return stem
@@ -258,7 +263,7 @@ def reprocess_block(
     paths = [Path(p) for p in l0_paths]
     out = Path(out_dir)
     names = names or [l0_stem(p) for p in paths]
-    archives = [read_l0(p, lazy=True) for p in paths]
+    archives = [open_archive(p) for p in paths]
     per: list[Scenario | None] = list(scenarios) if scenarios else [None] * len(paths)
     if len(per) != len(paths):
         raise L0Error(f"{len(paths)} L0 archives but {len(per)} scenarios")

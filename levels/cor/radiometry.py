@@ -34,6 +34,7 @@ from levels.threads import over_blocks
 
 __all__ = [
     "calibrate",
+    "counts_in_place",
     "deconvolution_taps",
     "deconvolve",
     "fir_response",
@@ -73,6 +74,15 @@ def to_counts(image: NDArray[np.floating]) -> NDArray[np.uint8]:
     work = np.rint(image)
     np.clip(work, 0, 255, out=work)
     return work.astype(np.uint8)
+
+
+def counts_in_place(image: NDArray[np.floating]) -> NDArray[np.floating]:
+    """``image`` rounded and clipped to the 8-bit counts :func:`to_counts` writes, in place
+    and in its own type: the level-1A counts as a float image, what every resampled level
+    reads (``levels.process``)."""
+    np.rint(image, out=image)
+    np.clip(image, 0, 255, out=image)
+    return image
 
 
 def mtf(nu: NDArray[np.float64], psf_fwhm_px: float) -> NDArray[np.float64]:

@@ -20,16 +20,21 @@ Attitude: which one reproduces the producer's own scene location
     scene), or the rates integrated from a null attitude and zeroed at scene centre, INPE's
     rule (up to 10 m): the producer located SPOT 1–4 level-1A frames from the
     ephemeris and the look angles alone, the gyro data serving the relative (1B) geometry.
-    Hence ``attitude="auto"`` selects the corrected attitude when present and the null
-    attitude otherwise; every other choice stays available.
+    Hence ``attitude="auto"`` selects the corrected attitude when present and otherwise,
+    of the null attitude and INPE's integrated rates, the one that reproduces the file's
+    own frame (:attr:`DimapScene.auto_attitude`): the null attitude for the real files, the
+    rates for a scene this project wrote from an emulated product (they reproduce its
+    attitude, ``levels.writers.dimap``); every other choice stays available.
 """
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+import zipfile
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Literal
+from functools import cached_property
+from pathlib import Path, PurePosixPath
+from typing import IO, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,7 +51,7 @@ from levels.geometry.model import LineClock, PushbroomModel
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch, parse_utc
 
-__all__ = ["AttitudeChoice", "BandCalibration", "DimapScene", "read_dimap"]
+__all__ = ["AttitudeChoice", "BandCalibration", "DimapScene", "dimap_member", "read_dimap"]
 
 AttitudeChoice = Literal["auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed"]
 _ATTITUDE_CHOICES = ("auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed")
@@ -118,6 +123,12 @@ class DimapScene:
     look_angles: dict[int, LookAngleTable]
     mirror_step: int | None
     calibration: dict[int, BandCalibration] = field(default_factory=dict)
+    processing_level: str = "1A"
+    image_file: str = "IMAGERY.TIF"
+    n_bands: int = 1
+    imaging_date: str = ""
+    dataset_name: str = ""
+    band_descriptions: dict[int, str] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -136,7 +147,7 @@ class DimapScene:
         if choice not in _ATTITUDE_CHOICES:
             raise DimapError(f"attitude choice {choice!r}: expected one of {_ATTITUDE_CHOICES}")
         if choice == "auto":
-            choice = "corrected" if self.corrected_attitude is not None else "none"
+            choice = self.auto_attitude
         if choice == "none":
             return ConstantAttitude()
         if choice == "corrected":
@@ -152,6 +163,36 @@ class DimapScene:
                 t, rates, start_t_s=float(aocs.t_s[0]), start_angles_rad=aocs.angles_rad_samples[0]
             )
         return integrate_rates(t, rates).zeroed_at(0.0)
+
+    @cached_property
+    def auto_attitude(self) -> AttitudeChoice:
+        """What ``"auto"`` means for this file: the corrected attitude when it has one (SPOT
+        5); otherwise, of the null attitude and the gyro rates integrated and zeroed at the
+        scene centre (INPE's rule), the one whose model puts the file's own frame (corners
+        and centre, on the ellipsoid) closer to where the producer says it is. Real SPOT 1–4
+        scenes take the null attitude that way (0.5–2.5 m against 3–10 m: their producer
+        located the frame without the gyros); a scene written from an emulated product
+        takes the rates its writer made to reproduce the product's attitude (0 m)."""
+        if self.corrected_attitude is not None:
+            return "corrected"
+        if self.angular_speeds_rad_per_s is None or self.epoch is None or not self.look_angles:
+            return "none"
+        none = float(np.max(self.frame_error_m("none")))
+        rates = float(np.max(self.frame_error_m("integrated_zeroed")))
+        return "integrated_zeroed" if rates < none else "none"
+
+    def frame_error_m(self, attitude: AttitudeChoice = "auto") -> NDArray[np.float64]:
+        """How far the model (with ``attitude``) puts the frame's four corners and centre,
+        on the ellipsoid, from the file's coordinates (m, in the file's order)."""
+        from pyproj import Geod
+
+        rows = np.append(self.frame_row, self.center_row) - 1.0
+        cols = np.append(self.frame_col, self.center_col) - 1.0
+        g = self.model(attitude=attitude).image_to_ground(rows, cols, 0.0)
+        lat = np.append(self.frame_lat_deg, self.center_lat_deg)
+        lon = np.append(self.frame_lon_deg, self.center_lon_deg)
+        _, _, dist = Geod(ellps="WGS84").inv(lon, lat, np.degrees(g.lon_rad), np.degrees(g.lat_rad))
+        return np.where(g.ok, np.asarray(dist, dtype=np.float64), np.inf)
 
     def _need(self, value, element: str, what: str):
         if value is None:
@@ -250,11 +291,12 @@ def _angles(elems: list[ET.Element], source: Path) -> NDArray[np.float64]:
     )
 
 
-def _dimap_v1_root(source: Path) -> ET.Element:
-    """The root of a SPOT 1–5 DIMAP v1 document, refused in one line (naming the file)
-    when it is not XML, not DIMAP, or DIMAP v2."""
+def _dimap_v1_root(source: Path, stream: IO[bytes] | None = None) -> ET.Element:
+    """The root of a SPOT 1–5 DIMAP v1 document (read from ``stream`` when given, a zip's
+    member), refused in one line (naming the file) when it is not XML, not DIMAP, or DIMAP
+    v2."""
     try:
-        root = ET.parse(source).getroot()
+        root = ET.parse(stream if stream is not None else source).getroot()
     except ET.ParseError as exc:
         raise DimapError(
             f"{source}: not an XML document ({exc}); expected a DIMAP METADATA.DIM"
@@ -281,7 +323,9 @@ def _dimap_v1_root(source: Path) -> ET.Element:
 
 
 def read_dimap(path: str | Path) -> DimapScene:
-    """Read a SPOT level-1A ``METADATA.DIM`` (DIMAP v1).
+    """Read a SPOT level-1A ``METADATA.DIM`` (DIMAP v1): the file itself, the scene
+    directory holding it, or the zip SPOT World Heritage delivers (read in place,
+    :func:`dimap_member`).
 
     Raises
     ------
@@ -292,7 +336,33 @@ def read_dimap(path: str | Path) -> DimapScene:
         If ``path`` does not exist.
     """
     source = Path(path)
-    root = _dimap_v1_root(source)
+    if source.is_dir():
+        source = source / "METADATA.DIM"
+        if not source.is_file():
+            raise DimapError(f"{path}: a directory without METADATA.DIM: not a DIMAP scene")
+    if zipfile.is_zipfile(source):
+        member = dimap_member(source)
+        with zipfile.ZipFile(source) as z, z.open(member) as f:
+            return _read(source / member, _dimap_v1_root(source / member, f))
+    return _read(source, _dimap_v1_root(source))
+
+
+def dimap_member(zip_path: Path) -> str:
+    """The ``METADATA.DIM`` inside a scene's zip (at any depth, as SWH's zips nest it in a
+    scene folder): exactly one, or the zip is refused naming what it holds."""
+    with zipfile.ZipFile(zip_path) as z:
+        names = [n for n in z.namelist() if PurePosixPath(n).name.upper() == "METADATA.DIM"]
+        if len(names) != 1:
+            some = ", ".join(z.namelist()[:5]) or "nothing"
+            raise DimapError(
+                f"{zip_path}: a zip with {len(names)} METADATA.DIM (holds {some}…): expected "
+                "one DIMAP scene, as SPOT World Heritage delivers it"
+            )
+    return names[0]
+
+
+def _read(source: Path, root: ET.Element) -> DimapScene:
+    """The scene of a parsed DIMAP v1 document (:func:`read_dimap`)."""
     n_cols = _number(root, "Raster_Dimensions/NCOLS", source, int)
     n_rows = _number(root, "Raster_Dimensions/NROWS", source, int)
     vertices = root.findall("Dataset_Frame/Vertex")
@@ -340,7 +410,27 @@ def read_dimap(path: str | Path) -> DimapScene:
         look_angles=look_angles,
         mirror_step=_optional(root, _MIRROR, int),
         calibration=_calibration(root, source),
+        processing_level=(
+            root.findtext("Data_Processing/PROCESSING_LEVEL")
+            or root.findtext(f"{_SOURCE}/SCENE_PROCESSING_LEVEL")
+            or ""
+        ).strip(),
+        image_file=_image_file(root),
+        n_bands=_optional(root, "Raster_Dimensions/NBANDS", int) or 1,
+        imaging_date=(root.findtext(f"{_SOURCE}/IMAGING_DATE") or "").strip(),
+        dataset_name=(root.findtext("Dataset_Id/DATASET_NAME") or "").strip(),
+        band_descriptions={
+            _number(e, "BAND_INDEX", source, int): (e.findtext("BAND_DESCRIPTION") or "").strip()
+            for e in root.findall("Image_Interpretation/Spectral_Band_Info")
+        },
     )
+
+
+def _image_file(root: ET.Element) -> str:
+    """The image the document describes (``Data_File/DATA_FILE_PATH``'s ``href``)."""
+    elem = root.find("Data_Access/Data_File/DATA_FILE_PATH")
+    href = elem.get("href", "") if elem is not None else ""
+    return href.strip() or "IMAGERY.TIF"
 
 
 def _calibration(root: ET.Element, source: Path) -> dict[int, BandCalibration]:

@@ -40,13 +40,16 @@ def _add_process(sub: Any) -> None:
         '[processing] adjustment = "twin", level 2 adjusts both HRVs at once. Two passes '
         "over one ground with --levels 2,DEM,3 make the pair's DEM and level 3 over it "
         "(tie points, the block's level 2, the DEM; --scenario BLOCK.toml for the truth). "
-        "A SAR frame file (.frame.h5) makes GEC and GTC (--dem for GTC).",
+        "A SPOT 1–4 level-1A DIMAP scene (SPOT World Heritage's zip, read in place; its "
+        "directory; or its METADATA.DIM) is processed as an archive of one scene: "
+        "docs/dimap.md. A SAR frame file (.frame.h5) makes GEC and GTC (--dem for GTC).",
     )
     p.add_argument(
         "source",
         nargs="+",
         help="an L0 archive (.h5), both HRVs' archives of one pass, two passes' archives, "
-        "a scenario (.toml), or a SAR frame (.frame.h5)",
+        "a scenario (.toml), a DIMAP 1A scene (.zip, directory or METADATA.DIM), or a SAR "
+        "frame (.frame.h5)",
     )
     p.add_argument(
         "--scenario",
@@ -84,7 +87,8 @@ def _add_process(sub: Any) -> None:
     p.add_argument(
         "--dem",
         metavar="DEM.tif",
-        help="a SAR frame's DEM for GTC (heights above the ellipsoid; a GeoTIFF)",
+        help="the DEM of level 3 (overrides [processing] dem_path) or of a SAR frame's GTC "
+        "(heights above the ellipsoid; a GeoTIFF)",
     )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     p.add_argument(
@@ -149,6 +153,8 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
         from levels.choices import AdjustmentScope
 
         opts = dataclasses.replace(opts, adjustment=AdjustmentScope(args.adjustment))
+    if getattr(args, "dem", None):  # a pass's level 3 (a SAR frame's GTC reads it apart)
+        opts = dataclasses.replace(opts, dem_path=str(args.dem))
     return opts
 
 
@@ -160,10 +166,6 @@ def _process(args: argparse.Namespace) -> int:
     sources = [Path(s) for s in args.source]
     if len(sources) == 1 and _is_frame(sources[0]):
         return _process_frame(args, sources[0])
-    if args.dem:
-        raise StationError(
-            "--dem is a SAR frame's DEM; a pass's level 3 reads [processing] dem_path"
-        )
     scenarios, block_options = _scenarios(args, sources)
     if len(scenarios) > 1 and len(scenarios) != len(sources):
         raise StationError(
@@ -245,9 +247,9 @@ def _recorded_cut(sources: list[Path]) -> Any:
     archives cut them (``L0Archive.scene_cut``), so that a reprocessing makes the run's
     scenes; the library's default for archives that do not say, or say differently."""
     from levels.options import ProcessingOptions
-    from levels.readers.l0 import read_l0
+    from levels.readers.scene1a import open_archive
 
-    cuts = [read_l0(s, lazy=True).scene_cut for s in sources]
+    cuts = [open_archive(s).scene_cut for s in sources]
     if not cuts or not cuts[0] or any(c != cuts[0] for c in cuts):
         return ProcessingOptions()
     cut = cuts[0]
@@ -487,11 +489,11 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace,
     from levels.makers.base import Need
     from levels.process import pass_dem, plan_levels
     from levels.readers.gcp import read_gcps
-    from levels.readers.l0 import read_l0
+    from levels.readers.scene1a import open_archive
     from station.preflight import check_needs, scene_needs
     from station.reprocess import l0_stem, run_dem
 
-    archives = [read_l0(s, lazy=True) for s in sources]
+    archives = [open_archive(s) for s in sources]
     makers = plan_levels(options.levels)
     if args.check and any(Need.ADJUSTMENT in m.needs for m in makers):
         where = args.gcps or [s.with_name(f"{l0_stem(s)}.gcp.csv") for s in sources]
