@@ -20,10 +20,8 @@ rigorous model (always), and, when a :class:`~levels.quality.CheckpointSource` i
 (the emulator's truth, or surveyed points), the checkpoint errors against it.
 
 XS bands share one output grid, computed on the first band; each band goes through its own
-1B polynomials and 2A grids onto it, so that the bands are registered.
-
-This module needs nothing of the emulator: a user with L0 archives runs it alone
-(``station process L0.h5`` is a thin command over it).
+1B polynomials and 2A grids onto it, so that the bands are registered. This module needs
+nothing of the emulator: ``station process L0.h5`` is a thin command over it.
 """
 
 from __future__ import annotations
@@ -123,7 +121,7 @@ class PassProducts:
 def nominal_pixel_size_m(look: LookAngleTable) -> float:
     """The nominal output pixel: the look table's angular pitch at 822 km, to 10 m (10 m
     for P, 20 m for XS, and proportionally more for a reduced detector count)."""
-    # per detector: a table of every detector, or of the first and last (a DIMAP's)
+    # per detector: a table of each, or of the first and last (a DIMAP's)
     pitch = float(np.median(np.abs(np.diff(look.psi_y_rad) / np.diff(look.column))))
     return max(10.0, 10.0 * round(pitch * ORBIT_ALTITUDE_M / 10.0))
 
@@ -758,9 +756,7 @@ def _band_images(work: SceneWork, band_name: str) -> None:
     if not resampled:
         return
     with work.timed("deconvolution"):
-        # the 1A's counts as written, not the calibration's unrounded values: a level-1A
-        # scene from the archive (levels.readers.scene1a) gives the same levels, byte for byte
-        cal = counts_in_place(cal)
+        cal = counts_in_place(cal)  # the 1A as written: a DIMAP 1A's levels are the same
         dec, dvalid = deconvolve(cal, valid, ctx.taps) if ctx.taps.size > 1 else (cal, valid)
     nan_dec = with_nan(dec, dvalid)  # what every resampling reads
     del cal, dec  # (a full P scene: 144 MB each) not read again

@@ -92,7 +92,7 @@ def write_dimap_xml(
     scene: DimapScene,
     path: str | Path,
     *,
-    image_file: str = "IMAGERY.TIF",
+    image_file: str | None = None,
     band_names: dict[int, str] | None = None,
     production: dict[str, str] | None = None,
 ) -> Path:
@@ -114,7 +114,7 @@ def write_dimap_xml(
     bands = sorted(set(scene.look_angles) | set(scene.calibration)) or [1]
     _identity_and_frame(root, scene)
     _production_and_source(root, scene, production or {})
-    _raster(root, scene, len(bands), image_file)
+    _raster(root, scene, len(bands), image_file or scene.image_file)
     _interpretation(root, scene, bands, band_names or {})
     strip = _sub(root, "Data_Strip")
     _data_strip(strip, scene, bands)
@@ -130,7 +130,7 @@ def _identity_and_frame(root: ET.Element, scene: DimapScene) -> None:
     mid = _sub(root, "Metadata_Id")
     _sub(mid, "METADATA_FORMAT", "DIMAP", version="1.1")
     _sub(mid, "METADATA_PROFILE", "SPOTSCENE_1A")
-    _sub(_sub(root, "Dataset_Id"), "DATASET_NAME", f"SCENE {scene.name}")
+    _sub(_sub(root, "Dataset_Id"), "DATASET_NAME", scene.dataset_name or f"SCENE {scene.name}")
     frame = _sub(root, "Dataset_Frame")
     for k in range(4):
         _point(
@@ -176,8 +176,10 @@ def _production_and_source(root: ET.Element, scene: DimapScene, production: dict
     src = _sub(_sub(_sub(root, "Dataset_Sources"), "Source_Information"), "Scene_Source")
     if scene.epoch is not None:
         day, _, time = str(scene.epoch.t0_utc.astype("datetime64[s]")).partition("T")
-        _sub(src, "IMAGING_DATE", day)
+        _sub(src, "IMAGING_DATE", scene.imaging_date or day)
         _sub(src, "IMAGING_TIME", time)
+    elif scene.imaging_date:
+        _sub(src, "IMAGING_DATE", scene.imaging_date)
     _sub(src, "MISSION", scene.mission)
     if scene.mission_index is not None:
         _sub(src, "MISSION_INDEX", scene.mission_index)
@@ -185,7 +187,7 @@ def _production_and_source(root: ET.Element, scene: DimapScene, production: dict
     if scene.instrument_index is not None:
         _sub(src, "INSTRUMENT_INDEX", scene.instrument_index)
     _sub(src, "SENSOR_CODE", scene.sensor_code)
-    _sub(src, "SCENE_PROCESSING_LEVEL", "1A")
+    _sub(src, "SCENE_PROCESSING_LEVEL", scene.processing_level or "1A")
 
 
 def _raster(root: ET.Element, scene: DimapScene, n_bands: int, image_file: str) -> None:
@@ -205,7 +207,7 @@ def _raster(root: ET.Element, scene: DimapScene, n_bands: int, image_file: str) 
     _sub(acc, "DATA_FILE_FORMAT", "GEOTIFF", version="1.0")
     _sub(_sub(acc, "Data_File"), "DATA_FILE_PATH", href=image_file)
     proc = _sub(root, "Data_Processing")
-    _sub(proc, "PROCESSING_LEVEL", "1A")
+    _sub(proc, "PROCESSING_LEVEL", scene.processing_level or "1A")
     _sub(proc, "GEOMETRIC_PROCESSING", "RAW")
     _sub(proc, "RADIOMETRIC_PROCESSING", "SYSTEM")
 
@@ -219,7 +221,8 @@ def _interpretation(
         cal = scene.calibration.get(band)
         info = _sub(interp, "Spectral_Band_Info")
         _sub(info, "BAND_INDEX", band)
-        _sub(info, "BAND_DESCRIPTION", band_names.get(band, f"BAND{band}"))
+        described = band_names.get(band) or scene.band_descriptions.get(band) or f"BAND{band}"
+        _sub(info, "BAND_DESCRIPTION", described)
         if cal is not None and cal.physical_gain is not None:
             _sub(info, "PHYSICAL_BIAS", _num(cal.physical_bias or 0.0))
             _sub(info, "PHYSICAL_GAIN", _num(cal.physical_gain))
@@ -407,6 +410,7 @@ def dimap_scene_of(
     rows, cols, lat, lon = _frame(model)
     a = product.attrs
     bands = {BAND_INDEX.get(name, k + 1): name for k, name in enumerate(models)}
+    day = centre_utc.partition("T")[0]
     return DimapScene(
         path=Path("METADATA.DIM"),
         mission="SPOT",
@@ -441,6 +445,9 @@ def dimap_scene_of(
             )
             for index, name in bands.items()
         },
+        n_bands=len(bands),
+        imaging_date=day,
+        band_descriptions=band_descriptions(product),
     )
 
 
