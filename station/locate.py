@@ -85,7 +85,7 @@ def check_frame(path: str | Path, attitude: AttitudeChoice = "auto") -> FrameChe
         lat, lon = v2.frame_lat_deg, v2.frame_lon_deg
     else:
         scene = read_dimap(path)
-        model, name, used = scene.model(attitude=attitude), scene.name, str(attitude)
+        model, name, used = scene.model(attitude=attitude), scene.name, _said(scene, attitude)
         row = np.append(scene.frame_row, scene.center_row)
         col = np.append(scene.frame_col, scene.center_col)
         lat = np.append(scene.frame_lat_deg, scene.center_lat_deg)
@@ -110,7 +110,12 @@ def _scene_model(path: str | Path, attitude: AttitudeChoice) -> tuple[str, Any, 
         v2: Dimap2Scene = read_dimap2(path)
         return v2.name, v2.model(), _PRODUCER_RPC
     scene = read_dimap(path)
-    return scene.name, scene.model(attitude=attitude), attitude
+    return scene.name, scene.model(attitude=attitude), _said(scene, attitude)
+
+
+def _said(scene: Any, attitude: AttitudeChoice) -> str:
+    """The attitude as a report says it: ``auto`` with what it chose for this file."""
+    return f"auto: {scene.auto_attitude}" if attitude == "auto" else str(attitude)
 
 
 @dataclass(frozen=True)

@@ -89,21 +89,22 @@ def geometry_difference_px(a: Product, b: Product) -> float:
     return worst
 
 
-def _counts(a: Product, b: Product) -> tuple[float, int]:
-    """The share of pixels (valid in either) whose counts are the same, and the largest
-    difference, over every band."""
-    same = total = 0
-    worst = 0
+def _counts(a: Product, b: Product) -> tuple[float, int, int]:
+    """Over every band: the share of pixels valid in both whose counts are the same, the
+    largest difference there, and the pixels valid in one product only (the footprint's
+    edge, where the geometries' difference moves a pixel across it)."""
+    same = total = worst = edge = 0
     for name, x in a.bands.items():
         y = b.bands[name]
         if x.image.shape != y.image.shape:
-            return 0.0, 255
-        keep = x.valid | y.valid
-        d = np.abs(x.image.astype(np.int16) - y.image.astype(np.int16))[keep]
+            return 0.0, 255, x.image.size
+        both = x.valid & y.valid
+        d = np.abs(x.image.astype(np.int16) - y.image.astype(np.int16))[both]
         same += int((d == 0).sum())
         total += int(d.size)
         worst = max(worst, int(d.max()) if d.size else 0)
-    return (same / total if total else 1.0), worst
+        edge += int(np.count_nonzero(x.valid != y.valid))
+    return (same / total if total else 1.0), worst, edge
 
 
 def _truth_rms_m(product: Product) -> float | None:
@@ -134,7 +135,8 @@ def compare_routes(
     t_l0 = time.perf_counter() - t0
     [scene] = l0_made.scenes
     pack = out / f"{scn.name}.zip"
-    zip_pack(scene.paths["1A"], pack, scenario=scn.source)
+    source = Path(scn.source) if scn.source else None  # a scenario from a file: its truth
+    zip_pack(scene.paths["1A"], pack, scenario=source if source and source.is_file() else None)
     options = one.processing
     dem = out / "l0_route" / f"{scn.name}.dem.tif"
     if not options.dem_path and dem.is_file():
@@ -153,10 +155,11 @@ def compare_routes(
     rows = {}
     for level in levels:
         a, b = read_product(scene.paths[level]), read_product(again.paths[level])
-        identical, worst = _counts(a, b)
+        identical, worst, edge = _counts(a, b)
         rows[level] = {
             "counts_identical": identical,
             "counts_max_diff": worst,
+            "valid_in_one_only": edge,
             "geometry_max_px": geometry_difference_px(a, b),
             "truth_rms_m_l0": _truth_rms_m(a),
             "truth_rms_m_dimap": _truth_rms_m(b),

@@ -51,13 +51,16 @@ def main() -> None:
         out = Path(args.out) if args.out else Path(tmp)
         r = compare_routes(scn, out, levels)
     print(f"{scn.name}: the L0 route and the DIMAP route ({Path(r['zip']).name})")
-    print("level  identical counts  max diff  geometry max px  truth RMS m (L0 / DIMAP)")
+    print(
+        "level  identical counts  max diff  valid in one  geometry max px  "
+        "truth RMS m (L0 / DIMAP)"
+    )
     for level, row in r["levels"].items():
         t0, t1 = row["truth_rms_m_l0"], row["truth_rms_m_dimap"]
         truth = "—" if t0 is None else f"{t0:.3f} / {t1:.3f}"
         print(
             f"{level:>5}  {row['counts_identical']:15.5f}  {row['counts_max_diff']:8d}  "
-            f"{row['geometry_max_px']:15.2e}  {truth}"
+            f"{row['valid_in_one_only']:12d}  {row['geometry_max_px']:15.2e}  {truth}"
         )
     t = r["timings_s"]
     print(f"times: L0 route (emulated, received, processed) {t['l0_route']:.1f} s; "
