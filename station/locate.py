@@ -19,6 +19,7 @@ from pyproj import Geod
 
 from levels.readers.dimap import AttitudeChoice, read_dimap
 from levels.readers.dimap2 import Dimap2Scene, is_dimap2, read_dimap2
+from levels.readers.envisat import is_envisat
 from station.errors import StationError
 
 __all__ = ["FrameCheck", "GcpCheck", "check_frame", "check_gcps", "write_rpc"]
@@ -77,6 +78,8 @@ def check_frame(path: str | Path, attitude: AttitudeChoice = "auto") -> FrameChe
 
     ``roundtrip_px`` is the image → ground → image closure at each point (pixels).
     """
+    if is_envisat(path):
+        return check_sar_grid(path)
     if is_dimap2(path):
         v2 = read_dimap2(path)
         model: Any = v2.model()
@@ -97,6 +100,37 @@ def check_frame(path: str | Path, attitude: AttitudeChoice = "auto") -> FrameChe
     back = model.ground_to_image(ground.lat_rad, ground.lon_rad, h)
     roundtrip = np.hypot(back.line - (row - 1.0), back.column - (col - 1.0))
     return FrameCheck(name, used, row, col, lat, lon, plat, plon, dist, roundtrip)
+
+
+#: What ``attitude`` says for a SAR frame: its model is the range–Doppler equations.
+_RANGE_DOPPLER = "range–Doppler on the state vectors"
+
+
+def check_sar_grid(path: str | Path) -> FrameCheck:
+    """An ERS (ASAR) frame of ESA's format (:mod:`levels.readers.envisat`): each tie point
+    of its geolocation grid predicted on the ellipsoid from the frame's state vectors,
+    timing and range by the range–Doppler equations (:mod:`levels.sar`), against ESA's
+    latitude and longitude; rows and columns 1-based, as the file numbers them."""
+    from levels.readers.envisat import read_envisat
+
+    frame = read_envisat(path)
+    grid, ann = frame.grid, frame.sar.annotation
+    plat, plon = ann.ground_of_image(grid.line, grid.column, 0.0)
+    line, col = ann.image_of(plat, plon, np.zeros_like(plat))
+    plat_deg, plon_deg = np.degrees(plat), np.degrees(plon)
+    _, _, dist = _GEOD.inv(grid.lon_deg, grid.lat_deg, plon_deg, plat_deg)
+    return FrameCheck(
+        f"{frame.instrument} {frame.product_type} {frame.name}",
+        _RANGE_DOPPLER,
+        (grid.line + 1).astype(int),
+        (grid.column + 1).astype(int),
+        grid.lat_deg,
+        grid.lon_deg,
+        plat_deg,
+        plon_deg,
+        np.asarray(dist),
+        np.hypot(line - grid.line, col - grid.column),
+    )
 
 
 #: What ``attitude`` says for a DIMAP v2 scene, whose model is its producer's RPC.
@@ -223,6 +257,8 @@ def check_gcps(
 
     if model not in ("rigorous", "rpc"):
         raise StationError(f"model {model!r}: expected 'rigorous' or 'rpc'")
+    if is_envisat(path):
+        return _sar_gcps(path, gcp_path)
     name, rigorous, used = _scene_model(path, attitude)
     g = read_gcps(gcp_path, rigorous.n_lines, rigorous.n_columns)
     back = rigorous.ground_to_image(g.lat_rad, g.lon_rad, g.h_m, first_line=g.line)
@@ -242,6 +278,27 @@ def check_gcps(
     check = GcpCheck(
         name, used, g.id, g.line, g.column, line, column, np.asarray(dist), model, **extra
     )
+    _judge(check, g.sigma_ground_m)
+    return check
+
+
+def _sar_gcps(path: str | Path, gcp_path: str | Path) -> GcpCheck:
+    """:func:`check_gcps` of a SAR frame of ESA's format: each point located in the image
+    by the range–Doppler equations at its height, and its measured pixel on the ground at
+    that height."""
+    from levels.readers.envisat import read_envisat
+    from levels.readers.gcp import read_gcps
+
+    frame = read_envisat(path)
+    ann = frame.sar.annotation
+    g = read_gcps(gcp_path, *ann.shape)
+    line, column = ann.image_of(g.lat_rad, g.lon_rad, g.h_m)
+    plat, plon = ann.ground_of_image(g.line, g.column, g.h_m)
+    _, _, dist = _GEOD.inv(
+        np.degrees(g.lon_rad), np.degrees(g.lat_rad), np.degrees(plon), np.degrees(plat)
+    )
+    name = f"{frame.instrument} {frame.product_type} {frame.name}"
+    check = GcpCheck(name, _RANGE_DOPPLER, g.id, g.line, g.column, line, column, np.asarray(dist))
     _judge(check, g.sigma_ground_m)
     return check
 

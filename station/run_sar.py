@@ -239,11 +239,9 @@ def frame_quality(scn: SarScenario, frame: Any) -> Any:
     image = frame.image()
     emulated, truth = emulate_frame(_frame(scn), _world(scn), render=False)
     a, b = emulated.annotation, image.annotation
-    if (
-        a.shape != b.shape
-        or not np.allclose(a.state_t_s, b.state_t_s)
-        or (a.first_line_s != b.first_line_s)
-    ):
+    # the first lines' UTC (ESA's format dates it to the microsecond, from its own epoch)
+    first_a, first_b = (x.epoch.utc(np.array([x.first_line_s]))[0] for x in (a, b))
+    if a.shape != b.shape or abs((first_a - first_b) / np.timedelta64(1, "us")) > 1.0:
         raise StationError(
             f"{frame.path or frame.name} was not made by scenario {scn.name!r} "
             f"(its frame {b.shape[0]} × {b.shape[1]} from {b.first_line_s:.3f} s; the "
@@ -281,7 +279,8 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
     from levels.files import write_json
     from levels.frame import process_frame
     from levels.quicklook import write_quicklook
-    from levels.readers.sar import read_sar_frame
+    from levels.readers.envisat import read_envisat
+    from levels.writers.envisat import write_envisat
     from levels.writers.sar import write_sar_frame
     from station.catalog import CATALOG_FILE, write_catalog
     from station.run import scenario_entry
@@ -301,8 +300,11 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
     if dem is not None:
         timings["dem_export"] = clock() - t
     t = clock()
-    frame_path = write_sar_frame(out / f"{scn.name}.frame.h5", image, scn.name, ERS_INSTRUMENT)
-    frame = read_sar_frame(frame_path)  # the reader is on every run's path
+    house = write_sar_frame(out / f"{scn.name}.frame.h5", image, scn.name, ERS_INSTRUMENT)
+    # processed from ESA's format (the frame quantised and annotated as ESA's products
+    # are), so that its reader is on every run's path; the house file keeps it exact
+    frame_path = write_envisat(out / f"{scn.name}.E1", image)
+    frame = read_envisat(frame_path)
     timings["frame_file"] = clock() - t
     made = process_frame(
         frame,
@@ -327,6 +329,7 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
         **SAR_RUN.header(scenario=scenario_entry(scn)),
         "frame": {
             "file": frame_path.name,
+            "house_file": house.name,
             "instrument": ERS_INSTRUMENT,
             "lines": ann.shape[0],
             "samples": ann.shape[1],

@@ -339,7 +339,7 @@ def read_envisat(path: str | Path) -> EnvisatFrame:
     epoch = Epoch(first_utc, name="the frame's first line")
     ann, image = _annotation(where, raw, ds, sph, kind, mpp, dop, epoch, image)
     return EnvisatFrame(
-        name=product.partition(".")[0] or where.stem,
+        name=where.stem,
         instrument=_instrument(mph, kind),
         sar=SarImage(ann, image),
         grid=_grid(geo),

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+import numpy as np
+
 from station.cli._options import add_json, emit
 from station.errors import StationError
 
@@ -18,12 +20,15 @@ def register(sub: Any) -> None:
         description="Predict the frame corners and centre of a real SPOT 1–5 level-1A scene "
         "from its DIMAP metadata (ephemeris, attitude, look angles) and compare "
         "them with the producer's Dataset_Frame; of a SPOT 6/7 (or Pléiades) DIMAP v2 "
-        "scene from its producer's RPC (RPC_*.XML), against its Dataset_Extent.",
+        "scene from its producer's RPC (RPC_*.XML), against its Dataset_Extent; the "
+        "geolocation grid of an ERS SAR frame of ESA's format from its state vectors.",
     )
     p.add_argument(
         "metadata",
-        help="path to a SPOT level-1A METADATA.DIM, a SPOT 6/7 DIMAP v2 DIM_*.XML (or, "
-        "with --rpc, OSSIM's .geom keyword list of a SPOT 5 scene)",
+        help="path to a SPOT level-1A METADATA.DIM (its scene directory, or SWH's zip), a "
+        "SPOT 6/7 DIMAP v2 DIM_*.XML, an ERS frame of ESA's format (.E1, .E2: its "
+        "geolocation grid against the range–Doppler model), or, with --rpc, OSSIM's .geom "
+        "keyword list of a SPOT 5 scene",
     )
     p.add_argument(
         "--attitude",
@@ -145,12 +150,20 @@ def _text(check: Any) -> str:
         f"{'point':>12} {'lat °':>12} {'lon °':>12} {'pred lat °':>12} "
         f"{'pred lon °':>12} {'error m':>8} {'closure px':>10}",
     ]
-    labels = ["corner 1", "corner 2", "corner 3", "corner 4", "centre"]
-    for i, label in enumerate(labels):
+    if check.row.size == 5:
+        shown = list(enumerate(["corner 1", "corner 2", "corner 3", "corner 4", "centre"]))
+    else:  # a SAR frame's geolocation grid: its first and last lines' tie points
+        n = check.row.size
+        keep = [*range(min(11, n)), *range(max(11, n - 11), n)]
+        shown = [(i, f"r{check.row[i]} c{check.col[i]}") for i in keep]
+    for i, label in shown:
         lines.append(
             f"{label:>12} {check.lat_deg[i]:12.7f} {check.lon_deg[i]:12.7f} "
             f"{check.predicted_lat_deg[i]:12.7f} {check.predicted_lon_deg[i]:12.7f} "
             f"{check.error_m[i]:8.3f} {check.roundtrip_px[i]:10.2e}"
         )
+    if check.row.size != 5:
+        rms = float(np.sqrt(np.mean(check.error_m**2)))
+        lines.append(f"{check.row.size} tie points: RMS {rms:.3f} m")
     lines.append(f"max error {check.error_m.max():.3f} m")
     return "\n".join(lines)

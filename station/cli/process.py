@@ -42,14 +42,15 @@ def _add_process(sub: Any) -> None:
         "(tie points, the block's level 2, the DEM; --scenario BLOCK.toml for the truth). "
         "A SPOT 1–4 level-1A DIMAP scene (SPOT World Heritage's zip, read in place; its "
         "directory; or its METADATA.DIM) is processed as an archive of one scene: "
-        "docs/dimap.md. A SAR frame file (.frame.h5) makes GEC and GTC (--dem for GTC).",
+        "docs/dimap.md. A SAR frame (.frame.h5, or ESA's ENVISAT format: SAR_IMP_1P, "
+        "SAR_IMS_1P .E1/.E2) makes GEC and GTC (--dem for GTC).",
     )
     p.add_argument(
         "source",
         nargs="+",
         help="an L0 archive (.h5), both HRVs' archives of one pass, two passes' archives, "
         "a scenario (.toml), a DIMAP 1A scene (.zip, directory or METADATA.DIM), or a SAR "
-        "frame (.frame.h5)",
+        "frame (.frame.h5, or ESA's .E1/.E2)",
     )
     p.add_argument(
         "--scenario",
@@ -302,9 +303,9 @@ def _process_pass(
 
 
 def _is_frame(path: Path) -> bool:
-    from levels.readers.sar import is_sar_frame
+    from levels.readers.sar import is_frame_file
 
-    return path.suffix == ".h5" and is_sar_frame(path)
+    return is_frame_file(path)
 
 
 def _process_frame(args: argparse.Namespace, source: Path) -> int:
@@ -315,13 +316,13 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
     from levels.files import write_json
     from levels.frame import FrameOptions, margin_of_dem, process_frame
     from levels.readers.dem import read_dem
-    from levels.readers.sar import read_sar_frame
+    from levels.readers.sar import open_frame
     from station.catalog import write_catalog
     from station.loader import load_sar
     from station.outdir import published_dir, replaceable_dir
     from station.run_sar import frame_options, frame_quality, scenario_provenance
 
-    frame = read_sar_frame(source)
+    frame = open_frame(source)
     scn = load_sar(args.scenario[0]) if args.scenario else None
     dem = read_dem(args.dem, "ellipsoid") if args.dem else None
     levels = tuple(lv.strip() for lv in args.levels.split(",")) if args.levels else None
