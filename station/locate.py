@@ -115,7 +115,7 @@ def check_sar_grid(path: str | Path) -> FrameCheck:
 
     frame = read_envisat(path)
     grid, ann = frame.grid, frame.sar.annotation
-    plat, plon = ann.ground_of_image(grid.line, grid.column, 0.0)
+    plat, plon = ann.ground_of_image(grid.line, grid.slant_column, 0.0)
     line, col = ann.image_of(plat, plon, np.zeros_like(plat))
     plat_deg, plon_deg = np.degrees(plat), np.degrees(plon)
     _, _, dist = _GEOD.inv(grid.lon_deg, grid.lat_deg, plon_deg, plat_deg)
@@ -129,7 +129,7 @@ def check_sar_grid(path: str | Path) -> FrameCheck:
         plat_deg,
         plon_deg,
         np.asarray(dist),
-        np.hypot(line - grid.line, col - grid.column),
+        np.hypot(line - grid.line, col - grid.slant_column),
     )
 
 

@@ -220,11 +220,14 @@ class _Dataset:
 
 @dataclass(frozen=True)
 class GeolocationGrid:
-    """ESA's tie points: 0-based line and column (pixel centres), latitude and longitude
-    (degrees, on the ellipsoid), incidence (degrees), two-way slant-range time (ns)."""
+    """ESA's tie points: 0-based line and column (pixel centres) of the file's samples,
+    the column of the reader's slant-range image (:meth:`EnvisatFrame.image`; the file's
+    own but for a ground-range IMP), latitude and longitude (degrees, on the ellipsoid),
+    incidence (degrees), two-way slant-range time (ns)."""
 
     line: NDArray[np.float64]
     column: NDArray[np.float64]
+    slant_column: NDArray[np.float64]
     lat_deg: NDArray[np.float64]
     lon_deg: NDArray[np.float64]
     incidence_deg: NDArray[np.float64]
@@ -337,12 +340,12 @@ def read_envisat(path: str | Path) -> EnvisatFrame:
     geo = _records(where, raw, ds, "GEOLOCATION GRID ADS", GEOLOCATION_ADSR)
     image, first_utc = _image(where, raw, ds, sph, kind, mpp)
     epoch = Epoch(first_utc, name="the frame's first line")
-    ann, image = _annotation(where, raw, ds, sph, kind, mpp, dop, epoch, image)
+    ann, image, slant_column = _annotation(where, raw, ds, sph, kind, mpp, dop, epoch, image)
     return EnvisatFrame(
         name=where.stem,
         instrument=_instrument(mph, kind),
         sar=SarImage(ann, image),
-        grid=_grid(geo),
+        grid=_grid(geo, slant_column),
         mph=mph,
         sph=sph,
         path=where,
@@ -378,11 +381,9 @@ def _image(
     rec = np.dtype([("time", MJD), ("quality", "u1"), ("line", ">u4"), ("v", sample, (n * per,))])
     lines = np.frombuffer(raw, dtype=rec, count=d.num_dsr, offset=d.offset)
     v = lines["v"].astype(np.float32)
-    if complex_:
-        image = v[:, 0::2] ** 2 + v[:, 1::2] ** 2
-    else:
-        k = float(mpp["ext_cal_fact"])
-        image = v * v / (k if k > 0 else 1.0)
+    k = float(mpp["ext_cal_fact"])
+    power = v[:, 0::2] ** 2 + v[:, 1::2] ** 2 if complex_ else v * v
+    image = power / (k if k > 0 else 1.0)
     first = np.datetime64(_utc_of(lines["time"][:1])[0], "ns")
     return np.ascontiguousarray(image, dtype=np.float32), first
 
@@ -397,8 +398,9 @@ def _annotation(
     dop: Any,
     epoch: Epoch,
     image: NDArray[np.float32],
-) -> tuple[SarAnnotation, NDArray[np.float32]]:
-    """The range–Doppler annotation of the frame, and its image on slant range."""
+) -> tuple[SarAnnotation, NDArray[np.float32], Any]:
+    """The range–Doppler annotation of the frame, its image on slant range, and the map
+    from the file's columns to that image's."""
     c = SPEED_OF_LIGHT_M_PER_S
     sv = mpp["state_vectors"]
     t_sv = epoch.seconds(_utc_of(sv["time"]))
@@ -407,11 +409,15 @@ def _annotation(
     spacing = c / (2.0 * float(mpp["range_samp_rate"]))
     tau0 = 1e-9 * float(dop["slant_range_time"][len(dop) // 2])
     near = c * tau0 / 2.0
+    slant_column: Any = _same  # an IMS: its own columns
     if kind.endswith("IMP_1P"):
-        srgr = _records(where, raw, ds, "SR GR ADS", SRGR_ADSR)
-        near, spacing, image = _on_slant_range(
-            srgr[len(srgr) // 2], float(mpp["range_spacing"]), image, spacing
-        )
+        records = _records(where, raw, ds, "SR GR ADS", SRGR_ADSR)
+        rg = _srgr(records[len(records) // 2], float(mpp["range_spacing"]))
+        near, spacing, image = _on_slant_range(rg, image, spacing)
+
+        def slant_column(column: Any) -> Any:
+            return (rg(column) - near) / spacing
+
     # the centroid in (τ − τ0) s → in (R − r0) km about the image's near range
     coef = np.asarray(dop["dop_coef"][len(dop) // 2], dtype=np.float64)
     per_km = 2000.0 / c  # two-way seconds per km of slant range
@@ -437,26 +443,39 @@ def _annotation(
         looks=looks,
         right_looking=True,
     )
-    return ann, image
+    return ann, image, slant_column
+
+
+def _same(column: Any) -> Any:
+    return column
+
+
+def _srgr(srgr: Any, ground_spacing: float) -> Any:
+    """The slant range (m) of a ground-range IMP's columns: ``R = Σ S_k (g − g0)^k``, ``g``
+    the column's ground range (``column × RANGE_SPACING``)."""
+    s = np.asarray(srgr["srgr_coeff"], dtype=np.float64)
+    g0 = float(srgr["ground_range_origin"])
+
+    def slant_range(column: Any) -> Any:
+        return np.polynomial.polynomial.polyval(np.asarray(column) * ground_spacing - g0, s)
+
+    slant_range.linear = not np.any(s[2:])  # type: ignore[attr-defined]
+    return slant_range
 
 
 def _on_slant_range(
-    srgr: Any, ground_spacing: float, image: NDArray[np.float32], slant_spacing: float
+    rg: Any, image: NDArray[np.float32], slant_spacing: float
 ) -> tuple[float, float, NDArray[np.float32]]:
-    """A ground-range image's near range, spacing and samples on slant range: the SR/GR
-    polynomial ``R(g) = Σ S_k (g − g0)^k``; linear (the emulator's, or a slant-range image
-    said as ground range), its own spacing and the image as it is; otherwise each line
-    resampled (cubic) at ``slant_spacing`` from the near range."""
+    """A ground-range image's near range, spacing and samples on slant range (``rg``: the
+    slant range of each column): linear (the emulator's, or a slant-range image said as
+    ground range), its own spacing and the image as it is; otherwise each line resampled
+    (cubic) at ``slant_spacing`` from the near range."""
     from scipy.ndimage import map_coordinates
 
-    s = np.asarray(srgr["srgr_coeff"], dtype=np.float64)
-    g0 = float(srgr["ground_range_origin"])
-    rg = np.polynomial.Polynomial(s)
     n = image.shape[1]
-    g = np.arange(n) * ground_spacing - g0
-    if not np.any(s[2:]):  # linear: slant range at each sample as it is
-        return float(rg(-g0)), float(s[1] * ground_spacing), image
-    r = rg(g)
+    if rg.linear:  # slant range at each sample as it is
+        return float(rg(0.0)), float(rg(1.0) - rg(0.0)), image
+    r = rg(np.arange(n, dtype=np.float64))
     near, far = float(r[0]), float(r[-1])
     m = int(np.floor((far - near) / slant_spacing)) + 1
     wanted = near + np.arange(m) * slant_spacing
@@ -467,8 +486,9 @@ def _on_slant_range(
     return near, slant_spacing, np.maximum(out, 0.0)
 
 
-def _grid(geo: Any) -> GeolocationGrid:
-    """ESA's tie points of every granule's first line, and of the last granule's last."""
+def _grid(geo: Any, slant_column: Any) -> GeolocationGrid:
+    """ESA's tie points of every granule's first line, and of the last granule's last;
+    ``slant_column`` maps the file's columns to the slant-range image's."""
     parts = [(geo["line_num"], geo["first"])]
     last = geo[-1:]
     parts.append((last["line_num"] + last["num_lines"] - 1, last["last"]))
@@ -481,6 +501,7 @@ def _grid(geo: Any) -> GeolocationGrid:
     return GeolocationGrid(
         line=line,
         column=flat("samp_numbers") - 1.0,
+        slant_column=slant_column(flat("samp_numbers") - 1.0),
         lat_deg=flat("lats", 1e-6),
         lon_deg=flat("longs", 1e-6),
         incidence_deg=flat("angles"),

@@ -27,11 +27,12 @@ data sets:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import ProductError
 from levels.files import atomic_path
@@ -96,10 +97,55 @@ def _state_vectors(image: SarImage) -> NDArray[np.void]:
     return out
 
 
-def _grid(image: SarImage) -> NDArray[np.void]:
+@dataclass(frozen=True, eq=False)
+class _Layout:
+    """What the file's samples are: the product, their intensity as written (lines ×
+    samples), their spacing, and the SR/GR polynomial giving each sample's slant range,
+    ``R = Σ srgr[k] g^k`` with ``g`` the sample's distance from the first."""
+
+    product: str
+    values: NDArray[np.float64]
+    spacing_m: float
+    srgr: NDArray[np.float64]
+
+    def slant_range(self, column: ArrayLike) -> NDArray[np.float64]:
+        g = np.asarray(column, dtype=np.float64) * self.spacing_m
+        return np.asarray(np.polynomial.polynomial.polyval(g, self.srgr), dtype=np.float64)
+
+
+def _layout(image: SarImage, product: str, ground_range: bool) -> _Layout:
+    """The samples of ``product``: the slant-range image as it is (an IMS; an IMP whose
+    SR/GR polynomial is the identity), or, ``ground_range``, resampled (cubic) onto ground
+    range as ESA's IMPs are: the same number of samples, evenly spaced on the ellipsoid
+    along the middle line, the SR/GR polynomial of degree 4 fitted to that line."""
+    from pyproj import Geod
+    from scipy.ndimage import map_coordinates
+
+    a = image.annotation
+    values = np.nan_to_num(np.asarray(image.intensity, dtype=np.float64), nan=0.0)
+    near, dr = a.near_range_m, a.range_spacing_m
+    if not ground_range:
+        return _Layout(product, values, dr, np.array([near, 1.0]))
+    n_lines, n = a.shape
+    cols = np.arange(n, dtype=np.float64)
+    lat, lon = a.ground_of_image(np.full(n, n_lines // 2, dtype=np.float64), cols, 0.0)
+    lat_deg, lon_deg = np.degrees(lat), np.degrees(lon)
+    _, _, step = Geod(ellps="WGS84").inv(lon_deg[:-1], lat_deg[:-1], lon_deg[1:], lat_deg[1:])
+    g = np.concatenate([[0.0], np.cumsum(step)])
+    srgr = np.polynomial.polynomial.polyfit(g, near + cols * dr, 4)
+    srgr = srgr.astype(np.float32).astype(np.float64)  # as the file holds it
+    layout = _Layout(product, values, float(g[-1] / (n - 1)), srgr)
+    slant_col = (layout.slant_range(cols) - near) / dr
+    lines = np.arange(n_lines, dtype=np.float64)
+    coords = np.stack(np.broadcast_arrays(lines[:, None], slant_col[None, :]))
+    ground = map_coordinates(values, coords, order=3, mode="nearest")
+    return _Layout(product, np.maximum(ground, 0.0), layout.spacing_m, srgr)
+
+
+def _grid(image: SarImage, layout: _Layout) -> NDArray[np.void]:
     """The geolocation grid's records (module docstring)."""
     a = image.annotation
-    n_lines, n_samples = a.shape
+    n_lines, n_samples = layout.values.shape
     per = max(2, -(-n_lines // _GRANULES))
     firsts = np.arange(0, n_lines, per)
     samples = np.rint(np.linspace(0, n_samples - 1, _TIES)).astype(np.int64)
@@ -107,9 +153,9 @@ def _grid(image: SarImage) -> NDArray[np.void]:
     for side, lines in (("first", firsts), ("last", np.minimum(firsts + per, n_lines) - 1)):
         ln = np.repeat(lines, _TIES).astype(np.float64)
         col = np.tile(samples, lines.size).astype(np.float64)
-        lat, lon = a.ground_of_image(ln, col, 0.0)
+        r = layout.slant_range(col)
+        lat, lon = a.ground_of_image(ln, (r - a.near_range_m) / a.range_spacing_m, 0.0)
         inc = np.degrees(a.incidence(lat, lon, np.zeros_like(lat)))
-        r = a.near_range_m + col * a.range_spacing_m
         ties = rec[side]
         ties["samp_numbers"] = (col + 1).reshape(-1, _TIES)
         ties["slant_range_times"] = (2e9 * r / SPEED_OF_LIGHT_M_PER_S).reshape(-1, _TIES)
@@ -123,7 +169,11 @@ def _grid(image: SarImage) -> NDArray[np.void]:
     return rec
 
 
-def _mpp(image: SarImage, scale: float) -> NDArray[np.void]:
+def _is_slc(layout: _Layout) -> bool:
+    return layout.product.endswith("IMS_1P")
+
+
+def _mpp(image: SarImage, layout: _Layout, scale: float) -> NDArray[np.void]:
     a = image.annotation
     c = SPEED_OF_LIGHT_M_PER_S
     m = np.zeros(1, dtype=MPP_ADSR)
@@ -131,12 +181,13 @@ def _mpp(image: SarImage, scale: float) -> NDArray[np.void]:
     first, last = mjd_of(a.epoch.utc(t))
     m["first_zero_doppler_time"], m["last_zero_doppler_time"] = first, last
     m["swath_id"] = b"IS2"
-    m["range_spacing"] = a.range_spacing_m
+    m["range_spacing"] = layout.spacing_m
     m["azimuth_spacing"] = a.line_interval_s * 7000.0  # about ERS's ground speed
     m["line_time_interval"] = a.line_interval_s
-    m["num_output_lines"], m["num_samples_per_line"] = a.shape
-    m["data_type"] = b"UWORD"
-    m["srgr_flag"], m["detected_flag"] = 1, 1
+    m["num_output_lines"], m["num_samples_per_line"] = layout.values.shape
+    m["data_type"] = b"SWORD" if _is_slc(layout) else b"UWORD"
+    m["srgr_flag"] = 0 if _is_slc(layout) else 1
+    m["detected_flag"] = 0 if _is_slc(layout) else 1
     m["range_samp_rate"] = c / (2.0 * a.range_spacing_m)
     m["radar_freq"] = c / a.wavelength_m
     m["num_looks_range"], m["num_look_az"] = 1, max(1, round(a.looks))
@@ -145,7 +196,9 @@ def _mpp(image: SarImage, scale: float) -> NDArray[np.void]:
     return m
 
 
-def _doppler_and_srgr(image: SarImage) -> tuple[NDArray[np.void], NDArray[np.void]]:
+def _doppler_and_srgr(
+    image: SarImage, layout: _Layout
+) -> tuple[NDArray[np.void], NDArray[np.void]]:
     a = image.annotation
     c = SPEED_OF_LIGHT_M_PER_S
     mid = mjd_of(a.epoch.utc(np.array([a.first_line_s + 0.5 * a.shape[0] * a.line_interval_s])))
@@ -159,60 +212,83 @@ def _doppler_and_srgr(image: SarImage) -> tuple[NDArray[np.void], NDArray[np.voi
     dop["dop_coef"], dop["dop_conf"] = coef, 1.0
     srgr = np.zeros(1, dtype=SRGR_ADSR)
     srgr["zero_doppler_time"], srgr["slant_range_time"] = mid, tau0 * 1e9
-    srgr["srgr_coeff"] = [a.near_range_m, 1.0, 0.0, 0.0, 0.0]
+    srgr["srgr_coeff"] = np.pad(layout.srgr, (0, 5 - layout.srgr.size))
     return dop, srgr
 
 
-def _amplitude(image: SarImage) -> tuple[NDArray[np.void], float, int]:
-    """The MDS1 records, the scale ``S`` and the count of samples clipped."""
+def _samples(image: SarImage, layout: _Layout) -> tuple[NDArray[np.void], float, int]:
+    """The MDS1 records, the scale ``S`` and the count of samples clipped: an IMP's
+    amplitude ``round(S √I)``, an IMS's ``round(S √I (cos φ, sin φ))`` with a phase drawn
+    uniformly (seeded: the same frame, the same file)."""
     a = image.annotation
-    intensity = np.nan_to_num(np.asarray(image.intensity, dtype=np.float64), nan=0.0)
-    median = float(np.median(intensity[intensity > 0])) if np.any(intensity > 0) else 1.0
+    values = layout.values
+    median = float(np.median(values[values > 0])) if np.any(values > 0) else 1.0
     scale = MEDIAN_DN / np.sqrt(median)
-    dn = np.rint(scale * np.sqrt(np.maximum(intensity, 0.0)))
-    clipped = int(np.count_nonzero(dn > 65535))
-    n_lines, n_samples = a.shape
-    rec = np.zeros(
-        n_lines,
-        dtype=[("time", MJD), ("quality", "u1"), ("line", ">u4"), ("v", ">u2", (n_samples,))],
-    )
+    amplitude = scale * np.sqrt(values)
+    n_lines, n_samples = values.shape
+    slc = _is_slc(layout)
+    if slc:
+        phase = np.random.default_rng(0).uniform(0.0, 2 * np.pi, values.shape)
+        parts = np.rint(np.stack([amplitude * np.cos(phase), amplitude * np.sin(phase)], -1))
+        clipped = int(np.count_nonzero(np.abs(parts) > 32767))
+        v = np.clip(parts, -32767, 32767).astype(np.int16).reshape(n_lines, 2 * n_samples)
+        sample = (">i2", (2 * n_samples,))
+    else:
+        dn = np.rint(amplitude)
+        clipped = int(np.count_nonzero(dn > 65535))
+        v = np.minimum(dn, 65535).astype(np.uint16)
+        sample = (">u2", (n_samples,))
+    rec = np.zeros(n_lines, dtype=[("time", MJD), ("quality", "u1"), ("line", ">u4"),
+                                   ("v", *sample)])  # fmt: skip
     rec["time"] = mjd_of(a.epoch.utc(a.first_line_s + np.arange(n_lines) * a.line_interval_s))
     rec["line"] = np.arange(1, n_lines + 1)
-    rec["v"] = np.minimum(dn, 65535).astype(np.uint16)
-    assert rec.dtype.itemsize == MDS_PREFIX + 2 * n_samples
+    rec["v"] = v
+    assert rec.dtype.itemsize == MDS_PREFIX + (4 if slc else 2) * n_samples
     return rec, float(scale), clipped
 
 
 def write_envisat(
-    path: str | Path, image: SarImage, *, mission: str = "ERS-1", station: str = "spot-station"
+    path: str | Path,
+    image: SarImage,
+    *,
+    product: str = "SAR_IMP_1P",
+    ground_range: bool = False,
+    mission: str = "ERS-1",
+    station: str = "spot-station",
 ) -> Path:
-    """Write ``image`` as an ENVISAT-format ``SAR_IMP_1P`` at ``path`` (atomically; module
-    docstring). ``mission``: ``ERS-1`` (``.E1``) or ``ERS-2`` (``.E2``)."""
+    """Write ``image`` as an ENVISAT-format ``product`` at ``path`` (atomically; module
+    docstring): ``SAR_IMP_1P`` on slant range (the SR/GR polynomial the identity) or, with
+    ``ground_range``, resampled onto ground range as ESA's are; ``SAR_IMS_1P`` complex.
+    ``mission``: ``ERS-1`` (``.E1``) or ``ERS-2`` (``.E2``)."""
     a = image.annotation
     if not a.right_looking:
         raise ProductError("the ENVISAT format has no left-looking SAR: ERS and ASAR look right")
     if mission not in ("ERS-1", "ERS-2"):
         raise ProductError(f"mission {mission!r}: ERS-1 or ERS-2")
-    mpp = _mpp(image, 1.0)
-    mds, scale, _ = _amplitude(image)
-    mpp["ext_cal_fact"] = scale * scale
-    dop, srgr = _doppler_and_srgr(image)
-    grid = _grid(image)
+    if product not in ("SAR_IMP_1P", "SAR_IMS_1P") or (ground_range and product != "SAR_IMP_1P"):
+        raise ProductError(
+            f"product {product!r}{' on ground range' if ground_range else ''}: SAR_IMP_1P "
+            "(slant or ground range) or SAR_IMS_1P (slant range)"
+        )
+    layout = _layout(image, product, ground_range)
+    mds, scale, _ = _samples(image, layout)
+    dop, srgr = _doppler_and_srgr(image, layout)
+    grid = _grid(image, layout)
     blocks = [
-        ("MAIN PROCESSING PARAMS ADS", "A", mpp),
+        ("MAIN PROCESSING PARAMS ADS", "A", _mpp(image, layout, scale)),
         ("DOP CENTROID COEFFS ADS", "A", dop),
-        ("SR GR ADS", "A", srgr),
+        *([] if _is_slc(layout) else [("SR GR ADS", "A", srgr)]),
         ("GEOLOCATION GRID ADS", "A", grid),
         ("MDS1", "M", mds),
     ]
-    sph_head = _sph(image, grid)
+    sph_head = _sph(image, layout, grid)
     sph_size = len(sph_head) + DSD_SIZE * len(blocks)
     offset = MPH_SIZE + sph_size
     dsds = []
     for name, kind, rec in blocks:
         dsds.append(_dsd(name, kind, offset, rec.nbytes, rec.size, rec.dtype.itemsize))
         offset += rec.nbytes
-    mph = _mph(image, mission, station, offset, sph_size, len(blocks))
+    mph = _mph(image, product, mission, station, offset, sph_size, len(blocks))
     target = Path(path)
     with atomic_path(target) as tmp, open(tmp, "wb") as f:
         f.write(mph.encode("ascii"))
@@ -222,8 +298,9 @@ def write_envisat(
     return target
 
 
-def _sph(image: SarImage, grid: NDArray[np.void]) -> str:
+def _sph(image: SarImage, layout: _Layout, grid: NDArray[np.void]) -> str:
     a = image.annotation
+    slc = _is_slc(layout)
     first, last = grid[0]["first"], grid[-1]["last"]
     t = a.first_line_s + np.array([0, a.shape[0] - 1]) * a.line_interval_s
     t0, t1 = (_utc_text(u) for u in a.epoch.utc(t))
@@ -235,7 +312,10 @@ def _sph(image: SarImage, grid: NDArray[np.void]) -> str:
     descending = bool(a.state_v_m_per_s[len(a.state_v_m_per_s) // 2, 2] < 0)
     text = _lines(
         [
-            ("SPH_DESCRIPTOR", '"Image Mode Precision Image "'),
+            (
+                "SPH_DESCRIPTOR",
+                '"Image Mode SLC Image       "' if slc else '"Image Mode Precision Image "',
+            ),
             ("STRIPLINE_CONTINUITY_INDICATOR", "+000"),
             ("SLICE_POSITION", "+001"),
             ("NUM_SLICES", "+001"),
@@ -249,24 +329,26 @@ def _sph(image: SarImage, grid: NDArray[np.void]) -> str:
         [
             ("SWATH", '"IS2"'),
             ("PASS", '"DESCENDING"' if descending else '"ASCENDING "'),
-            ("SAMPLE_TYPE", '"DETECTED"'),
+            ("SAMPLE_TYPE", '"COMPLEX "' if slc else '"DETECTED"'),
             ("ALGORITHM", '"RAN/DOP"'),
             ("MDS1_TX_RX_POLAR", '"V/V"'),
             ("MDS2_TX_RX_POLAR", '"   "'),
             ("COMPRESSION", '"NONE    "'),
             ("AZIMUTH_LOOKS", f"{max(1, round(a.looks)):+04d}"),
             ("RANGE_LOOKS", "+001"),
-            ("RANGE_SPACING", f"{a.range_spacing_m:+.6e}<m>"),
+            ("RANGE_SPACING", f"{layout.spacing_m:+.6e}<m>"),
             ("AZIMUTH_SPACING", f"{a.line_interval_s * 7000.0:+.6e}<m>"),
             ("LINE_TIME_INTERVAL", f"{a.line_interval_s:+.9e}<s>"),
-            ("LINE_LENGTH", f"{a.shape[1]:+06d}<samples>"),
-            ("DATA_TYPE", '"UWORD"'),
+            ("LINE_LENGTH", f"{layout.values.shape[1]:+06d}<samples>"),
+            ("DATA_TYPE", '"SWORD"' if slc else '"UWORD"'),
         ]
     )
     return text + " " * 50 + "\n"
 
 
-def _mph(image: SarImage, mission: str, station: str, total: int, sph: int, n: int) -> str:
+def _mph(
+    image: SarImage, product: str, mission: str, station: str, total: int, sph: int, n: int
+) -> str:
     a = image.annotation
     t = a.first_line_s + np.array([0, a.shape[0] - 1]) * a.line_interval_s
     u0, u1 = a.epoch.utc(t)
@@ -274,7 +356,7 @@ def _mph(image: SarImage, mission: str, station: str, total: int, sph: int, n: i
     stamp = str(np.datetime64(u0, "s")).replace("-", "").replace(":", "").replace("T", "_")
     seconds = int(np.rint(t[1] - t[0])) + 1
     suffix = ".E1" if mission == "ERS-1" else ".E2"
-    name = f"SAR_IMP_1PNXXX{stamp}_{seconds:08d}_00000000_00000_00000_0000{suffix}"
+    name = f"{product}NXXX{stamp}_{seconds:08d}_00000000_00000_00000_0000{suffix}"
     sv = _state_vectors(image)[2]
     text = _lines(
         [
