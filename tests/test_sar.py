@@ -332,18 +332,19 @@ def test_station_runs_an_ers_frame_over_the_srtm_tile(tmp_path, capsys) -> None:
 
 
 def _the_frame_file_alone_makes_the_runs_products(scn, run: Path, out: Path) -> None:
-    """The run wrote its frame (``<name>.frame.h5``) and processed it from the file; the
-    file processed alone by the library (``levels.frame``, no emulator: the run's options,
-    its DEM file) gives the run's GEC and GTC, byte for byte; `station process FRAME --dem
-    DEM` makes both from the file and the DEM, with the DEM's own options."""
+    """The run wrote its frame in ESA's format (``<name>.E1``, the house file beside it)
+    and processed it from that file; the file processed alone by the library
+    (``levels.frame``, no emulator: the run's options, its DEM file) gives the run's GEC
+    and GTC, byte for byte; `station process FRAME.E1 --dem DEM` makes both from the file
+    and the DEM, with the DEM's own options."""
     from levels.compare import compare_products
     from levels.frame import process_frame
     from levels.readers.dem import read_dem
-    from levels.readers.sar import read_sar_frame
+    from levels.readers.sar import open_frame
     from station.cli import main
     from station.run_sar import frame_options, scenario_provenance
 
-    frame = read_sar_frame(run / f"{scn.name}.frame.h5")
+    frame = open_frame(run / f"{scn.name}.E1")
     out.mkdir()
     made = process_frame(
         frame,
@@ -360,9 +361,9 @@ def _the_frame_file_alone_makes_the_runs_products(scn, run: Path, out: Path) -> 
         found = compare_products(a, read_product(m.path))
         bad = [f.text() for f in found if not f.ok and f.kind in ("pixels", "geometry", "metadata")]
         assert not bad, bad
-    cli = ["process", str(run / f"{scn.name}.frame.h5"), "--dem", str(run / f"{scn.name}.dem.tif")]
+    cli = ["process", str(run / f"{scn.name}.E1"), "--dem", str(run / f"{scn.name}.dem.tif")]
     assert main([*cli, "--out", str(out / "cli"), "-q"]) == 0
-    no_dem = ["process", str(run / f"{scn.name}.frame.h5"), "--levels", "GTC", "-q"]
+    no_dem = ["process", str(run / f"{scn.name}.E1"), "--levels", "GTC", "-q"]
     assert main([*no_dem, "--out", str(out / "no_dem")]) == 2  # GTC needs the DEM
     assert not (out / "no_dem").exists()
     assert {p.name for p in (out / "cli").glob("*.nc")} == {
