@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
@@ -49,6 +50,7 @@ from levels.errors import ProductError
 from levels.geometry.times import Epoch
 from levels.sar import SarAnnotation, SarImage
 from levels.sar.annotation import SPEED_OF_LIGHT_M_PER_S
+from levels.threads import over_blocks
 
 __all__ = [
     "DOPPLER_ADSR",
@@ -63,6 +65,7 @@ __all__ = [
     "is_envisat",
     "mjd_of",
     "read_envisat",
+    "resample_columns",
 ]
 
 #: Size of the main product header (bytes).
@@ -470,8 +473,6 @@ def _on_slant_range(
     slant range of each column): linear (the emulator's, or a slant-range image said as
     ground range), its own spacing and the image as it is; otherwise each line resampled
     (cubic) at ``slant_spacing`` from the near range."""
-    from scipy.ndimage import map_coordinates
-
     n = image.shape[1]
     if rg.linear:  # slant range at each sample as it is
         return float(rg(0.0)), float(rg(1.0) - rg(0.0)), image
@@ -480,10 +481,42 @@ def _on_slant_range(
     m = int(np.floor((far - near) / slant_spacing)) + 1
     wanted = near + np.arange(m) * slant_spacing
     column = np.interp(wanted, r, np.arange(n, dtype=np.float64))  # R(g) is monotonic
-    lines = np.arange(image.shape[0], dtype=np.float64)
-    coords = np.stack(np.broadcast_arrays(lines[:, None], column[None, :]))
-    out = map_coordinates(image, coords, order=3, mode="nearest").astype(np.float32)
-    return near, slant_spacing, np.maximum(out, 0.0)
+    return near, slant_spacing, np.maximum(resample_columns(image, column), 0.0)
+
+
+def resample_columns(
+    image: NDArray[np.floating], column: NDArray[np.float64]
+) -> NDArray[np.float32]:
+    """Every line of ``image`` sampled at fractional ``column`` s (the same for all lines)
+    by cubic convolution (Keys, a = −0.5; edges repeated), lines on threads (a full ERS
+    frame's 8300 × 5000 in about 0.1 s)."""
+    n = image.shape[1]
+    i0 = np.floor(column).astype(np.int64)
+    f = column - i0
+    taps = np.empty((4, column.size), dtype=np.float32)
+    for k in range(-1, 3):  # the four weights of each output sample
+        x = np.abs(f - k)
+        taps[k + 1] = np.where(
+            x <= 1.0,
+            (1.5 * x - 2.5) * x * x + 1.0,
+            np.where(x < 2.0, ((-0.5 * x + 2.5) * x - 4.0) * x + 2.0, 0.0),
+        )
+    index = np.clip(i0[None, :] + np.arange(-1, 3)[:, None], 0, n - 1)
+    out = np.empty((image.shape[0], column.size), dtype=np.float32)
+    src = np.ascontiguousarray(image, dtype=np.float32)
+    over_blocks(_kernel_columns, image.shape[0], src, index, taps, out, grain=64)
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _kernel_columns(lo, hi, src, index, taps, out):
+    """Lines ``lo … hi − 1`` of :func:`resample_columns`."""
+    for i in range(lo, hi):
+        for j in range(out.shape[1]):
+            v = 0.0
+            for k in range(4):
+                v += taps[k, j] * src[i, index[k, j]]
+            out[i, j] = v
 
 
 def _grid(geo: Any, slant_column: Any) -> GeolocationGrid:

@@ -47,6 +47,7 @@ from levels.readers.envisat import (
     MPP_ADSR,
     SRGR_ADSR,
     mjd_of,
+    resample_columns,
 )
 from levels.sar import SarImage
 from levels.sar.annotation import SPEED_OF_LIGHT_M_PER_S
@@ -119,7 +120,6 @@ def _layout(image: SarImage, product: str, ground_range: bool) -> _Layout:
     range as ESA's IMPs are: the same number of samples, evenly spaced on the ellipsoid
     along the middle line, the SR/GR polynomial of degree 4 fitted to that line."""
     from pyproj import Geod
-    from scipy.ndimage import map_coordinates
 
     a = image.annotation
     values = np.nan_to_num(np.asarray(image.intensity, dtype=np.float64), nan=0.0)
@@ -135,11 +135,8 @@ def _layout(image: SarImage, product: str, ground_range: bool) -> _Layout:
     srgr = np.polynomial.polynomial.polyfit(g, near + cols * dr, 4)
     srgr = srgr.astype(np.float32).astype(np.float64)  # as the file holds it
     layout = _Layout(product, values, float(g[-1] / (n - 1)), srgr)
-    slant_col = (layout.slant_range(cols) - near) / dr
-    lines = np.arange(n_lines, dtype=np.float64)
-    coords = np.stack(np.broadcast_arrays(lines[:, None], slant_col[None, :]))
-    ground = map_coordinates(values, coords, order=3, mode="nearest")
-    return _Layout(product, np.maximum(ground, 0.0), layout.spacing_m, srgr)
+    ground = resample_columns(values, (layout.slant_range(cols) - near) / dr)
+    return _Layout(product, np.maximum(ground, 0.0).astype(np.float64), layout.spacing_m, srgr)
 
 
 def _grid(image: SarImage, layout: _Layout) -> NDArray[np.void]:
