@@ -52,8 +52,7 @@ def main() -> None:
         r = compare_routes(scn, out, levels)
     print(f"{scn.name}: the L0 route and the DIMAP route ({Path(r['zip']).name})")
     print(
-        "level  identical counts  max diff  valid in one  geometry max px  "
-        "truth RMS m (L0 / DIMAP)"
+        "level  identical counts  max diff  valid in one  geometry max px  truth RMS m (L0 / DIMAP)"
     )
     for level, row in r["levels"].items():
         t0, t1 = row["truth_rms_m_l0"], row["truth_rms_m_dimap"]

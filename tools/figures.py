@@ -551,12 +551,15 @@ def bench() -> Iterator[Row]:
 
 
 #: The studies behind the README's accuracy figures, each its own tool (``tools/``), run
-#: as a user runs it: level 2, level 3, a block, the DIMAP pack, SAR, the stereo pair.
+#: as a user runs it: level 2, level 3, a block, the DIMAP pack and route (P, XS), SAR, the
+#: stereo pair.
 STUDIES = (
     ("level2.py", []),
     ("level3.py", []),
     ("blocks.py", []),
     ("spot_benchmark.py", []),
+    ("dimap_route.py", []),
+    ("dimap_route.py", ["--set", 'instrument.mode="XS"']),
     ("sar.py", []),
     ("stereo.py", []),
 )
