@@ -207,8 +207,7 @@ def item_of(path: Path, root: Path) -> Any:
     props: dict[str, Any] = {
         "title": str(a.get("title", path.stem)),
         "constellation": "spot",
-        "platform": "spot-emulated",
-        "instruments": [f"hrv{a.get('hrv', 1)}"],
+        **_platform(product),
         "spot:mode": str(a.get("mode", "")),
         "spot:scene_index": int(a.get("scene_index", 0)),
         "spot:mirror_step": int(a.get("mirror_step", 48)),
@@ -230,6 +229,24 @@ def item_of(path: Path, root: Path) -> Any:
     )
     _add_assets(item, path, f"level {level} product")
     return item
+
+
+def _platform(product: Product) -> dict[str, Any]:
+    """The platform and instrument: an emulated pass's, or those of the real scene a
+    product was made from (``levels.readers.scene1a``: ``spot-2``, ``hrv1``; its file and
+    imaging date as ``spot:source``, ``spot:imaging_date``)."""
+    from levels.readers.scene1a import ROUTE
+
+    prov, a = product.provenance, product.attrs
+    if prov.get("route") != ROUTE:
+        return {"platform": "spot-emulated", "instruments": [f"hrv{a.get('hrv', 1)}"]}
+    mission = str(prov.get("mission", "SPOT")).lower().replace(" ", "-")
+    return {
+        "platform": mission,
+        "instruments": [str(prov.get("instrument", "")).lower()],
+        "spot:source": str(prov.get("source", "")),
+        "spot:imaging_date": str(prov.get("imaging_date", "")),
+    }
 
 
 def _projection(product: Product) -> dict[str, Any]:

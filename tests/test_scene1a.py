@@ -186,6 +186,16 @@ def test_a_real_scene_zip_to_2a(refdata, tmp_path) -> None:
     grid = p2a.map_grid
     assert grid is not None and abs(grid.geotransform[1]) == 10.0 and "UTM" in grid.crs_wkt
     assert p2a.provenance["source"] == pack.name
+    import json
+
+    [item] = [
+        json.loads(f.read_text())
+        for f in out.rglob("*.json")
+        if json.loads(f.read_text()).get("type") == "Feature"
+    ]
+    props = item["properties"]  # the catalogue says what the scene is, not "emulated"
+    assert (props["platform"], props["instruments"]) == ("spot-2", ["hrv1"])
+    assert props["spot:source"] == pack.name and props["datetime"].startswith("1998-02-20")
 
 
 def _edited(refdata: Path, tmp_path: Path, old: str, new: str) -> Path:
