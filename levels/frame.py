@@ -148,7 +148,11 @@ def process_frame(
             f"{frame.name}_{level}",
             quality=quality,
             dem_source=dem_source if over_dem else "",
-            provenance={**(provenance or {}), "inputs": ", ".join(inputs)},
+            provenance={
+                **(provenance or {}),
+                "inputs": ", ".join(inputs),
+                "route": frame.product_type,  # the format it was read from
+            },
             gamma0=gamma0,
             instrument=frame.instrument,
         )

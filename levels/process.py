@@ -600,6 +600,7 @@ def _plan_archive(
         "software": f"spot-station {__version__}",
         "inputs": Path(archive.path).name,
         "processing": json.dumps(asdict(_recorded(options, out, request.root or out))),
+        "route": "L0 archive",  # a DIMAP scene's archive says its own
         **archive.provenance,
         **request.provenance,
     }

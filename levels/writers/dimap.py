@@ -387,8 +387,7 @@ def dimap_scene_of(
     - Look angles per detector as the product tabulates them; mirror step; frame corners
       and centre located by the model on the ellipsoid.
     - ``calibration``: each band's detector gains and dark offsets (the L0 archive's
-      table); ``counts_per_radiance``: the physical gain.
-    """
+      table); ``counts_per_radiance``: the physical gain."""
     from levels.geo.scenes import models_of_tree
 
     if product.level != Level.L1A:
@@ -410,7 +409,6 @@ def dimap_scene_of(
     rows, cols, lat, lon = _frame(model)
     a = product.attrs
     bands = {BAND_INDEX.get(name, k + 1): name for k, name in enumerate(models)}
-    day = centre_utc.partition("T")[0]
     return DimapScene(
         path=Path("METADATA.DIM"),
         mission="SPOT",
@@ -446,7 +444,7 @@ def dimap_scene_of(
             for index, name in bands.items()
         },
         n_bands=len(bands),
-        imaging_date=day,
+        imaging_date=centre_utc.partition("T")[0],
         band_descriptions=band_descriptions(product),
     )
 
