@@ -81,6 +81,7 @@ def test_a_p_pass_by_the_dimap_route_is_the_l0_routes(tmp_path) -> None:
     assert "SCENE01/METADATA.DIM" in names and "SCENE01/IMAGERY.TIF" in names
 
 
+@pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")
 def test_an_xs_pass_to_level_3_by_the_dimap_route(tmp_path) -> None:
     """Three XS bands, level 2 and level 3 over the exported DEM: the same both routes."""
     from station.loader import load_scenario
@@ -98,6 +99,43 @@ def test_an_xs_pass_to_level_3_by_the_dimap_route(tmp_path) -> None:
     assert prov["route"] == "DIMAP 1A scene" and prov["source"] == "route_xs.zip"
     assert prov["attitude"] == "integrated_zeroed"  # the rates the writer made reproduce it
     assert set(prov["radiance"]) == {"XS1", "XS2", "XS3"}
+    _four_bands_as_spot4_hrvir_gives_them(tmp_path / "out" / "route_xs.zip", tmp_path / "xi")
+
+
+def _four_bands_as_spot4_hrvir_gives_them(pack: Path, where: Path) -> None:
+    """The XS scene made a SPOT 4 HRVIR XI scene (``SENSOR_CODE`` I, a fourth band: XS3's
+    counts and look angles again): four bands made, the SWIR's 2A XS3's exactly."""
+    import dataclasses
+
+    import rasterio
+
+    from levels.products import read_product
+    from levels.readers.dimap import read_dimap
+    from levels.writers.dimap import write_dimap
+    from station.cli import main
+
+    scene = read_dimap(pack)
+    with rasterio.open(f"/vsizip/{pack}/SCENE01/IMAGERY.TIF") as ds:
+        image = ds.read()
+    xi = dataclasses.replace(
+        scene,
+        mission_index=4,
+        instrument="HRVIR",
+        sensor_code="I",
+        n_bands=4,
+        look_angles={**scene.look_angles, 4: scene.look_angles[3]},
+        calibration={**scene.calibration, 4: scene.calibration[3]},
+        band_descriptions={**scene.band_descriptions, 4: "SWIR"},
+    )
+    write_dimap(xi, where / "SCENE01", np.concatenate([image, image[2:3]]))
+    out = where / "out"
+    assert main(["process", str(where / "SCENE01"), "--levels", "2A", "--out", str(out), "-q"]) == 0
+    p2a = read_product(out / "SCENE01_s000_2A.nc")
+    assert list(p2a.bands) == ["XS1", "XS2", "XS3", "SWIR"]
+    assert np.array_equal(p2a.bands["SWIR"].image, p2a.bands["XS3"].image)
+    assert p2a.provenance["mission"] == "SPOT 4" and p2a.provenance["instrument"].startswith(
+        "HRVIR"
+    )
 
 
 def _real_scene(refdata: Path, name: str, where: Path, rows_of_zeros: int = 0) -> Path:
