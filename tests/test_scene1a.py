@@ -100,6 +100,17 @@ def test_an_xs_pass_to_level_3_by_the_dimap_route(tmp_path) -> None:
     assert prov["attitude"] == "integrated_zeroed"  # the rates the writer made reproduce it
     assert set(prov["radiance"]) == {"XS1", "XS2", "XS3"}
     _four_bands_as_spot4_hrvir_gives_them(tmp_path / "out" / "route_xs.zip", tmp_path / "xi")
+    # the command line, as a user runs it: the zip, its control points and DEM given
+    from station.cli import main
+
+    run = tmp_path / "out" / "l0_route"
+    cli = ["process", str(tmp_path / "out" / "route_xs.zip"), "--levels", "2,3", "--gcps"]
+    cli += [str(run / "route_xs.gcp.csv"), "--dem", str(run / "route_xs.dem.tif")]
+    assert main([*cli, "--scenario", str(toml), "--out", str(tmp_path / "cli"), "-q"]) == 0
+    for level in ("2", "3"):
+        a = read_product(tmp_path / "cli" / f"route_xs_s000_{level}.nc")
+        b = read_product(tmp_path / "out" / "dimap_route" / f"route_xs_s000_{level}.nc")
+        assert all(np.array_equal(a.bands[k].image, b.bands[k].image) for k in a.bands)
 
 
 def _four_bands_as_spot4_hrvir_gives_them(pack: Path, where: Path) -> None:
