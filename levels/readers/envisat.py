@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 
 from levels.errors import ProductError
 from levels.geometry.times import Epoch
+from levels.readers.sar import ImageFrame
 from levels.sar import SarAnnotation, SarImage
 from levels.sar.annotation import SPEED_OF_LIGHT_M_PER_S
 from levels.threads import over_blocks
@@ -238,7 +239,7 @@ class GeolocationGrid:
 
 
 @dataclass(frozen=True, eq=False)
-class EnvisatFrame:
+class EnvisatFrame(ImageFrame):
     """An ERS (or ASAR image-mode) level-1 frame of ESA's format: the reader's
     :class:`~levels.readers.sar.SarFrame` (module docstring)."""
 
@@ -253,16 +254,6 @@ class EnvisatFrame:
     @property
     def product_type(self) -> str:
         return self.mph.get("PRODUCT", "")[:10]
-
-    def state_vectors(self) -> tuple[NDArray[np.float64], ...]:
-        a = self.sar.annotation
-        return a.state_t_s, a.state_r_m, a.state_v_m_per_s
-
-    def beta_nought(self) -> NDArray[np.float32]:
-        return self.sar.intensity
-
-    def image(self) -> SarImage:
-        return self.sar
 
 
 def is_envisat(path: str | Path) -> bool:

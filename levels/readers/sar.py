@@ -38,6 +38,7 @@ __all__ = [
     "FRAME_FORMAT",
     "FRAME_VERSION",
     "HouseFrame",
+    "ImageFrame",
     "SarFrame",
     "is_frame_file",
     "is_sar_frame",
@@ -96,18 +97,11 @@ class SarFrame(Protocol):
         ...
 
 
-@dataclass(frozen=True, eq=False)
-class HouseFrame:
-    """A frame of the house format (:func:`read_sar_frame`)."""
+class ImageFrame:
+    """What every reader's frame gives alike from its :class:`levels.sar.SarImage`
+    (``sar``): the state vectors, the detected image, the image with its annotation."""
 
-    name: str
-    instrument: str
     sar: SarImage
-    path: Path | None = None
-
-    @property
-    def product_type(self) -> str:
-        return "slant range, detected"
 
     def state_vectors(self) -> tuple[NDArray[np.float64], ...]:
         a = self.sar.annotation
@@ -118,6 +112,20 @@ class HouseFrame:
 
     def image(self) -> SarImage:
         return self.sar
+
+
+@dataclass(frozen=True, eq=False)
+class HouseFrame(ImageFrame):
+    """A frame of the house format (:func:`read_sar_frame`)."""
+
+    name: str
+    instrument: str
+    sar: SarImage
+    path: Path | None = None
+
+    @property
+    def product_type(self) -> str:
+        return "slant range, detected"
 
 
 def is_sar_frame(path: str | Path) -> bool:
