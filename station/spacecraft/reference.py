@@ -1,0 +1,179 @@
+"""A reference ortho-image of the emulated world, as another sensor would give it
+(issue 51): what a user registers a SPOT scene to (a Sentinel-2 scene on ESA's Global
+Reference Image, a Landsat Collection 2 Tier 1 scene).
+
+:func:`render_reference` renders the world's reflectance in one band onto a map grid (UTM
+of the area's centre, or geographic), each pixel the mean of ``SUBPIXELS``² samples over
+its area (the other sensor's integration), with:
+
+- its **own geolocation error**: pixel ``(x, y)`` shows the ground at ``(x, y) + b``, ``b``
+  a bias (east, north) given, or drawn from ``error_ce95_m`` (per-axis σ = CE95 / 2.4477,
+  the circular error's 95 % radius of a two-dimensional normal);
+- a **radiometric change**: ``gain · ρ + offset``, times ``1 + season · f(x, y)``, ``f`` a
+  smooth field of unit amplitude over ``SEASON_SCALE_M`` (another season, another sensor);
+- **clouds** over ``cloud_fraction`` of the area (smooth blobs, bright and flat: no texture
+  to match).
+
+:func:`write_reference` writes it as a float32 GeoTIFF (NaN outside, its nodata) with its
+truth beside (``<name>.reference.json``: the bias, the CE95, the band, the changes), so
+that the control points found on it can be scored against where its pixels really are.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyproj
+from numpy.typing import NDArray
+
+from levels.geo.maps import MapGrid, map_crs
+
+__all__ = [
+    "CE95_PER_SIGMA",
+    "SUBPIXELS",
+    "ReferenceConfig",
+    "ReferenceImage",
+    "render_reference",
+    "write_reference",
+]
+
+#: A two-dimensional normal's 95 % circular radius, in per-axis σ: √(−2 ln 0.05).
+CE95_PER_SIGMA = 2.4477
+#: Samples per pixel side averaged into a reference pixel.
+SUBPIXELS = 3
+#: The scale of the seasonal change's smooth field (m).
+SEASON_SCALE_M = 3000.0
+
+
+@dataclass(frozen=True)
+class ReferenceConfig:
+    """A reference ortho-image (module docstring): its pixel, band, projection,
+    geolocation error (``bias_m``, else drawn from ``error_ce95_m``), radiometric change and
+    cloud cover."""
+
+    pixel_size_m: float = 10.0
+    band: str = "P"
+    projection: str = "utm"
+    error_ce95_m: float = 0.0
+    bias_m: tuple[float, float] | None = None
+    gain: float = 1.0
+    offset: float = 0.0
+    season: float = 0.0
+    cloud_fraction: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceImage:
+    """The rendered reference: its image (float32, NaN outside), map grid and truth."""
+
+    image: NDArray[np.float32]
+    grid: MapGrid
+    bias_m: tuple[float, float]
+    config: ReferenceConfig
+
+    @property
+    def sigma_m(self) -> float:
+        """Its stated accuracy, per axis (m): CE95 / 2.4477."""
+        return self.config.error_ce95_m / CE95_PER_SIGMA
+
+    def truth(self) -> dict[str, Any]:
+        return {
+            "bias_east_m": self.bias_m[0],
+            "bias_north_m": self.bias_m[1],
+            "sigma_m": self.sigma_m,
+            "rule": "pixel (x, y) shows the ground at (x + bias_east_m, y + bias_north_m)",
+            **{k: v for k, v in asdict(self.config).items() if k != "bias_m"},
+        }
+
+
+def _smooth_field(shape: tuple[int, int], scale_px: float, rng: np.random.Generator) -> NDArray:
+    """A smooth random field of unit standard deviation, correlated over ``scale_px``."""
+    from scipy.ndimage import gaussian_filter
+
+    f = gaussian_filter(rng.standard_normal(shape), max(scale_px / 2.0, 1.0), mode="wrap")
+    return np.asarray(f / max(float(f.std()), 1e-12))
+
+
+def render_reference(
+    world: Any,
+    lat_range_rad: tuple[float, float],
+    lon_range_rad: tuple[float, float],
+    config: ReferenceConfig,
+    seed: int,
+) -> ReferenceImage:
+    """The reference image of the world over the ranges (module docstring)."""
+    rng = np.random.default_rng(seed)
+    lat_c, lon_c = float(np.mean(lat_range_rad)), float(np.mean(lon_range_rad))
+    crs = (
+        map_crs("utm", lat_c, lon_c)
+        if config.projection == "utm"
+        else pyproj.CRS.from_user_input(config.projection)
+    )
+    to_map = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+    lons, lats = np.meshgrid(np.degrees(lon_range_rad), np.degrees(lat_range_rad))
+    x, y = to_map.transform(lons.ravel(), lats.ravel())
+    px = config.pixel_size_m
+    x0, y1 = np.floor(min(x) / px) * px, np.ceil(max(y) / px) * px
+    n_cols = int(np.ceil((max(x) - x0) / px))
+    n_rows = int(np.ceil((y1 - min(y)) / px))
+    grid = MapGrid.north_up(crs.to_wkt(), x0, y1, px, n_rows, n_cols)
+    sigma = config.error_ce95_m / CE95_PER_SIGMA
+    bias = config.bias_m if config.bias_m is not None else tuple(sigma * rng.standard_normal(2))
+    rho = _integrated(world, grid, config.band, (float(bias[0]), float(bias[1])))
+    image = config.gain * rho + config.offset
+    if config.season:
+        image *= 1.0 + config.season * _smooth_field(image.shape, SEASON_SCALE_M / px, rng)
+    if config.cloud_fraction > 0:
+        blobs = _smooth_field(image.shape, 2000.0 / px, rng)
+        cloud = blobs > np.quantile(blobs, 1.0 - config.cloud_fraction)
+        image = np.where(cloud, 0.9 * float(np.nanmax(image)), image)
+    return ReferenceImage(image.astype(np.float32), grid, (float(bias[0]), float(bias[1])), config)
+
+
+def _integrated(world: Any, grid: MapGrid, band: str, bias: tuple[float, float]) -> NDArray:
+    """The world's reflectance averaged over each pixel (``SUBPIXELS``² samples), each
+    pixel showing the ground ``bias`` (east, north) from its nominal place."""
+    to_geo = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True)
+    px, k = grid.pixel_size_m, SUBPIXELS
+    offsets = (np.arange(k) + 0.5) / k - 0.5
+    x = grid.x_m()[None, :, None] + offsets[None, None, :] * px + bias[0]
+    out = np.zeros(grid.shape)
+    for dy in offsets * px:  # the sub-rows, each a full image of samples
+        y = np.broadcast_to(grid.y_m()[:, None, None] + dy + bias[1], (grid.n_rows, grid.n_cols, k))
+        lon, lat = to_geo.transform(np.broadcast_to(x, y.shape).ravel(), y.ravel())
+        rho = world.reflectance(np.radians(lat), np.radians(lon), band).reshape(y.shape)
+        out += rho.mean(axis=2)
+    return out / k
+
+
+def write_reference(path: str | Path, ref: ReferenceImage) -> Path:
+    """The reference as a float32 GeoTIFF (atomically) and its truth beside it
+    (``<stem>.reference.json``); returns the GeoTIFF's path."""
+    import rasterio
+    from rasterio.transform import Affine
+
+    from levels.files import atomic_path
+
+    target = Path(path)
+    gt = ref.grid.geotransform
+    profile = {
+        "driver": "GTiff",
+        "width": ref.grid.n_cols,
+        "height": ref.grid.n_rows,
+        "count": 1,
+        "dtype": "float32",
+        "crs": ref.grid.crs_wkt,
+        "transform": Affine.from_gdal(*gt),
+        "nodata": float("nan"),
+        "compress": "deflate",
+    }
+    with atomic_path(target) as tmp, rasterio.open(tmp, "w", **profile) as ds:
+        ds.write(ref.image[None])
+        ds.set_band_description(1, f"reference {ref.config.band}")
+    truth = target.with_name(f"{target.stem}.reference.json")
+    truth.write_text(json.dumps(ref.truth(), indent=2) + "\n", encoding="utf-8")
+    return target
