@@ -35,6 +35,7 @@ import numpy as np
 import pyproj
 from numpy.typing import NDArray
 
+from levels.adjust import Adjustment
 from levels.errors import GcpError
 from levels.geo.maps import MapGrid
 from levels.geo.scenes import PassGeometry, SceneGeometry
@@ -115,7 +116,7 @@ class ReferencePoints:
     shift_px: NDArray[np.float64]
     peak: NDArray[np.float64]
     loops: list[dict[str, float]] = field(default_factory=list)
-    adjustment: object = None
+    adjustment: Adjustment | None = None
 
 
 def _sigma_px(peak: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -394,5 +395,6 @@ def _measure(
         # only in part: its σ grows with the shift (a tenth of it) until the model is refined
         np.hypot(_sigma_px(peak), 0.1 * np.hypot(*shift.T))[matched],
         np.full(n, hrv, dtype=np.int64)[matched],
+        reference=np.ones(int(matched.sum()), dtype=bool),
     )
     return gcps, shift[matched], peak[matched]

@@ -169,6 +169,12 @@ def _emulate_and_receive(
         options = with_exported_dem(scn, acqs, out)
         if scn.dem is not None:
             timings["dem_export"] = clock() - t
+        if scn.reference is not None:  # the ortho-image control points are found on
+            from station.spacecraft.reference import export_reference
+
+            t = clock()
+            export_reference(scn, acqs, out)
+            timings["reference_export"] = clock() - t
         tags = [scn.name if n_hrv == 1 else f"{scn.name}_hrv{a.hrv.number}" for a in acqs]
         received = [
             _receive(a, out, tag, timings, stages) for a, tag in zip(acqs, tags, strict=True)

@@ -319,6 +319,29 @@ class WorldConfig:
 
 
 @dataclass(frozen=True)
+class ReferenceConfig:
+    """A reference ortho-image of the world, as another sensor gives it
+    (:mod:`station.spacecraft.reference`), written as ``<name>.reference.tif`` into the run
+    directory with its truth: what control points are found on (``station gcps``)."""
+
+    pixel_size_m: float = option(10.0, "pixel_size_m", "its pixel (m)", 1.0, 1.0, 1000.0)
+    band: str = option("P", "band", "the band it sees", choices=("P", "XS1", "XS2", "XS3"))
+    projection: str = option("utm", "projection", "its map grid", choices=("utm", "EPSG:4326"))
+    error_ce95_m: float = option(
+        0.0, "error_ce95_m", "its geolocation error, 95 % circular (a bias drawn)", 1.0, 0.0, 1e4
+    )
+    bias_east_m: float = option(0.0, "bias_east_m", "a bias added east (m)", 1.0, -1e4, 1e4)
+    bias_north_m: float = option(0.0, "bias_north_m", "a bias added north (m)", 1.0, -1e4, 1e4)
+    gain: float = option(1.0, "gain", "its radiometric gain on reflectance", 1.0, 1e-3, 1e3)
+    offset: float = option(0.0, "offset", "its radiometric offset", 1.0, -1e3, 1e3)
+    season: float = option(
+        0.0, "season", "a smooth relative change over 3 km (another season)", 1.0, 0.0, 1.0
+    )
+    cloud_fraction: float = option(0.0, "cloud_fraction", "its cloud cover", 1.0, 0.0, 0.9)
+    margin_km: float = option(2.0, "margin_km", "its margin around the pass", 1.0, 0.0, 100.0)
+
+
+@dataclass(frozen=True)
 class DemConfig:
     """The DEM the station is handed for level 3: the world's terrain sampled on a
     latitude–longitude grid over the pass (ellipsoidal heights), with errors of a known
@@ -520,6 +543,7 @@ _SECTIONS = {
     "calibration": CalibrationConfig,
     "gcps": GcpConfig,
     "dem": DemConfig,
+    "reference": ReferenceConfig,
     "downlink": DownlinkConfig,
     "channel": ChannelConfig,
     "processing": ProcessingConfig,
@@ -547,6 +571,8 @@ class Scenario:
     gcps: GcpConfig = field(default_factory=GcpConfig)
     #: The DEM exported for level 3 (``[dem]`` given), or None.
     dem: DemConfig | None = None
+    #: The reference ortho-image written beside the run (``[reference]`` given), or None.
+    reference: ReferenceConfig | None = None
     downlink: DownlinkConfig = field(default_factory=DownlinkConfig)
     channel: ChannelConfig = field(default_factory=ChannelConfig)
     processing: ProcessingConfig = field(default_factory=ProcessingConfig)

@@ -9,10 +9,11 @@ comments. :func:`read_gcps` checks everything before handing it over: a missing 
 value that is not a number or not finite, a duplicate id, a point outside the image or a
 σ that is not positive is a :class:`~levels.errors.GcpError` naming the row and the value.
 
-An optional ``kind`` column says ``gcp`` (the default) or ``tie``: a tie point
-(:mod:`levels.tiepoints`) was measured in several passes' images, under the same id in each
-pass's file; its map position is only an approximation (its σ says how rough), which a
-block adjustment solves.
+An optional ``kind`` column says ``gcp`` (the default), ``tie`` or ``reference``: a tie
+point (:mod:`levels.tiepoints`) was measured in several passes' images, under the same id
+in each pass's file; its map position is only an approximation (its σ says how rough),
+which a block adjustment solves. A ``reference`` point is a control point found on a
+reference ortho-image (:mod:`levels.reference`): used as any control point, said apart.
 """
 
 from __future__ import annotations
@@ -65,10 +66,13 @@ class ControlPointSet:
     hrv: NDArray[np.int64]
     #: Tie points (kind ``tie``), whose ground position is unknown, not control.
     tie: NDArray[np.bool_] | None = None
+    #: Control points found on a reference ortho-image (kind ``reference``).
+    reference: NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
-        if self.tie is None:
-            object.__setattr__(self, "tie", np.zeros(len(self.id), dtype=bool))
+        for name in ("tie", "reference"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, np.zeros(len(self.id), dtype=bool))
 
     def __len__(self) -> int:
         return len(self.id)
@@ -186,7 +190,7 @@ def read_gcps(
     _, rows = _rows(where)
     ids: list[str] = []
     values: list[dict[str, float]] = []
-    kinds: list[bool] = []
+    kinds: list[str] = []
     for k, rec in rows:
         pid = rec["id"]
         if not pid:
@@ -195,8 +199,8 @@ def read_gcps(
             raise _bad(where, k, f"id {pid!r} given twice")
         v = _point(where, k, rec)
         kind = rec.get("kind", "") or "gcp"
-        if kind not in ("gcp", "tie"):
-            raise _bad(where, k, f"kind = {kind!r}: expected gcp or tie")
+        if kind not in ("gcp", "tie", "reference"):
+            raise _bad(where, k, f"kind = {kind!r}: expected gcp, tie or reference")
         line, col = v["line"], v["column"]
         if (n_lines is not None and not -0.5 <= line <= n_lines - 0.5) or (
             n_columns is not None and not -0.5 <= col <= n_columns - 0.5
@@ -209,7 +213,7 @@ def read_gcps(
             )
         ids.append(pid)
         values.append(v)
-        kinds.append(kind == "tie")
+        kinds.append(kind)
     a = {c: np.asarray([v[c] for v in values], dtype=np.float64) for c in GCP_COLUMNS[1:]}
     return ControlPointSet(
         tuple(ids),
@@ -222,16 +226,22 @@ def read_gcps(
         a["sigma_h_m"],
         a["sigma_px"],
         a["hrv"].astype(np.int64),
-        np.array(kinds, dtype=bool),
+        np.array([k == "tie" for k in kinds], dtype=bool),
+        np.array([k == "reference" for k in kinds], dtype=bool),
     )
+
+
+def _kind(gcps: ControlPointSet, k: int) -> str:
+    assert gcps.tie is not None and gcps.reference is not None
+    return "tie" if gcps.tie[k] else "reference" if gcps.reference[k] else "gcp"
 
 
 def write_gcps(path: str | Path, gcps: ControlPointSet, comment: str = "") -> Path:
     """Write a control-point file (module docstring) atomically; returns its path."""
     target = Path(path)
     rows = [f"# {ln}" for ln in comment.splitlines()] if comment else []
-    assert gcps.tie is not None
-    kinds = bool(gcps.tie.any())  # the kind column only where a tie point needs it
+    assert gcps.tie is not None and gcps.reference is not None
+    kinds = bool(gcps.tie.any() or gcps.reference.any())  # the column only where needed
     rows.append(",".join(GCP_COLUMNS) + (",kind" if kinds else ""))
     for k, pid in enumerate(gcps.id):
         rows.append(
@@ -247,7 +257,7 @@ def write_gcps(path: str | Path, gcps: ControlPointSet, comment: str = "") -> Pa
                     f"{gcps.sigma_h_m[k]:g}",
                     f"{gcps.sigma_px[k]:g}",
                     str(int(gcps.hrv[k])),
-                    *(["tie" if gcps.tie[k] else "gcp"] if kinds else []),
+                    *([_kind(gcps, k)] if kinds else []),
                 ]
             )
         )

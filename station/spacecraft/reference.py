@@ -7,15 +7,16 @@ of the area's centre, or geographic), each pixel the mean of ``SUBPIXELS``² sam
 its area (the other sensor's integration), with:
 
 - its **own geolocation error**: pixel ``(x, y)`` shows the ground at ``(x, y) + b``, ``b``
-  a bias (east, north) given, or drawn from ``error_ce95_m`` (per-axis σ = CE95 / 2.4477,
-  the circular error's 95 % radius of a two-dimensional normal);
+  a bias (east, north) drawn from ``error_ce95_m`` (per-axis σ = CE95 / 2.4477, the
+  circular error's 95 % radius of a two-dimensional normal), plus ``bias_east_m``,
+  ``bias_north_m``;
 - a **radiometric change**: ``gain · ρ + offset``, times ``1 + season · f(x, y)``, ``f`` a
   smooth field of unit amplitude over ``SEASON_SCALE_M`` (another season, another sensor);
 - **clouds** over ``cloud_fraction`` of the area (smooth blobs, bright and flat: no texture
   to match).
 
 :func:`write_reference` writes it as a float32 GeoTIFF (NaN outside, its nodata) with its
-truth beside (``<name>.reference.json``: the bias, the CE95, the band, the changes), so
+truth beside (``<stem>.json``: the bias, the CE95, the band, the changes), so
 that the control points found on it can be scored against where its pixels really are.
 """
 
@@ -31,11 +32,11 @@ import pyproj
 from numpy.typing import NDArray
 
 from levels.geo.maps import MapGrid, map_crs
+from station.scenario import ReferenceConfig
 
 __all__ = [
     "CE95_PER_SIGMA",
     "SUBPIXELS",
-    "ReferenceConfig",
     "ReferenceImage",
     "render_reference",
     "write_reference",
@@ -47,23 +48,6 @@ CE95_PER_SIGMA = 2.4477
 SUBPIXELS = 3
 #: The scale of the seasonal change's smooth field (m).
 SEASON_SCALE_M = 3000.0
-
-
-@dataclass(frozen=True)
-class ReferenceConfig:
-    """A reference ortho-image (module docstring): its pixel, band, projection,
-    geolocation error (``bias_m``, else drawn from ``error_ce95_m``), radiometric change and
-    cloud cover."""
-
-    pixel_size_m: float = 10.0
-    band: str = "P"
-    projection: str = "utm"
-    error_ce95_m: float = 0.0
-    bias_m: tuple[float, float] | None = None
-    gain: float = 1.0
-    offset: float = 0.0
-    season: float = 0.0
-    cloud_fraction: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,7 +70,7 @@ class ReferenceImage:
             "bias_north_m": self.bias_m[1],
             "sigma_m": self.sigma_m,
             "rule": "pixel (x, y) shows the ground at (x + bias_east_m, y + bias_north_m)",
-            **{k: v for k, v in asdict(self.config).items() if k != "bias_m"},
+            **asdict(self.config),
         }
 
 
@@ -122,7 +106,8 @@ def render_reference(
     n_rows = int(np.ceil((y1 - min(y)) / px))
     grid = MapGrid.north_up(crs.to_wkt(), x0, y1, px, n_rows, n_cols)
     sigma = config.error_ce95_m / CE95_PER_SIGMA
-    bias = config.bias_m if config.bias_m is not None else tuple(sigma * rng.standard_normal(2))
+    drawn = sigma * rng.standard_normal(2)
+    bias = (config.bias_east_m + drawn[0], config.bias_north_m + drawn[1])
     rho = _integrated(world, grid, config.band, (float(bias[0]), float(bias[1])))
     image = config.gain * rho + config.offset
     if config.season:
@@ -152,7 +137,7 @@ def _integrated(world: Any, grid: MapGrid, band: str, bias: tuple[float, float])
 
 def write_reference(path: str | Path, ref: ReferenceImage) -> Path:
     """The reference as a float32 GeoTIFF (atomically) and its truth beside it
-    (``<stem>.reference.json``); returns the GeoTIFF's path."""
+    (``<stem>.json``); returns the GeoTIFF's path."""
     import rasterio
     from rasterio.transform import Affine
 
@@ -174,6 +159,23 @@ def write_reference(path: str | Path, ref: ReferenceImage) -> Path:
     with atomic_path(target) as tmp, rasterio.open(tmp, "w", **profile) as ds:
         ds.write(ref.image[None])
         ds.set_band_description(1, f"reference {ref.config.band}")
-    truth = target.with_name(f"{target.stem}.reference.json")
+    truth = target.with_suffix(".json")
     truth.write_text(json.dumps(ref.truth(), indent=2) + "\n", encoding="utf-8")
     return target
+
+
+def export_reference(scn: Any, acqs: Any, out: Path) -> Path | None:
+    """The scenario's ``[reference]`` over its pass (the strips' footprint and the
+    section's margin) written as ``<name>.reference.tif`` into ``out``, or None."""
+    from station.spacecraft.dem import footprint_rad
+
+    cfg = scn.reference
+    if cfg is None:
+        return None
+    south, north, west, east = footprint_rad(acqs)
+    m = cfg.margin_km * 1e3 / 6.371e6
+    mlon = m / max(np.cos(0.5 * (south + north)), 0.1)
+    ref = render_reference(
+        acqs[0].world, (south - m, north + m), (west - mlon, east + mlon), cfg, scn.seed + 51
+    )
+    return write_reference(out / f"{scn.name}.reference.tif", ref)

@@ -1,0 +1,100 @@
+"""``station gcps``: a pass's control points found on a reference ortho-image."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from station.cli._options import add_json, emit
+
+__all__ = ["register"]
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "gcps",
+        help="find a pass's control points on a reference ortho-image",
+        description="Find the control points of a recorded pass (an L0 archive, or a SPOT "
+        "1–4 DIMAP 1A scene) on a reference ortho-image and a DEM (levels.reference: "
+        "windows of the raw image orthorectified onto the reference's grid with the "
+        "current model, phase correlation, level 2's adjustment, in a loop until the mean "
+        "shift is 1/20 px), and write them as a control-point file (docs/gcp.md, kind "
+        "reference) for station process --gcps.",
+    )
+    p.add_argument("source", help="an L0 archive (.h5) or a DIMAP 1A scene (.zip, directory)")
+    p.add_argument("--reference", required=True, help="the reference ortho-image (GeoTIFF)")
+    p.add_argument("--dem", required=True, help="the DEM under the pass (GeoTIFF)")
+    p.add_argument("--out", required=True, help="the control-point file to write (.csv)")
+    p.add_argument(
+        "--ce95",
+        type=float,
+        help="the reference's geolocation accuracy, 95 %% circular (m): the points' σ on "
+        "the ground (default: its truth file's when the emulator wrote it, else exact)",
+    )
+    p.add_argument(
+        "--options", help="a TOML file whose [processing] sets level 2's options and the cut"
+    )
+    p.add_argument(
+        "--scenario", help="the scenario that made the archive: each point scored against its truth"
+    )
+    add_json(p)
+    p.set_defaults(func=_gcps)
+
+
+def _gcps(args: argparse.Namespace) -> int:
+    from station.loader import load_scenario
+    from station.refgcps import gcps_from_reference
+
+    scn = load_scenario(args.scenario) if args.scenario else None
+    options = None
+    if args.options:
+        from levels.options import ProcessingOptions
+        from station.errors import ScenarioError
+        from station.scenario import read_toml
+
+        table, _ = read_toml(args.options, "options")
+        options = ProcessingOptions.from_table(table.get("processing", {}), error=ScenarioError)
+    elif scn is not None:
+        options = scn.processing
+    if options is None:
+        from station.cli.process import _recorded_cut
+
+        options = _recorded_cut([Path(args.source)])
+    _, summary = gcps_from_reference(
+        args.source,
+        args.reference,
+        args.dem,
+        args.out,
+        options=options,
+        ce95_m=args.ce95,
+        scenario=scn,
+    )
+    emit(args, summary, _text)
+    return 0
+
+
+def _text(d: dict) -> str:
+    lines = [
+        f"{d['points']} control points found on {d['reference']} written to {d['out']} "
+        f"(reference σ {d['reference_sigma_m']:.2f} m per axis)"
+    ]
+    for k, loop in enumerate(d["loops"]):
+        lines.append(
+            f"  loop {k + 1}: {int(loop['points'])} windows, mean shift "
+            f"{loop['mean_shift_px']:.3f} px (each {loop['point_shift_px']:.3f}, at most "
+            f"{loop['max_shift_px']:.2f})"
+        )
+    adj = d.get("adjustment") or {}
+    if adj:
+        lines.append(
+            f"  level 2's adjustment: {adj.get('points_used')} used, "
+            f"{adj.get('points_rejected')} rejected as blunders"
+        )
+    if "truth" in d:
+        t = d["truth"]
+        lines.append(
+            f"  against the truth: {t['rms_m']:.2f} m RMS, {t['median_m']:.2f} m median, mean "
+            f"({t['mean_east_m']:+.2f}, {t['mean_north_m']:+.2f}) m east, north"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,116 @@
+"""Control points of a recorded pass (an L0 archive or a DIMAP 1A scene) found on a
+reference ortho-image: ``station gcps`` (:mod:`levels.reference` does the finding).
+
+:func:`gcps_from_reference` reads the archive, makes GEO's scenes on the system model, the
+raw image of each (calibrated: the 1A's values, NaN where not valid), reads the reference
+(its stated accuracy the CE95 the user gives, or its truth file's beside it when the
+emulator wrote it) and the DEM, finds the points and writes them (``docs/gcp.md``, kind
+``reference``); with the scenario that made the archive, each point is also scored
+against the truth: where its raw pixel truly looks, against the ground it was given.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from levels.options import ProcessingOptions
+from levels.reference import ReferencePoints
+
+__all__ = ["gcps_from_reference", "reference_sigma_m"]
+
+
+def reference_sigma_m(path: str | Path, ce95_m: float | None) -> float:
+    """The reference's stated accuracy (1σ per axis, m): from ``ce95_m``, else from the
+    emulator's truth file beside it (``<stem>.json``), else 0 (exact)."""
+    from station.spacecraft.reference import CE95_PER_SIGMA
+
+    if ce95_m is not None:
+        return float(ce95_m) / CE95_PER_SIGMA
+    truth = Path(path).with_suffix(".json")
+    try:
+        return float(json.loads(truth.read_text(encoding="utf-8"))["error_ce95_m"]) / CE95_PER_SIGMA
+    except (OSError, ValueError, KeyError):
+        return 0.0
+
+
+def gcps_from_reference(
+    source: str | Path,
+    reference: str | Path,
+    dem_path: str | Path,
+    out: str | Path,
+    *,
+    options: ProcessingOptions | None = None,
+    ce95_m: float | None = None,
+    scenario: Any = None,
+) -> tuple[ReferencePoints, dict[str, Any]]:
+    """Find, write and (with ``scenario``) score the pass's control points (module
+    docstring); returns them and the summary the command prints."""
+    from levels.cor.radiometry import calibrate
+    from levels.process import geo_pass
+    from levels.readers.dem import read_dem
+    from levels.readers.gcp import write_gcps
+    from levels.readers.scene1a import open_archive
+    from levels.reference import read_reference, reference_control_points
+
+    archive = open_archive(source)
+    opts = options or ProcessingOptions()
+    setup = geo_pass(archive, opts)
+    band = next(iter(archive.bands))
+    b = archive.bands[band]
+
+    def raw_of(scene: Any) -> Any:
+        rows = slice(scene.cut.first_line, scene.cut.first_line + scene.cut.n_lines)
+        valid = b.pixel_valid_rows(rows)
+        image = calibrate(b.counts[rows], valid, b.gain, b.offset_counts).astype(np.float64)
+        image[~valid] = np.nan
+        return image
+
+    ref = read_reference(reference, reference_sigma_m(reference, ce95_m))
+    dem = read_dem(dem_path, opts.dem_vertical)
+    found = reference_control_points(
+        setup.pg, setup.scenes, raw_of, ref, dem, opts, archive.hrv, band
+    )
+    write_gcps(
+        out,
+        found.points,
+        f"control points of {Path(source).name} found on {Path(reference).name} "
+        f"(levels.reference; docs/gcp.md)",
+    )
+    summary: dict[str, Any] = {
+        "source": str(source),
+        "reference": str(reference),
+        "out": str(out),
+        "points": len(found.points),
+        "reference_sigma_m": ref.sigma_m,
+        "loops": found.loops,
+        "adjustment": found.adjustment.summary() if found.adjustment is not None else {},
+    }
+    if scenario is not None:
+        summary["truth"] = _scored(scenario, archive, found)
+    return found, summary
+
+
+def _scored(scenario: Any, archive: Any, found: ReferencePoints) -> dict[str, float]:
+    """Each point's ground against where its raw pixel truly looks (east, north, m)."""
+    from levels.geometry.ellipsoid import WGS84
+    from levels.geometry.frames import apply, enu_from_ecef
+    from station.truth.optical import truth_for
+
+    truth = truth_for(scenario, archive)
+    g = found.points
+    true = truth.ground(0, g.line + truth.row_offset, g.column)
+    lat, lon, _ = WGS84.to_geodetic(true)
+    enu = apply(enu_from_ecef(lat, lon), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
+    ok = np.isfinite(enu).all(axis=1)
+    e, n = enu[ok, 0], enu[ok, 1]
+    return {
+        "points": int(ok.sum()),
+        "mean_east_m": float(e.mean()),
+        "mean_north_m": float(n.mean()),
+        "rms_m": float(np.sqrt(np.mean(e**2 + n**2))),
+        "median_m": float(np.median(np.hypot(e, n))),
+    }
