@@ -111,6 +111,13 @@ def test_an_exact_reference_gives_level_2_within_a_tenth_of_a_pixel(run, tmp_pat
     row = _level2_px(d, toml, out, tmp_path / "l2", capsys)
     assert row["checkpoints/P/line_of_sight/rms_px"] <= LEVEL2_PX
     assert row["checkpoints_2a/P/line_of_sight/rms_px"] > 1.0  # what level 2 took off
+    # in one go: station process --reference finds them first and keeps them
+    one = ["process", str(d / "ref_small.l0.h5"), "--levels", "2", "--reference"]
+    one += [str(d / "ref_small.reference.tif"), "--dem", str(d / "ref_small.dem.tif")]
+    assert main([*one, "--scenario", str(toml), "--out", str(tmp_path / "one"), "--json"]) == 0
+    [again] = json.loads(capsys.readouterr().out)["products"]
+    assert again["checkpoints/P/line_of_sight/rms_px"] <= LEVEL2_PX
+    assert (tmp_path / "one" / "ref_small.reference.gcp.csv").is_file()
 
 
 def test_a_biased_reference_moves_level_2_by_its_own_error(run, tmp_path, capsys) -> None:

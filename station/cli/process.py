@@ -91,6 +91,12 @@ def _add_process(sub: Any) -> None:
         help="the DEM of level 3 (overrides [processing] dem_path) or of a SAR frame's GTC "
         "(heights above the ellipsoid; a GeoTIFF)",
     )
+    p.add_argument(
+        "--reference",
+        metavar="REF.tif",
+        help="find level 2's control points on this reference ortho-image first (station "
+        "gcps; with --dem), kept as <name>.reference.gcp.csv with the products",
+    )
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     p.add_argument(
         "--check",
@@ -276,6 +282,9 @@ def _process_pass(
     from station.reprocess import process_scenario, reprocess_pass
 
     with published_dir(out) as stage, runner_of(args) as runner:
+        gcps = args.gcps
+        if getattr(args, "reference", None):  # the control points found first, kept
+            gcps = [_reference_points(args, sources, names, options, stage)]
         if scn is not None:
             products, l0 = process_scenario(scn, stage, runner=runner)
             made = [(out / l0.name, products)]
@@ -286,7 +295,7 @@ def _process_pass(
                 options=options,
                 scenario=scenarios if len(scenarios) > 1 else (scenarios or [None])[0],
                 names=names,
-                gcps=args.gcps,
+                gcps=gcps,
                 runner=runner,
                 ties_dir=args.ties,
             )
@@ -300,6 +309,22 @@ def _process_pass(
         write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
     emit(args, report, _text)
     return exit_made(sum(len(d["products"]) for d in data), "station process")
+
+
+def _reference_points(
+    args: argparse.Namespace, sources: list[Path], names: list[str], options: Any, stage: Path
+) -> Path:
+    """``--reference``: the pass's control points found on the reference ortho-image and
+    the DEM (``station gcps``), written as ``<name>.reference.gcp.csv`` with the products."""
+    from station.refgcps import gcps_from_reference
+
+    if len(sources) != 1 or args.gcps:
+        raise StationError("--reference finds one archive's control points: give one, no --gcps")
+    if not options.dem_path:
+        raise StationError("--reference needs the DEM under the pass: give --dem")
+    out = stage / f"{names[0]}.reference.gcp.csv"
+    gcps_from_reference(sources[0], args.reference, options.dem_path, out, options=options)
+    return out
 
 
 def _is_frame(path: Path) -> bool:

@@ -46,6 +46,8 @@ __all__ = [
 CE95_PER_SIGMA = 2.4477
 #: Samples per pixel side averaged into a reference pixel.
 SUBPIXELS = 3
+#: Rows of the reference rendered at a time.
+BLOCK_ROWS = 256
 #: The scale of the seasonal change's smooth field (m).
 SEASON_SCALE_M = 3000.0
 
@@ -121,18 +123,22 @@ def render_reference(
 
 def _integrated(world: Any, grid: MapGrid, band: str, bias: tuple[float, float]) -> NDArray:
     """The world's reflectance averaged over each pixel (``SUBPIXELS``² samples), each
-    pixel showing the ground ``bias`` (east, north) from its nominal place."""
+    pixel showing the ground ``bias`` (east, north) from its nominal place; by blocks of
+    ``BLOCK_ROWS`` rows (a full scene at 10 m is 324 million samples)."""
     to_geo = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True)
     px, k = grid.pixel_size_m, SUBPIXELS
-    offsets = (np.arange(k) + 0.5) / k - 0.5
-    x = grid.x_m()[None, :, None] + offsets[None, None, :] * px + bias[0]
-    out = np.zeros(grid.shape)
-    for dy in offsets * px:  # the sub-rows, each a full image of samples
-        y = np.broadcast_to(grid.y_m()[:, None, None] + dy + bias[1], (grid.n_rows, grid.n_cols, k))
-        lon, lat = to_geo.transform(np.broadcast_to(x, y.shape).ravel(), y.ravel())
-        rho = world.reflectance(np.radians(lat), np.radians(lon), band).reshape(y.shape)
-        out += rho.mean(axis=2)
-    return out / k
+    offsets = (np.arange(k) + 0.5) / k * px - 0.5 * px
+    xs = (grid.x_m()[:, None] + offsets[None, :]).ravel() + bias[0]  # (n_cols · k)
+    ys = grid.y_m() + bias[1]
+    out = np.empty(grid.shape)
+    for r0 in range(0, grid.n_rows, BLOCK_ROWS):
+        y = (ys[r0 : r0 + BLOCK_ROWS, None] + offsets[None, :]).ravel()  # (rows · k)
+        x2, y2 = np.meshgrid(xs, y)
+        lon, lat = to_geo.transform(x2.ravel(), y2.ravel())
+        rho = world.reflectance(np.radians(lat), np.radians(lon), band)
+        n = y.size // k
+        out[r0 : r0 + n] = rho.reshape(n, k, grid.n_cols, k).mean(axis=(1, 3))
+    return out
 
 
 def write_reference(path: str | Path, ref: ReferenceImage) -> Path:
