@@ -27,6 +27,7 @@ TARGET_S = 20.0
 
 def main() -> None:
     from levels.cor.radiometry import calibrate
+    from levels.geo.maps import MapGrid
     from levels.geometry.ellipsoid import WGS84
     from levels.geometry.frames import apply, enu_from_ecef
     from levels.options import ProcessingOptions
@@ -56,7 +57,7 @@ def main() -> None:
         dem = world_dem(world, lr, lo, 1 / 1200, 0.0, np.random.default_rng(0))
         print(
             f"a {scene.cut.n_lines} × {scene.model.n_columns} P scene; the reference "
-            f"{ref_img.grid.n_rows} × {ref_img.grid.n_cols} at {pixel:g} m rendered in "
+            f"{ref_img.image.shape[0]} × {ref_img.image.shape[1]} at {pixel:g} m rendered in "
             f"{time.perf_counter() - t:.0f} s"
         )
         band = next(iter(archive.bands))
@@ -69,7 +70,8 @@ def main() -> None:
             img[~valid] = np.nan
             return img
 
-        ref = Reference(ref_img.image, ref_img.grid, 0.0, "reference")
+        grid = MapGrid(ref_img.crs_wkt, ref_img.geotransform, *ref_img.image.shape)
+        ref = Reference(ref_img.image, grid, 0.0, "reference")
         t = time.perf_counter()
         found = reference_control_points(setup.pg, [scene], raw_of, ref, dem, opts, archive.hrv)
         took = time.perf_counter() - t

@@ -92,11 +92,9 @@ def _add_process(sub: Any) -> None:
         "(heights above the ellipsoid; a GeoTIFF)",
     )
     p.add_argument(
-        "--reference",
-        metavar="REF.tif",
-        help="find level 2's control points on this reference ortho-image first (station "
-        "gcps; with --dem), kept as <name>.reference.gcp.csv with the products",
-    )
+        "--reference", metavar="REF.tif", help="level 2's control points found on this "
+        "reference ortho-image first (station gcps; --dem), kept with the products",
+    )  # fmt: skip
     p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
     p.add_argument(
         "--check",

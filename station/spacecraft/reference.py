@@ -31,7 +31,6 @@ import numpy as np
 import pyproj
 from numpy.typing import NDArray
 
-from levels.geo.maps import MapGrid, map_crs
 from station.scenario import ReferenceConfig
 
 __all__ = [
@@ -57,9 +56,14 @@ class ReferenceImage:
     """The rendered reference: its image (float32, NaN outside), map grid and truth."""
 
     image: NDArray[np.float32]
-    grid: MapGrid
+    crs_wkt: str
+    geotransform: tuple[float, float, float, float, float, float]  # GDAL's, north up
     bias_m: tuple[float, float]
     config: ReferenceConfig
+
+    @property
+    def pixel_size_m(self) -> float:
+        return self.geotransform[1]
 
     @property
     def sigma_m(self) -> float:
@@ -94,11 +98,11 @@ def render_reference(
     """The reference image of the world over the ranges (module docstring)."""
     rng = np.random.default_rng(seed)
     lat_c, lon_c = float(np.mean(lat_range_rad)), float(np.mean(lon_range_rad))
-    crs = (
-        map_crs("utm", lat_c, lon_c)
-        if config.projection == "utm"
-        else pyproj.CRS.from_user_input(config.projection)
-    )
+    if config.projection == "utm":  # the zone of the area's centre, north or south
+        zone = int(np.floor((np.degrees(lon_c) + 180.0) / 6.0)) % 60 + 1
+        crs = pyproj.CRS.from_epsg((32600 if lat_c >= 0 else 32700) + zone)
+    else:
+        crs = pyproj.CRS.from_user_input(config.projection)
     to_map = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
     lons, lats = np.meshgrid(np.degrees(lon_range_rad), np.degrees(lat_range_rad))
     x, y = to_map.transform(lons.ravel(), lats.ravel())
@@ -106,11 +110,11 @@ def render_reference(
     x0, y1 = np.floor(min(x) / px) * px, np.ceil(max(y) / px) * px
     n_cols = int(np.ceil((max(x) - x0) / px))
     n_rows = int(np.ceil((y1 - min(y)) / px))
-    grid = MapGrid.north_up(crs.to_wkt(), x0, y1, px, n_rows, n_cols)
+    gt = (float(x0), float(px), 0.0, float(y1), 0.0, -float(px))
     sigma = config.error_ce95_m / CE95_PER_SIGMA
     drawn = sigma * rng.standard_normal(2)
     bias = (config.bias_east_m + drawn[0], config.bias_north_m + drawn[1])
-    rho = _integrated(world, grid, config.band, (float(bias[0]), float(bias[1])))
+    rho = _integrated(world, crs.to_wkt(), gt, (n_rows, n_cols), config.band, bias)
     image = config.gain * rho + config.offset
     if config.season:
         image *= 1.0 + config.season * _smooth_field(image.shape, SEASON_SCALE_M / px, rng)
@@ -118,26 +122,36 @@ def render_reference(
         blobs = _smooth_field(image.shape, 2000.0 / px, rng)
         cloud = blobs > np.quantile(blobs, 1.0 - config.cloud_fraction)
         image = np.where(cloud, 0.9 * float(np.nanmax(image)), image)
-    return ReferenceImage(image.astype(np.float32), grid, (float(bias[0]), float(bias[1])), config)
+    bias_m = (float(bias[0]), float(bias[1]))
+    return ReferenceImage(image.astype(np.float32), crs.to_wkt(), gt, bias_m, config)
 
 
-def _integrated(world: Any, grid: MapGrid, band: str, bias: tuple[float, float]) -> NDArray:
+def _integrated(
+    world: Any,
+    crs_wkt: str,
+    gt: tuple[float, ...],
+    shape: tuple[int, int],
+    band: str,
+    bias: tuple[float, float],
+) -> NDArray:
     """The world's reflectance averaged over each pixel (``SUBPIXELS``² samples), each
     pixel showing the ground ``bias`` (east, north) from its nominal place; by blocks of
     ``BLOCK_ROWS`` rows (a full scene at 10 m is 324 million samples)."""
-    to_geo = pyproj.Transformer.from_crs(grid.crs_wkt, "EPSG:4326", always_xy=True)
-    px, k = grid.pixel_size_m, SUBPIXELS
+    to_geo = pyproj.Transformer.from_crs(crs_wkt, "EPSG:4326", always_xy=True)
+    px, k = gt[1], SUBPIXELS
+    n_rows, n_cols = shape
     offsets = (np.arange(k) + 0.5) / k * px - 0.5 * px
-    xs = (grid.x_m()[:, None] + offsets[None, :]).ravel() + bias[0]  # (n_cols · k)
-    ys = grid.y_m() + bias[1]
-    out = np.empty(grid.shape)
-    for r0 in range(0, grid.n_rows, BLOCK_ROWS):
+    x_centres = gt[0] + (np.arange(n_cols) + 0.5) * px
+    xs = (x_centres[:, None] + offsets[None, :]).ravel() + bias[0]  # (n_cols · k)
+    ys = gt[3] - (np.arange(n_rows) + 0.5) * px + bias[1]
+    out = np.empty(shape)
+    for r0 in range(0, n_rows, BLOCK_ROWS):
         y = (ys[r0 : r0 + BLOCK_ROWS, None] + offsets[None, :]).ravel()  # (rows · k)
         x2, y2 = np.meshgrid(xs, y)
         lon, lat = to_geo.transform(x2.ravel(), y2.ravel())
         rho = world.reflectance(np.radians(lat), np.radians(lon), band)
         n = y.size // k
-        out[r0 : r0 + n] = rho.reshape(n, k, grid.n_cols, k).mean(axis=(1, 3))
+        out[r0 : r0 + n] = rho.reshape(n, k, n_cols, k).mean(axis=(1, 3))
     return out
 
 
@@ -150,15 +164,14 @@ def write_reference(path: str | Path, ref: ReferenceImage) -> Path:
     from levels.files import atomic_path
 
     target = Path(path)
-    gt = ref.grid.geotransform
     profile = {
         "driver": "GTiff",
-        "width": ref.grid.n_cols,
-        "height": ref.grid.n_rows,
+        "width": ref.image.shape[1],
+        "height": ref.image.shape[0],
         "count": 1,
         "dtype": "float32",
-        "crs": ref.grid.crs_wkt,
-        "transform": Affine.from_gdal(*gt),
+        "crs": ref.crs_wkt,
+        "transform": Affine.from_gdal(*ref.geotransform),
         "nodata": float("nan"),
         "compress": "deflate",
     }
