@@ -26,14 +26,13 @@ TARGET_S = 20.0
 
 
 def main() -> None:
-    from levels.cor.radiometry import calibrate
     from levels.geo.maps import MapGrid
     from levels.geometry.ellipsoid import WGS84
     from levels.geometry.frames import apply, enu_from_ecef
     from levels.options import ProcessingOptions
     from levels.process import geo_pass
     from levels.readers.l0 import read_l0
-    from levels.reference import Reference, reference_control_points
+    from levels.reference import Reference, raw_images, reference_control_points
     from station.scenario import ReferenceConfig, scenario_from_dict
     from station.spacecraft.dem import world_dem
     from station.spacecraft.emulator import _world
@@ -60,15 +59,7 @@ def main() -> None:
             f"{ref_img.image.shape[0]} × {ref_img.image.shape[1]} at {pixel:g} m rendered in "
             f"{time.perf_counter() - t:.0f} s"
         )
-        band = next(iter(archive.bands))
-        b = archive.bands[band]
-
-        def raw_of(s):
-            rows = slice(s.cut.first_line, s.cut.first_line + s.cut.n_lines)
-            valid = b.pixel_valid_rows(rows)
-            img = calibrate(b.counts[rows], valid, b.gain, b.offset_counts).astype(np.float64)
-            img[~valid] = np.nan
-            return img
+        raw_of = raw_images(archive, next(iter(archive.bands)))
 
         grid = MapGrid(ref_img.crs_wkt, ref_img.geotransform, *ref_img.image.shape)
         ref = Reference(ref_img.image, grid, 0.0, "reference")

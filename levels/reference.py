@@ -42,6 +42,7 @@ from levels.geo.scenes import PassGeometry, SceneGeometry
 from levels.geometry.dem import Dem
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
+from levels.readers.l0 import L0Archive
 
 __all__ = [
     "CONVERGED_PX",
@@ -51,6 +52,7 @@ __all__ = [
     "Reference",
     "ReferencePoints",
     "phase_shifts",
+    "raw_images",
     "read_reference",
     "reference_control_points",
 ]
@@ -99,6 +101,23 @@ class Reference:
     grid: MapGrid
     sigma_m: float = 0.0
     source: str = ""
+
+
+def raw_images(archive: L0Archive, band: str) -> Callable[[SceneGeometry], NDArray]:
+    """``raw_of(scene)`` for :func:`reference_control_points`: the scene's rows of the
+    archive's ``band``, calibrated (the 1A's values), NaN where not valid."""
+    from levels.cor.radiometry import calibrate
+
+    b = archive.bands[band]
+
+    def raw_of(scene: SceneGeometry) -> NDArray:
+        rows = slice(scene.cut.first_line, scene.cut.first_line + scene.cut.n_lines)
+        valid = b.pixel_valid_rows(rows)
+        image = calibrate(b.counts[rows], valid, b.gain, b.offset_counts).astype(np.float64)
+        image[~valid] = np.nan
+        return image
+
+    return raw_of
 
 
 def read_reference(path: str | Path, sigma_m: float = 0.0) -> Reference:

@@ -49,30 +49,21 @@ def gcps_from_reference(
 ) -> tuple[ReferencePoints, dict[str, Any]]:
     """Find, write and (with ``scenario``) score the pass's control points (module
     docstring); returns them and the summary the command prints."""
-    from levels.cor.radiometry import calibrate
     from levels.process import geo_pass
     from levels.readers.dem import read_dem
     from levels.readers.gcp import write_gcps
     from levels.readers.scene1a import open_archive
-    from levels.reference import read_reference, reference_control_points
+    from levels.reference import raw_images, read_reference, reference_control_points
 
     archive = open_archive(source)
     opts = options or ProcessingOptions()
     setup = geo_pass(archive, opts)
     band = next(iter(archive.bands))
-    b = archive.bands[band]
-
-    def raw_of(scene: Any) -> Any:
-        rows = slice(scene.cut.first_line, scene.cut.first_line + scene.cut.n_lines)
-        valid = b.pixel_valid_rows(rows)
-        image = calibrate(b.counts[rows], valid, b.gain, b.offset_counts).astype(np.float64)
-        image[~valid] = np.nan
-        return image
 
     ref = read_reference(reference, reference_sigma_m(reference, ce95_m))
     dem = read_dem(dem_path, opts.dem_vertical)
     found = reference_control_points(
-        setup.pg, setup.scenes, raw_of, ref, dem, opts, archive.hrv, band
+        setup.pg, setup.scenes, raw_images(archive, band), ref, dem, opts, archive.hrv, band
     )
     write_gcps(
         out,
