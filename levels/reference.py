@@ -87,6 +87,9 @@ COARSE_PIXEL_M = 60.0
 MATCH_SIGMA_PX = 0.12
 #: The smallest σ a point is given (raw pixels).
 MIN_SIGMA_PX = 0.02
+#: A point that level 2's last adjustment misses by more than this many of its σ in the
+#: image (on either axis) is not handed on (:func:`_kept`).
+KEEP_SIGMAS = 3.0
 #: Phase correlation's peak below which a window is taken as unmatched: below it, one
 #: window in ten was off by 4 px or more (clouds, water, the wrong texture).
 MIN_PEAK = 0.35
@@ -316,11 +319,13 @@ def reference_control_points(
     pixels off, beyond what a window's correlation can see (half its width); the coarse
     loops bring it within a pixel, the fine loops finish."""
     raws = {k: raw_of(s) for k, s in enumerate(scenes)}
+    raw_px = _raw_pixel_m(scenes[0])
     factor = max(1, round(COARSE_PIXEL_M / ref.grid.pixel_size_m))
     current, loops = list(scenes), []
     if factor > 1:
         coarse_ref = _coarser(ref, factor)
-        coarse_raws = {k: _smoothed(r, factor) for k, r in raws.items()}
+        f_raw = round(coarse_ref.grid.pixel_size_m / raw_px)
+        coarse_raws = {k: _smoothed(r, f_raw) for k, r in raws.items()}
         found = _loop(
             pg,
             scenes,
@@ -336,9 +341,53 @@ def reference_control_points(
         loops += [{**loop, "scale": float(factor)} for loop in found.loops]
         assert found.adjustment is not None
         current = [found.adjustment.refine(pg, s) for s in scenes]
-    found = _loop(pg, scenes, current, raws, ref, dem, options, hrv, band, until_px=0.0)
+    f_raw = round(ref.grid.pixel_size_m / raw_px)  # a reference coarser than the scene
+    fine = {k: _smoothed(r, f_raw) for k, r in raws.items()} if f_raw > 1 else raws
+    found = _loop(pg, scenes, current, fine, ref, dem, options, hrv, band, until_px=0.0)
     found.loops = loops + [{**loop, "scale": 1.0} for loop in found.loops]
+    return _kept(found)
+
+
+def _kept(found: ReferencePoints) -> ReferencePoints:
+    """The points level 2's last adjustment used and fits within ``KEEP_SIGMAS`` of their
+    σ in the image on each axis: a window matched on a cloud's edge, or on another band's
+    unlike texture, is a point off by a pixel that the blunder test of one loop may let
+    pass; it is not handed on."""
+    adj = found.adjustment
+    if adj is None:
+        return found
+    status = dict(zip(adj.point_id, adj.point_status, strict=True))
+    after = dict(zip(adj.point_id, np.abs(adj.residual_after_px), strict=True))
+    g = found.points
+    keep = np.array(
+        [
+            status.get(i) == "used"
+            and bool(np.all(np.nan_to_num(after[i], nan=np.inf) <= KEEP_SIGMAS * g.sigma_px[k]))
+            for k, i in enumerate(g.id)
+        ]
+    )
+    if keep.sum() < 3:
+        raise GcpError(
+            f"of {len(keep)} windows matched on the reference, {int(keep.sum())} fit the "
+            "refined model: too few control points (clouds, another band's texture?)"
+        )
+    found.points = found.points._subset(keep)
+    found.shift_px, found.peak = found.shift_px[keep], found.peak[keep]
     return found
+
+
+def _raw_pixel_m(scene: SceneGeometry) -> float:
+    """The ground size of a raw pixel at the scene's centre (m; the mean of a line step
+    and a column step on the reference surface)."""
+    m = scene.model
+    line, col = 0.5 * (scene.cut.n_lines - 1), 0.5 * (m.n_columns - 1)
+    g = m.image_to_ground(
+        np.array([line, line + 1, line]), np.array([col, col, col + 1]), scene.reference_height_m
+    )
+    from levels.geometry.ellipsoid import WGS84
+
+    p = WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m)
+    return float(0.5 * (np.linalg.norm(p[1] - p[0]) + np.linalg.norm(p[2] - p[0])))
 
 
 def _coarser(ref: Reference, f: int) -> Reference:
@@ -351,8 +400,11 @@ def _coarser(ref: Reference, f: int) -> Reference:
 
 
 def _smoothed(raw: NDArray, f: int) -> NDArray:
-    """The raw image averaged over about ``f`` × ``f`` pixels (as the coarse reference
-    is), over an odd width so that each pixel stays at its place."""
+    """The raw image averaged over about ``f`` × ``f`` pixels (to a reference's coarser
+    pixel), over an odd width so that each pixel stays at its place; as it is for
+    ``f`` ≤ 1."""
+    if f <= 1:
+        return raw
     from scipy.ndimage import uniform_filter
 
     return np.asarray(uniform_filter(raw, f | 1, mode="nearest"))  # odd: centred

@@ -175,3 +175,50 @@ def test_a_reference_off_the_pass_is_refused_in_one_line(run, tmp_path, capsys) 
     code = main([*cli, "--dem", str(d / "ref_small.dem.tif"), "--out", str(tmp_path / "g.csv")])
     one_line(capsys, code, 2, "fewer than 3")
     assert not (tmp_path / "g.csv").exists()
+
+
+@pytest.mark.parametrize(
+    "change",
+    [{"cloud_fraction": 0.3}, {"band": "XS2"}, {"season": 0.3, "gain": 1.7, "offset": 0.05}],
+    ids=["clouds", "another_band", "another_season"],
+)
+def test_no_point_handed_on_beyond_three_sigma_of_its_truth(run, tmp_path, change) -> None:
+    """A reference 30 % clouded, of the red band for a panchromatic scene, or of another
+    season: every point handed on within 3σ of its truth on each axis (its σ: the image's
+    at the scene's pixel and the reference's), and enough of them for level 2."""
+    import dataclasses
+
+    import pyproj
+    import rasterio
+
+    from levels.geometry.ellipsoid import WGS84
+    from levels.geometry.frames import apply, enu_from_ecef
+    from levels.readers.l0 import read_l0
+    from station.loader import load_scenario
+    from station.refgcps import gcps_from_reference
+    from station.spacecraft.emulator import _world
+    from station.spacecraft.reference import render_reference, write_reference
+    from station.truth.optical import truth_for
+
+    d, toml = run
+    scn = load_scenario(toml)
+    with rasterio.open(d / "ref_small.reference.tif") as ds:
+        b, crs = ds.bounds, ds.crs
+    to_geo = pyproj.Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
+    lon, lat = to_geo.transform([b.left, b.right], [b.bottom, b.top])
+    assert scn.reference is not None
+    cfg = dataclasses.replace(scn.reference, **change)
+    ref = render_reference(_world(scn), tuple(np.radians(lat)), tuple(np.radians(lon)), cfg, 1)
+    path = write_reference(tmp_path / "changed.tif", ref)
+    l0 = d / "ref_small.l0.h5"
+    found, _ = gcps_from_reference(
+        l0, path, d / "ref_small.dem.tif", tmp_path / "g.csv", options=scn.processing
+    )
+    g = found.points
+    assert len(g) >= 30
+    truth = truth_for(scn, read_l0(l0, lazy=True))
+    true = truth.ground(0, g.line + truth.row_offset, g.column)
+    lat_t, lon_t, _ = WGS84.to_geodetic(true)
+    enu = apply(enu_from_ecef(lat_t, lon_t), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
+    sigma = np.hypot(g.sigma_ground_m, g.sigma_px * 100.0)  # the scene's 100 m pixels
+    assert np.all(np.abs(enu[:, :2]) <= 3.0 * sigma[:, None]), np.abs(enu[:, :2]).max()
