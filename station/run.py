@@ -290,6 +290,16 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
     archive = read_l0(l0, lazy=True)  # each scene task reads its own rows
     gcps_path = out / f"{tag}.gcp.csv"
     truth, gcps = measured_control_points(acq, archive, gcps_path)
+    scn = acq.scenario
+    if scn.gcps.source == "reference":  # found on the run's reference, not drawn
+        from levels.readers.gcp import read_gcps
+        from station.refgcps import gcps_from_reference
+
+        t = clock()
+        reference, dem = out / f"{scn.name}.reference.tif", out / f"{scn.name}.dem.tif"
+        gcps_from_reference(l0, reference, dem, gcps_path, options=scn.processing)
+        gcps = read_gcps(gcps_path, archive.n_lines, archive.n_columns)
+        timings["gcps_found"] = timings.get("gcps_found", 0.0) + clock() - t
     return _Received(l0, archive, decode, truth, gcps, gcps_path)
 
 
@@ -384,6 +394,8 @@ def _adjustment(adjustment: Any, acq: Any) -> dict[str, Any]:
     import numpy as np
 
     rejected = np.array(adjustment.point_status) == "rejected"
+    if acq.scenario.gcps.source == "reference":  # found on the reference: none planted
+        return {**adjustment.summary(), "source": "reference"}
     planted = acq.gcps.blunder
     return {
         **adjustment.summary(),

@@ -438,6 +438,13 @@ class GcpConfig:
         1.0,
         2.0,
     )
+    source: str = option(
+        "drawn",
+        "source",
+        "drawn (the truth with the errors above) or reference (found on the run's [reference] "
+        "ortho-image and [dem], station gcps)",
+        choices=("drawn", "reference"),
+    )
     shared: bool = option(
         False,
         "shared",
@@ -585,6 +592,11 @@ class Scenario:
 
     def __post_init__(self) -> None:
         check_name(self.name)
+        if self.gcps.source == "reference" and (self.reference is None or self.dem is None):
+            raise ScenarioError(
+                '[gcps] source = "reference" finds the points on the run\'s reference '
+                "ortho-image and DEM: give [reference] and [dem]"
+            )
         numbers = [i.hrv for i in self.instruments]
         if len(set(numbers)) != len(numbers):
             raise ScenarioError(

@@ -222,3 +222,29 @@ def test_no_point_handed_on_beyond_three_sigma_of_its_truth(run, tmp_path, chang
     enu = apply(enu_from_ecef(lat_t, lon_t), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
     sigma = np.hypot(g.sigma_ground_m, g.sigma_px * 100.0)  # the scene's 100 m pixels
     assert np.all(np.abs(enu[:, :2]) <= 3.0 * sigma[:, None]), np.abs(enu[:, :2]).max()
+
+
+def test_a_run_finds_its_control_points_on_its_reference(tmp_path) -> None:
+    """``[gcps] source = "reference"``: the run writes its reference and DEM, finds the
+    pass's points on them (kind reference) and makes level 2 on them: within 0.1 px of the
+    truth, and within [0.7, 1.5] of the σ its adjustment predicts (one draw); without
+    ``[reference]`` the scenario is refused before work."""
+    from station.cli import main
+    from station.errors import ScenarioError
+    from station.scenario import scenario_from_dict
+
+    text = _SCENARIO.replace('name = "ref_small"', 'name = "ref_run"').replace(
+        "[processing]", '[gcps]\nsource = "reference"\n\n[processing]\nlevels = ["2A", "2"]'
+    )
+    toml = tmp_path / "ref_run.toml"
+    toml.write_text(text, encoding="utf-8")
+    assert main(["run", str(toml), "--out", str(tmp_path / "run"), "-q", "--no-quicklooks"]) == 0
+    report = json.loads((tmp_path / "run" / "report.json").read_text())
+    [row] = [r for r in report["products"] if r["level"] == "2"]
+    q = row["quality"]
+    assert q["checkpoints/P/line_of_sight/rms_px"] <= LEVEL2_PX
+    ratio = q["checkpoints/P/line_of_sight/rms_m"] / q["predicted_sigma_m/horizontal"]
+    assert 0.7 <= ratio <= 1.5  # measured 0.90 (3.9 m against 4.3 m predicted)
+    assert "kind" in (tmp_path / "run" / "ref_run.gcp.csv").read_text().splitlines()[1]
+    with pytest.raises(ScenarioError, match="reference"):
+        scenario_from_dict({"name": "x", "gcps": {"source": "reference"}})
