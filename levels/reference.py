@@ -502,6 +502,7 @@ def _scene_windows(scenes: Sequence[SceneGeometry], ref: Reference, dem: Dem) ->
     """Each scene's candidates (a candidate in two scenes: the first's)."""
     half = PATCH_PX // 2
     taken = np.zeros(ref.image.shape, dtype=bool)
+    to_geo = pyproj.Transformer.from_crs(ref.grid.crs_wkt, "EPSG:4326", always_xy=True)
     out = []
     for k, scene in enumerate(scenes):
         model = scene.model
@@ -511,7 +512,6 @@ def _scene_windows(scenes: Sequence[SceneGeometry], ref: Reference, dem: Dem) ->
             ok = ~taken[rows, cols]
             for dr, dc in corners:
                 x, y = ref.grid.map_of(rows + dr, cols + dc)
-                to_geo = pyproj.Transformer.from_crs(ref.grid.crs_wkt, "EPSG:4326", always_xy=True)
                 lon, lat = (np.radians(v) for v in to_geo.transform(x, y))
                 ip = model.ground_to_image(lat, lon, dem.heights(lat, lon))
                 ok &= ip.converged & (ip.line >= 2) & (ip.line <= model.n_lines - 3)

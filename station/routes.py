@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from levels.choices import Level
 from levels.products import Product, read_product
 from levels.spot import MODES
 from station.scenario import Scenario
@@ -120,7 +121,9 @@ def _truth_rms_m(product: Product) -> float | None:
 
 
 def compare_routes(
-    scn: Scenario, out: str | Path, levels: tuple[str, ...] = ("1A", "1B", "2A")
+    scn: Scenario,
+    out: str | Path,
+    levels: tuple[str, ...] = (Level.L1A, Level.L1B, Level.L2A),
 ) -> dict[str, Any]:
     """Process ``scn``'s pass by the L0 route and by the DIMAP route into ``out``
     (``l0_route/``, ``<name>.zip``, ``dimap_route/``) and compare them (module
@@ -136,7 +139,7 @@ def compare_routes(
     [scene] = l0_made.scenes
     pack = out / f"{scn.name}.zip"
     source = Path(scn.source) if scn.source else None  # a scenario from a file: its truth
-    zip_pack(scene.paths["1A"], pack, scenario=source if source and source.is_file() else None)
+    zip_pack(scene.paths[Level.L1A], pack, scenario=source if source and source.is_file() else None)
     options = one.processing
     dem = out / "l0_route" / f"{scn.name}.dem.tif"
     if not options.dem_path and dem.is_file():

@@ -24,6 +24,8 @@ from pathlib import Path
 
 from overrides import scenario_changes  # tools/overrides.py
 
+from levels.makers.base import Need
+from levels.process import plan_levels
 from station.routes import compare_routes
 from station.scenario import scenario_from_dict
 
@@ -43,9 +45,10 @@ def main() -> None:
         data.setdefault(section, {}).update(values)
     levels = tuple(lv.strip() for lv in args.levels.split(",") if lv.strip())
     has_dem = "dem" in data or data.get("processing", {}).get("dem_path")
-    if "3" in levels and not has_dem:
+    needs_dem = any(Need.DEM in m.needs for m in plan_levels(levels))
+    if needs_dem and not has_dem:
         data["dem"] = {"spacing_arcsec": 3.0}
-        print("level 3: the world's DEM exported at 3″ ([dem] added)")
+        print("a level needs a DEM: the world's exported at 3″ ([dem] added)")
     scn = scenario_from_dict(data, base_dir=path.parent)
     with tempfile.TemporaryDirectory(prefix="dimap-route-") as tmp:
         out = Path(args.out) if args.out else Path(tmp)

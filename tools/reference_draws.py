@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from overrides import scenario_changes  # tools/overrides.py
 
+from levels.choices import Level
 from station.run import run_scenario
 from station.scenario import scenario_from_dict
 
@@ -49,7 +50,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             report = run_scenario(scn, Path(tmp) / "run", quicklooks=False)
             points = sum(1 for _ in open(Path(tmp) / "run" / f"draw{seed}.gcp.csv")) - 2
-        for row in (r for r in report["products"] if r["level"] == "2"):
+        for row in (r for r in report["products"] if r["level"] == Level.L2):
             q = row["quality"]
             rms_m = q["checkpoints/P/line_of_sight/rms_m"]
             predicted = q["predicted_sigma_m/horizontal"]

@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from levels.choices import Level
 from levels.errors import DimapError
 from levels.readers.dimap import AttitudeChoice, DimapScene, dimap_member, read_dimap
 from levels.readers.l0 import L0Archive, L0Band, read_l0
@@ -155,7 +156,7 @@ def _image_uri(path: Path, scene: DimapScene) -> str:
 def _check_scene(path: Path, scene: DimapScene) -> None:
     """Refuse, in one line, a scene the chain cannot make levels of (module docstring)."""
     level = scene.processing_level.upper()
-    if level and level != "1A":
+    if level and level != Level.L1A:
         raise DimapError(
             f"{path}: a level {scene.processing_level} scene: the processing centre makes its "
             "levels from a level 1A scene (raw geometry); this one is resampled already"

@@ -39,28 +39,17 @@ def register(sub: Any) -> None:
         "--scenario", help="the scenario that made the archive: each point scored against its truth"
     )
     add_json(p)
-    p.set_defaults(func=_gcps)
+    p.set_defaults(func=_gcps, levels=None)
 
 
 def _gcps(args: argparse.Namespace) -> int:
+    from station.cli.process import _options, _recorded_cut
     from station.loader import load_scenario
     from station.refgcps import gcps_from_reference
 
     scn = load_scenario(args.scenario) if args.scenario else None
-    options = None
-    if args.options:
-        from levels.options import ProcessingOptions
-        from station.errors import ScenarioError
-        from station.scenario import read_toml
-
-        table, _ = read_toml(args.options, "options")
-        options = ProcessingOptions.from_table(table.get("processing", {}), error=ScenarioError)
-    elif scn is not None:
-        options = scn.processing
-    if options is None:
-        from station.cli.process import _recorded_cut
-
-        options = _recorded_cut([Path(args.source)])
+    base = scn.processing if scn is not None else _recorded_cut([Path(args.source)])
+    options = _options(args, base)  # --options and --dem as station process reads them
     _, summary = gcps_from_reference(
         args.source,
         args.reference,
