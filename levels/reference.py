@@ -14,8 +14,9 @@ Tier 1) and a DEM, not points measured by hand. For each candidate point of the 
    2008): the raw pixel the model puts at the window's centre ``p`` truly shows the ground
    the reference shows at ``p + s``;
 3. that pixel and that ground (the reference's map position, the DEM's height there) make
-   a **control point**, of σ the reference's stated accuracy on the ground and
-   ``MATCH_SIGMA_PX`` in the image;
+   a **control point**, of σ the reference's stated accuracy on the ground (shared by all
+   the points: level 2 adds it once to its prediction, :func:`levels.adjust.model.
+   shared_sigma_m`) and ``MATCH_SIGMA_PX`` in the image;
 4. **level 2's adjustment** refines the pass's model on the points (and rejects blunders,
    :mod:`levels.adjust`); the patches are made again on the refined model, until the mean
    shift (the median of the points' shifts: the model's, not each match's noise) is at most
@@ -36,6 +37,7 @@ import pyproj
 from numpy.typing import NDArray
 
 from levels.adjust import Adjustment
+from levels.adjust.model import REFERENCE_OWN_SIGMA_M
 from levels.errors import GcpError
 from levels.geo.maps import MapGrid
 from levels.geo.scenes import PassGeometry, SceneGeometry
@@ -577,7 +579,7 @@ def _measure(
         h[matched],
         line[matched],
         col[matched],
-        np.full(n, max(ref.sigma_m, 0.5))[matched],
+        np.full(n, max(ref.sigma_m, REFERENCE_OWN_SIGMA_M))[matched],
         np.full(n, 5.0)[matched],
         # the matcher's σ from its peak; a window far off its place overlaps its reference
         # only in part: its σ grows with the shift (a tenth of it) until the model is refined

@@ -46,9 +46,11 @@ def gcps_from_reference(
     options: ProcessingOptions | None = None,
     ce95_m: float | None = None,
     scenario: Any = None,
+    truth: Any = None,
 ) -> tuple[ReferencePoints, dict[str, Any]]:
-    """Find, write and (with ``scenario``) score the pass's control points (module
-    docstring); returns them and the summary the command prints."""
+    """Find, write and (with ``scenario``, or the run's ``truth`` of the archive) score the
+    pass's control points (module docstring); returns them and the summary the command
+    prints (and the run reports)."""
     from levels.process import geo_pass
     from levels.readers.dem import read_dem
     from levels.readers.gcp import write_gcps
@@ -80,28 +82,50 @@ def gcps_from_reference(
         "loops": found.loops,
         "adjustment": found.adjustment.summary() if found.adjustment is not None else {},
     }
-    if scenario is not None:
-        summary["truth"] = _scored(scenario, archive, found)
+    if truth is None and scenario is not None:
+        from station.truth.optical import truth_for
+
+        truth = truth_for(scenario, archive)
+    if truth is not None:
+        summary["truth"] = _scored(truth, found, _reference_bias_m(reference))
     return found, summary
 
 
-def _scored(scenario: Any, archive: Any, found: ReferencePoints) -> dict[str, float]:
-    """Each point's ground against where its raw pixel truly looks (east, north, m)."""
+def _reference_bias_m(path: str | Path) -> tuple[float, float] | None:
+    """The reference's true bias (east, north; m) from the emulator's truth beside it."""
+    try:
+        t = json.loads(Path(path).with_suffix(".json").read_text(encoding="utf-8"))
+        return float(t["bias_east_m"]), float(t["bias_north_m"])
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def _scored(
+    truth: Any, found: ReferencePoints, bias: tuple[float, float] | None
+) -> dict[str, float]:
+    """Each point's ground against where its raw pixel truly looks (east, north, m); with
+    the reference's true ``bias``, also against it: what the matching alone missed."""
     from levels.geometry.ellipsoid import WGS84
     from levels.geometry.frames import apply, enu_from_ecef
-    from station.truth.optical import truth_for
 
-    truth = truth_for(scenario, archive)
     g = found.points
     true = truth.ground(0, g.line + truth.row_offset, g.column)
     lat, lon, _ = WGS84.to_geodetic(true)
     enu = apply(enu_from_ecef(lat, lon), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
     ok = np.isfinite(enu).all(axis=1)
     e, n = enu[ok, 0], enu[ok, 1]
-    return {
+    out = {
         "points": int(ok.sum()),
         "mean_east_m": float(e.mean()),
         "mean_north_m": float(n.mean()),
         "rms_m": float(np.sqrt(np.mean(e**2 + n**2))),
         "median_m": float(np.median(np.hypot(e, n))),
     }
+    if bias is not None:  # the reference shows the ground at (x, y) + bias at (x, y)
+        de, dn = e + bias[0], n + bias[1]
+        out |= {
+            "reference_bias_east_m": bias[0],
+            "reference_bias_north_m": bias[1],
+            "rms_of_matching_m": float(np.sqrt(np.mean(de**2 + dn**2))),
+        }
+    return out

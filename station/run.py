@@ -265,6 +265,8 @@ class _Received:
     truth: Any
     gcps: Any
     gcps_path: Path
+    #: With ``[gcps] source = "reference"``: what finding them reported, scored.
+    found: dict[str, Any] | None = None
 
 
 def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any) -> _Received:
@@ -290,17 +292,20 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
     archive = read_l0(l0, lazy=True)  # each scene task reads its own rows
     gcps_path = out / f"{tag}.gcp.csv"
     truth, gcps = measured_control_points(acq, archive, gcps_path)
-    scn = acq.scenario
+    scn, found = acq.scenario, None
     if scn.gcps.source == "reference":  # found on the run's reference, not drawn
         from levels.readers.gcp import read_gcps
         from station.refgcps import gcps_from_reference
+        from station.spacecraft.reference import reference_path
 
         t = clock()
-        reference, dem = out / f"{scn.name}.reference.tif", out / f"{scn.name}.dem.tif"
-        gcps_from_reference(l0, reference, dem, gcps_path, options=scn.processing)
+        reference, dem = reference_path(scn, out), out / f"{scn.name}.dem.tif"
+        _, found = gcps_from_reference(
+            l0, reference, dem, gcps_path, options=scn.processing, truth=truth
+        )
         gcps = read_gcps(gcps_path, archive.n_lines, archive.n_columns)
         timings["gcps_found"] = timings.get("gcps_found", 0.0) + clock() - t
-    return _Received(l0, archive, decode, truth, gcps, gcps_path)
+    return _Received(l0, archive, decode, truth, gcps, gcps_path, found)
 
 
 def _process(
@@ -368,7 +373,11 @@ def _section(acq: Any, rec: _Received, products: Any) -> dict[str, Any]:
             "size_mb": round(l0.stat().st_size / 1e6, 3),
             "rows": archive.n_lines,
         },
-        "gcps": {"file": gcps_path.name, "points": int(acq.gcps.line.size)},
+        "gcps": {
+            "file": gcps_path.name,
+            "points": int(acq.gcps.line.size) if rec.found is None else rec.found["points"],
+            **({"found": _found(rec.found)} if rec.found is not None else {}),
+        },
         **({"adjustment": _adjustment(products.adjustment, acq)} if products.adjustment else {}),
         "processing": {
             "levels": list(scn.processing.levels),
@@ -386,6 +395,32 @@ def _section(acq: Any, rec: _Received, products: Any) -> dict[str, Any]:
         },
     }
     return section
+
+
+def _found(summary: dict[str, Any]) -> dict[str, Any]:
+    """Control points found on a reference, in the report: the reference, its stated σ,
+    each loop's mean shift and the points against the truth (``station.refgcps``)."""
+    return {
+        "reference": Path(summary["reference"]).name,
+        "reference_sigma_m": summary["reference_sigma_m"],
+        "loops_mean_shift_px": [loop["mean_shift_px"] for loop in summary["loops"]],
+        "truth": summary.get("truth", {}),
+    }
+
+
+def _found_line(gcps: dict[str, Any]) -> str:
+    f, t = gcps["found"], gcps["found"].get("truth", {})
+    line = (
+        f"control points: {gcps['points']} found on {f['reference']} "
+        f"(σ {f['reference_sigma_m']:.1f} m stated; loops' mean shift "
+        + " → ".join(f"{s:.2f}" for s in f["loops_mean_shift_px"])
+        + " px)"
+    )
+    if t:
+        line += f"; against the truth {t['rms_m']:.2f} m RMS"
+    if "rms_of_matching_m" in t:
+        line += f", {t['rms_of_matching_m']:.2f} m without the reference's own bias"
+    return line
 
 
 def _adjustment(adjustment: Any, acq: Any) -> dict[str, Any]:
@@ -480,6 +515,8 @@ def summary_table(report: dict[str, Any], out_dir: str | Path | None = None) -> 
             f"{h['processing']['scenes']} scene(s)"
         )
         lines.append(_downlink_line(h["decode"]))
+        if "found" in h["gcps"]:
+            lines.append(_found_line(h["gcps"]))
     lead = [("hrv", "HRV"), ("scene", "scene")] if several else [("scene", "scene")]
     lines += product_table([table_row(r) for r in report["products"]], lead)
     for h in report["hrvs"]:

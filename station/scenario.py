@@ -339,6 +339,12 @@ class ReferenceConfig:
     )
     cloud_fraction: float = option(0.0, "cloud_fraction", "its cloud cover", 1.0, 0.0, 0.9)
     margin_km: float = option(2.0, "margin_km", "its margin around the pass", 1.0, 0.0, 100.0)
+    file: str = option(
+        "",
+        "file",
+        "an existing reference image (relative to the scenario; its truth <stem>.json beside "
+        "it, if any) used as it is: the options above are then not used",
+    )
 
 
 @dataclass(frozen=True)
@@ -619,8 +625,10 @@ class Scenario:
         }
 
     def inputs(self) -> list[Path]:
-        """The files the scenario reads: itself, its TLE, its world's and its level 3 DEM."""
+        """The files the scenario reads: itself, its TLE, its world's and its level 3 DEM, its
+        reference image."""
         given = [self.orbit.tle_path, self.world.dem_path, self.processing.dem_path]
+        given += [self.reference.file] if self.reference is not None else []
         return [Path(self.source)] * bool(self.source) + [self.path(p) for p in given if p]
 
     def path(self, relative: str) -> Path:

@@ -427,6 +427,25 @@ def _image_partials(
     )
 
 
+#: A control point found on a reference ortho-image (kind ``reference``) shares its
+#: ``sigma_ground_m`` with every other (the reference's own geolocation error: a bias of its
+#: whole grid, GRI's 8 m CE95, which no number of points averages out): each is weighed
+#: with at most this of its own on the ground (m; the reference's pixels among themselves),
+#: and the shared part is added once to the predicted accuracy (:func:`shared_sigma_m`).
+REFERENCE_OWN_SIGMA_M = 0.5
+
+
+def shared_sigma_m(gcps: ControlPointSet) -> float:
+    """The ground error (1σ per axis, m) every point of the set shares: the largest
+    ``sigma_ground_m`` of its reference points (one reference's stated accuracy), beyond
+    what each is weighed with alone (``REFERENCE_OWN_SIGMA_M``); 0 without any."""
+    assert gcps.reference is not None
+    if not gcps.reference.any():
+        return 0.0
+    s = float(np.max(gcps.sigma_ground_m[gcps.reference]))
+    return float(np.sqrt(max(s * s - REFERENCE_OWN_SIGMA_M**2, 0.0)))
+
+
 def _whitening(
     pg: PassGeometry,
     band: str,
@@ -445,6 +464,8 @@ def _whitening(
         cols.append((_condition(q, zero, zero, zero) - f0) / _STEP_M)
     a = np.stack(cols, axis=-1)  # (N, 2, 5): line, column, east, north, up
     sg, sh, sp = gcps.sigma_ground_m[use], gcps.sigma_h_m[use], gcps.sigma_px[use]
+    assert gcps.reference is not None
+    sg = np.where(gcps.reference[use], np.minimum(sg, REFERENCE_OWN_SIGMA_M), sg)
     q_diag = np.stack([sp**2, sp**2, sg**2, sg**2, sh**2], axis=-1)
     cov = np.einsum("nik,nk,njk->nij", a, q_diag, a)
     return np.linalg.inv(np.linalg.cholesky(cov))

@@ -21,6 +21,7 @@ from levels.adjust.model import (
     _local_axes,
     _points,
     _Problem,
+    shared_sigma_m,
 )
 from levels.geometry.ellipsoid import WGS84
 from levels.options import ProcessingOptions
@@ -164,7 +165,10 @@ def _predicted(
     """Predicted ground σ (east, north, horizontal RMS) of each of the strip's scenes
     (``scene_node``: their nodes in ``prob``), ``(S, 3)`` for each scaled covariance given:
     the ground displacement ``J_g⁻¹ J_x`` at a lattice of every scene's pixels on its
-    reference surface, through the covariance (all scenes at once)."""
+    reference surface, through the covariance (all scenes at once). The first covariance
+    is the solution's: to it is added, on each axis, the ground error its control points
+    share (:func:`~levels.adjust.model.shared_sigma_m`: a reference ortho-image's bias moves
+    the refined model with it, whatever the number of points)."""
     m, pg, band = PREDICTION_LATTICE, strip.pg, strip.band
     lines, cols, ground = [], [], []
     for scene in strip.scenes:
@@ -200,7 +204,7 @@ def _predicted(
         [np.broadcast_to(np.arange(_NP), (at.size, _NP)), _NP + _NS * at[:, None] + np.arange(_NS)],
         axis=1,
     )  # (n, 12): each point's parameters
-    out = []
+    out: list[NDArray[np.float64]] = []
     for cov in covariances:
         c = cov[sel[:, :, None], sel[:, None, :]]  # (n, 12, 12)
         cg = np.einsum("nik,nkl,njl->nij", move, c, move)
@@ -208,6 +212,8 @@ def _predicted(
         per = np.zeros((len(strip.scenes), 3))
         for k in range(2):
             per[:, k] = np.bincount(which, var[:, k], len(strip.scenes)) / m**2
+        if not out:
+            per[:, :2] += shared_sigma_m(strip.gcps) ** 2
         per[:, 2] = per[:, 0] + per[:, 1]
         out.append(np.sqrt(per))
     return out

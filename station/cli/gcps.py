@@ -86,4 +86,11 @@ def _text(d: dict) -> str:
             f"  against the truth: {t['rms_m']:.2f} m RMS, {t['median_m']:.2f} m median, mean "
             f"({t['mean_east_m']:+.2f}, {t['mean_north_m']:+.2f}) m east, north"
         )
+    if "rms_of_matching_m" in d.get("truth", {}):
+        t = d["truth"]
+        lines.append(
+            f"  the reference's own bias ({t['reference_bias_east_m']:+.2f}, "
+            f"{t['reference_bias_north_m']:+.2f}) m taken off: {t['rms_of_matching_m']:.2f} m "
+            "RMS (the matching's)"
+        )
     return "\n".join(lines)

@@ -37,6 +37,8 @@ __all__ = [
     "CE95_PER_SIGMA",
     "SUBPIXELS",
     "ReferenceImage",
+    "export_reference",
+    "reference_path",
     "render_reference",
     "write_reference",
 ]
@@ -71,12 +73,12 @@ class ReferenceImage:
         return self.config.error_ce95_m / CE95_PER_SIGMA
 
     def truth(self) -> dict[str, Any]:
-        return {
+        return {  # the configuration's own biases are in the drawn ones: those replace them
+            **asdict(self.config),
             "bias_east_m": self.bias_m[0],
             "bias_north_m": self.bias_m[1],
             "sigma_m": self.sigma_m,
             "rule": "pixel (x, y) shows the ground at (x + bias_east_m, y + bias_north_m)",
-            **asdict(self.config),
         }
 
 
@@ -183,14 +185,31 @@ def write_reference(path: str | Path, ref: ReferenceImage) -> Path:
     return target
 
 
+def reference_path(scn: Any, out: Path) -> Path:
+    """Where a run's reference image is: the scenario's ``[reference] file``, else the
+    one the run renders (``<name>.reference.tif`` in ``out``)."""
+    cfg = scn.reference
+    if cfg is not None and cfg.file:
+        return Path(scn.path(cfg.file))
+    return out / f"{scn.name}.reference.tif"
+
+
 def export_reference(scn: Any, acqs: Any, out: Path) -> Path | None:
     """The scenario's ``[reference]`` over its pass (the strips' footprint and the
-    section's margin) written as ``<name>.reference.tif`` into ``out``, or None."""
+    section's margin) written as ``<name>.reference.tif`` into ``out``; its ``file`` as it
+    is (checked to exist: two passes registered to one reference); None without."""
     from station.spacecraft.dem import footprint_rad
 
     cfg = scn.reference
     if cfg is None:
         return None
+    if cfg.file:
+        path = reference_path(scn, out)
+        if not path.is_file():
+            from station.errors import ScenarioError
+
+            raise ScenarioError(f"[reference] file = {cfg.file!r}: no such file ({path})")
+        return path
     south, north, west, east = footprint_rad(acqs)
     m = cfg.margin_km * 1e3 / 6.371e6
     mlon = m / max(np.cos(0.5 * (south + north)), 0.1)
