@@ -30,6 +30,15 @@ class AdjustmentError(GeometryError):
     fail the χ² test of the fit (``levels.adjust``); no product is made of it."""
 
 
+class FitRefused(AdjustmentError):
+    """Level 2's fit fails its χ² test: the points do not fit the model within their σ.
+    ``sigma0`` is the fit's a posteriori σ0 (its a priori: 1)."""
+
+    def __init__(self, message: str, sigma0: float) -> None:
+        super().__init__(message)
+        self.sigma0 = sigma0
+
+
 class DimapError(LevelsError, ValueError):
     """A DIMAP metadata file is not DIMAP, lacks a needed element, or is inconsistent."""
 

@@ -196,7 +196,9 @@ def phase_shifts(
 
 def _candidates(ref: Reference, inside: Callable, half: int) -> tuple[NDArray, NDArray]:
     """The most textured window's centre in each ``CELL_PX`` cell of the reference, where
-    ``inside(rows, cols)`` says the scene sees the whole window."""
+    ``inside(rows, cols)`` says the scene sees the whole window; cells of half a window
+    where that gives fewer than ``MIN_CANDIDATES`` (a scene of a few kilometres at the
+    coarse stage's 60 m)."""
     from scipy.ndimage import uniform_filter
 
     img = np.nan_to_num(ref.image.astype(np.float64), nan=0.0)
@@ -206,6 +208,20 @@ def _candidates(ref: Reference, inside: Callable, half: int) -> tuple[NDArray, N
     texture[np.isnan(uniform_filter(ref.image.astype(np.float64), PATCH_PX))] = 0.0
     nr, nc = ref.image.shape
     cell = max(CELL_PX, int(np.sqrt(nr * nc / MAX_WINDOWS)))
+    rows, cols = _best_of_cells(texture, cell, half, inside)
+    if rows.size < MIN_CANDIDATES:  # a small scene: windows half overlapping
+        rows, cols = _best_of_cells(texture, PATCH_PX // 2, half, inside)
+    return rows, cols
+
+
+#: Fewer candidates than this in the scene and the cells shrink to half a window.
+MIN_CANDIDATES = 25
+
+
+def _best_of_cells(
+    texture: NDArray, cell: int, half: int, inside: Callable
+) -> tuple[NDArray, NDArray]:
+    nr, nc = texture.shape
     r0 = np.arange(half + 1, nr - half - 1 - cell + 1, cell)
     c0 = np.arange(half + 1, nc - half - 1 - cell + 1, cell)
     if not r0.size or not c0.size:
@@ -427,7 +443,6 @@ def _loop(
     """Measure, adjust, measure again on the refined model (module docstring, 1–4) on one
     reference: until the median shift is ``CONVERGED_PX`` (``MIN_LOOPS`` loops at least),
     or ``until_px`` (a coarse stage), or ``MAX_LOOPS`` loops."""
-    from levels.adjust import adjust
 
     windows = _scene_windows(current, ref, dem)
     if sum(w.row.size for w in windows) < 3:
@@ -449,11 +464,40 @@ def _loop(
         )
         coarse = until_px > 0 or mean > COARSE_PX  # the model at large, not each point
         gcps = _coarse(gcps, shift) if coarse else _scattered(gcps, shift)
-        adjustment = adjust(pg, list(scenes), gcps, options, band)
+        gcps, adjustment = _adjusted(pg, scenes, gcps, options, band)
         done = mean <= CONVERGED_PX and len(loops) >= MIN_LOOPS
         if done or mean <= until_px or len(loops) >= MAX_LOOPS:
             return ReferencePoints(gcps, shift, peak, loops, adjustment)
         current = [adjustment.refine(pg, s) for s in scenes]
+
+
+def _adjusted(
+    pg: PassGeometry,
+    scenes: Sequence[SceneGeometry],
+    gcps: ControlPointSet,
+    options: ProcessingOptions,
+    band: str | None,
+) -> tuple[ControlPointSet, Adjustment]:
+    """Level 2's adjustment on the points; a fit that fails its χ² test is made once more
+    with each point's σ in the image times the fit's σ0 (its a posteriori variance factor:
+    the matches' σ are estimates, from the peak and the loop's scatter, and a reference of
+    another season or view can make every match noisier than they say), and the points
+    handed on carry the widened σ."""
+    from levels.adjust import adjust
+    from levels.errors import FitRefused
+
+    try:
+        return gcps, adjust(pg, list(scenes), gcps, options, band)
+    except FitRefused as e:
+        wider = _with_sigma_px(gcps, gcps.sigma_px * e.sigma0)
+        return wider, adjust(pg, list(scenes), wider, options, band)
+
+
+def _with_sigma_px(g: ControlPointSet, sigma_px: NDArray[np.float64]) -> ControlPointSet:
+    return ControlPointSet(
+        g.id, g.lon_rad, g.lat_rad, g.h_m, g.line, g.column, g.sigma_ground_m, g.sigma_h_m,
+        sigma_px, g.hrv, g.tie, g.reference,
+    )  # fmt: skip
 
 
 def _scattered(gcps: ControlPointSet, shift: NDArray[np.float64]) -> ControlPointSet:
@@ -466,21 +510,7 @@ def _scattered(gcps: ControlPointSet, shift: NDArray[np.float64]) -> ControlPoin
     med = np.median(shift, axis=0)
     per_axis = 1.4826 * np.median(np.abs(shift - med), axis=0)
     spread = float(np.sqrt(np.mean(per_axis**2)))  # σ is per axis
-    widened = np.maximum(gcps.sigma_px, spread)
-    return ControlPointSet(
-        gcps.id,
-        gcps.lon_rad,
-        gcps.lat_rad,
-        gcps.h_m,
-        gcps.line,
-        gcps.column,
-        gcps.sigma_ground_m,
-        gcps.sigma_h_m,
-        widened,
-        gcps.hrv,
-        gcps.tie,
-        gcps.reference,
-    )
+    return _with_sigma_px(gcps, np.maximum(gcps.sigma_px, spread))
 
 
 def _coarse(gcps: ControlPointSet, shift: NDArray[np.float64]) -> ControlPointSet:
@@ -494,10 +524,7 @@ def _coarse(gcps: ControlPointSet, shift: NDArray[np.float64]) -> ControlPointSe
     k = np.flatnonzero(keep)
     sub = gcps._subset(keep)
     sigma = np.hypot(sub.sigma_px, float(np.hypot(*spread)))
-    return ControlPointSet(
-        sub.id, sub.lon_rad, sub.lat_rad, sub.h_m, sub.line, sub.column, sub.sigma_ground_m,
-        sub.sigma_h_m, sigma, sub.hrv, sub.tie, sub.reference,
-    ) if k.size >= 3 else gcps  # fmt: skip
+    return _with_sigma_px(sub, sigma) if k.size >= 3 else gcps
 
 
 def _scene_windows(scenes: Sequence[SceneGeometry], ref: Reference, dem: Dem) -> list[_Windows]:

@@ -7,7 +7,7 @@ and a strip of scenes (:class:`Strip`).
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -17,7 +17,12 @@ from scipy import sparse
 from levels.errors import GeometryError
 from levels.geo.scenes import PassGeometry, SceneGeometry
 from levels.geometry import collinearity
-from levels.geometry.attitude import SampledAttitude, attitude_gaps, westin_variogram_rad2
+from levels.geometry.attitude import (
+    SampledAttitude,
+    attitude_gaps,
+    interpolation_sigma_rad,
+    westin_variogram_rad2,
+)
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.frames import (
@@ -51,8 +56,9 @@ SCENE_PARAMETERS = (
 _NP, _NS = len(PASS_PARAMETERS), len(SCENE_PARAMETERS)
 #: Lattice of pixels per scene side where the predicted accuracy is evaluated.
 PREDICTION_LATTICE = 5
-#: Finite-difference steps: parameters (in a priori σ), image (px), ground (m).
-_STEP_X, _STEP_PX, _STEP_M = 1e-3, 0.05, 1.0
+#: Finite-difference steps: parameters (in a priori σ), image (px), ground (m), attitude
+#: (rad).
+_STEP_X, _STEP_PX, _STEP_M, _STEP_ATT_RAD = 1e-3, 0.05, 1.0, 1e-6
 #: Soft-L1 scale of the robust first fit, in normalised residuals (inliers stay quadratic).
 ROBUST_SCALE = 3.0
 #: At most this many snooping rounds (each rejects every point beyond the threshold).
@@ -176,6 +182,9 @@ class _Problem:
     sigma_pass: NDArray[np.float64]  # (6,) a priori σ, SI
     sigma_scene: NDArray[np.float64]  # (6,)
     increment_sigma: NDArray[np.float64]  # (S, 3): σ of attitude jumps from the previous
+    #: The attitude's error between gyro records (rad; roll, pitch, yaw): no parameter
+    #: takes it off (:func:`~levels.geometry.attitude.interpolation_sigma_rad`).
+    attitude_floor_rad: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
 
     @property
     def n_scenes(self) -> int:
@@ -452,8 +461,11 @@ def _whitening(
     gcps: ControlPointSet,
     use: NDArray[np.bool_],
     p: _Points,
+    attitude_floor_rad: NDArray[np.float64],
 ) -> NDArray[np.float64]:
-    """``L⁻¹`` of every point's condition covariance ``A Q Aᵀ`` (eq. 20), ``(N, 2, 2)``."""
+    """``L⁻¹`` of every point's condition covariance ``A Q Aᵀ`` (eq. 20), ``(N, 2, 2)``:
+    its image and ground σ, and the attitude's between gyro records (each point sees the
+    attitude of its own line, which the model's offsets and rates cannot follow)."""
     zero = np.zeros((p.t_s.size, 3))
     f0 = _condition(p, zero, zero, zero)
     line, col = gcps.line[use], gcps.column[use]
@@ -462,11 +474,16 @@ def _whitening(
     for k in range(3):
         q = _points(pg, band, line, col, p.g_ecef_m + _STEP_M * enu[:, k], p.scene)
         cols.append((_condition(q, zero, zero, zero) - f0) / _STEP_M)
-    a = np.stack(cols, axis=-1)  # (N, 2, 5): line, column, east, north, up
+    for k in range(3):  # the condition per radian of roll, pitch, yaw
+        d_att = np.zeros((p.t_s.size, 3))
+        d_att[:, k] = _STEP_ATT_RAD
+        cols.append((_condition(p, zero, zero, d_att) - f0) / _STEP_ATT_RAD)
+    a = np.stack(cols, axis=-1)  # (N, 2, 8): line, column, east, north, up, roll, pitch, yaw
     sg, sh, sp = gcps.sigma_ground_m[use], gcps.sigma_h_m[use], gcps.sigma_px[use]
     assert gcps.reference is not None
     sg = np.where(gcps.reference[use], np.minimum(sg, REFERENCE_OWN_SIGMA_M), sg)
-    q_diag = np.stack([sp**2, sp**2, sg**2, sg**2, sh**2], axis=-1)
+    att = np.broadcast_to(attitude_floor_rad**2, (sp.size, 3))
+    q_diag = np.concatenate([np.stack([sp**2, sp**2, sg**2, sg**2, sh**2], axis=-1), att], axis=1)
     cov = np.einsum("nik,nk,njk->nij", a, q_diag, a)
     return np.linalg.inv(np.linalg.cholesky(cov))
 
@@ -482,14 +499,15 @@ def _problem(
     """The least-squares problem of the attitude nodes at ``t_node_s`` with each strip's
     points ``uses[k]`` (``nodes[k]``: each point's node, positions in ``t_node_s``), and the
     attitude records lost before each node (s)."""
+    att = strips[0].pg.attitude  # every strip's: checked by adjust_strips
+    period = float(np.median(np.diff(att.t_s)))
+    floor = interpolation_sigma_rad(period, options.variogram_scale)
     parts, white = [], []
     for s, use, node in zip(strips, uses, nodes, strict=True):
         g = WGS84.to_ecef(s.gcps.lat_rad[use], s.gcps.lon_rad[use], s.gcps.h_m[use])
         p = _points(s.pg, s.band, s.gcps.line[use], s.gcps.column[use], g, node[use])
         parts.append(p)
-        white.append(_whitening(s.pg, s.band, s.gcps, use, p))
-    att = strips[0].pg.attitude  # every strip's: checked by adjust_strips
-    period = float(np.median(np.diff(att.t_s)))
+        white.append(_whitening(s.pg, s.band, s.gcps, use, p, floor))
     inc, lost = _increment_sigma(attitude_gaps(att.t_s), t_node_s, period, options)
     prob = _Problem(
         _Points.concatenate(parts),
@@ -499,6 +517,7 @@ def _problem(
         np.r_[options.prior_ephemeris_m, options.prior_ephemeris_drift_m_per_s],
         np.r_[options.prior_attitude_rad, [options.prior_attitude_rate_rad_per_s] * 3],
         inc,
+        floor,
     )
     return prob, lost
 

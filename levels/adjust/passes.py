@@ -23,7 +23,7 @@ from levels.adjust.model import (
     _scene_of_points,
 )
 from levels.adjust.solve import _fit, _predicted
-from levels.errors import AdjustmentError, GeometryError
+from levels.errors import AdjustmentError, FitRefused, GeometryError
 from levels.geo.scenes import PassGeometry, SceneGeometry
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
@@ -158,12 +158,14 @@ def _judge(strips: list[Strip], sol: _Solution, confidence: float) -> None:
     wres = np.concatenate(sol.wres)
     used = np.flatnonzero(status == "used")
     worst = used[np.argsort(-np.nan_to_num(wres[used]))][:3]
-    raise AdjustmentError(
-        f"level 2: the fit fails its χ² test: σ0 {np.sqrt(sol.chi2 / sol.dof):.2f} beyond "
+    sigma0 = float(np.sqrt(sol.chi2 / sol.dof))
+    raise FitRefused(
+        f"level 2: the fit fails its χ² test: σ0 {sigma0:.2f} beyond "
         f"{np.sqrt(limit / sol.dof):.2f} ({confidence:.1%} for {sol.dof} degrees of "
         "freedom); the points do not fit the model within their σ: worst "
         + ", ".join(f"{ids[k]} ({wres[k]:.1f}σ)" for k in worst)
-        + "; check the points and their σ (or [processing] fit_confidence)"
+        + "; check the points and their σ (or [processing] fit_confidence)",
+        sigma0,
     )
 
 

@@ -166,9 +166,12 @@ def _predicted(
     (``scene_node``: their nodes in ``prob``), ``(S, 3)`` for each scaled covariance given:
     the ground displacement ``J_g⁻¹ J_x`` at a lattice of every scene's pixels on its
     reference surface, through the covariance (all scenes at once). The first covariance
-    is the solution's: to it is added, on each axis, the ground error its control points
-    share (:func:`~levels.adjust.model.shared_sigma_m`: a reference ortho-image's bias moves
-    the refined model with it, whatever the number of points)."""
+    is the solution's: to it are added the attitude's error between gyro records (as an
+    error of the scene's attitude offsets: every line has its own, which no parameter takes
+    off; :func:`~levels.geometry.attitude.interpolation_sigma_rad`) and, on each axis, the
+    ground error its control points share (:func:`~levels.adjust.model.shared_sigma_m`: a
+    reference ortho-image's bias moves the refined model with it, whatever the number of
+    points)."""
     m, pg, band = PREDICTION_LATTICE, strip.pg, strip.band
     lines, cols, ground = [], [], []
     for scene in strip.scenes:
@@ -205,8 +208,12 @@ def _predicted(
         axis=1,
     )  # (n, 12): each point's parameters
     out: list[NDArray[np.float64]] = []
+    floor = np.zeros(_NP + _NS)  # the attitude between gyro records, on the solution's
+    floor[_NP : _NP + 3] = (prob.attitude_floor_rad / prob.sigma_scene[:3]) ** 2  # scaled
     for cov in covariances:
         c = cov[sel[:, :, None], sel[:, None, :]]  # (n, 12, 12)
+        if not out:
+            c = c + np.diag(floor)
         cg = np.einsum("nik,nkl,njl->nij", move, c, move)
         var = np.stack([cg[:, 0, 0], cg[:, 1, 1]], axis=-1)
         per = np.zeros((len(strip.scenes), 3))

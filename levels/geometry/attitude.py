@@ -33,6 +33,7 @@ __all__ = [
     "SampledAttitude",
     "attitude_gaps",
     "integrate_rates",
+    "interpolation_sigma_rad",
     "westin_variogram_rad2",
 ]
 
@@ -55,6 +56,30 @@ def westin_variogram_rad2(axis: int, dt_s: ArrayLike) -> NDArray[np.float64]:
     for c, omega in WESTIN_HARMONIC[axis]:
         out += c * (1 - np.cos(omega * dt))
     return out * MICRODEGREE_RAD**2
+
+
+#: Fractions of a gyro interval where :func:`interpolation_sigma_rad` averages (midpoints).
+_INTERPOLATION_NODES = 64
+
+
+def interpolation_sigma_rad(period_s: float, scale: float = 1.0) -> NDArray[np.float64]:
+    """RMS error (rad; roll, pitch, yaw) of the attitude between gyro records ``period_s``
+    apart, interpolated linearly, for a drift of Westin's variograms (× ``scale``): what
+    no model of the records can know, at any number of control points.
+
+    For a process with increments of structure function ``D(τ) = 2γ(τ)`` (eqs. 24–26),
+    the linear interpolation at the fraction ``u`` of an interval ``p`` misses by a
+    variance ``(1 − u) D(u p) + u D((1 − u) p) − u (1 − u) D(p)``, averaged here over ``u``.
+    Westin's pitch (``D ∝ τ^0.5``, a rough process) gives 0.8 µrad at SPOT's 0.125 s:
+    0.07 px along the track at 10 m."""
+    u = (np.arange(_INTERPOLATION_NODES) + 0.5) / _INTERPOLATION_NODES
+    out = np.empty(3)
+    for axis in range(3):
+        d_u, d_v, d_p = (
+            westin_variogram_rad2(axis, x) for x in (u * period_s, (1 - u) * period_s, period_s)
+        )
+        out[axis] = np.mean((1 - u) * d_u + u * d_v - u * (1 - u) * d_p)
+    return np.sqrt(np.maximum(out * scale, 0.0))
 
 
 class Attitude(Protocol):
