@@ -471,6 +471,10 @@ def _loop(
         current = [adjustment.refine(pg, s) for s in scenes]
 
 
+#: Fits made again with σ widened by σ0 before a failing χ² test is the answer.
+REFITS = 3
+
+
 def _adjusted(
     pg: PassGeometry,
     scenes: Sequence[SceneGeometry],
@@ -478,19 +482,21 @@ def _adjusted(
     options: ProcessingOptions,
     band: str | None,
 ) -> tuple[ControlPointSet, Adjustment]:
-    """Level 2's adjustment on the points; a fit that fails its χ² test is made once more
-    with each point's σ in the image times the fit's σ0 (its a posteriori variance factor:
-    the matches' σ are estimates, from the peak and the loop's scatter, and a reference of
-    another season or view can make every match noisier than they say), and the points
+    """Level 2's adjustment on the points; a fit that fails its χ² test is made again (up to
+    ``REFITS`` times) with each point's σ in the image times the fit's σ0 (its a posteriori
+    variance factor: the matches' σ are estimates, from the peak and the loop's scatter,
+    and a reference of another season or view can make every match noisier than they
+    say), and the points
     handed on carry the widened σ."""
     from levels.adjust import adjust
     from levels.errors import FitRefused
 
-    try:
-        return gcps, adjust(pg, list(scenes), gcps, options, band)
-    except FitRefused as e:
-        wider = _with_sigma_px(gcps, gcps.sigma_px * e.sigma0)
-        return wider, adjust(pg, list(scenes), wider, options, band)
+    for _ in range(REFITS):
+        try:
+            return gcps, adjust(pg, list(scenes), gcps, options, band)
+        except FitRefused as e:  # each refit may reject other blunders: σ0 moves again
+            gcps = _with_sigma_px(gcps, gcps.sigma_px * e.sigma0)
+    return gcps, adjust(pg, list(scenes), gcps, options, band)
 
 
 def _with_sigma_px(g: ControlPointSet, sigma_px: NDArray[np.float64]) -> ControlPointSet:
