@@ -19,6 +19,9 @@ from tests._cli import one_line
 LEVEL2_PX = 0.1
 #: The loop's last mean shift: COSI-Corr's 1/20 px.
 CONVERGED_PX = 0.05
+#: How closely level 2 carries a reference's bias (m): the exact reference's 0.1 px at this
+#: pass's 100 m pixels (the bias is the points' only common error).
+BIAS_CARRIED_M = 10.0
 #: Phase correlation's shift on a synthetic texture moved by a known sub-pixel amount,
 #: at the shifts the loop ends with (a few tenths of a pixel): the Hann window, the same on
 #: both windows, pulls a shift towards 0 by 10-20 % of it (measured 0.04 px at 0.23 px,
@@ -157,6 +160,13 @@ def test_a_biased_reference_moves_level_2_by_its_own_error(run, tmp_path, capsys
     assert truth["mean_east_m"] == pytest.approx(-40.0, abs=8.0)
     assert truth["mean_north_m"] == pytest.approx(30.0, abs=8.0)
     assert np.allclose(read_gcps(out).sigma_ground_m, 100.0 / 2.4477, rtol=1e-3)
+    # level 2 on them carries the bias, and its prediction says so: the reference's stated
+    # σ is shared by all its points (no number of them averages a bias out), added once
+    q = _level2_px(d, toml, out, tmp_path / "l2", capsys)
+    shared = 100.0 / 2.4477 * np.sqrt(2.0)  # horizontal, both axes
+    assert q["predicted_sigma_m/horizontal"] >= shared
+    assert q["checkpoints/P/line_of_sight/mean_1_m"] == pytest.approx(-40.0, abs=BIAS_CARRIED_M)
+    assert q["checkpoints/P/line_of_sight/mean_2_m"] == pytest.approx(30.0, abs=BIAS_CARRIED_M)
 
 
 def test_a_reference_off_the_pass_is_refused_in_one_line(run, tmp_path, capsys) -> None:
@@ -246,5 +256,50 @@ def test_a_run_finds_its_control_points_on_its_reference(tmp_path) -> None:
     ratio = q["checkpoints/P/line_of_sight/rms_m"] / q["predicted_sigma_m/horizontal"]
     assert 0.7 <= ratio <= 1.5  # measured 1.29 (4.5 m against 3.5 m predicted)
     assert "kind" in (tmp_path / "run" / "ref_run.gcp.csv").read_text().splitlines()[1]
+    # the report says how the points were found and how far they are from the truth
+    found = report["hrvs"][0]["gcps"]["found"]
+    assert found["reference"] == "ref_run.reference.tif" and found["reference_sigma_m"] == 0.0
+    assert found["loops_mean_shift_px"][-1] <= CONVERGED_PX
+    assert found["truth"]["points"] == report["hrvs"][0]["gcps"]["points"] >= 30
+    assert found["truth"]["rms_of_matching_m"] <= 0.5 * 100.0  # half a pixel, median 0.2
+    assert found["truth"]["reference_bias_east_m"] == 0.0  # exact
     with pytest.raises(ScenarioError, match="reference"):
         scenario_from_dict({"name": "x", "gcps": {"source": "reference"}})
+
+
+def test_a_reference_file_is_used_as_it_is_or_refused(run, tmp_path) -> None:
+    """``[reference] file``: two passes registered to one reference use its path (not a
+    rendered one), and a file that is not there is refused by name."""
+    from types import SimpleNamespace
+
+    from station.errors import ScenarioError
+    from station.scenario import scenario_from_dict
+    from station.spacecraft.reference import export_reference, reference_path
+
+    d, _ = run
+    given = d / "ref_small.reference.tif"
+    scn = scenario_from_dict({"name": "b", "reference": {"file": str(given)}})
+    assert export_reference(scn, [SimpleNamespace()], tmp_path) == given
+    assert reference_path(scn, tmp_path) == given and given in scn.inputs()
+    assert not (tmp_path / "b.reference.tif").exists()
+    gone = scenario_from_dict({"name": "b", "reference": {"file": "nowhere.tif"}})
+    with pytest.raises(ScenarioError, match=r"nowhere\.tif"):
+        export_reference(gone, [SimpleNamespace()], tmp_path)
+
+
+def test_the_reference_truth_holds_the_bias_drawn() -> None:
+    """The truth file of a reference with a stated CE95 holds the bias drawn (the
+    configuration's own bias added), not the configuration's alone."""
+    from station.scenario import ReferenceConfig
+    from station.spacecraft.reference import render_reference
+
+    class Flat:
+        def reflectance(self, lat, lon, band):
+            return 0.2 + 0.0 * lat
+
+    cfg = ReferenceConfig(pixel_size_m=500.0, error_ce95_m=50.0, bias_east_m=100.0)
+    lat, lon = np.radians([0.0, 0.05]), np.radians([10.0, 10.05])
+    ref = render_reference(Flat(), tuple(lat), tuple(lon), cfg, 3)
+    t = ref.truth()
+    assert (t["bias_east_m"], t["bias_north_m"]) == ref.bias_m
+    assert t["bias_east_m"] != 100.0 and abs(t["bias_east_m"] - 100.0) < 4 * 50.0 / 2.4477
