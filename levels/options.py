@@ -366,6 +366,16 @@ class ProcessingOptions:
         1e-3,
         100.0,
     )
+    attitude_jitter_rad: tuple[float, float, float] = option(
+        [0.21, 0.21, 0.07],
+        "attitude_jitter_urad",
+        "level 2: the platform's jitter (RMS in roll, pitch, yaw), above the gyros' band: "
+        "every control point and every line have their own (SPOT's emulated 0.3, 0.3, 0.1 "
+        "µrad amplitudes)",
+        _URAD,
+        0.0,
+        100.0,
+    )
     robust_loss: RobustLoss = option(
         RobustLoss.SOFT_L1,
         "robust_loss",

@@ -182,8 +182,9 @@ class _Problem:
     sigma_pass: NDArray[np.float64]  # (6,) a priori σ, SI
     sigma_scene: NDArray[np.float64]  # (6,)
     increment_sigma: NDArray[np.float64]  # (S, 3): σ of attitude jumps from the previous
-    #: The attitude's error between gyro records (rad; roll, pitch, yaw): no parameter
-    #: takes it off (:func:`~levels.geometry.attitude.interpolation_sigma_rad`).
+    #: The attitude's error between gyro records (rad; roll, pitch, yaw): its drift
+    #: between them (:func:`~levels.geometry.attitude.interpolation_sigma_rad`) and its
+    #: jitter (``attitude_jitter_rad``); no parameter takes it off.
     attitude_floor_rad: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
 
     @property
@@ -501,7 +502,9 @@ def _problem(
     attitude records lost before each node (s)."""
     att = strips[0].pg.attitude  # every strip's: checked by adjust_strips
     period = float(np.median(np.diff(att.t_s)))
-    floor = interpolation_sigma_rad(period, options.variogram_scale)
+    floor = np.hypot(
+        interpolation_sigma_rad(period, options.variogram_scale), options.attitude_jitter_rad
+    )
     parts, white = [], []
     for s, use, node in zip(strips, uses, nodes, strict=True):
         g = WGS84.to_ecef(s.gcps.lat_rad[use], s.gcps.lon_rad[use], s.gcps.h_m[use])
