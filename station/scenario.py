@@ -312,6 +312,14 @@ class WorldConfig:
         250.0, "relief_m", "relief amplitude (std of the fractal)", 1.0, 0.0, 3000.0
     )
     seed: int = option(7, "seed", "seed of the world's noise", lo=0, hi=2**31 - 1)
+    rows_m: float = option(
+        0.0,
+        "rows_m",
+        "rows planted in every parcel, of this period (0: none): a periodic field",
+        1.0,
+        0.0,
+        10000.0,
+    )
 
     def __post_init__(self) -> None:
         if self.kind == "dem" and not self.dem_path:

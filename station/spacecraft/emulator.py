@@ -97,7 +97,7 @@ class Acquisition:
 def _world(scn: Scenario) -> World:
     wc = scn.world
     grid = read_hgt(scn.path(wc.dem_path)) if wc.kind == "dem" else None
-    return World(scn.pass_.target_lon_rad, wc.base_height_m, wc.relief_m, wc.seed, grid)
+    return World(scn.pass_.target_lon_rad, wc.base_height_m, wc.relief_m, wc.seed, grid, wc.rows_m)
 
 
 def _tle(scn: Scenario) -> Tle:

@@ -210,7 +210,7 @@ def _trace_rays(lo, hi, pos, dirs, lon0, base, relief, seed, grid, geo, out, ite
 
 
 @nb.njit(cache=True, nogil=True)
-def _radiance(lo, hi, lat, lon, x, y, gx, gy, sun, band, seed, offsets, weights, out):
+def _radiance(lo, hi, lat, lon, x, y, gx, gy, sun, band, seed, rows_m, offsets, weights, out):
     """Radiance of the interior lines 1..L of a traced block (lines 0 and L+1 are halo)."""
     n_det = out.shape[1]
     n_s = offsets.size
@@ -241,7 +241,7 @@ def _radiance(lo, hi, lat, lon, x, y, gx, gy, sun, band, seed, offsets, weights,
                 for j in range(n_s):
                     px = x[k, d] + offsets[i] * xl + offsets[j] * xc
                     py = y[k, d] + offsets[i] * yl + offsets[j] * yc
-                    acc += weights[i] * weights[j] * _reflectance(px, py, band, seed)
+                    acc += weights[i] * weights[j] * _reflectance(px, py, band, seed, rows_m)
             out[li, d] = acc * cos_i
 
 
@@ -340,6 +340,7 @@ def render_band(
             np.asarray(sun_ecef, float),
             band_index,
             wargs[3],
+            float(world.rows_m),
             offsets,
             weights,
             out,

@@ -21,7 +21,9 @@ Reflectance (per band: P, XS1 green, XS2 red, XS3 near infrared)
     (bare soil, two crops, dry grass, forest) with a little texture; roads along every 5th
     and 7th parcel edge (12 m wide); rivers where a low-frequency noise crosses zero
     (distance to the contour ≈ |n| / |∇n|, 40 m wide); forest where another noise is high.
-    Reflectances are typical values for those covers in SPOT's bands.
+    Reflectances are typical values for those covers in SPOT's bands. With ``rows_m`` > 0
+    every parcel is planted in rows of that period (±25 % of its reflectance, its fine
+    texture mostly gone): a periodic field, where a correlation's peaks repeat every row.
 
 Radiance
     Lambertian: ``L = ρ · max(0, n̂ · ŝ)`` with n̂ the terrain normal and ŝ the Sun; a flat
@@ -132,9 +134,14 @@ def _terrain(
     return base + s * h, s * gx, s * gy
 
 
+#: The relative contrast of a periodic field's rows (``World.rows_m``).
+ROWS_CONTRAST = 0.25
+
+
 @nb.njit(cache=True)
-def _reflectance(x: float, y: float, band: np.int64, seed: np.int64) -> float:
-    """Reflectance of ``band`` at metric (x, y) (module docstring)."""
+def _reflectance(x: float, y: float, band: np.int64, seed: np.int64, rows_m: float) -> float:
+    """Reflectance of ``band`` at metric (x, y) (module docstring); with ``rows_m`` > 0 the
+    parcels are planted in rows of that period (a periodic field)."""
     # rivers: distance to the zero contour of a low-frequency noise
     rn, rx, ry = _noise(x / _RIVER_WAVELENGTH_M, y / _RIVER_WAVELENGTH_M, seed + 101)
     grad = np.sqrt(rx * rx + ry * ry) / _RIVER_WAVELENGTH_M + 1e-12
@@ -155,6 +162,9 @@ def _reflectance(x: float, y: float, band: np.int64, seed: np.int64) -> float:
     else:
         cls = np.int64((_hash(np.int64(iu), np.int64(iv), seed + 303) + 1.0) * 2.0)  # 0..3
     tex, _tx, _ty = _noise(x / 37.0, y / 37.0, seed + 404)
+    if rows_m > 0.0:  # rows across the parcels' u axis, the fine texture mostly gone
+        rows = np.cos(2.0 * np.pi * (ca * x + sa * y) / rows_m)
+        return _REFLECTANCE[cls, band] * (1.0 + ROWS_CONTRAST * rows + 0.02 * tex)
     return _REFLECTANCE[cls, band] * (1.0 + 0.08 * tex)
 
 
@@ -194,10 +204,10 @@ def _height_many(lo, hi, lat, lon, lon0, base, relief, seed, grid, geo, out, gx,
 
 
 @nb.njit(cache=True, nogil=True)
-def _reflectance_many(lo, hi, lat, lon, lon0, band, seed, out):
+def _reflectance_many(lo, hi, lat, lon, lon0, band, seed, rows_m, out):
     for k in range(lo, hi):
         x, y = _to_xy(lat[k], lon[k], lon0)
-        out[k] = _reflectance(x, y, band, seed)
+        out[k] = _reflectance(x, y, band, seed, rows_m)
 
 
 #: Points per chunk at least, below which a call runs in the calling thread (one point
@@ -233,6 +243,9 @@ class World:
     relief_m: float = 250.0
     seed: int = 7
     terrain_grid: DemGrid | None = None
+    #: The period of rows planted in every parcel (m; 0: none): a periodic field, whose
+    #: texture repeats every ``rows_m`` across them.
+    rows_m: float = 0.0
 
     def terrain_args(self) -> tuple:
         """The world as the numba kernels take it:
@@ -290,6 +303,7 @@ class World:
             self.lon0_rad,
             np.int64(BANDS.index(band)),
             np.int64(self.seed),
+            float(self.rows_m),
             out,
             grain=_POINTS_PER_CHUNK,
         )
