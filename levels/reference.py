@@ -194,11 +194,13 @@ def phase_shifts(
     return shift, fine.reshape(n, -1).max(axis=1)
 
 
-def _candidates(ref: Reference, inside: Callable, half: int) -> tuple[NDArray, NDArray]:
+def _candidates(ref: Reference, inside: Callable, half: int) -> tuple[NDArray, NDArray, float]:
     """The most textured window's centre in each ``CELL_PX`` cell of the reference, where
     ``inside(rows, cols)`` says the scene sees the whole window; cells of half a window
     where that gives fewer than ``MIN_CANDIDATES`` (a scene of a few kilometres at the
-    coarse stage's 60 m)."""
+    coarse stage's 60 m, a reference three times coarser than the scene); and how much
+    the windows overlap (their width over the cell's: each pixel then counts in that many
+    squared, whose errors are one: each point's σ is widened by it, :func:`_measure`)."""
     from scipy.ndimage import uniform_filter
 
     img = np.nan_to_num(ref.image.astype(np.float64), nan=0.0)
@@ -210,8 +212,9 @@ def _candidates(ref: Reference, inside: Callable, half: int) -> tuple[NDArray, N
     cell = max(CELL_PX, int(np.sqrt(nr * nc / MAX_WINDOWS)))
     rows, cols = _best_of_cells(texture, cell, half, inside)
     if rows.size < MIN_CANDIDATES:  # a small scene: windows half overlapping
-        rows, cols = _best_of_cells(texture, PATCH_PX // 2, half, inside)
-    return rows, cols
+        cell = PATCH_PX // 2
+        rows, cols = _best_of_cells(texture, cell, half, inside)
+    return rows, cols, max(1.0, PATCH_PX / cell)
 
 
 #: Fewer candidates than this in the scene and the cells shrink to half a window.
@@ -249,6 +252,8 @@ class _Windows:
     lat: NDArray[np.float64]  # (n, W, W) radians
     lon: NDArray[np.float64]
     h: NDArray[np.float64]
+    #: Each window's σ widened by this (windows overlapping: :func:`_candidates`).
+    overlap: float = 1.0
 
 
 def _window_ground(ref: Reference, dem: Dem, rows: NDArray, cols: NDArray):
@@ -445,6 +450,7 @@ def _loop(
     or ``until_px`` (a coarse stage), or ``MAX_LOOPS`` loops."""
 
     windows = _scene_windows(current, ref, dem)
+    scale = ref.grid.pixel_size_m / _raw_pixel_m(scenes[0])  # reference px → raw px
     if sum(w.row.size for w in windows) < 3:
         raise GcpError(
             f"the reference {ref.source or ''} overlaps the scenes in fewer than 3 textured "
@@ -452,7 +458,7 @@ def _loop(
         )
     loops: list[dict[str, float]] = []
     while True:
-        gcps, shift, peak = _measure(windows, current, raws, ref, dem, hrv)
+        gcps, shift, peak, to_raw = _measure(windows, current, raws, ref, dem, hrv, scale)
         mean = float(np.hypot(*np.median(shift, axis=0)))  # the model's, not the noise's
         loops.append(
             {
@@ -463,7 +469,7 @@ def _loop(
             }
         )
         coarse = until_px > 0 or mean > COARSE_PX  # the model at large, not each point
-        gcps = _coarse(gcps, shift) if coarse else _scattered(gcps, shift)
+        gcps = _coarse(gcps, shift, to_raw) if coarse else _scattered(gcps, shift, to_raw)
         gcps, adjustment = _adjusted(pg, scenes, gcps, options, band)
         done = mean <= CONVERGED_PX and len(loops) >= MIN_LOOPS
         if done or mean <= until_px or len(loops) >= MAX_LOOPS:
@@ -506,20 +512,26 @@ def _with_sigma_px(g: ControlPointSet, sigma_px: NDArray[np.float64]) -> Control
     )  # fmt: skip
 
 
-def _scattered(gcps: ControlPointSet, shift: NDArray[np.float64]) -> ControlPointSet:
+def _scattered(
+    gcps: ControlPointSet, shift: NDArray[np.float64], to_raw: NDArray[np.float64]
+) -> ControlPointSet:
     """The points, each σ in the image at least the loop's own scatter of shifts about
     their median (1.4826 MAD, per axis): on a refined model what is left is the matches'
     noise, which the peak alone underrates where the image is noisy or its texture weak
     (a full P scene on a 10 m reference: 0.15–0.24 px). Over ten draws of the tests' pass,
     level 2's error is then 1.03 of what its adjustment predicts (0.76–1.29;
-    ``tools/reference_draws.py``; the quadratic sum of both overrated it, 0.79)."""
+    ``tools/reference_draws.py``; the quadratic sum of both overrated it, 0.79). The
+    shifts are in reference pixels: ``to_raw`` makes them raw pixels (and widens them
+    where windows overlap and share their errors, :func:`_candidates`)."""
     med = np.median(shift, axis=0)
     per_axis = 1.4826 * np.median(np.abs(shift - med), axis=0)
     spread = float(np.sqrt(np.mean(per_axis**2)))  # σ is per axis
-    return _with_sigma_px(gcps, np.maximum(gcps.sigma_px, spread))
+    return _with_sigma_px(gcps, np.maximum(gcps.sigma_px, spread * to_raw))
 
 
-def _coarse(gcps: ControlPointSet, shift: NDArray[np.float64]) -> ControlPointSet:
+def _coarse(
+    gcps: ControlPointSet, shift: NDArray[np.float64], to_raw: NDArray[np.float64]
+) -> ControlPointSet:
     """A loop whose windows are far off their place (median shift beyond ``COARSE_PX``):
     its points within 3 robust σ of the median shift, each point's σ in the image that
     spread (1.4826 MAD per axis): the windows overlap their references only in part, and
@@ -529,7 +541,7 @@ def _coarse(gcps: ControlPointSet, shift: NDArray[np.float64]) -> ControlPointSe
     keep = np.all(np.abs(shift - med) <= 3.0 * spread, axis=1)
     k = np.flatnonzero(keep)
     sub = gcps._subset(keep)
-    sigma = np.hypot(sub.sigma_px, float(np.hypot(*spread)))
+    sigma = np.hypot(sub.sigma_px, float(np.hypot(*spread)) * to_raw[keep])
     return _with_sigma_px(sub, sigma) if k.size >= 3 else gcps
 
 
@@ -553,13 +565,14 @@ def _scene_windows(scenes: Sequence[SceneGeometry], ref: Reference, dem: Dem) ->
                 ok &= (ip.column >= 2) & (ip.column <= model.n_columns - 3)
             return ok
 
-        rows, cols = _candidates(ref, inside, half)
+        rows, cols, overlap = _candidates(ref, inside, half)
         if not rows.size:
             continue
         taken[rows, cols] = True
         values, lat, lon, h = _window_ground(ref, dem, rows, cols)
         good = np.isfinite(values).all(axis=(1, 2)) & np.isfinite(h).all(axis=(1, 2))
-        out.append(_Windows(k, rows[good], cols[good], values[good], lat[good], lon[good], h[good]))
+        sub = (rows[good], cols[good], values[good], lat[good], lon[good], h[good])
+        out.append(_Windows(k, *sub, overlap))
     return out
 
 
@@ -570,9 +583,11 @@ def _measure(
     ref: Reference,
     dem: Dem,
     hrv: int,
-) -> tuple[ControlPointSet, NDArray, NDArray]:
-    """One loop's measurement (module docstring, 1–3): the points, their shifts and
-    peaks."""
+    scale: float,
+) -> tuple[ControlPointSet, NDArray, NDArray, NDArray]:
+    """One loop's measurement (module docstring, 1–3): the points, their shifts (reference
+    pixels), peaks, and what makes a σ in reference pixels one in raw pixels (``scale``,
+    their sizes' ratio, times the windows' overlap, :func:`_candidates`)."""
     to_geo = pyproj.Transformer.from_crs(ref.grid.crs_wkt, "EPSG:4326", always_xy=True)
     parts = []
     for w in windows:
@@ -597,13 +612,15 @@ def _measure(
                 shift,
                 peak,
                 matched,
+                np.full(shift.shape[0], w.overlap * scale),
             )
         )
     if not parts:
         raise GcpError(f"no window of the reference {ref.source or ''} could be matched")
     ids = [i for p in parts for i in p[0]]
-    cat = [np.concatenate([p[k] for p in parts]) for k in range(1, 9)]
-    lon, lat, h, line, col, shift, peak, matched = cat
+    cat = [np.concatenate([p[k] for p in parts]) for k in range(1, 10)]
+    lon, lat, h, line, col, shift, peak, matched, to_raw = cat
+    matched = matched.astype(bool)
     n = len(ids)
     gcps = ControlPointSet(
         tuple(np.array(ids)[matched]),
@@ -616,8 +633,8 @@ def _measure(
         np.full(n, 5.0)[matched],
         # the matcher's σ from its peak; a window far off its place overlaps its reference
         # only in part: its σ grows with the shift (a tenth of it) until the model is refined
-        np.hypot(_sigma_px(peak), 0.1 * np.hypot(*shift.T))[matched],
+        (to_raw * np.hypot(_sigma_px(peak), 0.1 * np.hypot(*shift.T)))[matched],
         np.full(n, hrv, dtype=np.int64)[matched],
         reference=np.ones(int(matched.sum()), dtype=bool),
     )
-    return gcps, shift[matched], peak[matched]
+    return gcps, shift[matched], peak[matched], to_raw[matched]
