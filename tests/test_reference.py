@@ -19,6 +19,9 @@ from tests._cli import one_line
 LEVEL2_PX = 0.1
 #: The loop's last mean shift: COSI-Corr's 1/20 px.
 CONVERGED_PX = 0.05
+#: A point found on the L0 and on its 1A as a DIMAP scene: the same raw pixel to the
+#: coordinates' written precision and the centre's Newton tolerance (measured 0.003 px).
+SAME_PIXEL_PX = 0.01
 #: How closely level 2 carries a reference's bias (m): the exact reference's 0.1 px at this
 #: pass's 100 m pixels (the bias is the points' only common error).
 BIAS_CARRIED_M = 10.0
@@ -341,3 +344,37 @@ def test_a_periodic_field_gives_no_point_off_by_a_period(tmp_path) -> None:
     enu = apply(enu_from_ecef(lat_t, lon_t), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
     sigma = np.hypot(g.sigma_ground_m, g.sigma_px * 100.0)
     assert len(g) >= 30 and np.all(np.abs(enu[:, :2]) <= 3.0 * sigma[:, None])
+
+
+def test_a_dimap_scene_takes_the_same_options(run, tmp_path, capsys) -> None:
+    """``station gcps`` and ``station process --reference`` on the pass's 1A written as a
+    SPOT DIMAP scene (``station export --dimap``) find the L0's points: the same windows,
+    at the same raw pixels (DIMAP's 1A counts, read as written, against the L0's
+    calibrated rows) and grounds within a tenth of a pixel; level 2 is made from it."""
+    from levels.readers.gcp import read_gcps
+    from station.cli import main
+
+    d, _ = run
+    pack = tmp_path / "pack"
+    assert main(["export", str(d / "ref_small_s000_1A.h5"), "--dimap", str(pack)]) == 0
+    ref, dem = d / "ref_small.reference.tif", d / "ref_small.dem.tif"
+    found = {}
+    for name, src in (("l0", d / "ref_small.l0.h5"), ("dimap", pack)):
+        out = tmp_path / f"{name}.csv"
+        cli = ["gcps", str(src), "--reference", str(ref), "--dem", str(dem), "--out", str(out)]
+        assert main(cli) == 0
+        found[name] = read_gcps(out)
+    a, b = found["l0"], found["dimap"]
+    common = sorted(set(a.id) & set(b.id))
+    assert len(common) >= 0.9 * min(len(a), len(b))
+    ka = np.array([a.id.index(i) for i in common])
+    kb = np.array([b.id.index(i) for i in common])
+    assert np.abs(a.line[ka] - b.line[kb]).max() <= SAME_PIXEL_PX  # one scene from row 0
+    assert np.abs(a.column[ka] - b.column[kb]).max() <= SAME_PIXEL_PX
+    ground_m = 6.371e6 * np.hypot(a.lat_rad[ka] - b.lat_rad[kb], a.lon_rad[ka] - b.lon_rad[kb])
+    assert ground_m.max() <= 0.1 * 100.0  # measured 4 m: the two radiometries' matches
+    one = ["process", str(pack), "--levels", "2", "--reference", str(ref), "--dem", str(dem)]
+    assert main([*one, "--out", str(tmp_path / "p2")]) == 0
+    capsys.readouterr()
+    assert (tmp_path / "p2" / "pack.reference.gcp.csv").is_file()
+    assert list((tmp_path / "p2").glob("pack_s000_2.*"))
