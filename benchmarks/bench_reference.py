@@ -114,12 +114,13 @@ def _arosics(archive, setup, truth, tmp: Path, ref_img, ours_s: float) -> None:
     product = read_product(result.scenes[0].paths["2A"])
     target = write_geotiff(product, tmp / "target_2A.tif")
     grid = product.map_grid
+    reach_px = int(np.ceil(AROSICS_REACH_M / grid.pixel_size_m))
     for reliability in (60.0, AROSICS_RELAXED):  # its default; then what its warning says
         t = time.perf_counter()
         cr = COREG_LOCAL(
             str(tmp / "reference.tif"), str(target), grid_res=AROSICS_GRID_PX,
             window_size=(256, 256), CPUs=2, q=True, progress=False, nodata=(np.nan, 0),
-            min_reliability=reliability,
+            min_reliability=reliability, max_shift=reach_px,
         )  # fmt: skip
         table = cr.CoRegPoints_table
         took = time.perf_counter() - t
@@ -159,6 +160,9 @@ def _arosics(archive, setup, truth, tmp: Path, ref_img, ours_s: float) -> None:
 
 #: AROSICS's grid of windows (target pixels): about 600 on a full P scene.
 AROSICS_GRID_PX = 250
+#: How far AROSICS looks (m; its ``max_shift`` in pixels is 5 by default: 50 m at 10 m,
+#: short of a system-corrected scene's 200 m).
+AROSICS_REACH_M = 500.0
 #: The reliability AROSICS's own warning proposes when its default (60 %) flags most of a
 #: scene's windows (on this world's weak texture: all of them).
 AROSICS_RELAXED = 30.0
