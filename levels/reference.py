@@ -29,7 +29,7 @@ loop, the mean and largest shift: what COSI-Corr reports.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -448,7 +448,6 @@ def _loop(
     """Measure, adjust, measure again on the refined model (module docstring, 1–4) on one
     reference: until the median shift is ``CONVERGED_PX`` (``MIN_LOOPS`` loops at least),
     or ``until_px`` (a coarse stage), or ``MAX_LOOPS`` loops."""
-
     windows = _scene_windows(current, ref, dem)
     scale = ref.grid.pixel_size_m / _raw_pixel_m(scenes[0])  # reference px → raw px
     if sum(w.row.size for w in windows) < 3:
@@ -492,8 +491,7 @@ def _adjusted(
     ``REFITS`` times) with each point's σ in the image times the fit's σ0 (its a posteriori
     variance factor: the matches' σ are estimates, from the peak and the loop's scatter,
     and a reference of another season or view can make every match noisier than they
-    say), and the points
-    handed on carry the widened σ."""
+    say); the points handed on carry the widened σ."""
     from levels.adjust import adjust
     from levels.errors import FitRefused
 
@@ -506,10 +504,7 @@ def _adjusted(
 
 
 def _with_sigma_px(g: ControlPointSet, sigma_px: NDArray[np.float64]) -> ControlPointSet:
-    return ControlPointSet(
-        g.id, g.lon_rad, g.lat_rad, g.h_m, g.line, g.column, g.sigma_ground_m, g.sigma_h_m,
-        sigma_px, g.hrv, g.tie, g.reference,
-    )  # fmt: skip
+    return replace(g, sigma_px=sigma_px)
 
 
 def _scattered(
@@ -518,9 +513,9 @@ def _scattered(
     """The points, each σ in the image at least the loop's own scatter of shifts about
     their median (1.4826 MAD, per axis): on a refined model what is left is the matches'
     noise, which the peak alone underrates where the image is noisy or its texture weak
-    (a full P scene on a 10 m reference: 0.15–0.24 px). Over ten draws of the tests' pass,
-    level 2's error is then 1.03 of what its adjustment predicts (0.76–1.29;
-    ``tools/reference_draws.py``; the quadratic sum of both overrated it, 0.79). The
+    (a full P scene on a 10 m reference: 0.15–0.24 px). Over ten draws of full P scenes
+    over the SRTM tile, level 2's error is then 1.11 of what its adjustment predicts, at
+    nadir and at 27° (0.81–1.36; ``tools/reference_draws.py --full``). The
     shifts are in reference pixels: ``to_raw`` makes them raw pixels (and widens them
     where windows overlap and share their errors, :func:`_candidates`)."""
     med = np.median(shift, axis=0)
