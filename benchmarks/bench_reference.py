@@ -34,12 +34,11 @@ TARGET_S = 20.0
 
 def main() -> None:
     from levels.geo.maps import MapGrid
-    from levels.geometry.ellipsoid import WGS84
-    from levels.geometry.frames import apply, enu_from_ecef
     from levels.options import ProcessingOptions
     from levels.process import geo_pass
     from levels.readers.l0 import read_l0
     from levels.reference import Reference, raw_images, reference_control_points
+    from station.refgcps import point_errors_en
     from station.scenario import ReferenceConfig, scenario_from_dict
     from station.spacecraft.dem import world_dem
     from station.spacecraft.emulator import _world
@@ -75,10 +74,7 @@ def main() -> None:
         took = time.perf_counter() - t
         g = found.points
         truth = truth_for(scn, archive)
-        true = truth.ground(0, g.line + truth.row_offset, g.column)
-        la, lo_, _ = WGS84.to_geodetic(true)
-        enu = apply(enu_from_ecef(la, lo_), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
-        err = np.hypot(enu[:, 0], enu[:, 1])
+        err = np.hypot(*point_errors_en(truth, g).T)
         err = err[np.isfinite(err)]
         shifts = " → ".join(f"{loop['mean_shift_px']:.3f}" for loop in found.loops)
         print(

@@ -16,11 +16,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from levels.options import ProcessingOptions
+from levels.readers.gcp import ControlPointSet
 from levels.reference import ReferencePoints
 
-__all__ = ["gcps_from_reference", "reference_sigma_m"]
+__all__ = ["gcps_from_reference", "point_errors_en", "reference_sigma_m"]
 
 
 def reference_sigma_m(path: str | Path, ce95_m: float | None) -> float:
@@ -100,20 +102,28 @@ def _reference_bias_m(path: str | Path) -> tuple[float, float] | None:
         return None
 
 
+def point_errors_en(truth: Any, points: ControlPointSet) -> NDArray[np.float64]:
+    """Each point's ground less where its raw pixel truly looks on the terrain (``truth``:
+    :class:`station.truth.optical.Truth` of the archive), east and north (m), (N, 2); NaN
+    where the pixel's ray missed."""
+    from levels.geometry.ellipsoid import WGS84
+    from levels.geometry.frames import apply, enu_from_ecef
+
+    g = points
+    true = truth.ground(0, g.line + truth.row_offset, g.column)
+    lat, lon, _ = WGS84.to_geodetic(true)
+    enu = apply(enu_from_ecef(lat, lon), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
+    return np.asarray(enu[:, :2])
+
+
 def _scored(
     truth: Any, found: ReferencePoints, bias: tuple[float, float] | None
 ) -> dict[str, float]:
     """Each point's ground against where its raw pixel truly looks (east, north, m); with
     the reference's true ``bias``, also against it: what the matching alone missed."""
-    from levels.geometry.ellipsoid import WGS84
-    from levels.geometry.frames import apply, enu_from_ecef
-
-    g = found.points
-    true = truth.ground(0, g.line + truth.row_offset, g.column)
-    lat, lon, _ = WGS84.to_geodetic(true)
-    enu = apply(enu_from_ecef(lat, lon), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
-    ok = np.isfinite(enu).all(axis=1)
-    e, n = enu[ok, 0], enu[ok, 1]
+    en = point_errors_en(truth, found.points)
+    ok = np.isfinite(en).all(axis=1)
+    e, n = en[ok, 0], en[ok, 1]
     out = {
         "points": int(ok.sum()),
         "mean_east_m": float(e.mean()),

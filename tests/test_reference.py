@@ -204,11 +204,9 @@ def test_no_point_handed_on_beyond_three_sigma_of_its_truth(run, tmp_path, chang
     import pyproj
     import rasterio
 
-    from levels.geometry.ellipsoid import WGS84
-    from levels.geometry.frames import apply, enu_from_ecef
     from levels.readers.l0 import read_l0
     from station.loader import load_scenario
-    from station.refgcps import gcps_from_reference
+    from station.refgcps import gcps_from_reference, point_errors_en
     from station.spacecraft.emulator import _world
     from station.spacecraft.reference import render_reference, write_reference
     from station.truth.optical import truth_for
@@ -229,12 +227,9 @@ def test_no_point_handed_on_beyond_three_sigma_of_its_truth(run, tmp_path, chang
     )
     g = found.points
     assert len(g) >= 30
-    truth = truth_for(scn, read_l0(l0, lazy=True))
-    true = truth.ground(0, g.line + truth.row_offset, g.column)
-    lat_t, lon_t, _ = WGS84.to_geodetic(true)
-    enu = apply(enu_from_ecef(lat_t, lon_t), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
+    en = point_errors_en(truth_for(scn, read_l0(l0, lazy=True)), g)
     sigma = np.hypot(g.sigma_ground_m, g.sigma_px * 100.0)  # the scene's 100 m pixels
-    assert np.all(np.abs(enu[:, :2]) <= 3.0 * sigma[:, None]), np.abs(enu[:, :2]).max()
+    assert np.all(np.abs(en) <= 3.0 * sigma[:, None]), np.abs(en).max()
 
 
 def test_a_run_finds_its_control_points_on_its_reference(tmp_path) -> None:
@@ -313,11 +308,10 @@ def test_a_periodic_field_gives_no_point_off_by_a_period(tmp_path) -> None:
     two off): phase correlation's peaks repeat every row, yet every point handed on is
     within 3σ of its truth (the parcels, roads and rivers between the rows decide), and
     level 2 on them within 0.1 px (measured 0.024-0.029 px over two draws)."""
-    from levels.geometry.ellipsoid import WGS84
-    from levels.geometry.frames import apply, enu_from_ecef
+    from levels.readers.gcp import read_gcps
     from levels.readers.l0 import read_l0
     from station.loader import load_scenario
-    from station.refgcps import gcps_from_reference
+    from station.refgcps import point_errors_en
     from station.run import run_scenario
     from station.truth.optical import truth_for
 
@@ -333,17 +327,10 @@ def test_a_periodic_field_gives_no_point_off_by_a_period(tmp_path) -> None:
     [row] = [r for r in report["products"] if r["level"] == "2"]
     assert row["quality"]["checkpoints/P/line_of_sight/rms_px"] <= LEVEL2_PX
     d = tmp_path / "run"
-    found, _ = gcps_from_reference(
-        d / "rows.l0.h5", d / "rows.reference.tif", d / "rows.dem.tif", tmp_path / "g.csv",
-        options=scn.processing,
-    )  # fmt: skip
-    g = found.points
-    truth = truth_for(scn, read_l0(d / "rows.l0.h5", lazy=True))
-    true = truth.ground(0, g.line + truth.row_offset, g.column)
-    lat_t, lon_t, _ = WGS84.to_geodetic(true)
-    enu = apply(enu_from_ecef(lat_t, lon_t), WGS84.to_ecef(g.lat_rad, g.lon_rad, g.h_m) - true)
+    g = read_gcps(d / "rows.gcp.csv")  # the points the run found and handed on
+    en = point_errors_en(truth_for(scn, read_l0(d / "rows.l0.h5", lazy=True)), g)
     sigma = np.hypot(g.sigma_ground_m, g.sigma_px * 100.0)
-    assert len(g) >= 30 and np.all(np.abs(enu[:, :2]) <= 3.0 * sigma[:, None])
+    assert len(g) >= 30 and np.all(np.abs(en) <= 3.0 * sigma[:, None])
 
 
 def test_a_dimap_scene_takes_the_same_options(run, tmp_path, capsys) -> None:

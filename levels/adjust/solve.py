@@ -210,16 +210,17 @@ def _predicted(
     out: list[NDArray[np.float64]] = []
     floor = np.zeros(_NP + _NS)  # the attitude between gyro records, on the solution's
     floor[_NP : _NP + 3] = (prob.attitude_floor_rad / prob.sigma_scene[:3]) ** 2  # scaled
-    for cov in covariances:
+    for k_cov, cov in enumerate(covariances):
+        solution = k_cov == 0  # the solution's; the priors' after it
         c = cov[sel[:, :, None], sel[:, None, :]]  # (n, 12, 12)
-        if not out:
+        if solution:
             c = c + np.diag(floor)
         cg = np.einsum("nik,nkl,njl->nij", move, c, move)
         var = np.stack([cg[:, 0, 0], cg[:, 1, 1]], axis=-1)
         per = np.zeros((len(strip.scenes), 3))
         for k in range(2):
             per[:, k] = np.bincount(which, var[:, k], len(strip.scenes)) / m**2
-        if not out:
+        if solution:
             per[:, :2] += shared_sigma_m(strip.gcps) ** 2
         per[:, 2] = per[:, 0] + per[:, 1]
         out.append(np.sqrt(per))
