@@ -39,6 +39,7 @@ from levels.registry import level_names
 
 __all__ = [
     "LEVELS",
+    "MIN_PIXEL_SIZE_M",
     "ProcessingOptions",
     "build_section",
     "describe_section",
@@ -51,6 +52,9 @@ __all__ = [
 LEVELS = tuple(str(lv) for lv in Level)
 
 _URAD = 1e-6
+#: The finest output pixel a scene may be asked for (m): a twentieth of SPOT's 10 m; below,
+#: a map grid of a scene would not fit any machine (1 mm on a 60 km scene: 3.6e15 pixels).
+MIN_PIXEL_SIZE_M = 0.5
 
 
 def option(
@@ -248,7 +252,8 @@ class ProcessingOptions:
     pixel_size_m: float = option(
         0.0,
         "pixel_size_m",
-        "output pixel (0: 10 m P, 20 m XS, times the detector scale)",
+        "output pixel (0: 10 m P, 20 m XS, times the detector scale; else at least "
+        f"{MIN_PIXEL_SIZE_M} m)",
         1.0,
         0.0,
         10000.0,
@@ -416,6 +421,11 @@ class ProcessingOptions:
     )
 
     def __post_init__(self) -> None:
+        if 0 < self.pixel_size_m < MIN_PIXEL_SIZE_M:
+            raise OptionsError(
+                f"pixel_size_m = {self.pixel_size_m:g}: expected 0 (the nominal pixel) or at "
+                f"least {MIN_PIXEL_SIZE_M} m (SPOT's finest is 10 m)"
+            )
         if self.overlap_lines and self.scene_lines and self.overlap_lines >= self.scene_lines:
             raise OptionsError(
                 f"overlap_lines = {self.overlap_lines} must be less than "

@@ -78,6 +78,9 @@ CONVERGED_PX = 0.05
 MIN_LOOPS = 3
 #: … or after this many loops.
 MAX_LOOPS = 5
+#: Matched windows a loop needs to go on: level 2's adjustment needs three points to fit
+#: the attitude offsets at all (with the ephemeris held by its prior).
+MIN_POINTS = 3
 #: A loop whose median shift is beyond this (px) is coarse (:func:`_coarse`).
 COARSE_PX = 1.0
 #: A reference finer than this is first used at this pixel (m): a window of 32 of them
@@ -458,6 +461,15 @@ def _loop(
     loops: list[dict[str, float]] = []
     while True:
         gcps, shift, peak, to_raw = _measure(windows, current, raws, ref, dem, hrv, scale)
+        if len(gcps) < MIN_POINTS:
+            n_windows = sum(w.row.size for w in windows)
+            raise GcpError(
+                f"{len(gcps)} of {n_windows} windows matched the reference "
+                f"{ref.source or ''} (loop {len(loops) + 1}; its {ref.grid.pixel_size_m:g} m "
+                f"pixel is {scale:.2g} raw pixels): too few control points to refine the "
+                f"model (at least {MIN_POINTS}); the scene is too small or too coarse for "
+                "this reference, or shows too little of it"
+            )
         mean = float(np.hypot(*np.median(shift, axis=0)))  # the model's, not the noise's
         loops.append(
             {

@@ -31,11 +31,14 @@ __all__ = [
     "DISK_L0_BYTES_PER_PIXEL",
     "DISK_PRODUCT_BYTES_PER_PIXEL",
     "MEMORY_BASE_BYTES",
+    "MEMORY_BYTES_PER_OUTPUT_PIXEL",
     "MEMORY_BYTES_PER_PIXEL",
+    "OUTPUT_GRID_SHARE",
     "Needs",
     "available_memory_bytes",
     "check_needs",
     "check_scenario",
+    "output_pixels",
     "run_needs",
     "scene_needs",
 ]
@@ -44,6 +47,13 @@ __all__ = [
 MEMORY_BASE_BYTES = 300e6
 #: Peak resident memory per pixel of a pass (all bands): 37 measured, with margin.
 MEMORY_BYTES_PER_PIXEL = 40.0
+#: Peak resident memory per pixel of a scene's largest output grid (bytes): 5.4 measured
+#: (small_test at 8 m pixels: a 2A of 8503 × 9006, 412 MB above the run at its 200 m), with
+#: margin; what a fine ``pixel_size_m`` costs beyond the pass itself.
+MEMORY_BYTES_PER_OUTPUT_PIXEL = 8.0
+#: A map grid's pixels over its scene's at the same pixel size: the north-up box around the
+#: rotated, skewed scene (small_test's 2A: 341 × 361 over 300 × 300, 1.37), with margin.
+OUTPUT_GRID_SHARE = 1.6
 #: Disk per pixel: an L0 archive's counts and masks; a product's uint8 image and mask.
 DISK_L0_BYTES_PER_PIXEL = 1.0
 DISK_PRODUCT_BYTES_PER_PIXEL = 2.0
@@ -58,42 +68,80 @@ class Needs:
     memory_bytes: float
     disk_bytes: float
     what: str
+    advice: str = "make the pass smaller (n_lines, detector_count) or use fewer --workers"
+
+
+def output_pixels(scene_pixels: float, native_pixel_m: float, pixel_size_m: float) -> float:
+    """The pixels of a scene's map grid: its own at the native pixel, times
+    :data:`OUTPUT_GRID_SHARE`, times the square of native over asked (``pixel_size_m`` 0:
+    the native pixel)."""
+    ratio = native_pixel_m / pixel_size_m if pixel_size_m > 0 else 1.0
+    return scene_pixels * OUTPUT_GRID_SHARE * ratio * ratio
 
 
 def run_needs(scn: Scenario) -> Needs:
     """A scenario's run: every HRV's pass rendered at once, its L0 archive and products."""
     from levels.spot import MODES
 
-    pixels = 0.0
+    pixels = out_pixels = largest_out = 0.0
     parts = []
+    opts = scn.processing
     for ins in scn.instruments:
-        n = ins.n_detectors or MODES[ins.mode].detectors
+        mode = MODES[ins.mode]
+        n = ins.n_detectors or mode.detectors
         n_det = ins.detector_count or (n - ins.first_detector)
         n_lines = ins.n_lines or n  # build_hrv: one square scene
-        bands = len(MODES[ins.mode].bands)
+        bands = len(mode.bands)
         pixels += float(n_lines) * n_det * bands
+        native_m = mode.pixel_size_m * mode.detectors / n  # a reduced scene's wider IFOV
+        scene_lines = min(n_lines, opts.scene_lines or n)
+        out_pixels += output_pixels(float(n_lines) * n_det * bands, native_m, opts.pixel_size_m)
+        largest_out = max(
+            largest_out, output_pixels(float(scene_lines) * n_det, native_m, opts.pixel_size_m)
+        )
         parts.append(f"{n_lines} lines × {n_det} detectors × {bands} band(s)")
-    n_levels = len(scn.processing.levels)
+    if opts.pixel_size_m:
+        parts.append(f"map grids of {opts.pixel_size_m:g} m pixels, {largest_out:.3g} a scene")
+    n_levels = len(opts.levels)
     return Needs(
         pixels,
-        MEMORY_BASE_BYTES + MEMORY_BYTES_PER_PIXEL * pixels,
-        pixels * (DISK_L0_BYTES_PER_PIXEL + DISK_PRODUCT_BYTES_PER_PIXEL * n_levels),
+        MEMORY_BASE_BYTES
+        + MEMORY_BYTES_PER_PIXEL * pixels
+        + MEMORY_BYTES_PER_OUTPUT_PIXEL * largest_out,
+        pixels * DISK_L0_BYTES_PER_PIXEL
+        + max(out_pixels, pixels) * DISK_PRODUCT_BYTES_PER_PIXEL * n_levels,
         " + ".join(parts),
+        "make the pass smaller (n_lines, detector_count), its pixels larger (pixel_size_m) "
+        "or use fewer --workers",
     )
 
 
 def scene_needs(
-    n_lines: int, n_columns: int, n_bands: int, n_levels: int, n_scenes: int, workers: int
+    n_lines: int,
+    n_columns: int,
+    n_bands: int,
+    n_levels: int,
+    n_scenes: int,
+    workers: int,
+    native_pixel_m: float = 10.0,
+    pixel_size_m: float = 0.0,
 ) -> Needs:
     """A reprocessing: ``workers`` scenes of ``n_lines × n_columns × n_bands`` at once in
-    memory, ``n_scenes`` scenes of ``n_levels`` products on disk."""
+    memory, each with its largest map grid (:func:`output_pixels` at ``pixel_size_m``),
+    ``n_scenes`` scenes of ``n_levels`` products on disk."""
     per_scene = float(n_lines) * n_columns * n_bands
+    out = output_pixels(float(n_lines) * n_columns, native_pixel_m, pixel_size_m)
+    grids = f", map grids of {pixel_size_m:g} m pixels" if pixel_size_m else ""
     return Needs(
         per_scene * n_scenes,
-        MEMORY_BASE_BYTES + MEMORY_BYTES_PER_PIXEL * per_scene * max(1, workers),
-        per_scene * n_scenes * n_levels * DISK_PRODUCT_BYTES_PER_PIXEL,
+        MEMORY_BASE_BYTES
+        + (MEMORY_BYTES_PER_PIXEL * per_scene + MEMORY_BYTES_PER_OUTPUT_PIXEL * out)
+        * max(1, workers),
+        max(per_scene, out * n_bands) * n_scenes * n_levels * DISK_PRODUCT_BYTES_PER_PIXEL,
         f"{max(1, workers)} scene(s) of {n_lines} lines × {n_columns} columns × "
-        f"{n_bands} band(s) at once",
+        f"{n_bands} band(s) at once{grids}",
+        "process fewer scenes at once (--workers), fewer levels, larger pixels "
+        "(pixel_size_m), or on a machine with more memory",
     )
 
 
@@ -119,8 +167,7 @@ def check_needs(needs: Needs, out: Path) -> dict[str, float | None]:
         raise StationError(
             f"this needs about {needs.memory_bytes / 2**30:.1f} GiB of memory ({needs.what}, "
             f"{MEMORY_BYTES_PER_PIXEL:g} bytes per pixel as measured) and the machine has "
-            f"{memory / 2**30:.1f} GiB available: make the pass smaller (n_lines, "
-            "detector_count) or use fewer --workers"
+            f"{memory / 2**30:.1f} GiB available: {needs.advice}"
         )
     parent = next((p for p in (out, *out.absolute().parents) if p.exists()), Path("."))
     if not os.access(parent, os.W_OK | os.X_OK):

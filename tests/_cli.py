@@ -3,7 +3,14 @@ code, and a directory's files byte for byte."""
 
 from __future__ import annotations
 
+import signal
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+
+#: What "a second" means against a hang: a refusal reads a header, not the file; 30 s is
+#: 30× that, and far below the minutes a loop over a forged count takes.
+HANG_S = 30
 
 
 def one_line(capsys, code: int, expected: int, *words: str) -> str:
@@ -21,3 +28,20 @@ def one_line(capsys, code: int, expected: int, *words: str) -> str:
 def tree(d: Path) -> dict[str, bytes]:
     """Every file under ``d`` and its bytes."""
     return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+@contextmanager
+def bounded(seconds: int = HANG_S) -> Iterator[None]:
+    """Fail the block (TimeoutError) when it runs longer than ``seconds``: a hang caught as
+    a failure, not a CI run that never ends."""
+
+    def _alarm(signum, frame):
+        raise TimeoutError(f"still running after {seconds} s: a hang")
+
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

@@ -6,6 +6,7 @@ grid checked by ``station locate`` against the range–Doppler model."""
 from __future__ import annotations
 
 import json
+import re
 import warnings
 from pathlib import Path
 
@@ -14,7 +15,7 @@ import pytest
 
 from station.spacecraft.sar import ErsFrame, emulate_frame
 from station.spacecraft.world import World
-from tests._cli import one_line
+from tests._cli import bounded, one_line
 
 LON0 = np.radians(-56.1)
 #: GDAL's GCPs (ESA's grid) against where levels.sar locates their ground: the issue's
@@ -170,3 +171,49 @@ def test_files_that_are_not_a_frame_are_refused_in_one_line(files, tmp_path, cap
     code = main(["locate", str(cut)])
     one_line(capsys, code, 2, "truncated")
     assert not (tmp_path / "o1").exists()
+
+
+def _field(raw: bytes, key: bytes, value: bytes, nth: int = 0) -> bytes:
+    """``raw`` with the ``nth`` ``KEY=value`` header field's value replaced, padded to the
+    same width (a forged field, as an editor would leave it)."""
+    spans = [m.span(1) for m in re.finditer(rb"\n" + key + rb"=([^\n<]*)", raw)]
+    a, b = spans[nth]
+    return raw[:a] + value.ljust(b - a)[: max(b - a, len(value))] + raw[b:]
+
+
+def _mpp_field(raw: bytes, name: str, value: float) -> bytes:
+    """``raw`` with a main processing parameters field (big-endian float32) set."""
+    from levels.readers.envisat import MPP_ADSR, _headers
+
+    _, _, ds = _headers(Path("x"), raw)
+    at = ds["MAIN PROCESSING PARAMS ADS"].offset + MPP_ADSR.fields[name][1]
+    return raw[:at] + np.array(value, ">f4").tobytes() + raw[at + 4 :]
+
+
+@pytest.mark.parametrize(
+    ("forge", "words"),
+    [
+        (lambda r: _field(r, b"NUM_DSD", b"+0999999999"), ("NUM_DSD=999999999", "expected")),
+        (lambda r: _field(r, b"NUM_DSR", b"+9999999999", nth=4), ("NUM_DSR", "MDS1")),
+        (lambda r: _field(r, b"SPH_SIZE", b"+9999999999"), ("SPH_SIZE",)),
+        (lambda r: _field(r, b"DS_OFFSET", b"-0000000100", nth=0), ("DS_OFFSET",)),
+        (lambda r: _field(r, b"LINE_TIME_INTERVAL", b"nan"), ("line interval", "nan")),
+        (lambda r: _mpp_field(r, "radar_freq", 0.0), ("radar_freq",)),
+        (lambda r: _mpp_field(r, "range_samp_rate", float("inf")), ("range_samp_rate",)),
+    ],
+    ids=["num_dsd", "num_dsr", "sph_size", "ds_offset", "nan_interval", "radar_0", "rate_inf"],
+)
+def test_forged_counts_and_numbers_are_refused_at_once(files, tmp_path, capsys, forge, words):
+    """Every count, size and offset bounded by the file before it is used (a billion data
+    sets were looped over; a billion records overran the buffer), every physical number
+    finite and positive (a NaN line interval gave 'max error nan m', exit 0): each refused
+    by locate and process in one line, exit 2, nothing written."""
+    from station.cli import main
+
+    forged = tmp_path / "forged.E1"
+    forged.write_bytes(forge(files["imp"].read_bytes()))
+    with bounded():
+        one_line(capsys, main(["locate", str(forged)]), 2, "forged.E1", *words)
+        code = main(["process", str(forged), "--out", str(tmp_path / "o"), "-q"])
+        one_line(capsys, code, 2, *words)
+    assert not (tmp_path / "o").exists()

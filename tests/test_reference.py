@@ -190,6 +190,28 @@ def test_a_reference_off_the_pass_is_refused_in_one_line(run, tmp_path, capsys) 
     assert not (tmp_path / "g.csv").exists()
 
 
+def test_a_reference_where_no_window_matches_is_refused_in_one_line(
+    run, tmp_path, capsys
+) -> None:
+    """Noise on the reference's own grid: every window textured, none matches (it was exit 3,
+    'zero-size array to reduction operation maximum'); exit 2 saying how many matched."""
+    import rasterio
+
+    from station.cli import main
+
+    d, _ = run
+    with rasterio.open(d / "ref_small.reference.tif") as ds:
+        profile, shape = ds.profile, (ds.count, ds.height, ds.width)
+    noise = tmp_path / "noise.tif"
+    with rasterio.open(noise, "w", **profile) as ds:
+        rng = np.random.default_rng(7)
+        ds.write((rng.random(shape) * 200 + 20).astype(profile["dtype"]))
+    cli = ["gcps", str(d / "ref_small.l0.h5"), "--reference", str(noise)]
+    code = main([*cli, "--dem", str(d / "ref_small.dem.tif"), "--out", str(tmp_path / "g.csv")])
+    one_line(capsys, code, 2, "0 of", "windows matched")
+    assert not (tmp_path / "g.csv").exists()
+
+
 @pytest.mark.parametrize(
     "change",
     [{"cloud_fraction": 0.3}, {"band": "XS2"}, {"season": 0.3, "gain": 1.7, "offset": 0.05}],

@@ -20,11 +20,15 @@ from numpy.typing import ArrayLike, NDArray
 from levels.errors import GeometryError
 from levels.geometry.frames import REFERENCE_VELOCITIES
 
-__all__ = ["Ephemeris", "EphemerisSpacingWarning", "lagrange_interpolate"]
+__all__ = ["ORBIT_RADIUS_M", "Ephemeris", "EphemerisSpacingWarning", "lagrange_interpolate"]
 
 #: Relative departure of a sample interval from the median interval beyond which the
 #: spacing is called uneven (1 ms on 60 s; the real files are even to the microsecond).
 UNEVEN_SPACING_REL = 1e-5
+#: Distances from the Earth's centre an orbit's positions lie within (m): 100 km above the
+#: equator to beyond the geostationary orbit; outside, the file holds no orbit (zeros, km
+#: taken for metres, a damaged field).
+ORBIT_RADIUS_M = (6.478e6, 5.0e7)
 
 
 class EphemerisSpacingWarning(UserWarning):
@@ -123,6 +127,13 @@ class Ephemeris:
             raise GeometryError(
                 f"ephemeris instants must increase strictly: sample {i + 1} at {t[i + 1]} s "
                 f"follows {t[i]} s"
+            )
+        radius = np.linalg.norm(r, axis=1)
+        if not np.all((ORBIT_RADIUS_M[0] <= radius) & (radius <= ORBIT_RADIUS_M[1])):
+            raise GeometryError(
+                f"ephemeris positions {radius.min():.0f}…{radius.max():.0f} m from the Earth's "
+                f"centre: expected an orbit, {ORBIT_RADIUS_M[0]:.0f}…{ORBIT_RADIUS_M[1]:.0f} m "
+                "(positions in metres, ECEF)"
             )
         if self.n_points < 2:
             raise GeometryError(f"n_points={self.n_points}: need at least 2")

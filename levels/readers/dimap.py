@@ -29,6 +29,8 @@ Attitude: which one reproduces the producer's own scene location
 
 from __future__ import annotations
 
+import io
+import math
 import xml.etree.ElementTree as ET
 import zipfile
 from dataclasses import dataclass, field
@@ -50,8 +52,16 @@ from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.model import LineClock, PushbroomModel
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch, parse_utc
+from levels.readers.bounded import MAX_METADATA_BYTES, read_capped, read_member, refuse_broken_zip
 
-__all__ = ["AttitudeChoice", "BandCalibration", "DimapScene", "dimap_member", "read_dimap"]
+__all__ = [
+    "MAX_DIMAP_SIDE",
+    "AttitudeChoice",
+    "BandCalibration",
+    "DimapScene",
+    "dimap_member",
+    "read_dimap",
+]
 
 AttitudeChoice = Literal["auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed"]
 _ATTITUDE_CHOICES = ("auto", "corrected", "none", "aocs", "integrated", "integrated_zeroed")
@@ -251,11 +261,16 @@ def _text(root: ET.Element, path: str, source: Path) -> str:
 
 
 def _number(root: ET.Element, path: str, source: Path, kind: type = float):
+    """The element's number, refused (naming it) unless finite: a DIMAP number never is
+    ``nan`` or ``inf``, and one would travel into the model as NaN products."""
     text = _text(root, path, source)
     try:
-        return kind(float(text)) if kind is int else kind(text)
+        value = float(text)
     except ValueError:
         raise DimapError(f"{source}: element {path} = {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise DimapError(f"{source}: element {path} = {text!r} is not a finite number")
+    return int(value) if kind is int else kind(text)
 
 
 def _optional(root: ET.Element, path: str, kind: type = str):
@@ -342,9 +357,11 @@ def read_dimap(path: str | Path) -> DimapScene:
             raise DimapError(f"{path}: a directory without METADATA.DIM: not a DIMAP scene")
     if zipfile.is_zipfile(source):
         member = dimap_member(source)
-        with zipfile.ZipFile(source) as z, z.open(member) as f:
-            return _read(source / member, _dimap_v1_root(source / member, f))
-    return _read(source, _dimap_v1_root(source))
+        data = read_member(source, member, MAX_METADATA_BYTES, "METADATA.DIM", DimapError)
+        return _read(source / member, _dimap_v1_root(source / member, io.BytesIO(data)))
+    refuse_broken_zip(source, DimapError)
+    data = read_capped(source, MAX_METADATA_BYTES, "METADATA.DIM", DimapError)
+    return _read(source, _dimap_v1_root(source, io.BytesIO(data)))
 
 
 def dimap_member(zip_path: Path) -> str:
@@ -380,6 +397,7 @@ def _read(source: Path, root: ET.Element) -> DimapScene:
     for block in root.findall(_LOOK_ANGLES):
         band = _number(block, "BAND_INDEX", source, int)
         look_angles[band] = _look_angles(block, band, n_cols, source)
+    _check_frame(source, n_rows, n_cols, np.vstack([frame, center]))
 
     return DimapScene(
         path=source,
@@ -424,6 +442,32 @@ def _read(source: Path, root: ET.Element) -> DimapScene:
             for e in root.findall("Image_Interpretation/Spectral_Band_Info")
         },
     )
+
+
+#: The largest side of an image a DIMAP v1 document may declare (pixels): SPOT 5's 2.5 m
+#: scenes have 24 000 columns; a strip of ten 60 km scenes at 2.5 m, 240 000 rows.
+MAX_DIMAP_SIDE = 240_000
+
+
+def _check_frame(source: Path, n_rows: int, n_cols: int, points: NDArray) -> None:
+    """Refuse sizes out of any SPOT scene's range, and a frame (corners, centre: rows,
+    columns, 1-based) off the image the document declares: one of the two is wrong, and a
+    model checked against it would say so as a miss of kilometres."""
+    if not (1 <= n_rows <= MAX_DIMAP_SIDE and 1 <= n_cols <= MAX_DIMAP_SIDE):
+        raise DimapError(
+            f"{source}: Raster_Dimensions {n_rows} rows × {n_cols} columns: expected 1 to "
+            f"{MAX_DIMAP_SIDE} each (a SPOT scene); damaged?"
+        )
+    rows, cols = points[:, 0], points[:, 1]
+    off = (rows < 0) | (rows > n_rows + 1) | (cols < 0) | (cols > n_cols + 1)
+    if np.any(off):
+        k = int(np.argmax(off))
+        what = f"Vertex[{k + 1}]" if k < 4 else "Scene_Center"
+        raise DimapError(
+            f"{source}: Dataset_Frame/{what} at row {rows[k]:.0f}, column {cols[k]:.0f}, off "
+            f"the {n_rows} × {n_cols} image its Raster_Dimensions declare: the frame and the "
+            "sizes contradict each other"
+        )
 
 
 def _image_file(root: ET.Element) -> str:

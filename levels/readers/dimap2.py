@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from levels.errors import DimapError, GeometryError
 from levels.geo.rpc import Rpc
 from levels.geometry.model import GroundPoints, ImagePoints
+from levels.readers.bounded import MAX_METADATA_BYTES, read_capped
 
 __all__ = ["Dimap2Scene", "RpcModel", "is_dimap2", "read_dimap2"]
 
@@ -158,8 +159,9 @@ def read_dimap2(path: str | Path) -> Dimap2Scene:
         absent or not one; the message names the file and the element.
     """
     source = Path(path)
+    data = read_capped(source, MAX_METADATA_BYTES, "DIMAP v2 DIM_*.XML", DimapError)
     try:
-        root = ET.parse(source).getroot()
+        root = ET.fromstring(data)
     except ET.ParseError as exc:
         raise DimapError(f"{source}: not an XML document ({exc})") from None
     fmt = root.find("Metadata_Identification/METADATA_FORMAT")

@@ -38,6 +38,7 @@ ASAR image-mode level 1, a header whose sizes disagree with the file, a data set
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,7 +47,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from levels.errors import ProductError
+from levels.errors import GeometryError, ProductError
 from levels.geometry.times import Epoch
 from levels.readers.sar import ImageFrame
 from levels.sar import SarAnnotation, SarImage
@@ -71,6 +72,9 @@ __all__ = [
 
 #: Size of the main product header (bytes).
 MPH_SIZE = 1247
+#: Slant-range samples a ground-range sample may become at most (ERS: about 1.2, at the far
+#: edge 1.6): a bound on the image an SR/GR polynomial resamples to.
+_SLANT_PER_GROUND = 4
 #: Size of one data set descriptor in the SPH (bytes).
 DSD_SIZE = 280
 #: Bytes before the samples in each image record: zero-Doppler time, quality, line number.
@@ -187,7 +191,24 @@ def mjd_of(utc: NDArray[np.datetime64]) -> NDArray[np.void]:
     return out
 
 
-def _utc_of(mjd: NDArray[np.void]) -> NDArray[np.datetime64]:
+#: The MJD 2000 days a frame's times may fall on: 1970 to 2100 (ERS-1 flew from 1991, the
+#: format from 2002); beyond, a damaged field, refused before it overflows a datetime.
+_MJD_DAYS = (-10_957, 36_524)
+
+
+def _utc_of(mjd: NDArray[np.void], where: Path | None = None) -> NDArray[np.datetime64]:
+    days = mjd["days"].astype(np.int64)
+    if days.size and not (
+        _MJD_DAYS[0] <= days.min()
+        and days.max() <= _MJD_DAYS[1]
+        and mjd["seconds"].max() < 86_401
+        and mjd["microseconds"].max() < 1_000_000
+    ):
+        raise ProductError(
+            f"{where or 'an ENVISAT product'}: an MJD 2000 time of day {int(days.min())}…"
+            f"{int(days.max())}, seconds up to {int(mjd['seconds'].max())}: expected "
+            "1970–2100 and a time of day; damaged?"
+        )
     us = (
         mjd["days"].astype(np.int64) * 86_400_000_000
         + mjd["seconds"].astype(np.int64) * 1_000_000
@@ -265,40 +286,75 @@ def is_envisat(path: str | Path) -> bool:
         return False
 
 
+def _count(where: Path, pairs: dict[str, str], key: str, lo: int, hi: int, what: str) -> int:
+    """The integer field ``key`` of a header, refused unless within ``lo … hi``: every count,
+    size and offset is bounded by what the file can hold before it is used."""
+    text = pairs.get(key)
+    try:
+        value = int(text)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ProductError(f"{where}: {what} {key}={text!r}: expected an integer") from None
+    if not lo <= value <= hi:
+        raise ProductError(
+            f"{where}: {what} {key}={value}: expected {lo}…{hi} for a file of "
+            f"{_file_bytes(where)} bytes; damaged or not an ENVISAT product"
+        )
+    return value
+
+
+def _file_bytes(where: Path) -> int:
+    try:
+        return where.stat().st_size
+    except OSError:
+        return 0
+
+
 def _headers(where: Path, raw: bytes) -> tuple[dict, dict, dict[str, _Dataset]]:
-    """The MPH, the SPH and the data sets by name, checked against the file's size."""
+    """The MPH, the SPH and the data sets by name; every size, count and offset checked
+    against the file's size before it is used (a descriptor claiming a billion data sets
+    or records is refused, not looped over)."""
     if raw[:8] != b"PRODUCT=":
         raise ProductError(f"{where}: not an ENVISAT-format product (no PRODUCT= header)")
+    if len(raw) < MPH_SIZE:
+        raise ProductError(f"{where}: {len(raw)} bytes, shorter than its MPH: truncated?")
     mph = _pairs(raw[:MPH_SIZE].decode("ascii", "replace"))
-    try:
-        sph_size, num_dsd = int(mph["SPH_SIZE"]), int(mph["NUM_DSD"])
-        dsd_size = int(mph.get("DSD_SIZE", DSD_SIZE))
-    except (KeyError, ValueError):
-        raise ProductError(f"{where}: its MPH has no SPH_SIZE, NUM_DSD or DSD_SIZE") from None
+    for key in ("SPH_SIZE", "NUM_DSD"):
+        if key not in mph:
+            raise ProductError(f"{where}: its MPH has no {key}")
+    sph_size = _count(where, mph, "SPH_SIZE", 0, len(raw) - MPH_SIZE, "MPH")
+    dsd_size = _count(
+        where,
+        {"DSD_SIZE": mph.get("DSD_SIZE", str(DSD_SIZE))},
+        "DSD_SIZE",
+        1,
+        max(sph_size, 1),
+        "MPH",
+    )
     sph_text = raw[MPH_SIZE : MPH_SIZE + sph_size].decode("ascii", "replace")
     first_dsd = sph_text.find("DS_NAME=")
-    if first_dsd < 0 and num_dsd:
-        raise ProductError(f"{where}: {num_dsd} data sets announced, no DS_NAME in the SPH")
+    room = (sph_size - first_dsd) // dsd_size if first_dsd >= 0 else 0
+    num_dsd = _count(where, mph, "NUM_DSD", 0, room, "MPH")
     sph = _pairs(sph_text[:first_dsd] if first_dsd >= 0 else sph_text)
     datasets = {}
     for k in range(num_dsd):
         d = _pairs(sph_text[first_dsd + k * dsd_size : first_dsd + (k + 1) * dsd_size])
         if not d.get("DS_NAME"):
             continue
-        ds = _Dataset(
-            d["DS_NAME"],
-            d.get("DS_TYPE", ""),
-            int(d.get("DS_OFFSET", 0)),
-            int(d.get("DS_SIZE", 0)),
-            int(d.get("NUM_DSR", 0)),
-            int(d.get("DSR_SIZE", 0)),
-        )
-        if ds.offset and ds.offset + ds.size > len(raw):
+        where_ds = f"data set {d['DS_NAME']!r}:"
+        fields = {key: d.get(key, "0") for key in ("DS_OFFSET", "DS_SIZE", "NUM_DSR", "DSR_SIZE")}
+        offset = _count(where, fields, "DS_OFFSET", 0, len(raw), where_ds)
+        size = _count(where, fields, "DS_SIZE", 0, 2**62, where_ds)
+        if offset and offset + size > len(raw):
             raise ProductError(
-                f"{where}: data set {ds.name!r} ends at byte {ds.offset + ds.size}, the file "
+                f"{where}: data set {d['DS_NAME']!r} ends at byte {offset + size}, the file "
                 f"has {len(raw)}: truncated?"
             )
-        datasets[ds.name] = ds
+        dsr_size = _count(where, fields, "DSR_SIZE", -1, max(size, 0), where_ds)
+        most = size // dsr_size if dsr_size > 0 else 2**31
+        num_dsr = _count(where, fields, "NUM_DSR", 0, most if offset else 2**31, where_ds)
+        datasets[d["DS_NAME"]] = _Dataset(
+            d["DS_NAME"], d.get("DS_TYPE", ""), offset, size, num_dsr, dsr_size
+        )
     return mph, sph, datasets
 
 
@@ -377,8 +433,8 @@ def _image(
     v = lines["v"].astype(np.float32)
     k = float(mpp["ext_cal_fact"])
     power = v[:, 0::2] ** 2 + v[:, 1::2] ** 2 if complex_ else v * v
-    image = power / (k if k > 0 else 1.0)
-    first = np.datetime64(_utc_of(lines["time"][:1])[0], "ns")
+    image = power / (k if math.isfinite(k) and k > 0 else 1.0)
+    first = np.datetime64(_utc_of(lines["time"][:1], where)[0], "ns")
     return np.ascontiguousarray(image, dtype=np.float32), first
 
 
@@ -397,17 +453,17 @@ def _annotation(
     from the file's columns to that image's."""
     c = SPEED_OF_LIGHT_M_PER_S
     sv = mpp["state_vectors"]
-    t_sv = epoch.seconds(_utc_of(sv["time"]))
+    t_sv = epoch.seconds(_utc_of(sv["time"], where))
     r = np.stack([sv["x"], sv["y"], sv["z"]], axis=1).astype(np.float64) * 1e-2
     v = np.stack([sv["vx"], sv["vy"], sv["vz"]], axis=1).astype(np.float64) * 1e-5
-    spacing = c / (2.0 * float(mpp["range_samp_rate"]))
+    spacing = c / (2.0 * _positive(where, mpp, "range_samp_rate"))
     tau0 = 1e-9 * float(dop["slant_range_time"][len(dop) // 2])
     near = c * tau0 / 2.0
     slant_column: Any = _same  # an IMS: its own columns
     if kind.endswith("IMP_1P"):
         records = _records(where, raw, ds, "SR GR ADS", SRGR_ADSR)
-        rg = _srgr(records[len(records) // 2], float(mpp["range_spacing"]))
-        near, spacing, image = _on_slant_range(rg, image, spacing)
+        rg = _srgr(records[len(records) // 2], _positive(where, mpp, "range_spacing"))
+        near, spacing, image = _on_slant_range(where, rg, image, spacing)
 
         def slant_column(column: Any) -> Any:
             return (rg(column) - near) / spacing
@@ -422,22 +478,38 @@ def _annotation(
         interval = float(sph["LINE_TIME_INTERVAL"])
     except (KeyError, ValueError):
         raise ProductError(f"{where}: its SPH has no LINE_TIME_INTERVAL or looks") from None
-    ann = SarAnnotation(
-        epoch=epoch,
-        state_t_s=t_sv,
-        state_r_m=r,
-        state_v_m_per_s=v,
-        first_line_s=0.0,
-        line_interval_s=interval,
-        near_range_m=near,
-        range_spacing_m=spacing,
-        wavelength_m=c / float(mpp["radar_freq"]),
-        doppler_hz=tuple(float(x) for x in np.pad(poly.coef, (0, max(0, 5 - poly.coef.size)))[:5]),
-        shape=image.shape,
-        looks=looks,
-        right_looking=True,
-    )
+    if not looks >= 1:
+        raise ProductError(f"{where}: AZIMUTH_LOOKS × RANGE_LOOKS = {looks:g}: expected ≥ 1")
+    try:
+        ann = SarAnnotation(
+            epoch=epoch,
+            state_t_s=t_sv,
+            state_r_m=r,
+            state_v_m_per_s=v,
+            first_line_s=0.0,
+            line_interval_s=interval,
+            near_range_m=near,
+            range_spacing_m=spacing,
+            wavelength_m=c / _positive(where, mpp, "radar_freq"),
+            doppler_hz=tuple(
+                float(x) for x in np.pad(poly.coef, (0, max(0, 5 - poly.coef.size)))[:5]
+            ),
+            shape=image.shape,
+            looks=looks,
+            right_looking=True,
+        )
+    except GeometryError as exc:  # the annotation's own checks, naming the file
+        raise ProductError(f"{where}: {exc}") from None
     return ann, image, slant_column
+
+
+def _positive(where: Path, record: Any, name: str) -> float:
+    """A record's field that must be a finite, positive number (a rate, a frequency, a
+    spacing), refused naming it otherwise."""
+    value = float(record[name])
+    if not (math.isfinite(value) and value > 0):
+        raise ProductError(f"{where}: main processing parameters' {name} {value!r}: expected > 0")
+    return value
 
 
 def _same(column: Any) -> Any:
@@ -458,7 +530,7 @@ def _srgr(srgr: Any, ground_spacing: float) -> Any:
 
 
 def _on_slant_range(
-    rg: Any, image: NDArray[np.float32], slant_spacing: float
+    where: Path, rg: Any, image: NDArray[np.float32], slant_spacing: float
 ) -> tuple[float, float, NDArray[np.float32]]:
     """A ground-range image's near range, spacing and samples on slant range (``rg``: the
     slant range of each column): linear (the emulator's, or a slant-range image said as
@@ -469,7 +541,17 @@ def _on_slant_range(
         return float(rg(0.0)), float(rg(1.0) - rg(0.0)), image
     r = rg(np.arange(n, dtype=np.float64))
     near, far = float(r[0]), float(r[-1])
+    if not (np.all(np.isfinite(r)) and np.all(np.diff(r) > 0)):
+        raise ProductError(
+            f"{where}: its SR/GR polynomial does not give a slant range increasing across the "
+            "line: damaged?"
+        )
     m = int(np.floor((far - near) / slant_spacing)) + 1
+    if m > _SLANT_PER_GROUND * n:  # ERS: about 1.2 slant samples a ground sample
+        raise ProductError(
+            f"{where}: its SR/GR polynomial spans {far - near:.0f} m of slant range over {n} "
+            f"samples ({m} at {slant_spacing:.2f} m): more than {_SLANT_PER_GROUND} a sample"
+        )
     wanted = near + np.arange(m) * slant_spacing
     column = np.interp(wanted, r, np.arange(n, dtype=np.float64))  # R(g) is monotonic
     return near, slant_spacing, np.maximum(resample_columns(image, column), 0.0)

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from levels.errors import GcpError
 from levels.files import atomic_path
+from levels.readers.bounded import MAX_TABLE_BYTES, read_capped
 from levels.readers.dem import EARTH_HEIGHTS_M
 
 __all__ = ["GCP_COLUMNS", "ControlPointSet", "read_gcps", "write_gcps"]
@@ -119,7 +120,9 @@ def _rows(where: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
     """The file's header and its rows, each with its line number in the file (comments
     and blank lines skipped; a UTF-8 byte-order mark, as spreadsheets write it, ignored)."""
     try:
-        text = where.read_text(encoding="utf-8-sig")
+        text = read_capped(where, MAX_TABLE_BYTES, "control-point file", GcpError).decode(
+            "utf-8-sig"
+        )
     except FileNotFoundError:
         raise GcpError(f"{where}: no such control-point file") from None
     except (UnicodeDecodeError, IsADirectoryError):
@@ -189,14 +192,16 @@ def read_gcps(
     where = Path(path)
     _, rows = _rows(where)
     ids: list[str] = []
+    seen: set[str] = set()  # membership in a set: a list made 10⁶ rows quadratic
     values: list[dict[str, float]] = []
     kinds: list[str] = []
     for k, rec in rows:
         pid = rec["id"]
         if not pid:
             raise _bad(where, k, "empty id")
-        if pid in ids:
+        if pid in seen:
             raise _bad(where, k, f"id {pid!r} given twice")
+        seen.add(pid)
         v = _point(where, k, rec)
         kind = rec.get("kind", "") or "gcp"
         if kind not in ("gcp", "tie", "reference"):

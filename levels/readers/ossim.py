@@ -33,6 +33,7 @@ from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.model import LineClock, PushbroomModel
 from levels.geometry.sensor import LookAngleTable
 from levels.geometry.times import Epoch, parse_utc
+from levels.readers.bounded import MAX_METADATA_BYTES, read_capped
 
 __all__ = ["ATTITUDE_ORDER", "OssimScene", "read_ossim_gcps", "read_ossim_geom"]
 
@@ -54,7 +55,7 @@ class OssimScene:
 
 def _keywords(path: Path) -> dict[str, str]:
     try:
-        text = path.read_text()
+        text = read_capped(path, MAX_METADATA_BYTES, "OSSIM keyword list", DimapError).decode()
     except UnicodeDecodeError:
         raise DimapError(f"{path}: not a text keyword list") from None
     out = {}

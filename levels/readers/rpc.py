@@ -30,6 +30,7 @@ import numpy as np
 
 from levels.errors import GeometryError
 from levels.geo.rpc import Rpc
+from levels.readers.bounded import MAX_METADATA_BYTES, read_capped
 
 __all__ = [
     "read_dimap2_rpc",
@@ -199,7 +200,8 @@ def read_rpc(path: str | Path) -> Rpc:
 
 def _text(p: Path) -> str:
     try:
-        return p.read_text(encoding="utf-8", errors="replace")
+        data = read_capped(p, MAX_METADATA_BYTES, "RPC file", GeometryError)
+        return data.decode("utf-8", errors="replace")
     except FileNotFoundError:
         raise GeometryError(f"RPC file {p} not found") from None
     except IsADirectoryError:

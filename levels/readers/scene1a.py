@@ -50,8 +50,10 @@ from numpy.typing import NDArray
 
 from levels.choices import Level
 from levels.errors import DimapError
+from levels.readers.bounded import gdal_image_alone
 from levels.readers.dimap import AttitudeChoice, DimapScene, dimap_member, read_dimap
 from levels.readers.l0 import L0Archive, L0Band, read_l0
+from levels.spot import MODES
 
 __all__ = [
     "ROUTE",
@@ -64,6 +66,9 @@ __all__ = [
 
 #: The provenance's ``route`` of products made from a DIMAP 1A scene.
 ROUTE = "DIMAP 1A scene"
+#: Rows a scene may have per column of an HRV line at most: a 1A scene is about square
+#: (6000 × 6000 P); ten of them, a whole segment, is the most anyone delivers as one.
+_MAX_ROWS_PER_COLUMN = 10
 #: Gyro records per second written for the null attitude (the files' own rate, 8 Hz).
 _NULL_RATE_HZ = 8.0
 
@@ -106,7 +111,7 @@ class TiffRows:
         start, stop, step = rows.indices(self.shape[0])
         if step != 1:
             raise TypeError("a scene's counts are read by contiguous rows")
-        with _quiet(), rasterio.open(self.uri) as ds:
+        with _quiet(), gdal_image_alone(), rasterio.open(self.uri) as ds:
             window = Window(0, start, self.shape[1], max(stop - start, 0))
             return np.ascontiguousarray(ds.read(self.band, window=window))
 
@@ -167,6 +172,13 @@ def _check_scene(path: Path, scene: DimapScene) -> None:
             "trackers), not the gyro-relative one GEO integrates for SPOT 1–4; station locate "
             "reads it"
         )
+    most_cols = max(m.detectors for m in MODES.values())
+    if scene.n_cols > most_cols or scene.n_rows > _MAX_ROWS_PER_COLUMN * most_cols:
+        raise DimapError(
+            f"{path}: {scene.n_rows} rows × {scene.n_cols} columns: a SPOT 1–4 level 1A scene "
+            f"has at most {most_cols} columns (an HRV line) and {_MAX_ROWS_PER_COLUMN * most_cols} "
+            "rows; not a scene the processing centre makes levels of"
+        )
     scene.model()  # a frame-only file is refused here, saying what it lacks
 
 
@@ -177,7 +189,7 @@ def _counts(path: Path, scene: DimapScene, names: list[str]) -> dict[str, TiffRo
 
     uri = _image_uri(path, scene)
     try:
-        with _quiet(), rasterio.open(uri) as ds:
+        with _quiet(), gdal_image_alone(), rasterio.open(uri) as ds:
             shape, count, dtypes = (ds.height, ds.width), ds.count, set(ds.dtypes)
     except RasterioIOError as exc:
         raise DimapError(f"{path}: its image {scene.image_file} cannot be read ({exc})") from None

@@ -6,6 +6,7 @@ the image itself, and the frame's nominal ground cell.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numba as nb
@@ -137,10 +138,26 @@ class SarAnnotation:
     right_looking: bool = True
 
     def __post_init__(self) -> None:
-        if self.line_interval_s <= 0 or self.range_spacing_m <= 0 or self.wavelength_m <= 0:
+        positive = {
+            "line interval (s)": self.line_interval_s,
+            "range spacing (m)": self.range_spacing_m,
+            "wavelength (m)": self.wavelength_m,
+            "near range (m)": self.near_range_m,
+        }
+        bad = {k: v for k, v in positive.items() if not (math.isfinite(v) and v > 0)}
+        if bad:  # NaN passes every `<= 0` test: said here, not as NaN products
+            said = ", ".join(f"{k} {v!r}" for k, v in bad.items())
             raise GeometryError(
-                "a SAR annotation needs a positive line interval, range spacing and wavelength"
+                f"a SAR annotation needs a finite, positive line interval, range spacing, "
+                f"wavelength and near range: {said}"
             )
+        if not (math.isfinite(self.first_line_s) and all(map(math.isfinite, self.doppler_hz))):
+            raise GeometryError(
+                f"a SAR annotation's first line time {self.first_line_s!r} and Doppler "
+                f"centroid {self.doppler_hz} must be finite"
+            )
+        if len(self.shape) != 2 or min(self.shape) < 1:
+            raise GeometryError(f"a SAR image of shape {self.shape}: expected lines × samples")
         object.__setattr__(
             self,
             "_ephemeris",

@@ -511,7 +511,7 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace,
     asked and the DEM when a level needs one (a reprocessing reads those itself before
     its first scene: read here too, they would be read twice)."""
     from levels.makers.base import Need
-    from levels.process import pass_dem, plan_levels
+    from levels.process import nominal_pixel_size_m, pass_dem, plan_levels
     from levels.readers.gcp import read_gcps
     from levels.readers.scene1a import open_archive
     from station.preflight import check_needs, scene_needs
@@ -531,7 +531,17 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace,
     a = archives[0]
     lines = min(options.scene_lines or a.n_columns, a.n_lines)
     n_scenes = sum(-(-x.n_lines // lines) for x in archives)
-    needs = scene_needs(lines, a.n_columns, len(a.bands), len(makers), n_scenes, args.workers or 0)
+    native_m = nominal_pixel_size_m(next(iter(a.bands.values())).look)
+    needs = scene_needs(
+        lines,
+        a.n_columns,
+        len(a.bands),
+        len(makers),
+        n_scenes,
+        args.workers or 0,
+        native_m,
+        options.pixel_size_m,
+    )
     return {"archives": [str(s) for s in sources], **check_needs(needs, out)}
 
 

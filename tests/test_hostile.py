@@ -1,0 +1,190 @@
+"""Hostile inputs made from the run's own files (issue 57): each refused in one line, exit
+2, in about a second, never a crash (exit 3), a hang or a machine's memory; nothing written
+where it should not be."""
+
+from __future__ import annotations
+
+import re
+import warnings
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _cli import bounded, one_line
+from conftest import REFDATA
+
+from levels.readers.bounded import MAX_METADATA_BYTES
+from station.cli import EXIT_BAD_INPUT, main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def dimap_zip(run_dir: Path, tmp_path_factory) -> Path:
+    """The small run's 1A as SWH's zip."""
+    out = tmp_path_factory.mktemp("dimap") / "scene.zip"
+    assert main(["export", str(run_dir / "small_test_s000_1A.h5"), "--dimap", str(out), "-q"]) == 0
+    return out
+
+
+def _rezip(src: Path, dst: Path, change: dict[str, bytes]) -> Path:
+    """``src``'s scene (its folder's members) with the members named in ``change``
+    replaced (deflated)."""
+    with zipfile.ZipFile(src) as z, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as out:
+        for info in z.infolist():
+            if "/" in info.filename and not info.filename.startswith("truth/"):
+                out.writestr(info.filename, change.get(info.filename, z.read(info)))
+    return dst
+
+
+def _dim_name(z: Path) -> str:
+    with zipfile.ZipFile(z) as f:
+        return next(n for n in f.namelist() if n.endswith("METADATA.DIM"))
+
+
+# 1: a zip bomb's METADATA.DIM, and GDAL kept from its sibling
+
+
+def test_a_metadata_that_inflates_beyond_the_cap_is_refused_unread(
+    dimap_zip, tmp_path, capsys
+) -> None:
+    """A METADATA.DIM inflating to 1.5× the cap (a few hundred kB deflated): refused by
+    its declared size, by process and locate, before it is parsed or handed to GDAL."""
+    name = _dim_name(dimap_zip)
+    with zipfile.ZipFile(dimap_zip) as z:
+        dim = z.read(name)
+    head = dim.index(b"?>") + 2
+    bomb = dim[:head] + b"<!--" + b" " * int(1.5 * MAX_METADATA_BYTES) + b"-->" + dim[head:]
+    z = _rezip(dimap_zip, tmp_path / "bomb.zip", {name: bomb})
+    assert z.stat().st_size < 1e6
+    with bounded():
+        code = main(["process", str(z), "--out", str(tmp_path / "out"), "-q"])
+        one_line(capsys, code, EXIT_BAD_INPUT, "METADATA.DIM", "MiB")
+        one_line(capsys, main(["locate", str(z)]), EXIT_BAD_INPUT, "MiB")
+    assert not (tmp_path / "out").exists()
+
+
+def test_gdal_opens_the_scenes_image_without_reading_its_sibling_metadata(tmp_path) -> None:
+    """GDAL's TIFF driver parses a METADATA.DIM beside the image (its SPOT metadata
+    reader: the IMAGERY domain); opened the project's way, it sees the image alone."""
+    import rasterio
+
+    from levels.readers.bounded import gdal_image_alone
+
+    scene = REFDATA / "dimap" / "spot2_hrv1_P_19980220_izmit_METADATA.DIM"
+    (tmp_path / "METADATA.DIM").write_bytes(scene.read_bytes())
+    profile = {"driver": "GTiff", "width": 8, "height": 8, "count": 1, "dtype": "uint8"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # no georeferencing: not what is checked
+        with rasterio.open(tmp_path / "IMAGERY.TIF", "w", **profile) as ds:
+            ds.write(np.ones((1, 8, 8), np.uint8))
+        with rasterio.open(tmp_path / "IMAGERY.TIF") as ds:
+            assert ds.tags(ns="IMAGERY").get("SATELLITEID") == "SPOT 2"  # GDAL reads it
+        with gdal_image_alone(), rasterio.open(tmp_path / "IMAGERY.TIF") as ds:
+            assert ds.tags(ns="IMAGERY") == {}
+
+
+def test_an_empty_truncated_or_junk_zip_is_called_a_zip(dimap_zip, tmp_path, capsys) -> None:
+    """Not "not a readable HDF5 file" nor "not an XML document": a broken zip, by name."""
+    raw = dimap_zip.read_bytes()
+    cases = {"empty.zip": b"", "cut.zip": raw[: len(raw) // 2], "junk.zip": b"junk " * 100}
+    for name, data in cases.items():
+        (tmp_path / name).write_bytes(data)
+        for cmd in (
+            ["process", str(tmp_path / name), "--out", str(tmp_path / "o"), "-q"],
+            ["locate", str(tmp_path / name)],
+        ):
+            one_line(capsys, main(cmd), EXIT_BAD_INPUT, name, "zip")
+    assert not (tmp_path / "o").exists()
+
+
+# 5: sizes a DIMAP declares, before any scanning
+
+
+def _dim_edited(dimap_zip: Path, tmp_path: Path, edit) -> Path:
+    name = _dim_name(dimap_zip)
+    with zipfile.ZipFile(dimap_zip) as z:
+        text = z.read(name).decode()
+    return _rezip(dimap_zip, tmp_path / "edited.zip", {name: edit(text).encode()})
+
+
+def test_a_scene_declaring_100000_pixels_a_side_is_refused_at_once(
+    dimap_zip, tmp_path, capsys
+) -> None:
+    """NROWS of 100 000 (16 full scenes long): no SPOT 1–4 level 1A scene; refused from
+    the metadata, before the image is opened or scanned, without a scenario's advice."""
+
+    def huge(t: str) -> str:
+        return re.sub(r"<NROWS>\d+</NROWS>", "<NROWS>100000</NROWS>", t)
+
+    z = _dim_edited(dimap_zip, tmp_path, huge)
+    with bounded():
+        code = main(["process", str(z), "--out", str(tmp_path / "out"), "-q"])
+    line = one_line(capsys, code, EXIT_BAD_INPUT, "100000", "SPOT 1–4")
+    assert "n_lines" not in line  # a scenario's advice, not a scene's
+
+
+def test_locate_refuses_a_frame_off_its_own_image(dimap_zip, tmp_path, capsys) -> None:
+    """Sizes that contradict the frame (NROWS halved): one of the two is wrong; refused,
+    never a 'max error' of kilometres and exit 0."""
+
+    def halved(t: str) -> str:
+        n = int(re.search(r"<NROWS>(\d+)</NROWS>", t).group(1))
+        return t.replace(f"<NROWS>{n}</NROWS>", f"<NROWS>{n // 2}</NROWS>")
+
+    z = _dim_edited(dimap_zip, tmp_path, halved)
+    one_line(capsys, main(["locate", str(z)]), EXIT_BAD_INPUT, "off the", "contradict")
+
+
+def test_the_memory_estimate_counts_the_output_grids() -> None:
+    """``pixel_size_m = 2`` on the small scene (200 m pixels: 10⁴ times the map grids'
+    pixels): the estimate must exceed the 9.12 GiB the run was seen to fail allocating,
+    where it said 0.28 GiB; the default pixel keeps the pass's own figure."""
+    from dataclasses import replace
+
+    from station.loader import load_scenario
+    from station.preflight import MEMORY_BASE_BYTES, run_needs
+
+    scn = load_scenario(ROOT / "scenarios" / "small_test.toml")
+    fine = run_needs(replace(scn, processing=replace(scn.processing, pixel_size_m=2.0)))
+    assert fine.memory_bytes > 9.12 * 2**30
+    assert "2 m pixels" in fine.what
+    assert run_needs(scn).memory_bytes < MEMORY_BASE_BYTES + 0.1 * 2**30
+
+
+@pytest.mark.parametrize("value", ["1e-300", "0.1", "-1"])
+def test_a_pixel_below_half_a_metre_is_refused_before_work(value, tmp_path, capsys) -> None:
+    toml = tmp_path / "fine.toml"
+    toml.write_text(
+        (ROOT / "scenarios" / "small_test.toml").read_text()
+        + f"\n[processing]\npixel_size_m = {value}\n"
+    )
+    code = main(["run", str(toml), "--check"])
+    one_line(capsys, code, EXIT_BAD_INPUT, "pixel_size_m")
+
+
+# 3: a control-point file of a million rows
+
+
+def test_a_million_control_points_are_read_in_bounded_time(run_dir, tmp_path) -> None:
+    """10⁶ rows (the small run's 12 points, renamed): read whole, the duplicate check a
+    set's (it searched a list: 5·10¹¹ comparisons); and a repeated id still caught."""
+    from levels.errors import GcpError
+    from levels.readers.gcp import read_gcps
+
+    lines = (run_dir / "small_test.gcp.csv").read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith("#")]
+    header, body = lines[len(head)], lines[len(head) + 1 :]
+    rows = []
+    for i in range(10**6):
+        f = body[i % len(body)].split(",")
+        f[0] = f"p{i}"
+        rows.append(",".join(f))
+    big = tmp_path / "big.csv"
+    big.write_text("\n".join([header, *rows]) + "\n")
+    with bounded(120):
+        assert len(read_gcps(big).id) == 10**6
+    (tmp_path / "twice.csv").write_text("\n".join([header, *rows[:5000], rows[17]]) + "\n")
+    with pytest.raises(GcpError, match="'p17' given twice"):
+        read_gcps(tmp_path / "twice.csv")
