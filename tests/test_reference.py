@@ -190,9 +190,7 @@ def test_a_reference_off_the_pass_is_refused_in_one_line(run, tmp_path, capsys) 
     assert not (tmp_path / "g.csv").exists()
 
 
-def test_a_reference_where_no_window_matches_is_refused_in_one_line(
-    run, tmp_path, capsys
-) -> None:
+def test_a_reference_where_no_window_matches_is_refused_in_one_line(run, tmp_path, capsys) -> None:
     """Noise on the reference's own grid: every window textured, none matches (it was exit 3,
     'zero-size array to reduction operation maximum'); exit 2 saying how many matched."""
     import rasterio
