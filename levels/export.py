@@ -34,7 +34,30 @@ from levels.products import Product, band_spec, with_fill
 from levels.registry import kind_of
 from levels.spot import band_description
 
-__all__ = ["write_geotiff", "write_rpc_sidecar"]
+__all__ = ["export_identity", "exported_identity", "write_geotiff", "write_rpc_sidecar"]
+
+
+def export_identity(product: Product) -> tuple[str, str, str]:
+    """What a GeoTIFF export of ``product`` is of: its pass's name, its scene and level (the
+    tags :func:`write_geotiff` writes)."""
+    a = product.attrs
+    return (str(a.get("name", "")), str(a.get("scene_index", "")), str(a.get("level", "")))
+
+
+def exported_identity(path: str | Path) -> tuple[str, str, str] | None:
+    """:func:`export_identity` of the product a GeoTIFF was exported from, from its tags;
+    None for a file that is not such an export."""
+    import rasterio
+
+    from levels.readers.bounded import gdal_image_alone
+
+    with gdal_image_alone(), rasterio.open(path) as ds:
+        if ds.driver != "GTiff":
+            return None
+        t = ds.tags()
+    if "level" not in t or "name" not in t:
+        return None
+    return (t["name"], t.get("scene_index", ""), t["level"])
 
 
 def _export(product: Product) -> Export:

@@ -1,4 +1,5 @@
-"""Output directories a command owns: checked before any work, published whole.
+"""Outputs a command owns, directories and single files: checked before any work, and a
+directory published whole.
 
 ``station run``, ``station process`` and ``station campaign`` each write one directory
 (``--out``) and replace it whole when they finish (:func:`levels.files.staged_dir`): a
@@ -14,20 +15,31 @@ Each output knows its own files: :func:`published_dir` writes their list
 them, the files the station did not write there (a note, an analysis, an export): it never
 deletes what is not its own. GDAL's sidecars of its files (``<file>.aux.xml``) and what a
 killed writer left (``.<file>.<pid>.partial``) are its.
+
+A command that writes one file (``station downlink``, ``export --geotiff``, ``gcps``,
+``capacity calibrate``) follows one rule, :func:`replaceable_file`: the file must be absent,
+or the same command's earlier output of the same thing (an L0 archive of the same
+scenario, an export of the same product, the points of the same pass); anything else (a
+user's file, a run's own L0 of another pass) is refused before any work, naming it. Its
+directory is checked writable then too, not after minutes of work.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import logging
+import shutil
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from levels.files import staged_dir, write_text
+from levels.files import staged_dir, writable_dir, write_text
 from station.errors import StationError
 
-__all__ = ["MANIFEST", "published_dir", "replaceable_dir"]
+_log = logging.getLogger(__name__)
+
+__all__ = ["MANIFEST", "published_dir", "replaceable_dir", "replaceable_file"]
 
 #: The list of the files an output directory holds as the station wrote it.
 MANIFEST = ".station-files"
@@ -42,10 +54,46 @@ def _files(d: Path) -> list[str]:
 @contextlib.contextmanager
 def published_dir(target: str | Path) -> Iterator[Path]:
     """:func:`levels.files.staged_dir` that lists the files it publishes (:data:`MANIFEST`)
-    as the directory's own."""
+    as the directory's own, and keeps what GDAL wrote beside them (:func:`_keep_caches`)."""
     with staged_dir(target) as stage:
         yield stage
-        write_text(stage / MANIFEST, "".join(f + "\n" for f in [*_files(stage), MANIFEST]))
+        own = _files(stage)
+        _keep_caches(Path(target), stage)
+        write_text(stage / MANIFEST, "".join(f + "\n" for f in [*own, MANIFEST]))
+
+
+def _keep_caches(old: Path, stage: Path) -> None:
+    """GDAL's sidecars in the previous output that the station did not write (``gdalinfo
+    -stats`` caches a file's statistics in ``<file>.aux.xml``): carried into the new output
+    where their file is byte for byte the same (a rerun), else dropped, said in one line
+    (statistics of another image would mislead)."""
+    listed = old / MANIFEST
+    if not listed.is_file():
+        return
+    own = set(listed.read_text(encoding="utf-8").splitlines())
+    for f in _files(old):
+        base = next((f[: -len(s)] for s in _SIDECARS if f.endswith(s)), None)
+        if f in own or base is None or base not in own:
+            continue
+        new_base, new_sidecar = stage / base, stage / f
+        if new_sidecar.exists():
+            continue  # the station writes this sidecar itself now
+        if new_base.is_file() and _same_bytes(old / base, new_base):
+            shutil.copy2(old / f, new_sidecar)
+        else:
+            _log.warning("%s: dropped, GDAL's cache of %s, which changed", old / f, base)
+
+
+def _same_bytes(a: Path, b: Path) -> bool:
+    if a.stat().st_size != b.stat().st_size:
+        return False
+    with open(a, "rb") as fa, open(b, "rb") as fb:
+        while True:
+            x, y = fa.read(1 << 20), fb.read(1 << 20)
+            if x != y:
+                return False
+            if not x:
+                return True
 
 
 def not_own(d: Path) -> list[str]:
@@ -120,3 +168,31 @@ def replaceable_dir(
             "them, or give another --out"
         )
     return d
+
+
+def replaceable_file(
+    out: str | Path,
+    owner: Callable[[Path], object],
+    expected: object,
+    what: Callable[[object], str],
+) -> Path:
+    """``out``, one file the command may write (module docstring): absent, or what
+    ``owner(out)`` says it is equals ``expected`` (``owner`` returns None, or raises, for a
+    file the command did not write); else :class:`StationError`, before any work. Its
+    directory is created and checked writable now (``OSError`` naming it)."""
+    p = Path(out)
+    if p.is_dir():
+        raise StationError(f"--out {out} is a directory: give the file's name")
+    if p.exists() or p.is_symlink():
+        try:
+            previous = owner(p)
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            previous = None  # a file that cannot be read as one: not the command's
+        if previous != expected:
+            said = "not a file this command wrote" if previous is None else what(previous)
+            raise StationError(
+                f"{p} exists and is {said}, not {what(expected)}: not replaced (remove it, or "
+                "give another name)"
+            )
+    writable_dir(p.parent)
+    return p

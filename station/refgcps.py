@@ -22,7 +22,7 @@ from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
 from levels.reference import ReferencePoints
 
-__all__ = ["gcps_from_reference", "point_errors_en", "reference_sigma_m"]
+__all__ = ["gcps_from_reference", "point_errors_en", "points_source", "reference_sigma_m"]
 
 
 def reference_sigma_m(path: str | Path, ce95_m: float | None) -> float:
@@ -37,6 +37,21 @@ def reference_sigma_m(path: str | Path, ce95_m: float | None) -> float:
         return float(json.loads(truth.read_text(encoding="utf-8"))["error_ce95_m"]) / CE95_PER_SIGMA
     except (OSError, ValueError, KeyError):
         return 0.0
+
+
+#: How the file of the points found for a pass begins (its first comment).
+_FOUND = "control points of"
+
+
+def points_source(path: Path) -> str | None:
+    """The pass whose points found on a reference a control-point file holds (its first
+    comment, as :func:`gcps_from_reference` writes it); None for any other file."""
+    with open(path, encoding="utf-8") as f:
+        first = f.readline(1000)
+    words = first.removeprefix("# ").split()
+    if not first.startswith(f"# {_FOUND} ") or "found" not in words:
+        return None
+    return words[len(_FOUND.split())]
 
 
 def gcps_from_reference(
@@ -72,7 +87,7 @@ def gcps_from_reference(
     write_gcps(
         out,
         found.points,
-        f"control points of {Path(source).name} found on {Path(reference).name} "
+        f"{_FOUND} {Path(source).name} found on {Path(reference).name} "
         f"(levels.reference; docs/gcp.md)",
     )
     summary: dict[str, Any] = {

@@ -188,3 +188,65 @@ def test_a_million_control_points_are_read_in_bounded_time(run_dir, tmp_path) ->
     (tmp_path / "twice.csv").write_text("\n".join([header, *rows[:5000], rows[17]]) + "\n")
     with pytest.raises(GcpError, match="'p17' given twice"):
         read_gcps(tmp_path / "twice.csv")
+
+
+# 6: one refusal rule for every single-file output
+
+
+def test_single_file_outputs_never_replace_what_they_did_not_write(
+    run_dir, tmp_path, capsys
+) -> None:
+    """A user's text file as --out of downlink, export --geotiff, gcps and capacity
+    calibrate: refused before any work, the file as it was; an export replaces its own
+    earlier export, never another product's."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes\n")
+    small = str(ROOT / "scenarios" / "small_test.toml")
+    two_a, one_b = run_dir / "small_test_s000_2A.nc", run_dir / "small_test_s000_1B.h5"
+    commands = [
+        ["downlink", small, "--out", str(notes)],
+        ["export", str(two_a), "--geotiff", "--out", str(notes)],
+        ["capacity", "calibrate", "--out", str(notes)],
+        ["gcps", str(run_dir / "small_test.l0.h5"), "--reference", str(two_a), "--dem",
+         str(two_a), "--out", str(notes)],
+    ]  # fmt: skip
+    for cmd in commands:
+        with bounded():
+            one_line(capsys, main(cmd), EXIT_BAD_INPUT, "notes.txt", "not replaced")
+    assert notes.read_text() == "my notes\n"
+    tif = tmp_path / "e.tif"
+    for _ in range(2):  # its own export: replaced
+        assert main(["export", str(two_a), "--geotiff", "--out", str(tif)]) == 0
+    capsys.readouterr()
+    code = main(["export", str(one_b), "--geotiff", "--out", str(tif)])
+    one_line(capsys, code, EXIT_BAD_INPUT, "level 2A", "level 1B")
+
+
+def test_downlink_never_replaces_another_passs_archive(run_dir, tmp_path, capsys) -> None:
+    """The run's own L0 of small_test as --out of another scenario's downlink: refused (it
+    was replaced, and compare then found the shapes changed)."""
+    import shutil
+
+    l0 = tmp_path / "small_test.l0.h5"
+    shutil.copy(run_dir / "small_test.l0.h5", l0)
+    before = l0.read_bytes()
+    other = str(ROOT / "scenarios" / "quickstart.toml")
+    one_line(capsys, main(["downlink", other, "--out", str(l0)]), EXIT_BAD_INPUT, "small_test")
+    assert l0.read_bytes() == before
+
+
+def test_a_rerun_keeps_gdals_statistics_of_its_unchanged_files(tmp_path) -> None:
+    """``gdalinfo -stats`` caches a product's statistics in ``<file>.aux.xml``: a rerun
+    whose file is the same bytes carries it over (it deleted it), and lists it as not
+    its own."""
+    from station.outdir import MANIFEST
+
+    out = tmp_path / "run"
+    cli = ["run", str(ROOT / "scenarios" / "small_test.toml"), "--out", str(out), "-q",
+           "--no-quicklooks"]  # fmt: skip
+    assert main(cli) == 0
+    cache = out / "small_test_s000_2A.nc.aux.xml"
+    cache.write_text("<PAMDataset><Metadata/></PAMDataset>\n")
+    assert main(cli) == 0
+    assert cache.read_text() == "<PAMDataset><Metadata/></PAMDataset>\n"
+    assert cache.name not in (out / MANIFEST).read_text().splitlines()

@@ -34,6 +34,7 @@ __all__ = [
     "L0Band",
     "L0Field",
     "L0Rows",
+    "l0_scenario",
     "pixel_mask",
     "read_l0",
 ]
@@ -259,6 +260,19 @@ def read_l0(path: str | Path, *, lazy: bool = False) -> L0Archive:
     where = Path(path)
     with damage_as(L0Error, where):
         return _read_l0(where, lazy)
+
+
+def l0_scenario(path: str | Path) -> str | None:
+    """The scenario an L0 archive was recorded from (its ``scenario`` attribute), read from
+    its header alone; None for a file that is not an L0 archive."""
+    try:
+        with h5py.File(path, "r") as f:
+            if f.attrs.get("format") != L0_FORMAT:
+                return None
+            name = f.attrs.get("scenario")
+    except OSError:
+        return None
+    return str(name) if name is not None else None
 
 
 def _counts(f: h5py.File, name: str, where: Path, lazy: bool) -> NDArray[np.uint8] | L0Rows:

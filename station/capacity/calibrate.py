@@ -25,6 +25,7 @@ scene and channel:
 
 from __future__ import annotations
 
+import json
 import platform
 import tempfile
 import time
@@ -40,13 +41,17 @@ from station.capacity.model import LEVELS
 
 __all__ = [
     "FULL_BIT_RATE_BIT_PER_S",
+    "SERVICE_TIMES_FORMAT",
     "calibrate",
     "raw_lines_per_2a_row",
     "sar_gtc_s_per_frame",
+    "service_times_format",
     "write_service_times",
 ]
 
 FULL_BIT_RATE_BIT_PER_S = 25e6  # one HRV channel (docs/telemetry.md)
+#: The ``format`` of a service-time table (what ``station capacity`` reads).
+SERVICE_TIMES_FORMAT = "spot-station-service-times"
 _REDUCED = {  # mode: detectors, lines, bit rate (a share of 25 Mbit/s like the detectors)
     "P": (1000, 1000, 4.0),
     "XS": (500, 500, 4.0),
@@ -120,7 +125,7 @@ def calibrate() -> dict[str, Any]:
     per_bit = np.mean([r["receive_and_record_s"] / r["bits"] for r in raw.values()])
     scale = {m: _FULL_PIXELS[m] / r["pixels"] for m, r in raw.items()}
     return {
-        "format": "spot-station-service-times",
+        "format": SERVICE_TIMES_FORMAT,
         "format_version": 1,
         "software": f"spot-station {__version__}",
         "machine": f"{platform.node()}: {platform.processor() or platform.machine()}, "
@@ -179,6 +184,15 @@ def raw_lines_per_2a_row(mode: str) -> float:
     _pg, scene, res = emulated_scene(emulate(scn, render=False))
     crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
     return round(level2a_geometry(scene, res, crs).raw_line_span()[0], 1)
+
+
+def service_times_format(path: Path) -> str | None:
+    """The ``format`` a JSON file declares (a service-time table's is
+    :data:`SERVICE_TIMES_FORMAT`), read from a file of at most 1 MB; None for another."""
+    if path.stat().st_size > 2**20:
+        return None
+    data = json.loads(path.read_text(encoding="utf-8"))
+    return str(data["format"]) if isinstance(data, dict) and "format" in data else None
 
 
 def write_service_times(path: str | Path, table: dict[str, Any]) -> Path:

@@ -43,13 +43,25 @@ def register(sub: Any) -> None:
 
 def _capacity(args: argparse.Namespace) -> int:
     if args.scenario == "calibrate":
-        from station.capacity.calibrate import calibrate, write_service_times
+        from station.capacity.calibrate import (
+            SERVICE_TIMES_FORMAT,
+            calibrate,
+            service_times_format,
+            write_service_times,
+        )
+        from station.outdir import replaceable_file
 
         if args.sweep or args.replications:
             raise StationError("capacity calibrate takes only --out FILE")
+        out = replaceable_file(
+            args.out or "service_times.json",
+            service_times_format,
+            SERVICE_TIMES_FORMAT,
+            lambda f: "a service-time table" if f == SERVICE_TIMES_FORMAT else f"a {f} file",
+        )
         print("measuring this code's stages on this machine ...", file=sys.stderr)
         table = calibrate()
-        path = write_service_times(args.out or "service_times.json", table)
+        path = write_service_times(out, table)
         print(
             f"wrote {path}: ingest {table['ingest_s_per_signal_s']:.3f} s per s of signal; "
             "per full scene, GEO "

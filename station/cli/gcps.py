@@ -45,8 +45,11 @@ def register(sub: Any) -> None:
 def _gcps(args: argparse.Namespace) -> int:
     from station.cli.process import _options, _recorded_cut
     from station.loader import load_scenario
-    from station.refgcps import gcps_from_reference
+    from station.outdir import replaceable_file
+    from station.refgcps import gcps_from_reference, points_source
 
+    source = Path(args.source).name
+    replaceable_file(args.out, points_source, source, lambda s: f"the control points found for {s}")
     scn = load_scenario(args.scenario) if args.scenario else None
     base = scn.processing if scn is not None else _recorded_cut([Path(args.source)])
     options = _options(args, base)  # --options and --dem as station process reads them

@@ -142,8 +142,9 @@ def _inspect(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from levels.export import write_geotiff
+    from levels.export import export_identity, exported_identity, write_geotiff
     from levels.products import read_product
+    from station.outdir import replaceable_file
 
     src = Path(args.product)
     if args.dimap:
@@ -165,5 +166,13 @@ def _export(args: argparse.Namespace) -> int:
     above = next((d for d in out.parents if d.exists()), None)
     if above is not None and not above.is_dir():
         raise StationError(f"--out {out}: {above} is a file, not a directory")
-    print(f"wrote {write_geotiff(read_product(src), out)}")
+    product = read_product(src)
+    identity = export_identity(product)
+    replaceable_file(out, exported_identity, identity, _an_export)
+    print(f"wrote {write_geotiff(product, out)}")
     return 0
+
+
+def _an_export(identity: object) -> str:
+    name, scene, level = (str(x) for x in identity) if isinstance(identity, tuple) else ("",) * 3
+    return f"a GeoTIFF export of {name} scene {scene} level {level}"

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 from typing import Any
 
 from station.cli._options import add_json, add_out, emit
@@ -94,17 +93,24 @@ def _emulate_text(summary: dict[str, Any]) -> str:
 
 
 def _downlink(args: argparse.Namespace) -> int:
+    from levels.readers.l0 import l0_scenario
     from station.chain.report import downlink_report
     from station.chain.session import downlink, record
     from station.loader import load_scenario
+    from station.outdir import replaceable_file
     from station.spacecraft.emulator import emulate
 
     start = time.perf_counter()
     scn = load_scenario(args.scenario)
+    out = replaceable_file(
+        args.out or f"{scn.name}.l0.h5",
+        l0_scenario,
+        scn.name,
+        lambda name: f"the L0 archive of scenario {name!r}",
+    )
     acq = emulate(scn)
     t_emulate = time.perf_counter() - start
     result = downlink(acq)
-    out = Path(args.out) if args.out else Path(f"{scn.name}.l0.h5")
     t0 = time.perf_counter()
     record(acq, result, out)
     result.timings_s.update(emulate=t_emulate, record=time.perf_counter() - t0)
