@@ -230,9 +230,14 @@ def _level2_options(request: BlockRequest, levels: tuple[str, ...], **more: Any)
 
 
 def _adjusted(
-    request: BlockRequest, ties: Path, options: ProcessingOptions, runner: Runner | None
+    request: BlockRequest,
+    ties: Path,
+    options: ProcessingOptions,
+    runner: Runner | None,
+    made: Sequence[PassProducts] = (),
 ) -> list[PassProducts]:
-    """Every pass's level 2 (and 3) on the block's adjustment, into ``block/``."""
+    """Every pass's level 2 (and 3) on the block's adjustment, into ``block/``: the one
+    ``made`` already when given (its adjustments taken as they are)."""
     points = []
     for name, gcps, archive in zip(request.names, request.gcps, request.archives, strict=True):
         tie = ties / f"{name}.tie.csv"
@@ -247,6 +252,7 @@ def _adjusted(
         gcps=tuple(points),
         provenance=request.provenance,
         root=request.out_dir,
+        adjustments=tuple(p.adjustment for p in made),
     )
     return all_made(run_plans(plan(block), runner))
 
@@ -330,11 +336,14 @@ def process_block(
             pairs = _pairs(request, kinds, ties, passes, measure)
             dems = [p.export for p in pairs if p.export is not None]
             if Level.L3 in opts.levels and dems:
+                # on the block's level 2 as adjusted: the pair's DEM comes of the same
+                # images and tie points; under the tie points again it would count them
+                # twice (the across-base accuracy claimed 1.5× what it is)
                 _log.info("block: level 3 over the pair's own DEM")
                 over = _level2_options(
                     request, (Level.L2, Level.L3), dem_path=str(dems[0]), dem_vertical="ellipsoid"
                 )
-                passes = _adjusted(request, ties, over, runner)
+                passes = _adjusted(request, ties, over, runner, made=passes)
     elif kinds:
         raise OptionsError(f"{kinds[0].name} is made from the passes' level 2: ask for level 2 too")
     return BlockProducts(ties_found, passes, pairs)

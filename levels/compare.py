@@ -223,8 +223,15 @@ def compare_paths(
     if pa.is_dir() != pb.is_dir():
         raise CompareError(f"cannot compare a directory with a file ({pa}, {pb})")
     if not pa.is_dir():
+        x, y = read_product(pa), read_product(pb)
+        kx, ky = (str(p.attrs.get("level", "?")) for p in (x, y))
+        if kx != ky:
+            raise CompareError(
+                f"{pa} is a level {kx} product and {pb} a level {ky}: different kinds, nothing "
+                "to compare them by; compare two of one kind"
+            )
         out = Comparison(str(pa), str(pb))
-        out.findings[""] = compare_products(read_product(pa), read_product(pb), tol)
+        out.findings[""] = compare_products(x, y, tol)
         out.findings[""] += compare_stored(pa, pb, tol)
         return out
     return compare_directories(pa, pb, tol)

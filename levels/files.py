@@ -20,6 +20,7 @@ import json
 import math
 import os
 import shutil
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,7 @@ import numpy as np
 
 __all__ = [
     "atomic_path",
+    "check_writable",
     "json_default",
     "plain",
     "remove_partials",
@@ -51,6 +53,8 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
         yield tmp
         os.replace(tmp, target)
     except OSError as exc:  # a full disk, a lost permission: say which file
+        if exc.filename is not None and str(exc.filename) == str(tmp) and exc.strerror:
+            raise OSError(exc.errno, exc.strerror, str(target)) from None  # not the partial's
         if exc.filename is not None:
             raise
         said = f"{exc.strerror or exc or type(exc).__name__} (writing {target})"
@@ -109,6 +113,25 @@ def writable_dir(path: str | Path) -> Path:
         (d / ".write-check").unlink()
     except OSError as exc:
         raise OSError(f"cannot write in {d}: {exc.strerror or exc}") from None
+    return d
+
+
+def check_writable(path: str | Path) -> Path:
+    """That directory ``path`` can be made and written here, without making it (nothing is
+    left behind if the work is then stopped): its nearest existing ancestor is a directory
+    this process can write in. Raises ``OSError`` naming it and why."""
+    d = Path(path)
+    if d.exists():
+        return writable_dir(d)
+    parent = next((p for p in d.absolute().parents if p.exists()), Path("/"))
+    if not parent.is_dir():
+        raise OSError(f"cannot write in {d}: {parent} is a file, not a directory")
+    try:
+        fd, name = tempfile.mkstemp(prefix=".write-check.", dir=parent)
+        os.close(fd)
+        os.unlink(name)
+    except OSError as exc:
+        raise OSError(f"cannot write in {parent}: {exc.strerror or exc}") from None
     return d
 
 

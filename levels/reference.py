@@ -28,7 +28,9 @@ loop, the mean and largest shift: what COSI-Corr reports.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import contextlib
+import logging
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -38,6 +40,7 @@ from numpy.typing import NDArray
 
 from levels.adjust import Adjustment
 from levels.adjust.model import REFERENCE_OWN_SIGMA_M
+from levels.adjust.passes import say_refused
 from levels.errors import GcpError
 from levels.geo.maps import MapGrid
 from levels.geo.scenes import PassGeometry, SceneGeometry
@@ -344,6 +347,39 @@ def reference_control_points(
     the raw image smoothed alike): a system model hundreds of metres off is tens of fine
     pixels off, beyond what a window's correlation can see (half its width); the coarse
     loops bring it within a pixel, the fine loops finish."""
+    with _said_once():
+        found = _found(pg, scenes, raw_of, ref, dem, options, hrv, band)
+    adj = found.adjustment
+    if adj is not None:  # the last fit's refusals, once (each loop refused them again)
+        say_refused(list(adj.point_id), np.asarray(adj.point_status), adj.residual_before_px)
+    return found
+
+
+@contextlib.contextmanager
+def _said_once() -> Iterator[None]:
+    """Level 2's adjustment says each point it refuses; the loop fits the same points up to
+    ``MAX_LOOPS`` times: silenced while it runs (:func:`reference_control_points` says the
+    last fit's)."""
+    log = logging.getLogger(say_refused.__module__)
+    level = log.level
+    log.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
+
+
+def _found(
+    pg: PassGeometry,
+    scenes: Sequence[SceneGeometry],
+    raw_of: Callable[[SceneGeometry], NDArray],
+    ref: Reference,
+    dem: Dem,
+    options: ProcessingOptions,
+    hrv: int,
+    band: str | None,
+) -> ReferencePoints:
+    """:func:`reference_control_points`'s loops, coarse then fine."""
     raws = {k: raw_of(s) for k, s in enumerate(scenes)}
     raw_px = _raw_pixel_m(scenes[0])
     factor = max(1, round(COARSE_PIXEL_M / ref.grid.pixel_size_m))

@@ -75,6 +75,12 @@ def load_any(path: str | Path) -> Scenario | BlockScenario | SarScenario:
 
 
 def _of_table(data: dict[str, Any], raw: bytes, p: Path) -> Scenario | BlockScenario | SarScenario:
+    if not data:  # every key has a default: an empty file would run a full 60 km scene
+        raise ScenarioError(
+            f"{p}: an empty scenario ({len(raw)} bytes, no key): say at least its name; "
+            "scenarios/quickstart.toml is a small one to start from, scenarios/README.md "
+            "says every key"
+        )
     if BLOCK_KEY in data:
         return _block(data, raw, p)
     scn: Scenario | SarScenario

@@ -171,7 +171,10 @@ def check_needs(needs: Needs, out: Path) -> dict[str, float | None]:
         )
     parent = next((p for p in (out, *out.absolute().parents) if p.exists()), Path("."))
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise StationError(f"cannot write in {parent}")
+        raise StationError(
+            f"cannot write in {parent}: no write permission for this user "
+            f"(mode {parent.stat().st_mode & 0o777:o}); give another --out"
+        )
     free = float(shutil.disk_usage(parent).free)
     if needs.disk_bytes > free:
         raise StationError(

@@ -38,6 +38,8 @@ from station.spacecraft.emulator import Acquisition, emulate
 from station.truth.optical import truth_for
 
 __all__ = [
+    "PACK_POINTS",
+    "gcps_beside",
     "l0_stem",
     "plan_reprocess",
     "process_scenario",
@@ -138,11 +140,7 @@ def plan_reprocess(
         opts = dataclasses.replace(opts, dem_path=str(run_dem(paths[0], archives[0])))
     points = None
     if Need.ADJUSTMENT in needs:
-        where = (
-            [Path(g) for g in gcps]
-            if gcps
-            else [p.with_name(f"{l0_stem(p)}.gcp.csv") for p in paths]
-        )
+        where = [Path(g) for g in gcps] if gcps else [gcps_beside(p) for p in paths]
         points = [
             read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)
         ]
@@ -191,6 +189,25 @@ def run_dem(l0_path: Path, archive: L0Archive) -> Path:
         f"level 3 needs a DEM: no [processing] dem_path given and no {names[-1]}.dem.tif "
         f"beside {l0_path}; set dem_path in --options (or --scenario)"
     )
+
+
+def gcps_beside(path: str | Path) -> Path:
+    """Where a source's control points are when none are given: ``<name>.gcp.csv`` beside
+    it (a run's); for a DIMAP pack's zip without one, the ``control_points.csv`` it holds
+    (``station export --dimap X.zip`` puts them there), read in place."""
+    import zipfile
+
+    p = Path(path)
+    beside = p.with_name(f"{l0_stem(p)}.gcp.csv")
+    if not beside.is_file() and p.is_file() and zipfile.is_zipfile(p):
+        with zipfile.ZipFile(p) as z:
+            if PACK_POINTS in z.namelist():
+                return p / PACK_POINTS
+    return beside
+
+
+#: The control points a DIMAP pack holds at its top (:mod:`station.benchmark_pack`).
+PACK_POINTS = "control_points.csv"
 
 
 def l0_stem(path: str | Path) -> str:
@@ -278,9 +295,7 @@ def reprocess_block(
     truths = [
         truth_for(s, a) if s is not None else None for s, a in zip(per, archives, strict=True)
     ]
-    where = (
-        [Path(g) for g in gcps] if gcps else [p.with_name(f"{l0_stem(p)}.gcp.csv") for p in paths]
-    )
+    where = [Path(g) for g in gcps] if gcps else [gcps_beside(p) for p in paths]
     if not options.dem_path and per[0] is not None and per[0].dem is not None:
         options = dataclasses.replace(options, dem_path=str(run_dem(paths[0], archives[0])))
     request = BlockRequest(

@@ -749,7 +749,18 @@ def read_toml(path: str | Path, what: str = "scenario") -> tuple[dict[str, Any],
 
 
 def describe_keys() -> str:
-    """Every key of every section, with its default (TOML units), range and meaning."""
-    return "\n".join(
-        line for section, cls in _SECTIONS.items() for line in describe_section(section, cls)
-    )
+    """Every key of every section, with its default (TOML units), range and meaning; then
+    a block's ``[[passes]]`` and a SAR frame's ``[sar]``."""
+    from station.run_sar import SarConfig
+
+    lines = [line for section, cls in _SECTIONS.items() for line in describe_section(section, cls)]
+    lines += [
+        "[[passes]]  # a block of passes (twice or more, docs/blocks.md): each table merged "
+        "over the file's other tables",
+        "  name = 'p1'  # the pass, named <block name>_<name>; p1, p2… by default",
+        "  seed = 0  # its errors' seed; default: the block's seed plus the pass's rank",
+        "  # and any section above ([pass], [instrument], [gcps] …): the pass's own values",
+    ]
+    lines += describe_section("sar", SarConfig)
+    lines.append("  # a SAR frame's file (docs/sar.md) takes [sar], [world] and [dem] only")
+    return "\n".join(lines)

@@ -63,9 +63,10 @@ def product_table(rows: Sequence[Mapping[str, Any]], lead: Sequence[tuple[str, s
             )
             + "  product"
         )
-        notes = []
+        notes, figured = [], []
         for r in members:
             q = scalar_figures(dict(r.get("quality", {})))
+            figured.append(q)
             size = f"{r['n_rows']:>5}×{r['n_cols']:<5}" if "n_rows" in r else f"{'':11}"
             cells = [str(r.get(key, "")).rjust(w) for (key, _), w in zip(lead, widths, strict=True)]
             lines.append(
@@ -77,4 +78,6 @@ def product_table(rows: Sequence[Mapping[str, Any]], lead: Sequence[tuple[str, s
             )
             notes += [f"  {r['file']}: {n}" for n in _notes(str(r["level"]), q)]
         lines += notes
+        if any(f.value(q) is not None for q in figured for f in figures if f.legend):
+            lines += [f"  {f.legend}" for f in figures if f.legend]  # once, under the table
     return lines

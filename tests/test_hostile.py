@@ -4,6 +4,7 @@ where it should not be."""
 
 from __future__ import annotations
 
+import json
 import re
 import warnings
 import zipfile
@@ -250,3 +251,68 @@ def test_a_rerun_keeps_gdals_statistics_of_its_unchanged_files(tmp_path) -> None
     assert main(cli) == 0
     assert cache.read_text() == "<PAMDataset><Metadata/></PAMDataset>\n"
     assert cache.name not in (out / MANIFEST).read_text().splitlines()
+
+
+# 9–12: what a user's first hour meets
+
+
+def test_an_empty_scenario_is_refused_not_run_as_a_full_scene(tmp_path, capsys) -> None:
+    """0 bytes: every key has a default, and the defaults are a 60 km scene (190 s of work
+    without a word); refused, saying where to start."""
+    empty = tmp_path / "empty.toml"
+    empty.write_bytes(b"")
+    with bounded():
+        code = main(["run", str(empty), "--out", str(tmp_path / "out")])
+    one_line(capsys, code, EXIT_BAD_INPUT, "empty scenario", "quickstart.toml")
+    assert not (tmp_path / "out").exists()
+
+
+def test_every_kind_of_scenario_file_has_its_keys_described() -> None:
+    from station.scenario import describe_keys
+
+    text = describe_keys()
+    assert "[[passes]]" in text and "[sar]" in text
+    assert "  azimuth_looks = " in text and "  target_lat_deg = " in text
+
+
+def test_messages_name_what_went_wrong(run_dir, tmp_path, capsys) -> None:
+    """An OS error as "file: reason" (not "[Errno 2] …"); a .E1 that is not one said so,
+    not "not a readable HDF5 file"; two products of two kinds refused as such (exit 2),
+    not "171 outside tolerance"."""
+    one_line(capsys, main(["locate", str(tmp_path / "none.DIM")]), EXIT_BAD_INPUT,
+             "none.DIM: No such file or directory")  # fmt: skip
+    assert "Errno" not in capsys.readouterr().err
+    (tmp_path / "junk.E1").write_bytes(b"junk" * 10)
+    code = main(["process", str(tmp_path / "junk.E1"), "--out", str(tmp_path / "o"), "-q"])
+    line = one_line(capsys, code, EXIT_BAD_INPUT, "junk.E1", "ENVISAT")
+    assert "HDF5" not in line
+    two_a, one_b = run_dir / "small_test_s000_2A.nc", run_dir / "small_test_s000_1B.h5"
+    code = main(["compare", str(two_a), str(one_b)])
+    one_line(capsys, code, EXIT_BAD_INPUT, "different kinds", "2A", "1B")
+
+
+def test_a_dimap_packs_zip_is_processed_to_level_2_on_the_points_it_holds(
+    dimap_zip, tmp_path
+) -> None:
+    """``export --dimap X.zip`` puts control_points.csv in the zip: ``process X.zip`` with
+    level 2 finds them there (it looked for X.gcp.csv beside it)."""
+    out = tmp_path / "out"
+    assert main(["process", str(dimap_zip), "--levels", "1A,2A,2", "--out", str(out), "-q"]) == 0
+    from levels.products import read_product
+
+    p = read_product(out / "scene_s000_2.nc")
+    status = json.loads(p.geometry["adjustment"]["points"]["status"])
+    assert status.count("used") >= 10
+
+
+def test_process_fills_the_size_and_valid_columns_and_says_its_checks(
+    run_dir, tmp_path, capsys
+) -> None:
+    l0 = str(run_dir / "small_test.l0.h5")
+    assert main(["process", l0, "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "  300×300    1.000" in out  # the 1A's size and valid share, as a run prints them
+    assert main(["process", l0, "--out", str(tmp_path / "o2"), "--check"]) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("small_test: checks passed;") and "GiB of memory" in line
+    assert "{" not in line

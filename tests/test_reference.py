@@ -107,7 +107,11 @@ def test_an_exact_reference_gives_level_2_within_a_tenth_of_a_pixel(run, tmp_pat
     cli = ["gcps", str(d / "ref_small.l0.h5"), "--reference", str(d / "ref_small.reference.tif")]
     cli += ["--dem", str(d / "ref_small.dem.tif"), "--out", str(out), "--scenario", str(toml)]
     assert main([*cli, "--json"]) == 0
-    found = json.loads(capsys.readouterr().out)
+    said = capsys.readouterr()
+    found = json.loads(said.out)
+    # each point the fit refused said once (each loop refused it again: said twice)
+    refused = [ln for ln in said.err.splitlines() if "rejected as a blunder" in ln]
+    assert len(refused) == len(set(refused)) == found["adjustment"]["points_rejected"]
     assert found["points"] >= 50 and found["loops"][-1]["mean_shift_px"] <= CONVERGED_PX
     assert found["loops"][0]["mean_shift_px"] > 1.0  # the system model's 200 m, 2 px
     assert abs(found["truth"]["mean_east_m"]) < 5 and abs(found["truth"]["mean_north_m"]) < 5

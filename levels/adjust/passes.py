@@ -149,7 +149,7 @@ def _judge(strips: list[Strip], sol: _Solution, confidence: float) -> None:
             + ("…" if rejected.size > 5 else "")
             + "; the points' σ or the model are wrong, not a few points: check them"
         )
-    _say_refused(ids, status, np.concatenate(sol.before) if sol.before else None)
+    say_refused(ids, status, np.concatenate(sol.before) if sol.before else None)
     if not sol.dof:
         return
     limit = float(chi2_law.ppf(confidence, sol.dof))
@@ -169,9 +169,11 @@ def _judge(strips: list[Strip], sol: _Solution, confidence: float) -> None:
     )
 
 
-def _say_refused(ids: list[str], status: NDArray[Any], before: NDArray[Any] | None) -> None:
+def say_refused(ids: list[str], status: NDArray[Any], before: NDArray[Any] | None) -> None:
     """One console line (a warning) per control point the fit did not use: rejected as a
-    blunder, or out of the model's reach; with how far the model before the fit missed it."""
+    blunder, or out of the model's reach; with how far the model before the fit missed it.
+    A caller that adjusts the same points several times (``levels.reference``'s loop)
+    silences this module's logger and says the last fit's once."""
     for k in np.flatnonzero((status == "rejected") | (status == "outside")):
         miss = (
             f"; the model before the fit misses it by {np.hypot(*before[k, :2]):.0f} px"

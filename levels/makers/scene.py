@@ -43,10 +43,26 @@ def _headline(attr: str) -> Callable[[Mapping[str, Any]], float | None]:
 #: The scene levels' columns: checkpoint errors along the line of sight (RMS, max) and on
 #: the ground (RMS), and the product's geometry against the rigorous model.
 SCENE_FIGURES = (
-    Figure("LOS rms m", "10.1f", _headline("los_rms_m")),
+    Figure(
+        "LOS rms m",
+        "10.1f",
+        _headline("los_rms_m"),
+        "LOS: the checkpoints' error along their line of sight, the model's own",
+    ),
     Figure("LOS max m", "10.1f", _headline("los_max_m")),
-    Figure("ground rms m", "13.1f", _headline("ground_rms_m")),
-    Figure("approx max px", "14.4f", _headline("approx_max_px")),
+    Figure(
+        "ground rms m",
+        "13.1f",
+        _headline("ground_rms_m"),
+        "ground: against where each pixel's ground truly is; on a map of one reference "
+        "height (1B, 2A, 2) it carries the relief displacement, which only level 3 takes off",
+    ),
+    Figure(
+        "approx max px",
+        "14.4f",
+        _headline("approx_max_px"),
+        "approx: the product's geometry against the rigorous model",
+    ),
 )
 
 

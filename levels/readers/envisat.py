@@ -56,6 +56,7 @@ from levels.threads import over_blocks
 
 __all__ = [
     "DOPPLER_ADSR",
+    "ENVISAT_SUFFIXES",
     "GEOLOCATION_ADSR",
     "MDS_PREFIX",
     "MJD",
@@ -277,10 +278,19 @@ class EnvisatFrame(ImageFrame):
         return self.mph.get("PRODUCT", "")[:10]
 
 
+#: The names ENVISAT-format products of ERS-1, ERS-2 and ENVISAT end in.
+ENVISAT_SUFFIXES = (".e1", ".e2", ".n1")
+
+
 def is_envisat(path: str | Path) -> bool:
-    """Whether ``path`` is an ENVISAT-format product (its first bytes ``PRODUCT=``)."""
+    """Whether ``path`` is meant as an ENVISAT-format product: its first bytes
+    ``PRODUCT=``, or its name ``.E1``, ``.E2``, ``.N1`` (an empty or damaged one is then
+    :func:`read_envisat`'s to refuse, saying what it is not, rather than another reader's)."""
+    p = Path(path)
+    if p.suffix.lower() in ENVISAT_SUFFIXES and p.is_file():
+        return True
     try:
-        with open(path, "rb") as f:
+        with open(p, "rb") as f:
             return f.read(8) == b"PRODUCT="
     except OSError:
         return False
@@ -297,7 +307,7 @@ def _count(where: Path, pairs: dict[str, str], key: str, lo: int, hi: int, what:
     if not lo <= value <= hi:
         raise ProductError(
             f"{where}: {what} {key}={value}: expected {lo}…{hi} for a file of "
-            f"{_file_bytes(where)} bytes; damaged or not an ENVISAT product"
+            f"{_file_bytes(where)} bytes; truncated, damaged or not an ENVISAT product"
         )
     return value
 

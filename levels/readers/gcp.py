@@ -14,12 +14,16 @@ point (:mod:`levels.tiepoints`) was measured in several passes' images, under th
 in each pass's file; its map position is only an approximation (its σ says how rough),
 which a block adjustment solves. A ``reference`` point is a control point found on a
 reference ortho-image (:mod:`levels.reference`): used as any control point, said apart.
+
+A file inside a zip is named as GDAL names it, the zip a folder: ``scene.zip/control_points
+.csv`` (the points of a DIMAP pack's zip, ``station export --dimap X.zip``), read in place.
 """
 
 from __future__ import annotations
 
 import csv
 import math
+import zipfile
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -28,7 +32,7 @@ from numpy.typing import NDArray
 
 from levels.errors import GcpError
 from levels.files import atomic_path
-from levels.readers.bounded import MAX_TABLE_BYTES, read_capped
+from levels.readers.bounded import MAX_TABLE_BYTES, read_capped, read_member
 from levels.readers.dem import EARTH_HEIGHTS_M
 
 __all__ = ["GCP_COLUMNS", "ControlPointSet", "read_gcps", "write_gcps"]
@@ -120,9 +124,15 @@ def _rows(where: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
     """The file's header and its rows, each with its line number in the file (comments
     and blank lines skipped; a UTF-8 byte-order mark, as spreadsheets write it, ignored)."""
     try:
-        text = read_capped(where, MAX_TABLE_BYTES, "control-point file", GcpError).decode(
-            "utf-8-sig"
-        )
+        if zipfile.is_zipfile(where.parent) and not where.parent.is_dir():  # a zip's member
+            data = read_member(
+                where.parent, where.name, MAX_TABLE_BYTES, "control-point file", GcpError
+            )
+        else:
+            data = read_capped(where, MAX_TABLE_BYTES, "control-point file", GcpError)
+        text = data.decode("utf-8-sig")
+    except KeyError:
+        raise GcpError(f"{where}: no such member in the zip") from None
     except FileNotFoundError:
         raise GcpError(f"{where}: no such control-point file") from None
     except (UnicodeDecodeError, IsADirectoryError):

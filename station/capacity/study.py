@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from levels.files import atomic_path, plain, writable_dir, write_text
+from levels.files import atomic_path, check_writable, plain, write_text
 from levels.tasks import InProcess, Runner, TaskFailure, raise_first
 from station.capacity.config import CapacityScenario, with_value
 from station.capacity.model import LEVELS, Replication, Service, pass_patterns, simulate
@@ -141,7 +141,7 @@ def run_study(
     A replication that fails is named once the others ended. ``sweep``: one key and its
     values, or several (every combination of their values, in order: a grid)."""
     if out_dir is not None:
-        writable_dir(out_dir)  # now, not after the simulation
+        check_writable(out_dir)  # now, not after the simulation; made only when written
     service = service or load_service(scn)
     n = replications or scn.simulation.replications
     sweeps = [sweep] if isinstance(sweep, tuple) else list(sweep or [])

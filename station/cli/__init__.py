@@ -157,6 +157,10 @@ def _quiet_broken_pipe() -> None:
 
 
 def _one_line(exc: BaseException) -> str:
-    """The error and its notes (``BaseException.add_note``: what was left as it was)."""
+    """The error and its notes (``BaseException.add_note``: what was left as it was); the
+    operating system's as "file: reason" (never Python's "[Errno 30] …: 'file'")."""
     said = " ".join(str(exc).split()) or type(exc).__name__
+    if isinstance(exc, OSError) and exc.strerror and exc.filename is not None:
+        what = f"{exc.filename} → {exc.filename2}" if exc.filename2 is not None else exc.filename
+        said = f"{what}: {exc.strerror}"
     return "; ".join([said, *getattr(exc, "__notes__", ())])

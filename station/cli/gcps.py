@@ -67,6 +67,8 @@ def _gcps(args: argparse.Namespace) -> int:
 
 
 def _text(d: dict) -> str:
+    from levels.reference import KEEP_SIGMAS
+
     lines = [
         f"{d['points']} control points found on {d['reference']} written to {d['out']} "
         f"(reference σ {d['reference_sigma_m']:.2f} m per axis)"
@@ -79,9 +81,15 @@ def _text(d: dict) -> str:
         )
     adj = d.get("adjustment") or {}
     if adj:
+        left = int(adj.get("points_used") or 0) - int(d["points"])
         lines.append(
             f"  level 2's adjustment: {adj.get('points_used')} used, "
             f"{adj.get('points_rejected')} rejected as blunders"
+            + (
+                f"; {left} used but beyond {KEEP_SIGMAS:g}σ of the fit, not written"
+                if left > 0
+                else ""
+            )
         )
     if "truth" in d:
         t = d["truth"]
@@ -89,7 +97,10 @@ def _text(d: dict) -> str:
             f"  against the truth: {t['rms_m']:.2f} m RMS, {t['median_m']:.2f} m median, mean "
             f"({t['mean_east_m']:+.2f}, {t['mean_north_m']:+.2f}) m east, north"
         )
-    if "rms_of_matching_m" in d.get("truth", {}):
+    bias = d.get("truth", {})
+    if "rms_of_matching_m" in bias and (
+        bias["reference_bias_east_m"] or bias["reference_bias_north_m"]
+    ):
         t = d["truth"]
         lines.append(
             f"  the reference's own bias ({t['reference_bias_east_m']:+.2f}, "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -69,7 +70,10 @@ def _locate(args: argparse.Namespace) -> int:
     from station.locate import check_frame, check_gcps, write_rpc
 
     if args.rpc:
+        from levels.files import writable_dir
+
         lo, hi = _heights(args.heights)
+        writable_dir(Path(args.rpc).parent)  # before the fit, not after
         emit(args, write_rpc(args.metadata, args.rpc, (lo, hi), args.attitude), _rpc_text)
         return 0
     if args.metadata.lower().endswith(".geom"):

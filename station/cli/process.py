@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +15,8 @@ import numpy as np
 from station.cli._options import add_json, add_out, add_runner, emit, exit_made, runner_of
 from station.errors import StationError
 from station.reports import PROCESS
+
+_log = logging.getLogger(__name__)
 
 __all__ = ["PROCESS_REPORT", "register"]
 
@@ -196,7 +198,9 @@ def _process(args: argparse.Namespace) -> int:
     else:
         found = _check_archives(sources, options, args, out)
     if args.check:
-        emit(args, found, lambda f: f"checks passed: {json.dumps(f, default=str)}")
+        from station.cli.run import check_text
+
+        emit(args, found, lambda f: check_text(", ".join(names), f, out))
         return 0
     if not from_scenario and len(sources) > 1 and pair_kinds_of(options):
         return _process_block(args, sources, scenarios, names, options, out)
@@ -401,11 +405,20 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
 
 
 def _frame_kinds(with_dem: bool) -> tuple[str, ...]:
-    """A SAR frame's kinds, those that need a DEM only ``with_dem``."""
+    """A SAR frame's kinds, those that need a DEM only ``with_dem``: the others said, not
+    skipped in silence."""
     from levels.kinds import Unit
     from levels.registry import kind, kind_names
 
-    return tuple(n for n in kind_names(Unit.FRAME) if with_dem or "dem" not in kind(n).needs)
+    kinds = [(n, "dem" in kind(n).needs) for n in kind_names(Unit.FRAME)]
+    skipped = [n for n, needs_dem in kinds if needs_dem and not with_dem]
+    if skipped:
+        _log.warning(
+            "%s not made: %s a DEM (give --dem DEM.tif)",
+            ", ".join(skipped),
+            "it needs" if len(skipped) == 1 else "they need",
+        )
+    return tuple(n for n, needs_dem in kinds if with_dem or not needs_dem)
 
 
 def _frame_text(report: dict[str, Any]) -> str:
@@ -515,12 +528,12 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace,
     from levels.readers.gcp import read_gcps
     from levels.readers.scene1a import open_archive
     from station.preflight import check_needs, scene_needs
-    from station.reprocess import l0_stem, run_dem
+    from station.reprocess import gcps_beside, run_dem
 
     archives = [open_archive(s) for s in sources]
     makers = plan_levels(options.levels)
     if args.check and any(Need.ADJUSTMENT in m.needs for m in makers):
-        where = args.gcps or [s.with_name(f"{l0_stem(s)}.gcp.csv") for s in sources]
+        where = args.gcps or [gcps_beside(s) for s in sources]
         for w, a in zip(where, archives, strict=True):
             read_gcps(w, a.n_lines, a.n_columns)
     if args.check:
@@ -555,7 +568,7 @@ def _campaign(args: argparse.Namespace) -> int:
     options = _options(args, ProcessingOptions())
     with runner_of(args) as runner:  # a scheduler that does not answer fails first
         bar = None
-        if not args.quiet and not args.json:
+        if not args.quiet and not args.json and sys.stderr.isatty():  # not into a log
             from tqdm import tqdm
 
             bar = tqdm(total=0, unit="scene", file=sys.stderr)
@@ -600,17 +613,22 @@ def _campaign_text(report: dict[str, Any]) -> str:
 
 
 def _archive_data(l0: Path, out: Path, products: Any) -> dict[str, Any]:
-    rows = [
-        {
-            "scene": s.index,
-            "level": lv,
-            "path": str(out / s.paths[lv].name),
-            **s.quality[lv],
-            "timings_s": s.timings_s,
-        }
-        for s in products.scenes
-        for lv in s.paths
-    ]
+    from station.run import product_entry
+
+    rows = []
+    for s in products.scenes:
+        for lv in s.paths:
+            entry = product_entry(s.paths[lv])  # its size and valid share, as a run says
+            rows.append(
+                {
+                    "scene": s.index,
+                    "level": lv,
+                    "path": str(out / s.paths[lv].name),
+                    **{k: entry[k] for k in ("n_rows", "n_cols", "valid")},
+                    **s.quality[lv],
+                    "timings_s": s.timings_s,
+                }
+            )
     return {
         "l0": str(l0),
         "out": str(out),
@@ -633,8 +651,7 @@ def _text(data: dict[str, Any]) -> str:
     ]
     rows = [
         {
-            "scene": r["scene"],
-            "level": r["level"],
+            **{k: r[k] for k in ("scene", "level", "n_rows", "n_cols", "valid") if k in r},
             "file": Path(r["path"]).name,
             "quality": {k: v for k, v in r.items() if k not in _ROW_KEYS},
         }
@@ -647,4 +664,4 @@ def _text(data: dict[str, Any]) -> str:
 
 
 #: What a product's row of ``process.json`` holds beside its quality figures.
-_ROW_KEYS = ("scene", "level", "path", "timings_s")
+_ROW_KEYS = ("scene", "level", "path", "n_rows", "n_cols", "valid", "timings_s")

@@ -164,14 +164,21 @@ def _check(scn: Any, out: Path, args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(found, indent=2))
         return 0
+    print(check_text(scn.name, found, out))
+    return 0
+
+
+def check_text(name: str, found: dict[str, Any], out: Path) -> str:
+    """``--check``'s line: what was checked and the memory and disk the job takes
+    (``station.preflight.check_needs``'s figures)."""
     mem = found["memory_available_bytes"]
-    print(
-        f"{scn.name}: checks passed; {found['pixels'] / 1e6:.1f} Mpx, about "
-        f"{found['memory_bytes'] / 2**30:.2f} GiB of memory"
+    read = found.get("files") or found.get("archives") or []
+    pixels = f" {found['pixels'] / 1e6:.1f} Mpx," if "pixels" in found else ""
+    return (
+        f"{name}: checks passed;{pixels} about {found['memory_bytes'] / 2**30:.2f} GiB of memory"
         + (f" of {mem / 2**30:.1f} available" if mem else "")
         + f", up to {found['disk_bytes'] / 2**30:.2f} GiB on disk of "
         f"{found['disk_free_bytes'] / 2**30:.1f} free"
-        + (f"; read {', '.join(found['files'])}" if found["files"] else "")
+        + (f"; read {', '.join(str(f) for f in read)}" if read else "")
         + f"; into {out}/"
     )
-    return 0
