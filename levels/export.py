@@ -23,18 +23,38 @@ each 1A and 1B product, the PAM sidecar in which GDAL finds each band's RPCs.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from levels.errors import ProductError
-from levels.files import atomic_path
+from levels.files import atomic_path, write_text
 from levels.geo.rpc import Rpc
 from levels.kinds import Export
-from levels.products import Product, band_spec, with_fill
+from levels.products import Product, band_spec, units_of, with_fill
 from levels.registry import kind_of
 from levels.spot import band_description
 
 __all__ = ["export_identity", "exported_identity", "write_geotiff", "write_rpc_sidecar"]
+
+
+#: Overviews are built down to this size (px): a viewer shows a whole scene from them.
+OVERVIEW_MIN_PX = 256
+
+
+def _overviews(ds: Any, rows: int, cols: int, flags: bool) -> None:
+    """Internal overviews at 2, 4, 8 … until the smaller one fits ``OVERVIEW_MIN_PX``
+    (QGIS and gdalinfo show a scene at once, not reading it whole): the average of the
+    pixels, the nearest for flags (a mask's classes are not averaged)."""
+    from rasterio.enums import Resampling
+
+    factors = []
+    while max(rows, cols) // (2 ** (len(factors) + 1)) >= OVERVIEW_MIN_PX:
+        factors.append(2 ** (len(factors) + 1))
+    if factors:
+        how = Resampling.nearest if flags else Resampling.average
+        ds.build_overviews(factors, how)
+        ds.update_tags(ns="rio_overview", resampling=how.name)
 
 
 def export_identity(product: Product) -> tuple[str, str, str]:
@@ -105,7 +125,10 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
     from rasterio.transform import Affine
 
     level, how = product.level, _export(product)
+    known = kind_of(product)
+    names = list(known.export_bands) if known and known.export_bands else list(product.bands)
     georef: dict = {}
+    geom = None  # an image-geometry export's RPCs as OTB reads them, beside it
     if how is Export.RPC:
         trees = product.geometry.get("rpc")
         if not trees:
@@ -115,6 +138,7 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
             )
         rpc = Rpc.from_tree(next(iter(trees.values())))
         georef["rpcs"] = RPC.from_gdal(rpc.gdal_metadata())
+        geom = rpc.ossim_geom(int(product.attrs["n_rows"]), int(product.attrs["n_cols"]), names)
     elif how is Export.MAP:
         grid = product.map_grid
         if grid is None:
@@ -123,14 +147,16 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
         georef["transform"] = Affine.from_gdal(*grid.geotransform)
     else:
         raise ProductError(f"level {level}: no GeoTIFF export for it")
-    known = kind_of(product)
-    names = list(known.export_bands) if known and known.export_bands else list(product.bands)
     tags = known.export_tags if known else ()
     specs = [band_spec(product, n, product.bands[n].image.dtype) for n in names]
-    fills = {sp.fill for sp in specs if not sp.quantity and sp.fill is not None}
-    fill = fills.pop() if len(fills) == 1 else None
     valid = np.logical_and.reduce([product.bands[n].valid for n in names])
     images = [product.bands[n].image for n in names]
+    fill = None
+    if len({im.dtype for im in images}) > 1:  # a quantity beside flags (a GTC's): one type
+        images = [np.where(valid, im.astype(np.float32), np.float32(np.nan)) for im in images]
+    else:
+        fills = {sp.fill for sp in specs if not sp.quantity and sp.fill is not None}
+        fill = fills.pop() if len(fills) == 1 else None
     if fill is not None:  # as the product writes it: the fill where not valid only
         images = [with_fill(im, valid, int(fill)) for im in images]
     rows, cols = images[0].shape
@@ -159,11 +185,20 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
         rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True),
         rasterio.open(tmp, "w", **profile) as ds,
     ):
-        for k, (name, im) in enumerate(zip(names, images, strict=True), start=1):
+        for k, (name, im, spec) in enumerate(zip(names, images, specs, strict=True), start=1):
             ds.write(im, k)
             ds.set_band_description(k, band_description(name))
+            if spec.quantity:  # a DEM's metres: what GDAL and QGIS say of its values
+                ds.set_band_unit(k, spec.units or units_of(name))
+            if spec.flags:
+                ds.update_tags(
+                    k,
+                    flag_values=" ".join(str(v) for v in range(len(spec.flags))),
+                    flag_meanings=" ".join(spec.flags),
+                )
         if images[0].dtype.kind != "f":
             ds.write_mask(valid)
+        _overviews(ds, rows, cols, flags=any(sp.flags for sp in specs))
         ds.update_tags(
             level=level,
             scene_index=a.get("scene_index", ""),
@@ -174,4 +209,6 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
             **{k: a.get(k, "") for k in tags},
             **{f"provenance_{k}": v for k, v in product.provenance.items()},
         )
+    if geom is not None:
+        write_text(out.with_suffix(".geom"), geom)
     return out

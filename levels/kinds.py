@@ -44,6 +44,7 @@ __all__ = [
     "Unit",
     "counts_band",
     "figure_at",
+    "flag_band",
 ]
 
 
@@ -87,6 +88,10 @@ class BandSpec:
         CF units; None: from the name's suffix.
     optional
         A product of the kind may lack it.
+    flags
+        A band of flags (a mask): the meaning of each value 0, 1, … (CF ``flag_values`` and
+        ``flag_meanings``), what a viewer shows as classes; stored as bytes, ``fill`` where
+        not valid. Empty: not flags.
     """
 
     name: str
@@ -97,6 +102,12 @@ class BandSpec:
     fill: float | None = math.nan
     units: str | None = None
     optional: bool = False
+    flags: tuple[str, ...] = ()
+
+
+def flag_band(name: str, long_name: str, meanings: tuple[str, ...]) -> BandSpec:
+    """A band of flags (:attr:`BandSpec.flags`): bytes, 255 where not valid."""
+    return BandSpec(name, long_name, dtype="uint8", quantity=False, fill=255, flags=meanings)
 
 
 def counts_band(level: str, name: str, fill: int | None = None) -> BandSpec:

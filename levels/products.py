@@ -443,6 +443,9 @@ def _write_band(
             ds.attrs["coordinates"] = "crs"
         if var == name:
             ds.attrs["ancillary_variables"] = f"{name}_valid"
+            if spec.flags:  # a mask: its classes, as CF says them
+                ds.attrs["flag_values"] = np.arange(len(spec.flags), dtype=data.dtype)
+                ds.attrs["flag_meanings"] = " ".join(spec.flags)
         else:
             ds.attrs["flag_values"] = np.array([0, 1], np.uint8)
             ds.attrs["flag_meanings"] = "invalid valid"

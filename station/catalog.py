@@ -38,13 +38,20 @@ _log = logging.getLogger(__name__)
 __all__ = ["CATALOG_FILE", "EXTENSIONS", "footprint_geojson", "item_of", "write_catalog"]
 
 CATALOG_FILE = "catalog.json"
-#: The STAC extensions every Item declares.
-EXTENSIONS = (
-    "https://stac-extensions.github.io/projection/v2.0.0/schema.json",
-    "https://stac-extensions.github.io/view/v1.0.0/schema.json",
-    "https://stac-extensions.github.io/sat/v1.0.0/schema.json",
-    "https://stac-extensions.github.io/processing/v1.2.0/schema.json",
-)
+#: The STAC extensions an Item may declare, by the prefix of their fields: an Item declares
+#: those it has a field of (a validator that fetches the schemas rejects an extension
+#: declared with none: a DEM has no view, a GEC no sat).
+EXTENSIONS = {
+    "proj:": "https://stac-extensions.github.io/projection/v2.0.0/schema.json",
+    "view:": "https://stac-extensions.github.io/view/v1.0.0/schema.json",
+    "sat:": "https://stac-extensions.github.io/sat/v1.0.0/schema.json",
+    "processing:": "https://stac-extensions.github.io/processing/v1.2.0/schema.json",
+}
+
+
+def _extensions(props: dict[str, Any]) -> list[str]:
+    """The schemas of the extensions whose fields ``props`` holds."""
+    return [url for prefix, url in EXTENSIONS.items() if any(k.startswith(prefix) for k in props)]
 _MEDIA = {".nc": "application/netcdf", ".h5": "application/x-hdf5"}
 
 
@@ -172,15 +179,17 @@ def _grid_item(product: Product, path: Path, props: dict[str, Any]) -> Any:
         datetime=when["datetime"],
         start_datetime=when["start_datetime"],
         end_datetime=when["end_datetime"],
-        properties={
-            "title": str(product.attrs.get("name", path.stem)),
-            **props,
-            "proj:code": f"EPSG:{epsg}" if epsg else None,
-            "proj:shape": [rows, cols],
-            "proj:transform": [gt[1], gt[2], gt[0], gt[4], gt[5], gt[3]],
-            "gsd": float(abs(gt[1])),
-        },
-        stac_extensions=list(EXTENSIONS),
+        properties=(
+            properties := {
+                "title": str(product.attrs.get("name", path.stem)),
+                **props,
+                "proj:code": f"EPSG:{epsg}" if epsg else None,
+                "proj:shape": [rows, cols],
+                "proj:transform": [gt[1], gt[2], gt[0], gt[4], gt[5], gt[3]],
+                "gsd": float(abs(gt[1])),
+            }
+        ),
+        stac_extensions=_extensions(properties),
     )
     _add_assets(item, path, f"{product.level} product of {description}".strip())
     return item
@@ -225,7 +234,7 @@ def item_of(path: Path, root: Path) -> Any:
         bbox=bbox,
         datetime=when.replace(tzinfo=dt.UTC),
         properties=props,
-        stac_extensions=list(EXTENSIONS),
+        stac_extensions=_extensions(props),
     )
     _add_assets(item, path, f"level {level} product")
     return item

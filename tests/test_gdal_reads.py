@@ -5,6 +5,7 @@ run's DEM lands on our level 3 over relief."""
 
 from __future__ import annotations
 
+import re
 import warnings
 from pathlib import Path
 
@@ -154,12 +155,13 @@ def test_gdal_orthorectifies_the_1a_as_written_onto_level_3(relief_run) -> None:
 
 @pytest.mark.parametrize("level", ["2A", "3"])
 def test_gdal_opens_a_map_product_as_written(level, relief_run, tmp_path) -> None:
-    """``gdalinfo relief_s000_3.nc``, no prefix: GDAL's netCDF driver takes the file, its
-    image band the first subdataset, georeferenced: the CRS and the transform of the
-    product's GeoTIFF export (and of its own map grid), the image as stored."""
+    """``gdalinfo relief_s000_3.nc``: GDAL's netCDF driver takes the file, its image band
+    the first subdataset (``NETCDF:"relief_s000_3.nc":P``), georeferenced: the CRS and the
+    transform of the product's GeoTIFF export (and of its own map grid), the image as
+    stored."""
     from rasterio.crs import CRS
 
-    from levels.export import write_geotiff
+    from levels.export import OVERVIEW_MIN_PX, write_geotiff
 
     path = relief_run / f"relief_s000_{level}.nc"
     product = read_product(path)
@@ -173,3 +175,54 @@ def test_gdal_opens_a_map_product_as_written(level, relief_run, tmp_path) -> Non
         assert band.transform.almost_equals(exported.transform, precision=1e-9)
         assert band.transform.to_gdal() == pytest.approx(product.map_grid.geotransform)
         assert np.array_equal(band.read(1), product.bands["P"].image)
+        # overviews down to 256 px (a viewer shows the scene from them): of the image and
+        # of its mask; counts averaged
+        n = max(exported.shape)
+        want = [2**k for k in range(1, 12) if n // 2**k >= OVERVIEW_MIN_PX]
+        assert exported.overviews(1) == want and want
+        assert exported.tags(ns="rio_overview")["resampling"] == "average"
+
+
+#: OTB's ground spacing from the sensor model against the product's pixel: the 1B's plane
+#: is 200 m a pixel on the small scene; OTB estimates it from the RPC at the image centre
+#: (199.9 × 200.9 m measured): 2 %.
+OTB_SPACING_REL = 0.02
+
+
+@pytest.mark.parametrize("level", ["1A", "1B"])
+def test_an_image_geometry_export_carries_its_rpcs_for_otb(level, run_dir, tmp_path) -> None:
+    """Beside a 1A or 1B GeoTIFF, the OSSIM keyword list OTB 8 reads (it takes RPC tags only
+    from its own GeoTIFFs): every key OTB's GeomMetadataSupplier reads, split as it splits
+    (``key: value``, no empty line), equal to the GeoTIFF's RPC tags; where OTB is installed
+    (Debian's otb-bin), ``otbcli_ReadImageInfo`` finds the sensor model (its ground spacing
+    the product's pixel), which it does not without the file."""
+    import shutil
+    import subprocess
+
+    from levels.export import write_geotiff
+
+    product = read_product(run_dir / f"small_test_s000_{level}.h5")
+    tif = write_geotiff(product, tmp_path / f"{level}.tif")
+    geom = tif.with_suffix(".geom")
+    lines = geom.read_text().splitlines()
+    assert all(":" in ln for ln in lines)  # OTB splits every line on ':'
+    kv = {k.strip(): v.strip() for k, v in (ln.split(":", 1) for ln in lines)}
+    assert kv["type"] == "ossimRpcModel" and kv["polynomial_format"] == "B"
+    with _open(str(tif)) as ds:
+        rpc = ds.rpcs.to_gdal()
+    for key in ("LINE_OFF", "SAMP_OFF", "LAT_OFF", "LONG_OFF", "HEIGHT_OFF", "LINE_SCALE",
+                "SAMP_SCALE", "LAT_SCALE", "LONG_SCALE", "HEIGHT_SCALE"):  # fmt: skip
+        assert float(kv[key.lower()]) == pytest.approx(float(rpc[key]), rel=1e-12)
+    for key in ("LINE_NUM_COEFF", "LINE_DEN_COEFF", "SAMP_NUM_COEFF", "SAMP_DEN_COEFF"):
+        ours = [float(kv[f"{key.lower()}_{k:02d}"]) for k in range(20)]
+        assert ours == pytest.approx([float(c) for c in rpc[key].split()], rel=1e-12)
+    otb = shutil.which("otbcli_ReadImageInfo")
+    if otb is None:
+        pytest.skip("OTB not installed (Debian's otb-bin): the keyword list checked alone")
+    said = subprocess.run([otb, "-in", str(tif)], capture_output=True, text=True, timeout=120)
+    assert said.returncode == 0, said.stderr
+    out = said.stdout + said.stderr
+    assert "compatible Sensor Transform" not in out
+    spacing = [float(v) for v in re.findall(r"estimatedgroundspacing[xy]: ([\d.]+)", out)]
+    pixel = 200.0  # the small scene's: 10 m × 6000 / 300 detectors
+    assert spacing and all(abs(s / pixel - 1.0) <= OTB_SPACING_REL for s in spacing), spacing

@@ -245,10 +245,16 @@ def test_a_gtc_product_opens_georeferenced_in_gdal(rugged, gtc, tmp_path) -> Non
     with rasterio.open(f'NETCDF:"{path}":intensity') as ds:
         assert ds.crs is not None and ds.crs.to_wkt()
         assert ds.transform.to_gdal() == pytest.approx(grid.geotransform)
+    with rasterio.open(f'NETCDF:"{path}":layover') as ds:  # a mask: its classes, as CF's
+        assert ds.dtypes[0] == "uint8"
+        tags = ds.tags()
+        assert tags["layover#flag_meanings"] == "not_layover layover"
+        assert tags["layover#flag_values"].strip("{}").split(",") == ["0", "1"]
     tif = write_geotiff(back, tmp_path / "ers_test_GTC.tif")
     with rasterio.open(tif) as ds:
         assert ds.count == 3 and ds.transform.to_gdal() == pytest.approx(grid.geotransform)
         np.testing.assert_array_equal(ds.read(1), product.bands["intensity"].image)
+        assert ds.tags(2)["flag_meanings"] == "not_layover layover"
 
 
 def _reduced(tmp_path, name: str, **sar) -> object:

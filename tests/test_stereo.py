@@ -159,14 +159,43 @@ def test_a_spike_in_a_dem_is_a_blunder_and_the_relief_is_not() -> None:
     assert wild.sum() == 9
 
 
+#: The block adjustments the stereo run made (each call's passes), counted by its fixture.
+ADJUSTED: list[int] = []
+
+
 @pytest.fixture(scope="module")
 def stereo_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    import levels.process
     from station.cli import main
 
     path = Path(__file__).resolve().parents[1] / "scenarios" / "stereo" / "stereo_pair.toml"
     out = tmp_path_factory.mktemp("stereo") / "run"
-    assert main(["run", str(path), "--out", str(out), "-q", "--no-quicklooks"]) == 0
+    adjust_block = levels.process.adjust_block
+
+    def counted(passes, *args, **kwargs):
+        ADJUSTED.append(len(passes))
+        return adjust_block(passes, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(levels.process, "adjust_block", counted)
+        assert main(["run", str(path), "--out", str(out), "-q", "--no-quicklooks"]) == 0
     return out
+
+
+def test_the_pair_is_adjusted_once_and_its_catalogue_declares_what_it_holds(
+    stereo_run: Path,
+) -> None:
+    """Level 3 over the pair's own DEM is made on the block's level 2 as adjusted (adjusted
+    again with that DEM under its tie points, it counted the pair's own measurements twice:
+    its predicted σ across the base was 11 m where draws give 17, tools/block_draws.py);
+    the catalogue's DEM item declares the projection and processing extensions, not view
+    and sat, whose fields it has none of."""
+    from test_stac import _check_catalog
+
+    assert ADJUSTED == [2]
+    items = {i.id: i for i in _check_catalog(stereo_run)}
+    dem = next(i for k, i in items.items() if k.endswith("_DEM"))
+    assert not any("/view/" in e or "/sat/" in e for e in dem.stac_extensions)
 
 
 def test_the_pair_makes_a_dem_measured_against_the_terrain(stereo_run: Path) -> None:
@@ -210,6 +239,7 @@ def test_the_dem_geotiff_opens_georeferenced_in_gdal(stereo_run: Path) -> None:
     dem = read_product(stereo_run / entry["file"])
     with rasterio.open(stereo_run / "stereo" / entry["geotiff"]) as ds:
         assert ds.crs is not None and ds.crs.to_wkt()
+        assert ds.units == ("m",)  # heights in metres, as GDAL and QGIS say them
         assert ds.transform.to_gdal() == pytest.approx(dem.map_grid.geotransform)
         heights = ds.read(1)
     np.testing.assert_array_equal(heights, dem.bands["height_m"].image)

@@ -31,7 +31,7 @@ PHOTOMOD (paper ``003_…``) compares the physical and the algebraic model of a 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -255,6 +255,29 @@ class Rpc:
         if rms is None:
             return -1.0
         return float(rms) * self.ground_sample_m()
+
+    def ossim_geom(self, n_lines: int, n_samples: int, bands: Sequence[str] = ("P",)) -> str:
+        """The OSSIM keyword list of these RPCs (``type: ossimRpcModel``, RPC00B's
+        ``polynomial_format: B``, GDAL's names in lower case, ``line_num_coeff_00`` …): the
+        ``<image>.geom`` OTB 8 reads beside an image (its ``GeomMetadataSupplier``; it
+        reads RPC tags only from the GeoTIFFs it wrote itself). Every line ``key: value``,
+        none empty (OTB's reader splits each on ``:``)."""
+        lines = [
+            "type: ossimRpcModel",
+            "polynomial_format: B",
+            f"bias_error: {0.0!r}",
+            f"rand_error: {max(self.random_error_m(), 0.0)!r}",
+            f"image_size: {n_samples} {n_lines}",
+            f"support_data.number_bands: {len(bands)}",
+            f"support_data.band_name_list: {' '.join(bands)}",
+        ]
+        for name, attr in zip(_GDAL_NAMES, _SCALARS, strict=True):
+            lines.append(f"{name.lower()}: {float(getattr(self, attr))!r}")
+        for name, attr in zip(_GDAL_COEFFS, _COEFFS, strict=True):
+            lines += [
+                f"{name.lower()}_{k:02d}: {float(c)!r}" for k, c in enumerate(getattr(self, attr))
+            ]
+        return "\n".join(lines) + "\n"
 
     def rpc_txt(self) -> str:
         """The ``<image>_RPC.TXT`` sidecar GDAL reads next to an image (``KEY: value``)."""

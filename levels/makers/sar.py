@@ -26,6 +26,7 @@ from levels.kinds import (
     ProductKind,
     Unit,
     figure_at,
+    flag_band,
 )
 from levels.products import BandImage, Product
 from levels.sar import ANCHOR_STEP_PX, Geocoded, SarImage
@@ -71,8 +72,8 @@ def _stac(product: Product) -> dict[str, Any]:
 
 _BANDS = (
     BandSpec("intensity", "SAR backscattered intensity, linear (the image's calibration)"),
-    BandSpec("layover", "pixel in SAR layover: 1, or not: 0"),
-    BandSpec("shadow", "pixel in SAR shadow: 1, or not: 0"),
+    flag_band("layover", "pixel in SAR layover", ("not_layover", "layover")),
+    flag_band("shadow", "pixel in SAR shadow", ("not_shadow", "shadow")),
 )
 #: γ⁰ by radiometric terrain flattening (``[sar] flatten``, :func:`levels.sar.terrain_flattening`)
 _GAMMA0 = BandSpec(
@@ -159,8 +160,8 @@ def sar_product(
     valid = np.isfinite(g.intensity)
     bands = {
         "intensity": BandImage(g.intensity, valid),
-        "layover": BandImage(np.where(valid, g.layover, np.nan).astype(np.float32), valid),
-        "shadow": BandImage(np.where(valid, g.shadow, np.nan).astype(np.float32), valid),
+        "layover": BandImage(np.where(valid, g.layover, 255).astype(np.uint8), valid),
+        "shadow": BandImage(np.where(valid, g.shadow, 255).astype(np.uint8), valid),
     }
     if gamma0 is not None:
         bands["gamma0"] = BandImage(gamma0.astype(np.float32), np.isfinite(gamma0))
