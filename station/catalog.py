@@ -52,6 +52,8 @@ EXTENSIONS = {
 def _extensions(props: dict[str, Any]) -> list[str]:
     """The schemas of the extensions whose fields ``props`` holds."""
     return [url for prefix, url in EXTENSIONS.items() if any(k.startswith(prefix) for k in props)]
+
+
 _MEDIA = {".nc": "application/netcdf", ".h5": "application/x-hdf5"}
 
 

@@ -69,7 +69,10 @@ class FrameCheck:
                     strict=True,
                 )
             ],
-            "max_error_m": float(np.max(self.error_m)),
+            "max_error_m": float(np.nanmax(self.error_m))
+            if np.isfinite(self.error_m).any()
+            else None,
+            "points_not_located": int(np.sum(~np.isfinite(self.error_m))),
         }
 
 

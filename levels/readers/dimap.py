@@ -273,11 +273,15 @@ def _number(root: ET.Element, path: str, source: Path, kind: type = float):
     return int(value) if kind is int else kind(text)
 
 
-def _optional(root: ET.Element, path: str, kind: type = str):
+def _optional(root: ET.Element, path: str, kind: type = str, source: Path | None = None):
+    """The element's text (``kind`` str) or number (:func:`_number`'s checks), None where
+    the document has none."""
     text = root.findtext(path)
     if text is None or not text.strip():
         return None
-    return kind(text.strip()) if kind is not int else int(float(text))
+    if kind is str:
+        return text.strip()
+    return _number(root, path, source or Path("METADATA.DIM"), kind)
 
 
 def _frame_point(elem: ET.Element, where: str, source: Path) -> tuple[int, int, float, float]:
@@ -402,9 +406,9 @@ def _read(source: Path, root: ET.Element) -> DimapScene:
     return DimapScene(
         path=source,
         mission=(root.findtext(f"{_SOURCE}/MISSION") or "").strip(),
-        mission_index=_optional(root, f"{_SOURCE}/MISSION_INDEX", int),
+        mission_index=_optional(root, f"{_SOURCE}/MISSION_INDEX", int, source),
         instrument=(root.findtext(f"{_SOURCE}/INSTRUMENT") or "").strip(),
-        instrument_index=_optional(root, f"{_SOURCE}/INSTRUMENT_INDEX", int),
+        instrument_index=_optional(root, f"{_SOURCE}/INSTRUMENT_INDEX", int, source),
         sensor_code=(root.findtext(f"{_SOURCE}/SENSOR_CODE") or "").strip(),
         n_rows=n_rows,
         n_cols=n_cols,
@@ -426,7 +430,7 @@ def _read(source: Path, root: ET.Element) -> DimapScene:
         angular_speeds_rad_per_s=speeds,
         corrected_attitude=corrected,
         look_angles=look_angles,
-        mirror_step=_optional(root, _MIRROR, int),
+        mirror_step=_optional(root, _MIRROR, int, source),
         calibration=_calibration(root, source),
         processing_level=(
             root.findtext("Data_Processing/PROCESSING_LEVEL")
@@ -434,7 +438,7 @@ def _read(source: Path, root: ET.Element) -> DimapScene:
             or ""
         ).strip(),
         image_file=_image_file(root),
-        n_bands=_optional(root, "Raster_Dimensions/NBANDS", int) or 1,
+        n_bands=_bands(root, source),
         imaging_date=(root.findtext(f"{_SOURCE}/IMAGING_DATE") or "").strip(),
         dataset_name=(root.findtext("Dataset_Id/DATASET_NAME") or "").strip(),
         band_descriptions={
@@ -470,6 +474,21 @@ def _check_frame(source: Path, n_rows: int, n_cols: int, points: NDArray) -> Non
         )
 
 
+#: The bands a SPOT 1–5 scene has at most (SPOT 4's XI, SPOT 5's XS: four).
+MAX_DIMAP_BANDS = 4
+
+
+def _bands(root: ET.Element, source: Path) -> int:
+    """``Raster_Dimensions/NBANDS`` (1 when absent), refused beyond a SPOT scene's."""
+    n = _optional(root, "Raster_Dimensions/NBANDS", int, source) or 1
+    if not 1 <= n <= MAX_DIMAP_BANDS:
+        raise DimapError(
+            f"{source}: Raster_Dimensions/NBANDS = {n}: a SPOT 1–5 scene has 1 to "
+            f"{MAX_DIMAP_BANDS} bands"
+        )
+    return n
+
+
 def _image_file(root: ET.Element) -> str:
     """The image the document describes (``Data_File/DATA_FILE_PATH``'s ``href``)."""
     elem = root.find("Data_Access/Data_File/DATA_FILE_PATH")
@@ -489,11 +508,11 @@ def _calibration(root: ET.Element, source: Path) -> dict[int, BandCalibration]:
         i, c = info.get(band), cells.get(band)
         cell = [] if c is None else c.findall("Gain_Section/Pixel_Parameters/Cells/Cell")
         out[band] = BandCalibration(
-            physical_gain=None if i is None else _optional(i, "PHYSICAL_GAIN", float),
-            physical_bias=None if i is None else _optional(i, "PHYSICAL_BIAS", float),
+            physical_gain=None if i is None else _optional(i, "PHYSICAL_GAIN", float, source),
+            physical_bias=None if i is None else _optional(i, "PHYSICAL_BIAS", float, source),
             analog_gain=None
             if c is None
-            else _optional(c, "Gain_Section/GAIN_ANALOG_VALUE", float),
+            else _optional(c, "Gain_Section/GAIN_ANALOG_VALUE", float, source),
             detector_gain=np.array([_number(e, "G", source) for e in cell], dtype=np.float64),
             dark_current=np.array(
                 [_number(e, "DARK_CURRENT", source) for e in cell], dtype=np.float64

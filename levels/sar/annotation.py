@@ -6,6 +6,7 @@ the image itself, and the frame's nominal ground cell.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -20,6 +21,8 @@ from levels.geometry.ellipsoid import WGS84
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.times import Epoch
 from levels.threads import over_blocks
+
+_log = logging.getLogger(__name__)
 
 SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
 #: Output pixels between anchors of the geocoding grid.
@@ -358,6 +361,20 @@ def frame_grid(
     """A north-up UTM grid (the zone of the frame's centre) of ``pixel_size_m`` covering the
     frame's footprint at ``height_m``, widened by ``margin_m`` each side."""
     lat, lon = ann.edge_ground(height_m)
+    ok = np.isfinite(lat) & np.isfinite(lon)
+    if not ok.any():
+        raise GeometryError(
+            "none of the frame's edge points locates on the ellipsoid from its annotation "
+            "(its state vectors, timing and range): no grid can be laid over it"
+        )
+    if not ok.all():
+        _log.warning(
+            "%d of the frame's %d edge points do not locate on the ellipsoid (beyond its "
+            "state vectors?): the grid covers the others",
+            int((~ok).sum()),
+            ok.size,
+        )
+    lat, lon = lat[ok], lon[ok]
     crs = map_crs("utm", float(np.mean(lat)), float(np.mean(lon)))
     to_map = pyproj.Transformer.from_crs(pyproj.CRS.from_epsg(4326), crs, always_xy=True)
     x, y = to_map.transform(np.degrees(lon), np.degrees(lat))

@@ -86,6 +86,11 @@ def _locate(args: argparse.Namespace) -> int:
         emit(args, gc.as_dict(), _gcp_text)
         return 0
     check = check_frame(args.metadata, attitude=args.attitude)
+    if not np.isfinite(check.error_m).any():
+        raise StationError(
+            f"{args.metadata}: none of its {check.error_m.size} frame points locates through "
+            "its model (its orbit, timing or look angles are out of reach): nothing to check"
+        )
     emit(args, check.as_dict() if args.json else check, _text)
     return 0
 
@@ -166,8 +171,15 @@ def _text(check: Any) -> str:
             f"{check.predicted_lat_deg[i]:12.7f} {check.predicted_lon_deg[i]:12.7f} "
             f"{check.error_m[i]:8.3f} {check.roundtrip_px[i]:10.2e}"
         )
+    located = np.isfinite(check.error_m)
+    e = check.error_m[located]
     if check.row.size != 5:
-        rms = float(np.sqrt(np.mean(check.error_m**2)))
-        lines.append(f"{check.row.size} tie points: RMS {rms:.3f} m")
-    lines.append(f"max error {check.error_m.max():.3f} m")
+        rms = float(np.sqrt(np.mean(e**2)))
+        lines.append(f"{int(located.sum())} tie points: RMS {rms:.3f} m")
+    lines.append(f"max error {e.max():.3f} m")
+    if not located.all():  # said, never a "nan" to read as a figure
+        lines.append(
+            f"{int((~located).sum())} of {located.size} points not located through the model "
+            "(beyond its orbit or timing): not counted"
+        )
     return "\n".join(lines)
