@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from levels.errors import ProductError
 from levels.files import atomic_path, write_text
@@ -48,7 +49,7 @@ def _overviews(ds: Any, rows: int, cols: int, flags: bool) -> None:
     pixels, the nearest for flags (a mask's classes are not averaged)."""
     from rasterio.enums import Resampling
 
-    factors = []
+    factors: list[int] = []
     while max(rows, cols) // (2 ** (len(factors) + 1)) >= OVERVIEW_MIN_PX:
         factors.append(2 ** (len(factors) + 1))
     if factors:
@@ -117,18 +118,14 @@ def write_rpc_sidecar(product: Product, path: str | Path) -> Path | None:
     return write_text(Path(f"{path}.aux.xml"), "\n".join(parts) + "\n")
 
 
-def write_geotiff(product: Product, path: str | Path) -> Path:
-    """Write ``product`` (images loaded) as a georeferenced GeoTIFF; returns its path."""
-    import rasterio
+def _georeferencing(product: Product, names: list[str]) -> tuple[dict[str, Any], str | None]:
+    """How the export is placed: a map level's CRS and transform, or an image-geometry
+    level's RPCs (with their OSSIM keyword list, for OTB, :meth:`Rpc.ossim_geom`)."""
     from rasterio.crs import CRS
     from rasterio.rpc import RPC
     from rasterio.transform import Affine
 
     level, how = product.level, _export(product)
-    known = kind_of(product)
-    names = list(known.export_bands) if known and known.export_bands else list(product.bands)
-    georef: dict = {}
-    geom = None  # an image-geometry export's RPCs as OTB reads them, beside it
     if how is Export.RPC:
         trees = product.geometry.get("rpc")
         if not trees:
@@ -137,28 +134,50 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
                 "(made before they were written): process its L0 again to export it"
             )
         rpc = Rpc.from_tree(next(iter(trees.values())))
-        georef["rpcs"] = RPC.from_gdal(rpc.gdal_metadata())
-        geom = rpc.ossim_geom(int(product.attrs["n_rows"]), int(product.attrs["n_cols"]), names)
-    elif how is Export.MAP:
+        shape = int(product.attrs["n_rows"]), int(product.attrs["n_cols"])
+        return {"rpcs": RPC.from_gdal(rpc.gdal_metadata())}, rpc.ossim_geom(*shape, names)
+    if how is Export.MAP:
         grid = product.map_grid
         if grid is None:
             raise ProductError(f"level {level} product without a map grid (no crs variable)")
-        georef["crs"] = CRS.from_wkt(grid.crs_wkt)
-        georef["transform"] = Affine.from_gdal(*grid.geotransform)
-    else:
-        raise ProductError(f"level {level}: no GeoTIFF export for it")
-    tags = known.export_tags if known else ()
-    specs = [band_spec(product, n, product.bands[n].image.dtype) for n in names]
+        return {
+            "crs": CRS.from_wkt(grid.crs_wkt),
+            "transform": Affine.from_gdal(*grid.geotransform),
+        }, None
+    raise ProductError(f"level {level}: no GeoTIFF export for it")
+
+
+def _images(
+    product: Product, names: list[str], specs: list[Any]
+) -> tuple[list[NDArray[Any]], NDArray[np.bool_], int | None]:
+    """The bands as written, where every one is valid, and the fill: the counts' fill where
+    not valid (as the product writes it); a quantity beside flags (a GTC's) all float32,
+    NaN where not valid."""
     valid = np.logical_and.reduce([product.bands[n].valid for n in names])
     images = [product.bands[n].image for n in names]
-    fill = None
-    if len({im.dtype for im in images}) > 1:  # a quantity beside flags (a GTC's): one type
-        images = [np.where(valid, im.astype(np.float32), np.float32(np.nan)) for im in images]
-    else:
-        fills = {sp.fill for sp in specs if not sp.quantity and sp.fill is not None}
-        fill = fills.pop() if len(fills) == 1 else None
-    if fill is not None:  # as the product writes it: the fill where not valid only
-        images = [with_fill(im, valid, int(fill)) for im in images]
+    if len({im.dtype for im in images}) > 1:
+        return (
+            [np.where(valid, im.astype(np.float32), np.float32(np.nan)) for im in images],
+            valid,
+            None,
+        )
+    fills = {sp.fill for sp in specs if not sp.quantity and sp.fill is not None}
+    fill = int(fills.pop()) if len(fills) == 1 else None
+    if fill is not None:
+        images = [with_fill(im, valid, fill) for im in images]
+    return images, valid, fill
+
+
+def write_geotiff(product: Product, path: str | Path) -> Path:
+    """Write ``product`` (images loaded) as a georeferenced GeoTIFF; returns its path."""
+    import rasterio
+
+    known = kind_of(product)
+    names = list(known.export_bands) if known and known.export_bands else list(product.bands)
+    georef, geom = _georeferencing(product, names)
+    tags = known.export_tags if known else ()
+    specs = [band_spec(product, n, product.bands[n].image.dtype) for n in names]
+    images, valid, fill = _images(product, names, specs)
     rows, cols = images[0].shape
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -200,7 +219,7 @@ def write_geotiff(product: Product, path: str | Path) -> Path:
             ds.write_mask(valid)
         _overviews(ds, rows, cols, flags=any(sp.flags for sp in specs))
         ds.update_tags(
-            level=level,
+            level=product.level,
             scene_index=a.get("scene_index", ""),
             name=a.get("name", ""),
             hrv=a.get("hrv", ""),

@@ -35,8 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyproj
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from levels import __version__
 from levels.adjust import Adjustment, Strip, adjust, adjust_block, adjust_strips
@@ -45,6 +44,7 @@ from levels.cor.radiometry import calibrate, counts_in_place, deconvolution_taps
 from levels.cor.resample import with_nan
 from levels.errors import DemError, GcpError, GeometryError, LevelsError, OptionsError
 from levels.export import write_rpc_sidecar
+from levels.geo.coverage import check_coverage
 from levels.geo.scenes import PassGeometry, SceneCut, SceneGeometry, cut_scenes, pass_geometry
 from levels.geometry.sensor import LookAngleTable
 from levels.makers.base import BandPixels, LevelMaker, Need, PassContext, Reads, SceneWork
@@ -328,10 +328,8 @@ class ProcessingRequest:
         relative to their own directory, so that a run records the same bytes wherever it
         is staged and published.
     adjustments
-        Level 2's adjustment per archive, when it is made already: taken as it is, not made
-        again (a block's level 3 over the pair's own DEM, :func:`levels.block.process_block`:
-        adjusted again with that DEM under its tie points, the block would count the pair's
-        own measurements twice, and claim an accuracy across the base it does not have).
+        Level 2's adjustment per archive when made already, taken as it is (a block's level 3
+        over the pair's own DEM: :func:`levels.block.process_block` says why).
     """
 
     archives: tuple[L0Archive, ...]
@@ -523,10 +521,6 @@ def _block_adjustment(
     opt = request.options
     if dem is None and opt.dem_path:
         dem = read_dem(opt.dem_path, opt.dem_vertical)
-    import os
-
-    if os.environ.get("NO_TIE_DEM"):
-        dem = None
     passes, ties, where = [], [], []
     for group in groups:
         placed = [k for k in group if setups[k].scenes]
@@ -554,35 +548,6 @@ def _block_adjustment(
         for k, adj in zip(placed, adjs, strict=True):
             out[k] = adj
     return out
-
-
-def on_dem(dem: Dem, lat_rad: ArrayLike, lon_rad: ArrayLike) -> NDArray[np.bool_]:
-    """Which geodetic points lie on the DEM's grid (voids or not)."""
-    to_dem = pyproj.Transformer.from_crs(
-        "EPSG:4326", pyproj.CRS.from_wkt(dem.crs_wkt), always_xy=True
-    )
-    x, y = to_dem.transform(np.degrees(lon_rad), np.degrees(lat_rad))
-    row, col = dem.pixel_of(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
-    n_rows, n_cols = dem.height_m.shape
-    return np.asarray((row >= -0.5) & (row <= n_rows - 0.5) & (col >= -0.5) & (col <= n_cols - 0.5))
-
-
-def check_coverage(dem: Dem, scenes: Sequence[SceneGeometry]) -> None:
-    """:class:`DemError` naming the first scene none of whose corners nor its centre lies
-    on the DEM's grid: level 3 would fail there after everything else was made. A scene
-    partly on it is made, its part off the DEM void."""
-    if not scenes:
-        return
-    lat = np.array([np.append(s.corners_lat_rad, s.centre_lat_rad) for s in scenes])
-    lon = np.array([np.append(s.corners_lon_rad, s.centre_lon_rad) for s in scenes])
-    covered = np.asarray(on_dem(dem, lat, lon).any(axis=1), dtype=bool)  # all scenes at once
-    for k, s in enumerate(scenes):
-        if not covered[k]:
-            raise DemError(
-                f"the DEM {dem.source} does not cover scene {s.cut.index} (centre "
-                f"{np.degrees(s.centre_lat_rad):.3f}°, {np.degrees(s.centre_lon_rad):.3f}°): "
-                "give one over the pass"
-            )
 
 
 def _plan_archive(

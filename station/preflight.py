@@ -249,10 +249,10 @@ def _warn_outside_service(scn: Scenario) -> None:
 def _check_covers(scn: Scenario, dem: Any) -> None:
     """:class:`StationError` when the level 3 DEM lies off the pass: the pass's footprint
     traced on the geometry alone (no image rendered: a fraction of a second), its corners
-    and centre against the DEM's grid (``levels.process.on_dem``)."""
+    and centre against the DEM's grid (``levels.geo.coverage.on_dem``)."""
     import numpy as np
 
-    from levels.process import on_dem
+    from levels.geo.coverage import on_dem
     from station.spacecraft.dem import footprint_rad
     from station.spacecraft.emulator import emulate_pass
 

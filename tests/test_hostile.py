@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from _cli import bounded, one_line
-from conftest import REFDATA
 
 from levels.readers.bounded import MAX_METADATA_BYTES
 from station.cli import EXIT_BAD_INPUT, main
@@ -66,14 +65,16 @@ def test_a_metadata_that_inflates_beyond_the_cap_is_refused_unread(
     assert not (tmp_path / "out").exists()
 
 
-def test_gdal_opens_the_scenes_image_without_reading_its_sibling_metadata(tmp_path) -> None:
+def test_gdal_opens_the_scenes_image_without_reading_its_sibling_metadata(
+    refdata, tmp_path
+) -> None:
     """GDAL's TIFF driver parses a METADATA.DIM beside the image (its SPOT metadata
     reader: the IMAGERY domain); opened the project's way, it sees the image alone."""
     import rasterio
 
     from levels.readers.bounded import gdal_image_alone
 
-    scene = REFDATA / "dimap" / "spot2_hrv1_P_19980220_izmit_METADATA.DIM"
+    scene = refdata / "dimap" / "spot2_hrv1_P_19980220_izmit_METADATA.DIM"
     (tmp_path / "METADATA.DIM").write_bytes(scene.read_bytes())
     profile = {"driver": "GTiff", "width": 8, "height": 8, "count": 1, "dtype": "uint8"}
     with warnings.catch_warnings():

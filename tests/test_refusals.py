@@ -511,4 +511,5 @@ def test_a_rerun_never_deletes_what_the_station_did_not_write(
     shutil.move(out / "notes.txt", tmp_path / "notes.txt")
     shutil.rmtree(out / "analysis")
     assert main(args) == 0
-    assert not (out / "small_test_s000_2A.nc.aux.xml").exists()  # replaced with its product
+    # GDAL's cache of the unchanged 2A carried into the new run, still not the station's
+    assert (out / "small_test_s000_2A.nc.aux.xml").read_text() == "<PAMDataset/>"
