@@ -217,3 +217,14 @@ def test_forged_counts_and_numbers_are_refused_at_once(files, tmp_path, capsys, 
         code = main(["process", str(forged), "--out", str(tmp_path / "o"), "-q"])
         one_line(capsys, code, 2, *words)
     assert not (tmp_path / "o").exists()
+
+
+def test_a_frame_without_a_dem_says_the_gtc_is_not_made(files, tmp_path, capsys) -> None:
+    """``process F.E1`` without ``--dem``: the GEC made, the GTC's absence said (it was
+    skipped in silence)."""
+    from station.cli import main
+
+    assert main(["process", str(files["imp"]), "--out", str(tmp_path / "o")]) == 0
+    said = capsys.readouterr()
+    assert "GTC not made" in said.err and "--dem" in said.err
+    assert (tmp_path / "o" / "imp_GEC.nc").is_file()

@@ -317,3 +317,20 @@ def test_process_fills_the_size_and_valid_columns_and_says_its_checks(
     line = capsys.readouterr().out.strip()
     assert line.startswith("small_test: checks passed;") and "GiB of memory" in line
     assert "{" not in line
+
+
+def test_an_interrupted_capacity_study_leaves_no_empty_out(tmp_path, monkeypatch) -> None:
+    """Ctrl-C during the simulation: --out was made (empty) by the check before it; the
+    check now makes nothing, the directory only when written."""
+    import station.capacity.study as study
+    from station.capacity.config import load_capacity
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(study, "simulate", interrupted)
+    scn = load_capacity(ROOT / "scenarios" / "capacity" / "cuiaba.toml")
+    out = tmp_path / "deep" / "capacity"
+    with pytest.raises(KeyboardInterrupt):
+        study.run_study(scn, out, replications=1, plots=False)
+    assert not (tmp_path / "deep").exists()

@@ -144,8 +144,10 @@ def _rows(where: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
     ]
     if not numbered:
         raise GcpError(f"{where}: no header and no control point")
-    reader = csv.DictReader([ln for _, ln in numbered])
-    header = [h.strip() for h in (reader.fieldnames or [])]
+    # each line parsed alone: a point is one line (a quote opened on one would swallow
+    # the next lines as one field, and the rows lose their line numbers)
+    parsed = csv.reader([ln for _, ln in numbered])
+    header = [h.strip() for h in next(parsed)]
     missing = [c for c in GCP_COLUMNS if c not in header]
     if missing:
         raise GcpError(
@@ -153,11 +155,12 @@ def _rows(where: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
             f"{', '.join(GCP_COLUMNS)} (docs/gcp.md)"
         )
     rows = []
-    for (line, _), raw in zip(numbered[1:], reader, strict=True):
-        if None in raw:  # csv's restkey: the row has more fields than the header
-            fields_ = len(header) + len(raw[None])
-            raise _bad(where, line, f"{fields_} fields for {len(header)} columns")
-        rows.append((line, {(key or "").strip(): (v or "").strip() for key, v in raw.items()}))
+    for line, text_line in numbered[1:]:
+        fields_ = next(csv.reader([text_line]), [])
+        if len(fields_) > len(header):
+            raise _bad(where, line, f"{len(fields_)} fields for {len(header)} columns")
+        values = [v.strip() for v in fields_] + [""] * (len(header) - len(fields_))
+        rows.append((line, dict(zip(header, values, strict=True))))
     return header, rows
 
 
