@@ -558,6 +558,16 @@ def files_under(d: Path) -> set[Path]:
     return {p for p in d.rglob("*") if p.is_file() or p.is_symlink()}
 
 
+def _bound(case, kind: str):
+    """``case`` with its kind given: a function of its data, as hypothesis takes one."""
+
+    def one(data: st.DataObject) -> None:
+        case(kind, data)
+
+    one.__name__ = f"case_{kind}"
+    return one
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("n", type=int, nargs="?", default=1000, help="cases (default 1000)")
@@ -578,17 +588,7 @@ def main(argv: list[str] | None = None) -> int:
         here = os.getcwd()
         serial = iter(range(10**9))
 
-        @settings(
-            max_examples=args.n,
-            deadline=None,
-            database=None,
-            derandomize=False,
-            suppress_health_check=list(HealthCheck),
-            phases=[Phase.generate, Phase.shrink],
-        )
-        @given(st.data())
-        def case(data: st.DataObject) -> None:
-            kind = data.draw(st.sampled_from(kinds), label="kind")
+        def case(kind: str, data: st.DataObject) -> None:
             box = root / f"case{next(serial)}"
             box.mkdir()
             out = box / "out"
@@ -630,11 +630,22 @@ def main(argv: list[str] | None = None) -> int:
                     f"{kind}: {', '.join(problems)}\n  argv: {argv}\n  stderr: {err.strip()}"
                 )
 
-        try:
-            seed(args.seed)(case)()
-            failed = None
-        except AssertionError as exc:
-            failed = str(exc)
+        failed = None
+        for k, kind in enumerate(kinds):  # each kind its share (one draw of them all: uneven)
+            share = args.n // len(kinds) + (k < args.n % len(kinds))
+            run = settings(
+                max_examples=share,
+                deadline=None,
+                database=None,
+                derandomize=False,
+                suppress_health_check=list(HealthCheck),
+                phases=[Phase.generate, Phase.shrink],
+            )(given(st.data())(_bound(case, kind)))
+            try:
+                seed(args.seed)(run)()
+            except AssertionError as exc:
+                failed = str(exc)
+                break
     elapsed = time.perf_counter() - t0
     total = sum(v for (k, _), v in counts.items() if k != "violations")
     print(f"{total} cases in {elapsed:.0f} s ({1e3 * elapsed / max(total, 1):.0f} ms each)")
