@@ -118,7 +118,7 @@ def write_rpc_sidecar(product: Product, path: str | Path) -> Path | None:
     return write_text(Path(f"{path}.aux.xml"), "\n".join(parts) + "\n")
 
 
-def _georeferencing(product: Product, names: list[str]) -> tuple[dict[str, Any], str | None]:
+def _georeferencing(product: Product, names: list[str]) -> tuple[dict[str, object], str | None]:
     """How the export is placed: a map level's CRS and transform, or an image-geometry
     level's RPCs (with their OSSIM keyword list, for OTB, :meth:`Rpc.ossim_geom`)."""
     from rasterio.crs import CRS

@@ -348,7 +348,34 @@ def reference_control_points(
     pixels off, beyond what a window's correlation can see (half its width); the coarse
     loops bring it within a pixel, the fine loops finish."""
     with _said_once():
-        found = _found(pg, scenes, raw_of, ref, dem, options, hrv, band)
+        raws = {k: raw_of(s) for k, s in enumerate(scenes)}
+        raw_px = _raw_pixel_m(scenes[0])
+        factor = max(1, round(COARSE_PIXEL_M / ref.grid.pixel_size_m))
+        current, loops = list(scenes), []
+        if factor > 1:
+            coarse_ref = _coarser(ref, factor)
+            f_raw = round(coarse_ref.grid.pixel_size_m / raw_px)
+            coarse_raws = {k: _smoothed(r, f_raw) for k, r in raws.items()}
+            found = _loop(
+                pg,
+                scenes,
+                current,
+                coarse_raws,
+                coarse_ref,
+                dem,
+                options,
+                hrv,
+                band,
+                until_px=COARSE_PX / 2,
+            )
+            loops += [{**loop, "scale": float(factor)} for loop in found.loops]
+            assert found.adjustment is not None
+            current = [found.adjustment.refine(pg, s) for s in scenes]
+        f_raw = round(ref.grid.pixel_size_m / raw_px)  # a reference coarser than the scene
+        fine = {k: _smoothed(r, f_raw) for k, r in raws.items()} if f_raw > 1 else raws
+        found = _loop(pg, scenes, current, fine, ref, dem, options, hrv, band, until_px=0.0)
+        found.loops = loops + [{**loop, "scale": 1.0} for loop in found.loops]
+        found = _kept(found)
     adj = found.adjustment
     if adj is not None:  # the last fit's refusals, once (each loop refused them again)
         say_refused(list(adj.point_id), np.asarray(adj.point_status), adj.residual_before_px)
@@ -367,47 +394,6 @@ def _said_once() -> Iterator[None]:
         yield
     finally:
         log.setLevel(level)
-
-
-def _found(
-    pg: PassGeometry,
-    scenes: Sequence[SceneGeometry],
-    raw_of: Callable[[SceneGeometry], NDArray],
-    ref: Reference,
-    dem: Dem,
-    options: ProcessingOptions,
-    hrv: int,
-    band: str | None,
-) -> ReferencePoints:
-    """:func:`reference_control_points`'s loops, coarse then fine."""
-    raws = {k: raw_of(s) for k, s in enumerate(scenes)}
-    raw_px = _raw_pixel_m(scenes[0])
-    factor = max(1, round(COARSE_PIXEL_M / ref.grid.pixel_size_m))
-    current, loops = list(scenes), []
-    if factor > 1:
-        coarse_ref = _coarser(ref, factor)
-        f_raw = round(coarse_ref.grid.pixel_size_m / raw_px)
-        coarse_raws = {k: _smoothed(r, f_raw) for k, r in raws.items()}
-        found = _loop(
-            pg,
-            scenes,
-            current,
-            coarse_raws,
-            coarse_ref,
-            dem,
-            options,
-            hrv,
-            band,
-            until_px=COARSE_PX / 2,
-        )
-        loops += [{**loop, "scale": float(factor)} for loop in found.loops]
-        assert found.adjustment is not None
-        current = [found.adjustment.refine(pg, s) for s in scenes]
-    f_raw = round(ref.grid.pixel_size_m / raw_px)  # a reference coarser than the scene
-    fine = {k: _smoothed(r, f_raw) for k, r in raws.items()} if f_raw > 1 else raws
-    found = _loop(pg, scenes, current, fine, ref, dem, options, hrv, band, until_px=0.0)
-    found.loops = loops + [{**loop, "scale": 1.0} for loop in found.loops]
-    return _kept(found)
 
 
 def _kept(found: ReferencePoints) -> ReferencePoints:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -49,9 +50,10 @@ EXTENSIONS = {
 }
 
 
-def _extensions(props: dict[str, Any]) -> list[str]:
-    """The schemas of the extensions whose fields ``props`` holds."""
-    return [url for prefix, url in EXTENSIONS.items() if any(k.startswith(prefix) for k in props)]
+def _extensions(fields: Iterable[str]) -> list[str]:
+    """The schemas of the extensions of which ``fields`` (an Item's properties) hold one."""
+    keys = list(fields)
+    return [url for prefix, url in EXTENSIONS.items() if any(k.startswith(prefix) for k in keys)]
 
 
 _MEDIA = {".nc": "application/netcdf", ".h5": "application/x-hdf5"}
