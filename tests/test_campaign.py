@@ -36,6 +36,7 @@ def test_a_campaign_names_its_failures_and_finishes_the_rest(archives, tmp_path,
     assert code == EXIT_BAD_INPUT
     err = [ln for ln in captured.err.splitlines() if ln.startswith("station: error")]
     assert len(err) == 1 and "1 of 3 archive(s) failed: pass_c" in err[0] and "truncated" in err[0]
+    assert "\r" not in captured.err and "scene/s" not in captured.err  # no bar into a log
     report = json.loads((out / "campaign.json").read_text())
     assert report["summary"] == report["summary"] | {"archives": 3, "ok": 2, "failed": 1}
     status = {a["name"]: a["status"] for a in report["archives"]}

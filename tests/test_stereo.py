@@ -193,6 +193,12 @@ def test_the_pair_is_adjusted_once_and_its_catalogue_declares_what_it_holds(
     from test_stac import _check_catalog
 
     assert ADJUSTED == [2]
+    from levels.inspect import product_summary, summary_text
+    from levels.products import read_product
+
+    dem_path = next((stereo_run / "stereo").glob("*_DEM.nc"))
+    said = summary_text(product_summary(read_product(dem_path), dem_path))
+    assert "None" not in said  # its provenance says what it knows ("scenario None" before)
     items = {i.id: i for i in _check_catalog(stereo_run)}
     dem = next(i for k, i in items.items() if k.endswith("_DEM"))
     assert not any("/view/" in e or "/sat/" in e for e in dem.stac_extensions)
