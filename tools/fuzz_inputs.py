@@ -21,7 +21,8 @@ it. What must hold, whatever the input (the issue's bar):
 - stderr holds no traceback;
 - no file appears outside ``--out`` other than the inputs the case wrote;
 - no case runs past ``CASE_BOUND_S`` (a hang), nor raises the process's peak memory by
-  more than ``CASE_MEMORY_BYTES`` (a blow-up); the run's peak is printed.
+  more than ``CASE_MEMORY_BYTES``, nor runs out of the run's ``ADDRESS_SPACE_BYTES`` (a
+  blow-up); the run's peak is printed.
 
 Most cases ask for the checks only (``run --check``, ``process --check``: what a user's
 input meets first); a share runs the real work where it is quick (one in ten mutated
@@ -66,6 +67,9 @@ CASE_BOUND_S = 30
 #: A case raising the process's peak resident memory by more than this is a blow-up: a
 #: small scene's processing takes a few hundred MB.
 CASE_MEMORY_BYTES = 1.5 * 2**30
+#: The run's address space (bytes): its interpreter, numba's compiler and a small scene's
+#: processing take about 3 GB of it; a case past it fails "out of memory", counted a blow-up.
+ADDRESS_SPACE_BYTES = 12 * 2**30
 
 #: Values a user gets wrong: out of range, of the wrong type, not numbers, paths.
 NASTY_TEXT = ["", "nan", "inf", "-inf", "-1", "0", "1e308", "-1e308", "x", "1,2", "../x", "/etc"]
@@ -579,6 +583,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="hypothesis seed (default 0)")
     args = parser.parse_args(argv)
     kinds = FILE_KINDS if args.kind == "files" else (args.kind,) if args.kind else KINDS
+    # a case that asks for the machine's memory fails as "out of memory", not by the kernel's
+    # OOM killer taking the run (and the machine's other work) with it
+    resource.setrlimit(resource.RLIMIT_AS, (int(ADDRESS_SPACE_BYTES), resource.RLIM_INFINITY))
     counts: Counter = Counter()
     slowest = [0.0, ""]
     t0 = time.perf_counter()
@@ -613,6 +620,8 @@ def main(argv: list[str] | None = None) -> int:
             grew = peak_rss_bytes() - peak0
             if grew > CASE_MEMORY_BYTES:
                 problems.append(f"the peak memory grew by {grew / 2**30:.1f} GiB")
+            if "out of memory" in err:  # the address-space cap (main) reached: a blow-up
+                problems.append("out of memory")
             if code == HANG:
                 problems.append(f"a hang (stopped after {CASE_BOUND_S} s)")
             elif code not in (0, 1, 2):

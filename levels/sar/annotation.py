@@ -383,4 +383,30 @@ def frame_grid(
     y1 = np.ceil((np.max(y) + margin_m) / res) * res
     n_cols = int(np.ceil((np.max(x) + margin_m - x0) / res))
     n_rows = int(np.ceil((y1 - np.min(y) + margin_m) / res))
+    _check_footprint(ann, n_rows * res, n_cols * res, margin_m)
     return MapGrid.north_up(crs.to_wkt(), x0, y1, res, n_rows, n_cols)
+
+
+#: The most a SAR's ground track moves a second (m/s): a low orbit's, 7.9 km/s in orbit.
+MAX_GROUND_SPEED_M_PER_S = 8000.0
+#: The smallest incidence a frame's ground range is taken at (rad): ERS's near edge is 19°.
+MIN_INCIDENCE_RAD = math.radians(10.0)
+#: A grid over a frame's footprint spans at most this times the frame's largest extent
+#: (a north-up box around a frame turned by the orbit's inclination: 1.4).
+FOOTPRINT_SLACK = 3.0
+
+
+def _check_footprint(ann: SarAnnotation, height_m: float, width_m: float, margin_m: float) -> None:
+    """Refuse a grid wider than the frame can be: its lines at most a low orbit's ground
+    speed apart, its samples at most the range spacing over sin 10°; a footprint beyond
+    ``FOOTPRINT_SLACK`` times that comes of an orbit or timing at odds with the frame (a
+    forged state vector gave a grid of 19 GB), not of the frame."""
+    along = ann.shape[0] * ann.line_interval_s * MAX_GROUND_SPEED_M_PER_S
+    across = ann.shape[1] * ann.range_spacing_m / math.sin(MIN_INCIDENCE_RAD)
+    most = FOOTPRINT_SLACK * max(along, across) + 2.0 * margin_m
+    if max(height_m, width_m) > most:
+        raise GeometryError(
+            f"the frame's footprint spans {max(height_m, width_m) / 1e3:.0f} km on the ground, "
+            f"its {ann.shape[0]} lines × {ann.shape[1]} samples at most "
+            f"{max(along, across) / 1e3:.0f} km: its orbit or timing is at odds with it"
+        )
