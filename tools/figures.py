@@ -552,7 +552,7 @@ def bench() -> Iterator[Row]:
 
 #: The studies behind the README's accuracy figures, each its own tool (``tools/``), run
 #: as a user runs it: level 2, level 3, a block, the DIMAP pack and route (P, XS), SAR, the
-#: stereo pair.
+#: stereo pair, and level 2's prediction over many draws of a pair and of a block.
 STUDIES = (
     ("level2.py", []),
     ("level3.py", []),
@@ -562,6 +562,8 @@ STUDIES = (
     ("dimap_route.py", ["--set", 'instrument.mode="XS"']),
     ("sar.py", []),
     ("stereo.py", []),
+    ("block_draws.py", ["--draws", "24", "--first", "100"]),
+    ("block_draws.py", ["scenarios/blocks/two_passes.toml", "--draws", "16", "--first", "100"]),
 )
 
 

@@ -141,19 +141,23 @@ class SarAnnotation:
     right_looking: bool = True
 
     def __post_init__(self) -> None:
-        positive = {
+        values = {
             "line interval (s)": self.line_interval_s,
             "range spacing (m)": self.range_spacing_m,
             "wavelength (m)": self.wavelength_m,
             "near range (m)": self.near_range_m,
         }
-        bad = {k: v for k, v in positive.items() if not (math.isfinite(v) and v > 0)}
+        bad = {
+            k: v
+            for k, v in values.items()
+            if not (math.isfinite(v) and ANNOTATION_RANGES[k][0] < v <= ANNOTATION_RANGES[k][1])
+        }
         if bad:  # NaN passes every `<= 0` test: said here, not as NaN products
-            said = ", ".join(f"{k} {v!r}" for k, v in bad.items())
-            raise GeometryError(
-                f"a SAR annotation needs a finite, positive line interval, range spacing, "
-                f"wavelength and near range: {said}"
+            said = ", ".join(
+                f"{k} {v!r} (expected {ANNOTATION_RANGES[k][0]:g}–{ANNOTATION_RANGES[k][1]:g})"
+                for k, v in bad.items()
             )
+            raise GeometryError(f"a SAR annotation out of any SAR's range: {said}")
         if not (math.isfinite(self.first_line_s) and all(map(math.isfinite, self.doppler_hz))):
             raise GeometryError(
                 f"a SAR annotation's first line time {self.first_line_s!r} and Doppler "
@@ -387,6 +391,15 @@ def frame_grid(
     return MapGrid.north_up(crs.to_wkt(), x0, y1, res, n_rows, n_cols)
 
 
+#: What a spaceborne SAR's annotation can hold (exclusive low, inclusive high): a line
+#: interval up to 10 s (ERS's 0.6 ms times its looks), a range spacing up to 1 km (7.9 m
+#: times up to 100 looks), a wavelength from Ka band to P band, a near range of a low orbit.
+ANNOTATION_RANGES = {
+    "line interval (s)": (0.0, 10.0),
+    "range spacing (m)": (0.0, 1000.0),
+    "wavelength (m)": (0.005, 1.0),
+    "near range (m)": (100e3, 3000e3),
+}
 #: The most a SAR's ground track moves a second (m/s): a low orbit's, 7.9 km/s in orbit.
 MAX_GROUND_SPEED_M_PER_S = 8000.0
 #: The smallest incidence a frame's ground range is taken at (rad): ERS's near edge is 19°.

@@ -344,9 +344,11 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
     from levels.frame import FrameOptions, margin_of_dem, process_frame
     from levels.readers.dem import read_dem
     from levels.readers.sar import open_frame
+    from levels.sar import frame_grid
     from station.catalog import write_catalog
     from station.loader import load_sar
     from station.outdir import published_dir, replaceable_dir
+    from station.preflight import check_needs, frame_needs
     from station.run_sar import frame_options, frame_quality, scenario_provenance
 
     frame = open_frame(source)
@@ -373,6 +375,10 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
         lambda n: f"products of {n}",
         inputs,
     )
+    ann = frame.image().annotation
+    grid = frame_grid(ann, options.pixel_size_m, options.reference_height_m, options.margin_m)
+    needs = frame_needs(grid.n_rows * grid.n_cols, ann.shape[0] * ann.shape[1], len(options.levels))
+    check_needs(needs, out)  # before the grid is allocated
     with published_dir(out) as stage:
         made = process_frame(
             frame,
