@@ -193,13 +193,18 @@ def run_dem(l0_path: Path, archive: L0Archive) -> Path:
 
 def gcps_beside(path: str | Path) -> Path:
     """Where a source's control points are when none are given: ``<name>.gcp.csv`` beside
-    it (a run's); for a DIMAP pack's zip without one, the ``control_points.csv`` it holds
-    (``station export --dimap X.zip`` puts them there), read in place."""
+    it (a run's); for a DIMAP pack without one, its zip or its directory, the
+    ``control_points.csv`` it holds (``station export --dimap`` puts them there), read in
+    place."""
     import zipfile
 
     p = Path(path)
     beside = p.with_name(f"{l0_stem(p)}.gcp.csv")
-    if not beside.is_file() and p.is_file() and zipfile.is_zipfile(p):
+    if beside.is_file():
+        return beside
+    if p.is_dir() and (p / PACK_POINTS).is_file():  # a pack's directory
+        return p / PACK_POINTS
+    if p.is_file() and zipfile.is_zipfile(p):
         with zipfile.ZipFile(p) as z:
             if PACK_POINTS in z.namelist():
                 return p / PACK_POINTS

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import warnings
 import zipfile
 from pathlib import Path
@@ -304,6 +305,13 @@ def test_a_dimap_packs_zip_is_processed_to_level_2_on_the_points_it_holds(
     p = read_product(out / "scene_s000_2.nc")
     status = json.loads(p.geometry["adjustment"]["points"]["status"])
     assert status.count("used") >= 10
+    # the same pack as a directory
+    pack = tmp_path / "pack"
+    with zipfile.ZipFile(dimap_zip) as z:
+        z.extractall(pack)
+    cli = ["process", str(pack / "SCENE01"), "--levels", "1A,2A,2", "--out", str(tmp_path / "o2")]
+    shutil.copy(pack / "control_points.csv", pack / "SCENE01" / "control_points.csv")
+    assert main([*cli, "-q"]) == 0
 
 
 def test_process_fills_the_size_and_valid_columns_and_says_its_checks(
