@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -168,17 +169,27 @@ def _check(scn: Any, out: Path, args: argparse.Namespace) -> int:
     return 0
 
 
-def check_text(name: str, found: dict[str, Any], out: Path) -> str:
+def check_text(name: str, found: Mapping[str, object], out: Path) -> str:
     """``--check``'s line: what was checked and the memory and disk the job takes
-    (``station.preflight.check_needs``'s figures)."""
-    mem = found["memory_available_bytes"]
+    (``station.preflight.check_needs``'s figures, and the files read: ``files`` of a
+    scenario, ``archives`` of a reprocessing)."""
+
+    def gib(key: str) -> float:
+        value = found.get(key)
+        return float(value) / 2**30 if isinstance(value, int | float) else float("nan")
+
     read = found.get("files") or found.get("archives") or []
-    pixels = f" {found['pixels'] / 1e6:.1f} Mpx," if "pixels" in found else ""
+    pixels = found.get("pixels")
     return (
-        f"{name}: checks passed;{pixels} about {found['memory_bytes'] / 2**30:.2f} GiB of memory"
-        + (f" of {mem / 2**30:.1f} available" if mem else "")
-        + f", up to {found['disk_bytes'] / 2**30:.2f} GiB on disk of "
-        f"{found['disk_free_bytes'] / 2**30:.1f} free"
-        + (f"; read {', '.join(str(f) for f in read)}" if read else "")
+        f"{name}: checks passed;"
+        + (f" {pixels / 1e6:.1f} Mpx," if isinstance(pixels, int | float) else "")
+        + f" about {gib('memory_bytes'):.2f} GiB of memory"
+        + (
+            f" of {gib('memory_available_bytes'):.1f} available"
+            if found.get("memory_available_bytes")
+            else ""
+        )
+        + f", up to {gib('disk_bytes'):.2f} GiB on disk of {gib('disk_free_bytes'):.1f} free"
+        + (f"; read {', '.join(map(str, read))}" if isinstance(read, list) and read else "")
         + f"; into {out}/"
     )
