@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from levels.errors import DemError, OptionsError
+from levels.geo.maps import MapGrid
 from levels.kinds import Unit
 from levels.products import Product, write_product
 from levels.readers.dem import Dem
@@ -111,10 +112,13 @@ def process_frame(
     dem_source: str = "",
     measure: Measure | None = None,
     provenance: dict[str, Any] | None = None,
+    grid: MapGrid | None = None,
 ) -> list[FrameMade]:
     """Every kind ``options`` asks of ``frame`` into ``out`` (module docstring); ``dem`` for
     GTC (``dem_source``: its file, as the products name it); ``provenance`` added to the
-    products', whose ``inputs`` name the frame and the DEM they were made from."""
+    products', whose ``inputs`` name the frame and the DEM they were made from; ``grid``
+    the frame's grid when already laid (:func:`levels.sar.frame_grid` of the options: a
+    caller that checked its memory first)."""
     from levels.makers.sar import sar_product
 
     image = frame.image()
@@ -122,7 +126,8 @@ def process_frame(
     ref = options.reference_height_m
     made = []
     # one grid for every kind: the footprint at the reference height and the relief's reach
-    grid = frame_grid(ann, options.pixel_size_m, ref, options.margin_m)
+    if grid is None:
+        grid = frame_grid(ann, options.pixel_size_m, ref, options.margin_m)
     for level in options.levels:
         over_dem = "dem" in kind(level).needs
         if over_dem and dem is None:

@@ -28,6 +28,7 @@ from levels.errors import LevelsError
 __all__ = [
     "MAX_METADATA_BYTES",
     "MAX_TABLE_BYTES",
+    "begins_with",
     "gdal_image_alone",
     "looks_like_zip",
     "read_capped",
@@ -83,16 +84,20 @@ def read_member(
     return data
 
 
+def begins_with(path: str | Path, magic: bytes) -> bool:
+    """Whether the file ``path`` begins with ``magic`` (False if it cannot be read): how a
+    reader says a file is of its format before it reads it."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(magic)) == magic
+    except OSError:
+        return False
+
+
 def looks_like_zip(path: Path) -> bool:
     """Whether ``path`` is meant as a zip: named ``.zip``, or opening as one (``PK\\3\\4``),
     readable or not."""
-    if path.suffix.lower() == ".zip":
-        return True
-    try:
-        with open(path, "rb") as f:
-            return f.read(4) == b"PK\x03\x04"
-    except OSError:
-        return False
+    return path.suffix.lower() == ".zip" or begins_with(path, b"PK\x03\x04")
 
 
 def refuse_broken_zip(path: Path, error: type[LevelsError] = LevelsError) -> None:

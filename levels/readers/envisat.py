@@ -49,6 +49,7 @@ from numpy.typing import NDArray
 
 from levels.errors import GeometryError, ProductError
 from levels.geometry.times import Epoch
+from levels.readers.bounded import begins_with
 from levels.readers.sar import ImageFrame
 from levels.sar import SarAnnotation, SarImage
 from levels.sar.annotation import SPEED_OF_LIGHT_M_PER_S
@@ -287,13 +288,7 @@ def is_envisat(path: str | Path) -> bool:
     ``PRODUCT=``, or its name ``.E1``, ``.E2``, ``.N1`` (an empty or damaged one is then
     :func:`read_envisat`'s to refuse, saying what it is not, rather than another reader's)."""
     p = Path(path)
-    if p.suffix.lower() in ENVISAT_SUFFIXES and p.is_file():
-        return True
-    try:
-        with open(p, "rb") as f:
-            return f.read(8) == b"PRODUCT="
-    except OSError:
-        return False
+    return (p.suffix.lower() in ENVISAT_SUFFIXES and p.is_file()) or begins_with(p, b"PRODUCT=")
 
 
 def _count(where: Path, pairs: dict[str, str], key: str, lo: int, hi: int, what: str) -> int:

@@ -388,6 +388,7 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
             dem_source=Path(args.dem).name if args.dem else "",
             measure=frame_quality(scn, frame) if scn is not None else None,
             provenance=scenario_provenance(scn) if scn is not None else None,
+            grid=grid,  # laid once: the one its memory was checked for
         )
         rows = [
             {
