@@ -219,10 +219,10 @@ def _too_few_lines(
     )
 
 
-def plan_levels(levels: Sequence[str]) -> tuple[LevelMaker, ...]:
+def plan_levels(levels: Sequence[str], given: Sequence[str] = ()) -> tuple[LevelMaker, ...]:
     """The makers of the ``levels`` asked and of the levels they require
     (:attr:`LevelMaker.requires`), each after those it requires, otherwise in the order of
-    :func:`levels.registry.level_names`."""
+    :func:`levels.registry.level_names`; none of the levels ``given`` (made already)."""
     from levels.kinds import Unit
     from levels.registry import kind, level_names
 
@@ -232,7 +232,7 @@ def plan_levels(levels: Sequence[str]) -> tuple[LevelMaker, ...]:
     todo = [lv for lv in levels if lv not in order or kind(lv).unit is Unit.SCENE]
     while todo:
         name = todo.pop()
-        if name not in wanted:
+        if name not in wanted and name not in given:
             try:
                 wanted[name] = level_maker(name)
             except KeyError as exc:
@@ -242,7 +242,8 @@ def plan_levels(levels: Sequence[str]) -> tuple[LevelMaker, ...]:
     pending = sorted(wanted.values(), key=lambda m: order.get(m.name, len(order)))
     while pending:
         ready = next(
-            (m for m in pending if all(r in {o.name for o in out} for r in m.requires)), None
+            (m for m in pending if all(r in {*given, *(o.name for o in out)} for r in m.requires)),
+            None,
         )
         if ready is None:
             raise OptionsError(f"levels {[m.name for m in pending]} require each other")
@@ -330,6 +331,10 @@ class ProcessingRequest:
     adjustments
         Level 2's adjustment per archive when made already, taken as it is (a block's level 3
         over the pair's own DEM: :func:`levels.block.process_block` says why).
+    given
+        Levels of the options made already by an earlier step (the block's level 2 before
+        level 3 over the pair's DEM): the levels made here are on their model (level 3 on
+        level 2's), and they are neither made nor written again.
     """
 
     archives: tuple[L0Archive, ...]
@@ -342,6 +347,7 @@ class ProcessingRequest:
     dem: Dem | None = None
     root: Path | None = None
     adjustments: tuple[Adjustment | None, ...] = ()
+    given: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.archives)
@@ -429,9 +435,11 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
             f"{pairs[0]} is made of a pair of passes (levels.block): give the archives of two "
             "passes over one ground, with level 2"
         )
-    makers = plan_levels(opt.levels)
+    makers = plan_levels(opt.levels, request.given)
     needs = _needs(makers)
-    if Need.ADJUSTMENT in needs and any(g is None for g in request.gcps):
+    if request.adjustments:  # made already: taken as they are
+        needs |= {Need.ADJUSTMENT}
+    elif Need.ADJUSTMENT in needs and any(g is None for g in request.gcps):
         raise GcpError(
             "level 2 needs control points: give the pass's control-point file "
             "(docs/gcp.md), or leave '2' out of the levels"
@@ -443,6 +451,7 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
     block = Need.ADJUSTMENT in needs and opt.adjustment == AdjustmentScope.BLOCK
     setups: list[PassSetup | None] = [None] * len(archives)
     adjustments: list[Adjustment | None] = [None] * len(archives)
+    made = list(request.adjustments)
     if block:
         groups = passes_of(archives)
         platform = {  # a twin pass: its HRVs on the platform's records, as below
@@ -452,13 +461,14 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
         }
         placed = [geo_pass(a, opt, platform[k]) for k, a in enumerate(archives)]
         setups = list(placed)
-        made = request.adjustments
-        adjustments = list(made) if made else _block_adjustment(request, placed, groups, dem)
+        adjustments = made or _block_adjustment(request, placed, groups, dem)
     elif twin and len(archives) > 1:
         records = platform_records(archives)
         placed = [geo_pass(a, opt, records) for a in archives]
         setups = list(placed)
-        adjustments = _twin_adjustment(request, placed)
+        adjustments = made or _twin_adjustment(request, placed)
+    elif made:
+        adjustments = made
     return [
         _plan_archive(request, k, makers, setups[k], adjustments[k], dem)
         for k in range(len(archives))
@@ -607,6 +617,7 @@ def _plan_archive(
         adjustment,
         dem,
         makers,
+        frozenset(request.given),
     )
     timings = {"geo": t_geo, "total": setup.time_s + clock() - t0}
     if adjustment is not None:
@@ -698,7 +709,7 @@ def make_scene(ctx: PassContext, scene: SceneGeometry) -> SceneProducts:
                 maker.prepare(work)
     for band in ctx.archive.bands:
         _band_images(work, band)
-    written = [_maker_of(ctx, name) for name in ctx.options.levels]
+    written = [_maker_of(ctx, name) for name in ctx.options.levels if name not in ctx.given]
     quality = {}
     for maker in written:
         with work.timed("quality"):

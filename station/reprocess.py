@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from levels.errors import L0Error
 from levels.makers.base import Need
@@ -32,6 +31,7 @@ from levels.readers.gcp import read_gcps
 from levels.readers.l0 import L0Archive, read_l0
 from levels.readers.scene1a import open_archive
 from levels.tasks import Runner
+from levels.work import Result
 from station.chain.gcps import measured_control_points
 from station.scenario import Scenario
 from station.spacecraft.emulator import Acquisition, emulate
@@ -267,57 +267,45 @@ def reprocess_block(
     out_dir: str | Path,
     *,
     options: ProcessingOptions,
-    scenarios: list[Scenario] | None = None,
-    names: list[str] | None = None,
-    gcps: list[str | Path] | None = None,
+    scenarios: Sequence[Scenario | None] | None = None,
+    names: Sequence[str] | None = None,
+    gcps: Sequence[str | Path] | None = None,
     runner: Runner | None = None,
-) -> tuple[list[PassProducts], Any]:
-    """Several recorded passes over one ground, to the kinds of a pair (a stereo DEM) as
-    ``station run`` of a block makes them (:func:`levels.block.process_block`): each
-    pass's scene levels into ``<out>/<name>/`` (2A for the tie points, 1A for a pair: its
-    scenario's own ``[processing]`` when given, as its run made them), then the tie points,
+    made_in: Sequence[Path] | None = None,
+) -> Result:
+    """Several recorded passes over one ground, to the kinds of a pair (a stereo DEM), as
+    one request of :mod:`levels.work`: each pass's scene levels into ``<out>/<name>/``
+    (2A for the tie points, 1A for a pair: its scenario's own ``[processing]`` when given,
+    as its run made them; or taken from ``made_in``, a run's passes), then the tie points,
     the block's level 2, the pair's products and level 3 over the pair's DEM into
     ``<out>/ties``, ``block`` and ``stereo``. With the scenarios (one per archive), every
     product is measured against their truth and is the run's, bit for bit."""
-    from levels.block import BlockRequest, pass_levels, process_block
-    from station.truth.stereo import StereoTruth, stereo_quality
+    from levels.work import Pass, Request, plan, run
+    from station.truth.measure import StationTruth
 
     paths = [Path(p) for p in l0_paths]
     out = Path(out_dir)
-    names = names or [l0_stem(p) for p in paths]
+    names = list(names or [l0_stem(p) for p in paths])
     archives = [open_archive(p) for p in paths]
     per: list[Scenario | None] = list(scenarios) if scenarios else [None] * len(paths)
     if len(per) != len(paths):
         raise L0Error(f"{len(paths)} L0 archives but {len(per)} scenarios")
-    scene_levels = tuple(pass_levels(options))
-    passes = []
-    for p, name, scn in zip(paths, names, per, strict=True):
-        base = scn.processing if scn is not None else options
-        opts = dataclasses.replace(base, levels=scene_levels)
-        passes += reprocess_pass(
-            [p], out / name, options=opts, scenario=scn, names=[name], runner=runner
-        )
-    truths = [
-        truth_for(s, a) if s is not None else None for s, a in zip(per, archives, strict=True)
-    ]
+    truths = {
+        n: truth_for(s, a) if s is not None else None
+        for n, s, a in zip(names, per, archives, strict=True)
+    }
     where = [Path(g) for g in gcps] if gcps else [gcps_beside(p) for p in paths]
     if not options.dem_path and per[0] is not None and per[0].dem is not None:
         options = dataclasses.replace(options, dem_path=str(run_dem(paths[0], archives[0])))
-    request = BlockRequest(
-        tuple(archives),
-        tuple(names),
-        tuple(read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)),
-        tuple(out / n for n in names),
-        options,
-        out,
-        checkpoints=tuple(truths),
+    passes = tuple(
+        Pass(
+            (a,),
+            (n,),
+            (read_gcps(w, a.n_lines, a.n_columns),),
+            options=s.processing if s is not None else None,
+            made_in=made_in[k] if made_in else None,
+        )
+        for k, (a, n, w, s) in enumerate(zip(archives, names, where, per, strict=True))
     )
-    measure = None
-    a, b = [*truths, None, None][:2]
-    if len(truths) == 2 and a is not None and b is not None:
-        truth = StereoTruth(a, b)
-
-        def measure(dem: Any) -> dict[str, Any]:
-            return stereo_quality(dem, truth, truth.a.acq.world)
-
-    return passes, process_block(request, runner, measure)
+    work = plan(Request(options, out, passes))
+    return run(work, runner, StationTruth(truths, names))

@@ -37,6 +37,7 @@ from levels.files import json_default, write_json
 from levels.products import read_product
 from levels.tasks import Runner
 from levels.threads import in_threads
+from levels.work import Result, Step
 from station.loader import BlockScenario
 from station.outdir import published_dir, replaceable_dir
 from station.reports import BLOCK_RUN, PASS_RUN
@@ -581,7 +582,7 @@ def run_block(
             _share_control_points(stage, scns)
         done = _block(stage, scns, processing, runner, name)
         block, stereo = {}, {}
-        if done.passes:
+        if done.of(Step.LEVEL2):
             block = {
                 "products": [
                     {
@@ -590,8 +591,8 @@ def run_block(
                         **product_entry(stage / "block" / p.name, "block/"),
                         "quality": sc.quality[level],
                     }
-                    for s, pp in zip(scns, done.passes, strict=True)
-                    for sc in pp.scenes
+                    for s in scns
+                    for sc in done.pass_products(s.name, Step.LEVEL2, Step.OVER_PAIR).scenes
                     for level, p in sc.paths.items()
                 ],
             }
@@ -604,10 +605,10 @@ def run_block(
                         "quality": p.quality,
                         "timings_s": {k: round(v, 4) for k, v in p.timings_s.items()},
                     }
-                    for p in done.pairs
+                    for p in done.of(Step.PAIR)
                 ]
             }
-        ties = done.ties
+        ties = dict(done.ties) or {"pairs": []}
         if quicklooks:
             _quicklooks(stage, ("block", "stereo"))
         report = {
@@ -631,45 +632,28 @@ def run_block(
 
 def _block(
     stage: Path, scns: list[Scenario], processing: Any, runner: Runner | None, name: str
-) -> Any:
-    """The block's tie points, level 2 and 3 and the pair's DEM (:func:`levels.block.
-    process_block`) on the passes' runs in ``stage``, measured against each pass's truth."""
+) -> Result:
+    """The block's tie points, level 2 and 3 and the pair's DEM (:mod:`levels.work`) on the
+    passes' runs in ``stage`` (their scene levels taken as made), measured against each
+    pass's truth."""
     import dataclasses
 
-    from levels.block import BlockRequest, process_block
-    from levels.readers.gcp import read_gcps
-    from levels.readers.l0 import read_l0
-    from station.truth.optical import truth_for
-    from station.truth.stereo import StereoTruth, stereo_quality
+    from station.reprocess import reprocess_block
 
-    archives = [read_l0(stage / s.name / f"{s.name}.l0.h5", lazy=True) for s in scns]
-    truths = [truth_for(s, a) for s, a in zip(scns, archives, strict=True)]
     opts = processing
     if processing.adjustment != "block":  # each pass's own adjustment: the ties alone
         opts = dataclasses.replace(opts, levels=("2A",), stereo=False)
-    elif not opts.dem_path and scns[0].dem is not None:  # the first pass's export
-        first = scns[0].name
-        opts = dataclasses.replace(opts, dem_path=str(stage / first / f"{first}.dem.tif"))
-    request = BlockRequest(
-        tuple(archives),
-        tuple(s.name for s in scns),
-        tuple(
-            read_gcps(stage / s.name / f"{s.name}.gcp.csv", a.n_lines, a.n_columns)
-            for s, a in zip(scns, archives, strict=True)
-        ),
-        tuple(stage / s.name for s in scns),
-        opts,
-        stage,
-        checkpoints=tuple(truths),
-    )
-    truth = StereoTruth(*truths[:2]) if len(truths) == 2 else None
-
-    def measure(dem: Any) -> dict[str, Any]:
-        assert truth is not None  # a pair's products take two passes (levels.block)
-        return stereo_quality(dem, truth, truth.a.acq.world)
-
     _log.info("block %s: tie points, level 2 and the pair's products", name)
-    return process_block(request, runner, measure)
+    return reprocess_block(
+        [stage / s.name / f"{s.name}.l0.h5" for s in scns],
+        stage,
+        options=opts,
+        scenarios=scns,
+        names=[s.name for s in scns],
+        gcps=[stage / s.name / f"{s.name}.gcp.csv" for s in scns],
+        runner=runner,
+        made_in=[stage / s.name for s in scns],
+    )
 
 
 def _quicklooks(stage: Path, subdirs: tuple[str, ...]) -> None:

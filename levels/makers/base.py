@@ -75,7 +75,9 @@ class Reads(StrEnum):
 class PassContext:
     """What every scene of a pass shares: the archive, GEO's pass set-up, the options and
     what follows from them, and the levels to make (``makers``, in processing order): those
-    the options ask for are written, the others are made for them."""
+    the options ask for are written, the others are made for them; ``given``: levels of
+    the options made already by an earlier step, whose model the others are made on
+    (:attr:`levels.process.ProcessingRequest.given`)."""
 
     archive: L0Archive
     pg: PassGeometry
@@ -89,6 +91,7 @@ class PassContext:
     adjustment: Adjustment | None
     dem: Dem | None
     makers: tuple[LevelMaker, ...]
+    given: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,8 +129,9 @@ class SceneWork:
         return list(self.scene.models)
 
     def makes(self, level: str) -> bool:
-        """Whether ``level`` is made for this scene (asked, or needed by a level asked)."""
-        return any(m.name == level for m in self.ctx.makers)
+        """Whether ``level`` is made for this scene (asked, or needed by a level asked), or
+        was made by an earlier step (:attr:`PassContext.given`)."""
+        return level in self.ctx.given or any(m.name == level for m in self.ctx.makers)
 
     @contextmanager
     def timed(self, name: str) -> Iterator[None]:

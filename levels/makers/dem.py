@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 
 from levels import __version__
-from levels.block import Measure, PairMade, PairMaker, PairScene
 from levels.choices import Level
 from levels.errors import GeometryError
 from levels.kinds import (
@@ -29,6 +28,7 @@ from levels.kinds import (
     Unit,
     figure_at,
 )
+from levels.makers.pairs import PairMade, PairMaker, PairMeasure, PairScene
 from levels.products import BandImage, Product
 from levels.stereo import REFINE_WINDOW_PX, StereoDem, StereoPoints
 
@@ -70,7 +70,7 @@ def _stac(product: Product) -> dict[str, Any]:
     }
 
 
-def _make(a: PairScene, b: PairScene, out: Path, measure: Measure | None) -> PairMade | None:
+def _make(a: PairScene, b: PairScene, out: Path, measure: PairMeasure | None) -> PairMade | None:
     """The DEM of two scenes (their level 2 and 1A products, their passes' tie points) into
     ``out``, with its GeoTIFF; None when their epipolar frames do not overlap."""
     from levels.export import write_geotiff

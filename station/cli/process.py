@@ -476,13 +476,14 @@ def _process_block(
     every pass's scene levels in ``<out>/<name>/``, the tie points, the block's level 2
     and 3 and the pair's DEM in ``ties/``, ``block/`` and ``stereo/``."""
     from levels.files import write_json
+    from levels.work import Step
     from station.catalog import write_catalog
     from station.outdir import published_dir
     from station.reprocess import reprocess_block
     from station.run import product_entry
 
     with published_dir(out) as stage, runner_of(args) as runner:
-        passes, block = reprocess_block(
+        done = reprocess_block(
             sources,
             stage,
             options=options,
@@ -492,15 +493,19 @@ def _process_block(
             runner=runner,
         )
         data = [
-            _archive_data(l0, out / n, products)
-            for l0, n, products in zip(sources, names, passes, strict=True)
+            _archive_data(l0, out / n, done.pass_products(n, Step.SCENES))
+            for l0, n in zip(sources, names, strict=True)
         ]
         level2 = [
-            _archive_data(l0, out / "block", products)
-            for l0, products in zip(sources, block.passes, strict=True)
+            _archive_data(l0, out / "block", done.pass_products(n, Step.LEVEL2, Step.OVER_PAIR))
+            for l0, n in zip(sources, names, strict=True)
+            if done.of(Step.LEVEL2)
         ]
-        pairs = [{**product_entry(p.path, "stereo/"), "quality": p.quality} for p in block.pairs]
-        report = {"archives": data, "block": level2, "ties": block.ties, "pairs": pairs}
+        pairs = [
+            {**product_entry(p.path, "stereo/"), "quality": p.quality} for p in done.of(Step.PAIR)
+        ]
+        ties = dict(done.ties) or {"pairs": []}
+        report = {"archives": data, "block": level2, "ties": ties, "pairs": pairs}
         write_json(
             stage / PROCESS_REPORT,
             PROCESS.header(names=names, **report),
