@@ -1,0 +1,129 @@
+"""One unit of work (:mod:`levels.work`) on two recorded passes alone: ``levels`` plans the
+tie points, the block's one adjustment, level 2, the pair's DEM and level 3 over it, makes
+each once, and refuses what it cannot make while planning, before any work.
+
+The two passes are those of ``scenarios/stereo/stereo_pair.toml`` recorded by the station
+in a subprocess (only their L0 archives, control points, 1A and 2A): this module reads them
+as any user of the library would read a station's archives, and imports no ``station``."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from levels.errors import DemError, GcpError, OptionsError
+from levels.options import ProcessingOptions
+from levels.products import read_product
+from levels.readers.gcp import read_gcps
+from levels.readers.l0 import read_l0
+from levels.work import Pass, Request, Step, plan, run
+
+ROOT = Path(__file__).resolve().parents[2]
+NAMES = ("stereo_pair_a", "stereo_pair_b")
+#: The pair's levels, as `station process A B --levels 2,DEM,3` asks them.
+PAIR_LEVELS = ("2", "DEM", "3")
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The stereo pair's two passes recorded (L0, control points, 1A and 2A), by the
+    station's command in a process of its own."""
+    text = (ROOT / "scenarios" / "stereo" / "stereo_pair.toml").read_text()
+    recorded_only = re.sub(r"(?m)^levels = .*$", 'levels = ["1A", "2A"]', text)
+    recorded_only = re.sub(r"(?m)^stereo = true$", "stereo = false", recorded_only)
+    assert recorded_only.count('["1A", "2A"]') == 1 and "stereo = false" in recorded_only
+    where = tmp_path_factory.mktemp("pair")
+    toml = where / "stereo_pair.toml"
+    toml.write_text(recorded_only)
+    run_dir = where / "run"
+    command = [sys.executable, "-m", "station.cli", "run", str(toml), "--out", str(run_dir)]
+    subprocess.run([*command, "-q", "--no-quicklooks"], check=True, timeout=300, cwd=ROOT)
+    return run_dir
+
+
+def _request(run_dir: Path, out: Path, **options: object) -> Request:
+    passes = []
+    for name in NAMES:
+        archive = read_l0(run_dir / name / f"{name}.l0.h5", lazy=True)
+        gcps = read_gcps(run_dir / name / f"{name}.gcp.csv", archive.n_lines, archive.n_columns)
+        passes.append(Pass((archive,), (name,), (gcps,)))
+    opts = ProcessingOptions(levels=PAIR_LEVELS, adjustment="block", tie_height_sigma_m=5.0)
+    return Request(dataclasses.replace(opts, **options), out, tuple(passes))
+
+
+def test_two_passes_make_their_dem_and_level_3_each_node_once(
+    recorded: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """From the archives alone: the passes' own 1A and 2A, the tie points, one block
+    adjustment, level 2 written once per scene, the pair's DEM, level 3 over it on level
+    2's model; the plan says so before any work."""
+    import levels.process
+
+    calls: list[str] = []
+    adjust_block, write_product = levels.process.adjust_block, levels.process.write_product
+
+    def adjusting(*args: object, **kwargs: object) -> object:
+        calls.append("adjust")
+        return adjust_block(*args, **kwargs)
+
+    def writing(path: Path, *args: object, **kwargs: object) -> object:
+        calls.append(Path(path).name)
+        return write_product(path, *args, **kwargs)
+
+    monkeypatch.setattr(levels.process, "adjust_block", adjusting)
+    monkeypatch.setattr(levels.process, "write_product", writing)
+    work = plan(_request(recorded, tmp_path / "out"))
+    assert [n.step for n in work.nodes] == [
+        Step.SCENES,
+        Step.SCENES,
+        Step.TIES,
+        Step.ADJUSTMENT,
+        Step.LEVEL2,
+        Step.LEVEL2,
+        Step.PAIR,
+        Step.OVER_PAIR,
+        Step.OVER_PAIR,
+    ]
+    assert not calls  # planned: nothing made yet
+    result = run(work)
+    assert calls.count("adjust") == 1
+    written = [c for c in calls if c != "adjust"]
+    assert len(written) == len(set(written))  # no product written twice
+    (dem,) = result.of(Step.PAIR)
+    assert dem.kind == "DEM" and dem.export is not None and dem.export.is_file()
+    level3 = result.of(Step.OVER_PAIR)
+    assert sorted(m.key for m in level3) == list(NAMES)
+    for m in level3:
+        product = read_product(m.path)
+        assert product.level == "3"
+        assert product.geometry["adjustment"]  # on level 2's model, the block's
+        assert Path(str(product.quality["dem"]["source"])).name == dem.export.name
+    assert {m.kind for m in result.of(Step.SCENES)} == {"1A", "2A"}
+    assert [m.kind for m in result.of(Step.LEVEL2)] == ["2", "2"]
+    assert result.ties["pairs"][0]["points"] > 0
+
+
+def test_what_cannot_be_made_is_refused_while_planning(recorded: Path, tmp_path: Path) -> None:
+    """A kind of pair with one pass, level 2 without control points, level 3 without a
+    DEM, an unknown kind: each refused by :func:`levels.work.plan`, nothing written."""
+    out = tmp_path / "out"
+    two = _request(recorded, out)
+    one = dataclasses.replace(two, passes=two.passes[:1])
+    with pytest.raises(OptionsError, match="pair of passes"):
+        plan(one)
+    bare = tuple(dataclasses.replace(p, gcps=()) for p in two.passes)
+    with pytest.raises(GcpError, match="control points"):
+        plan(dataclasses.replace(two, passes=bare))
+    alone = dataclasses.replace(one, options=dataclasses.replace(one.options, levels=("3",)))
+    with pytest.raises(DemError, match="DEM"):
+        plan(alone)
+    with pytest.raises(OptionsError, match="not a level"):
+        plan(dataclasses.replace(two, options=dataclasses.replace(two.options, levels=("X",))))
+    with pytest.raises(OptionsError, match="level 2 too"):
+        plan(dataclasses.replace(two, options=dataclasses.replace(two.options, levels=("DEM",))))
+    assert not out.exists()
