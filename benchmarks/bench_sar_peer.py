@@ -45,8 +45,8 @@ def main(argv: list[str] | None = None) -> int:
     import numba
     from threadpoolctl import threadpool_limits
 
-    import levels.sar as sar
     from levels.geo.maps import MapGrid
+    from levels.sar.geocoding import geocode
     from station.spacecraft.dem import world_dem
     from station.spacecraft.sar import ErsFrame, emulate_frame
     from station.spacecraft.world import World
@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         # ours, on the DEM's own grid (north-up, as the DEM is)
         t = time.perf_counter()
         grid = MapGrid.north_up(dem.crs_wkt, gt[0], gt[3], gt[1], *dem.height_m.shape)
-        g = sar.geocode(image, grid, dem=dem, masks=False)
+        g = geocode(image, grid, dem=dem, masks=False)
         ours_l, ours_c = g.line[::-1], g.column[::-1]  # per cell, south-up as sarsen's
         t_ours = time.perf_counter() - t
     line_sarsen = (az - epoch) / np.timedelta64(1, "ns") * 1e-9

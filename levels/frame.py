@@ -31,7 +31,9 @@ from levels.products import Product, write_product
 from levels.readers.dem import Dem
 from levels.readers.sar import SarFrame
 from levels.registry import kind, kind_names
-from levels.sar import Geocoded, frame_grid, geocode, terrain_flattening
+from levels.sar import frame_grid
+from levels.sar.geocoding import Geocoded, geocode
+from levels.sar.radiometry import terrain_flattening
 
 _log = logging.getLogger(__name__)
 

@@ -73,7 +73,7 @@ if TYPE_CHECKING:
     from levels.frame import FrameOptions
     from levels.geo.maps import MapGrid
     from levels.readers.sar import SarFrame
-    from levels.sar import Geocoded
+    from levels.sar.geocoding import Geocoded
 
 _log = logging.getLogger(__name__)
 

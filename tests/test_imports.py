@@ -102,6 +102,23 @@ def test_the_emulator_takes_only_primitives_from_levels(path: Path) -> None:
     assert not bad, f"{path.relative_to(ROOT)} imports {bad}: the emulator takes primitives only"
 
 
+def test_the_emulator_imported_alone_loads_no_processing_stage() -> None:
+    """Its primitives are its only imports at run time too: the SAR annotation's package
+    face loads no geocoding, masks nor radiometry (checked in a fresh interpreter)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, station.spacecraft.emulator, station.spacecraft.sar; "
+        "print(' '.join(sorted(m for m in sys.modules if m.startswith('levels.'))))"
+    )
+    loaded = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
+    ).stdout.split()
+    stages = ("levels.sar.geocoding", "levels.sar.masks", "levels.sar.radiometry", "levels.cor")
+    assert not [m for m in loaded if m.startswith(stages) or m.startswith("levels.makers")]
+
+
 #: Size bounds of the house (issue 48): a function a reader takes in at once, a module
 #: a reader can hold; numba kernels (one loop nest each, split only at a cost) excepted.
 MAX_FUNCTION_LINES = 80

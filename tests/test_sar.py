@@ -16,7 +16,8 @@ import pytest
 
 from levels.geo.maps import MapGrid
 from levels.products import read_product
-from levels.sar import Geocoded, frame_grid, geocode
+from levels.sar import frame_grid
+from levels.sar.geocoding import Geocoded, geocode
 from station.spacecraft.dem import world_dem
 from station.spacecraft.sar import ErsFrame, SarTruth, emulate_frame
 from station.spacecraft.world import DemGrid, World
@@ -416,7 +417,8 @@ def test_a_smooth_orbit_error_moves_gec_as_the_geometry_says() -> None:
     """The post-facto orbit's offset (``state_bias_m``) moves every GEC checkpoint alike, on
     a flat world: along the track by the offset itself; radially by ``δ · cos α / sin θ``
     across the track (α the look angle at the antenna, θ the incidence on the ground)."""
-    from levels.sar import frame_grid, geocode
+    from levels.sar import frame_grid
+    from levels.sar.geocoding import geocode
 
     world = World(lon0_rad=LON0, base_height_m=200.0, relief_m=0.0, seed=3)
     moved = {}

@@ -29,7 +29,8 @@ from levels.kinds import (
     flag_band,
 )
 from levels.products import BandImage, Product
-from levels.sar import ANCHOR_STEP_PX, Geocoded, SarImage
+from levels.sar import ANCHOR_STEP_PX, SarImage
+from levels.sar.geocoding import Geocoded
 
 __all__ = ["GEC", "GTC", "sar_product"]
 

@@ -35,6 +35,10 @@ terrain's zero-Doppler profiles sampled along the image's lines (:mod:`levels.sa
 each output pixel judged against them inside the geocoding kernel; the truth's own, on
 continuous profiles of the world's terrain, is the emulator's
 (:mod:`station.spacecraft.sar_masks`).
+
+The package's face holds the frame's model alone (:mod:`~levels.sar.annotation`, a primitive
+the emulator and the readers share): importing it loads no processing stage; the stages are
+imported from their own modules (``from levels.sar.geocoding import geocode``).
 """
 
 from levels.sar.annotation import (
@@ -48,22 +52,15 @@ from levels.sar.annotation import (
     line_spacing_m,
     nominal_cell_m2,
 )
-from levels.sar.geocoding import Geocoded, geocode
-from levels.sar.masks import mask_oversample
-from levels.sar.radiometry import terrain_flattening
 
 __all__ = [
     "ANCHOR_STEP_PX",
     "HEIGHT_LEVELS",
     "MASK_TOLERANCE_PX",
     "SPEED_OF_LIGHT_M_PER_S",
-    "Geocoded",
     "SarAnnotation",
     "SarImage",
     "frame_grid",
-    "geocode",
     "line_spacing_m",
-    "mask_oversample",
     "nominal_cell_m2",
-    "terrain_flattening",
 ]

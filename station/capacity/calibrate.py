@@ -150,7 +150,8 @@ def calibrate() -> dict[str, Any]:
 def sar_gtc_s_per_frame(n: int = 600) -> float:
     """Seconds to geocode one full ERS-1 frame over a DEM (GTC with its masks), from a
     reduced ``n`` × ``n`` frame (module docstring)."""
-    from levels.sar import frame_grid, geocode
+    from levels.sar import frame_grid
+    from levels.sar.geocoding import geocode
     from station.spacecraft.dem import world_dem
     from station.spacecraft.sar import ErsFrame, emulate_frame
     from station.spacecraft.world import World
