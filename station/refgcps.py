@@ -70,8 +70,8 @@ def gcps_from_reference(
     prints (and the run reports)."""
     from levels.process import geo_pass
     from levels.readers.dem import read_dem
+    from levels.readers.formats import open_archive
     from levels.readers.gcp import write_gcps
-    from levels.readers.scene1a import open_archive
     from levels.reference import raw_images, read_reference, reference_control_points
 
     archive = open_archive(source)

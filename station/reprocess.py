@@ -27,9 +27,9 @@ from levels.process import (
     process,
     run_plans,
 )
+from levels.readers.formats import open_archive
 from levels.readers.gcp import read_gcps
 from levels.readers.l0 import L0Archive, read_l0
-from levels.readers.scene1a import open_archive
 from levels.tasks import Runner
 from levels.work import Result
 from station.chain.gcps import measured_control_points

@@ -347,7 +347,7 @@ def _the_frame_file_alone_makes_the_runs_products(scn, run: Path, out: Path) -> 
     from levels.compare import compare_products
     from levels.frame import process_frame
     from levels.readers.dem import read_dem
-    from levels.readers.sar import open_frame
+    from levels.readers.formats import open_frame
     from station.cli import main
     from station.run_sar import frame_options, scenario_provenance
 

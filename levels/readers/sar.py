@@ -40,9 +40,7 @@ __all__ = [
     "HouseFrame",
     "ImageFrame",
     "SarFrame",
-    "is_frame_file",
     "is_sar_frame",
-    "open_frame",
     "read_sar_frame",
 ]
 
@@ -179,20 +177,3 @@ def read_sar_frame(path: str | Path) -> HouseFrame:
         )
         sar = SarImage(annotation, intensity)
         return HouseFrame(str(attrs["name"]), str(attrs["instrument"]), sar, where)
-
-
-def is_frame_file(path: str | Path) -> bool:
-    """Whether ``path`` is a SAR frame :func:`open_frame` reads: a house frame file or an
-    ERS (ASAR) frame of ESA's ENVISAT format (:mod:`levels.readers.envisat`)."""
-    from levels.readers.envisat import is_envisat
-
-    p = Path(path)
-    return (p.suffix == ".h5" and is_sar_frame(p)) or is_envisat(p)
-
-
-def open_frame(path: str | Path) -> SarFrame:
-    """The SAR frame in ``path``: ESA's ENVISAT format (``.E1``, ``.E2``, …) or the house
-    file."""
-    from levels.readers.envisat import is_envisat, read_envisat
-
-    return read_envisat(path) if is_envisat(path) else read_sar_frame(path)

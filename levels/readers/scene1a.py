@@ -50,9 +50,9 @@ from numpy.typing import NDArray
 
 from levels.choices import Level
 from levels.errors import DimapError
-from levels.readers.bounded import gdal_image_alone, refuse_broken_zip
+from levels.readers.bounded import gdal_image_alone
 from levels.readers.dimap import AttitudeChoice, DimapScene, dimap_member, read_dimap
-from levels.readers.l0 import L0Archive, L0Band, read_l0
+from levels.readers.l0 import L0Archive, L0Band
 from levels.spot import MODES
 
 __all__ = [
@@ -60,7 +60,6 @@ __all__ = [
     "TiffRows",
     "band_names_of",
     "is_dimap_scene",
-    "open_archive",
     "read_scene_1a",
 ]
 
@@ -310,10 +309,3 @@ def _provenance(
         "attitude": scene.auto_attitude if attitude == "auto" else attitude,
         "radiance": radiance,
     }
-
-
-def open_archive(path: str | Path) -> L0Archive:
-    """What the processing centre reads a pass from: an L0 archive (read lazily,
-    :func:`~levels.readers.l0.read_l0`) or a DIMAP level-1A scene (:func:`read_scene_1a`)."""
-    refuse_broken_zip(Path(path), DimapError)  # not "not a readable HDF5 file"
-    return read_scene_1a(path) if is_dimap_scene(path) else read_l0(path, lazy=True)

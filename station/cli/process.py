@@ -256,7 +256,7 @@ def _recorded_cut(sources: list[Path]) -> Any:
     archives cut them (``L0Archive.scene_cut``), so that a reprocessing makes the run's
     scenes; the library's default for archives that do not say, or say differently."""
     from levels.options import ProcessingOptions
-    from levels.readers.scene1a import open_archive
+    from levels.readers.formats import open_archive
 
     cuts = [open_archive(s).scene_cut for s in sources]
     if not cuts or not cuts[0] or any(c != cuts[0] for c in cuts):
@@ -330,7 +330,7 @@ def _reference_points(
 
 
 def _is_frame(path: Path) -> bool:
-    from levels.readers.sar import is_frame_file
+    from levels.readers.formats import is_frame_file
 
     return is_frame_file(path)
 
@@ -343,7 +343,7 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
     from levels.files import write_json
     from levels.frame import FrameOptions, margin_of_dem, process_frame
     from levels.readers.dem import read_dem
-    from levels.readers.sar import open_frame
+    from levels.readers.formats import open_frame
     from levels.sar import frame_grid
     from station.catalog import write_catalog
     from station.loader import load_sar
@@ -537,8 +537,8 @@ def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace,
     its first scene: read here too, they would be read twice)."""
     from levels.makers.base import Need
     from levels.process import nominal_pixel_size_m, pass_dem, plan_levels
+    from levels.readers.formats import open_archive
     from levels.readers.gcp import read_gcps
-    from levels.readers.scene1a import open_archive
     from station.preflight import check_needs, scene_needs
     from station.reprocess import gcps_beside, run_dem
 
