@@ -20,6 +20,7 @@ from levels.export import write_geotiff
 from levels.frame import FrameOptions, process_frame
 from levels.inspect import product_summary, summary_text
 from levels.kinds import BandSpec, Export, ProductKind, Unit
+from levels.makers.scene import register_level
 from levels.options import ProcessingOptions
 from levels.process import PassProducts, ProcessingRequest, process
 from levels.products import Product, read_product, write_product
@@ -28,7 +29,7 @@ from levels.readers.dimap import read_dimap
 from levels.readers.gcp import read_gcps, write_gcps
 from levels.readers.l0 import read_l0
 from levels.readers.sar import SarFrame, read_sar_frame
-from levels.registry import kind, kind_names, register_kind, register_level
+from levels.registry import kind, kind_names, register_kind
 
 __all__ = [
     "BandSpec",

@@ -48,13 +48,13 @@ from levels.geo.coverage import check_coverage
 from levels.geo.scenes import PassGeometry, SceneCut, SceneGeometry, cut_scenes, pass_geometry
 from levels.geometry.sensor import LookAngleTable
 from levels.makers.base import BandPixels, LevelMaker, Need, PassContext, Reads, SceneWork
+from levels.makers.scene import level_maker
 from levels.options import ProcessingOptions
 from levels.products import Product, product_name, write_product
 from levels.quality import CheckpointSource, scalar_figures
 from levels.readers.dem import Dem, read_dem
 from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
-from levels.registry import level_maker
 from levels.spot import ORBIT_ALTITUDE_M
 from levels.tasks import InProcess, Runner, TaskFailure, raise_first
 from levels.threads import one_blas_thread

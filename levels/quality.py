@@ -26,7 +26,6 @@ __all__ = [
     "Headline",
     "error_stats",
     "image_shift_px",
-    "raw_error_stats",
     "scalar_figures",
 ]
 
@@ -56,20 +55,6 @@ def error_stats(
     for key in ("mean_m", "rms_m", "max_m"):
         out[key.replace("_m", "_px")] = out[key] / pixel_size_m
     return out
-
-
-def raw_error_stats(dl: NDArray[np.float64], dc: NDArray[np.float64]) -> dict[str, float]:
-    """Max and RMS of line, column and total errors (pixels), and how many points."""
-    d = np.hypot(dl, dc)
-    if d.size == 0:
-        return {"n_points": 0}
-    return {
-        "n_points": int(d.size),
-        "max_px": float(d.max()),
-        "rms_px": float(np.sqrt(np.mean(d * d))),
-        "max_line_px": float(np.abs(dl).max()),
-        "max_column_px": float(np.abs(dc).max()),
-    }
 
 
 def scalar_figures(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:

@@ -4,8 +4,9 @@ A kind is declared once (:class:`levels.kinds.ProductKind`), in the module that 
 the built-in kinds are the entries of :data:`BUILT_IN` below: the scene levels in processing
 order, then the stereo pair's DEM and the SAR frame's GEC and GTC. A kind made elsewhere (a
 user's module, a test) is added with :func:`register_kind`, and a scene level with
-:func:`register_level` (its :class:`~levels.makers.base.LevelMaker` alone: the kind's other
-declarations take their defaults); either is then a choice of ``[processing] levels`` like
+:func:`levels.makers.scene.register_level` (its :class:`~levels.makers.base.LevelMaker`
+alone: the kind's other declarations take their defaults); either is then a choice of
+``[processing] levels`` like
 the others, planned and made by the driver (:mod:`levels.process`) without a change.
 
 This module sits low in the tree (the options check level names against it, the product
@@ -19,10 +20,9 @@ import importlib
 from typing import TYPE_CHECKING
 
 from levels.choices import Level
-from levels.kinds import Export, Inspection, ProductKind, Unit
+from levels.kinds import ProductKind, Unit
 
 if TYPE_CHECKING:
-    from levels.makers.base import LevelMaker
     from levels.products import Product
 
 __all__ = [
@@ -30,12 +30,9 @@ __all__ = [
     "kind",
     "kind_names",
     "kind_of",
-    "level_maker",
     "level_names",
     "register_kind",
-    "register_level",
     "unregister_kind",
-    "unregister_level",
 ]
 
 #: The built-in kinds and where each is declared (``module:attribute``), the scene levels
@@ -103,42 +100,3 @@ def level_names() -> tuple[str, ...]:
     of passes (made from archives; a SAR frame's are not), the built-in ones, then those
     registered."""
     return tuple(n for n in kind_names() if kind(n).unit in (Unit.SCENE, Unit.PAIR))
-
-
-def level_maker(name: str) -> LevelMaker:
-    """The maker of scene level ``name``; :class:`KeyError` naming the known levels if
-    none."""
-    if name not in kind_names(Unit.SCENE):
-        raise KeyError(f"no level {name!r}; known: {', '.join(kind_names(Unit.SCENE))}")
-    maker: LevelMaker = kind(name).maker
-    return maker
-
-
-def _plain_inspection(product: Product) -> Inspection:
-    a = product.attrs
-    return Inspection(f"level {a.get('level')} of {a.get('name')} scene {a.get('scene_index')}")
-
-
-def register_level(maker: LevelMaker) -> None:
-    """Add a scene level made by ``maker`` (its ``name`` must be new): a kind of unit
-    :attr:`Unit.SCENE`, not exported, its other declarations the defaults."""
-    from levels.makers.base import no_map_grid
-
-    register_kind(
-        ProductKind(
-            name=maker.name,
-            doc=maker.doc,
-            unit=Unit.SCENE,
-            on_map=maker.map_grid is not no_map_grid,
-            geometry_trees=("scene",),
-            export=Export.NONE,
-            inspect=_plain_inspection,
-            requires=maker.requires,
-            maker=maker,
-        )
-    )
-
-
-def unregister_level(name: str) -> None:
-    """Remove a level added by :func:`register_level` (the built-in ones stay)."""
-    unregister_kind(name)

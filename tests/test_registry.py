@@ -13,11 +13,12 @@ import pytest
 from levels.choices import Level
 from levels.errors import OptionsError
 from levels.makers.base import BandPixels, LevelMaker, Reads, SceneWork
+from levels.makers.scene import register_level, unregister_level
 from levels.makers.steps import common_tree
 from levels.options import ProcessingOptions
 from levels.process import plan_levels
 from levels.products import BandImage, read_product
-from levels.registry import level_names, register_level, unregister_level
+from levels.registry import level_names
 from station.cli import main
 
 

@@ -29,10 +29,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from levels.errors import GeometryError, ProductError
+from levels.geo.misfit import raw_error_stats
 from levels.geo.polynomial import Poly1D
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
-from levels.quality import raw_error_stats
 from levels.threads import one_blas_thread
 
 __all__ = ["N_BREAKPOINTS", "Level1BGeometry", "TangentPlane", "level1b_geometry", "raw_border"]

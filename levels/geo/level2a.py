@@ -44,11 +44,11 @@ from levels.geo.inverse_grid import (
 )
 from levels.geo.level1b import N_BREAKPOINTS
 from levels.geo.maps import MapGrid, map_crs
+from levels.geo.misfit import raw_error_stats
 from levels.geo.polynomial import Poly2D
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.model import PushbroomModel
 from levels.geometry.sensor import butting_columns
-from levels.quality import raw_error_stats
 from levels.threads import one_blas_thread
 
 __all__ = [

@@ -47,10 +47,10 @@ from levels.errors import DemError, GeometryError, ProductError
 from levels.geo.inverse_grid import bilinear_grid, invert_by_newton
 from levels.geo.level2a import Level2AGeometry, level2a_geometry
 from levels.geo.maps import MapGrid
+from levels.geo.misfit import raw_error_stats
 from levels.geo.scenes import SceneGeometry
 from levels.geometry.dem import Dem, bilinear_surface, geoid_to_ellipsoid
 from levels.geometry.sensor import butting_columns
-from levels.quality import raw_error_stats
 from levels.threads import one_blas_thread
 
 __all__ = [

@@ -11,8 +11,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from levels.kinds import Export, Figure, Inspection, ProductKind, Unit
-from levels.makers.base import no_map_grid
+from levels.makers.base import LevelMaker, no_map_grid
 from levels.quality import Headline
+from levels.registry import kind, kind_names, register_kind, unregister_kind
 
 if TYPE_CHECKING:
     from levels.makers.base import LevelMaker
@@ -23,9 +24,12 @@ __all__ = [
     "Section",
     "adjustment_section",
     "dem_section",
+    "level_maker",
     "plane_section",
+    "register_level",
     "rpc_section",
     "scene_kind",
+    "unregister_level",
 ]
 
 #: A section of ``inspect``: its JSON sections and its lines of text.
@@ -229,3 +233,40 @@ def scene_kind(
         maker=maker,
         counts_fill=counts_fill,
     )
+
+
+def level_maker(name: str) -> LevelMaker:
+    """The maker of scene level ``name``; :class:`KeyError` naming the known levels if
+    none."""
+    if name not in kind_names(Unit.SCENE):
+        raise KeyError(f"no level {name!r}; known: {', '.join(kind_names(Unit.SCENE))}")
+    maker: LevelMaker = kind(name).maker
+    return maker
+
+
+def _plain_inspection(product: Product) -> Inspection:
+    a = product.attrs
+    return Inspection(f"level {a.get('level')} of {a.get('name')} scene {a.get('scene_index')}")
+
+
+def register_level(maker: LevelMaker) -> None:
+    """Add a scene level made by ``maker`` (its ``name`` must be new): a kind of unit
+    :attr:`Unit.SCENE`, not exported, its other declarations the defaults."""
+    register_kind(
+        ProductKind(
+            name=maker.name,
+            doc=maker.doc,
+            unit=Unit.SCENE,
+            on_map=maker.map_grid is not no_map_grid,
+            geometry_trees=("scene",),
+            export=Export.NONE,
+            inspect=_plain_inspection,
+            requires=maker.requires,
+            maker=maker,
+        )
+    )
+
+
+def unregister_level(name: str) -> None:
+    """Remove a level added by :func:`register_level` (the built-in ones stay)."""
+    unregister_kind(name)
