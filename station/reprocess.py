@@ -31,14 +31,16 @@ from levels.readers.formats import open_archive
 from levels.readers.gcp import read_gcps
 from levels.readers.l0 import L0Archive, read_l0
 from levels.tasks import Runner
-from levels.work import Result
+from levels.work import Request, Result
 from station.chain.gcps import measured_control_points
 from station.scenario import Scenario
 from station.spacecraft.emulator import Acquisition, emulate
+from station.truth.measure import StationTruth
 from station.truth.optical import truth_for
 
 __all__ = [
     "PACK_POINTS",
+    "block_request",
     "gcps_beside",
     "l0_stem",
     "plan_reprocess",
@@ -271,17 +273,35 @@ def reprocess_block(
     names: Sequence[str] | None = None,
     gcps: Sequence[str | Path] | None = None,
     runner: Runner | None = None,
-    made_in: Sequence[Path] | None = None,
 ) -> Result:
     """Several recorded passes over one ground, to the kinds of a pair (a stereo DEM), as
-    one request of :mod:`levels.work`: each pass's scene levels into ``<out>/<name>/``
-    (2A for the tie points, 1A for a pair: its scenario's own ``[processing]`` when given,
-    as its run made them; or taken from ``made_in``, a run's passes), then the tie points,
-    the block's level 2, the pair's products and level 3 over the pair's DEM into
-    ``<out>/ties``, ``block`` and ``stereo``. With the scenarios (one per archive), every
-    product is measured against their truth and is the run's, bit for bit."""
-    from levels.work import Pass, Request, plan, run
-    from station.truth.measure import StationTruth
+    one request of :mod:`levels.work` (:func:`block_request`), made."""
+    from levels.work import plan, run
+
+    request, truth = block_request(
+        l0_paths, out_dir, options=options, scenarios=scenarios, names=names, gcps=gcps
+    )
+    return run(plan(request), runner, truth)
+
+
+def block_request(
+    l0_paths: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    options: ProcessingOptions,
+    scenarios: Sequence[Scenario | None] | None = None,
+    names: Sequence[str] | None = None,
+    gcps: Sequence[str | Path] | None = None,
+    made_in: Sequence[Path] | None = None,
+) -> tuple[Request, StationTruth]:
+    """Several recorded passes over one ground as one request of :mod:`levels.work`, and
+    their truth: each pass's scene levels into ``<out>/<name>/`` (2A for the tie points, 1A
+    for a pair: its scenario's own ``[processing]`` when given, as its run made them; or
+    taken from ``made_in``, a run's passes), then the tie points, the block's level 2, the
+    pair's products and level 3 over the pair's DEM into ``<out>/ties``, ``block`` and
+    ``stereo``. With the scenarios (one per archive), every product is measured against
+    their truth and is the run's, bit for bit."""
+    from levels.work import Pass
 
     paths = [Path(p) for p in l0_paths]
     out = Path(out_dir)
@@ -307,5 +327,4 @@ def reprocess_block(
         )
         for k, (a, n, w, s) in enumerate(zip(archives, names, where, per, strict=True))
     )
-    work = plan(Request(options, out, passes))
-    return run(work, runner, StationTruth(truths, names))
+    return Request(options, out, passes), StationTruth(truths, names)

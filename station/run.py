@@ -26,6 +26,7 @@ with the same scenario and seed give identical products and the same report
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import time
@@ -33,16 +34,19 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from levels.files import json_default, write_json
+from levels.files import json_default
 from levels.products import read_product
 from levels.tasks import Runner
 from levels.threads import in_threads
-from levels.work import Result, Step
+from levels.work import Made, Measure, Pass, Request, Result, Step
+from station.catalog import CATALOG_FILE
+from station.flow import FlowRun, make_flow, run_flow
 from station.loader import BlockScenario
-from station.outdir import published_dir, replaceable_dir
+from station.outdir import replaceable_dir
 from station.reports import BLOCK_RUN, PASS_RUN
 from station.scenario import Scenario
 from station.tables import product_table
+from station.truth.measure import StationTruth
 
 __all__ = [
     "check_run",
@@ -76,74 +80,113 @@ def run_scenario(
     the pass is emulated and received (:mod:`levels.warmup`; what ``station run`` does).
 
     The run is built in a staging directory beside ``out_dir`` and replaces it whole only
-    when complete (:func:`levels.files.staged_dir`): a failure leaves the previous run as
-    it was.
+    when complete (:func:`station.flow.run_flow`): a failure leaves the previous run as it
+    was.
     """
-    out = prepare_run_dir(out_dir, scn.name, scn.inputs())
-    check_run(scn, out)
-    with published_dir(out) as stage:  # the previous run stays whole until this one is
-        return _run(scn, stage, quicklooks, progress, runner, warm_up)
+    flow = PassRun(scn, warm_up)
+    return run_flow(flow, out_dir, quicklooks=quicklooks, progress=progress, runner=runner)
 
 
-def _run(
-    scn: Scenario,
-    out: Path,
-    quicklooks: bool,
-    progress: bool,
-    runner: Runner | None,
-    warm_up: bool,
-) -> dict[str, Any]:
-    """:func:`run_scenario` into ``out`` (its staging directory): the pass emulated and
-    received, GEO and COR, the products' rows (and quicklooks), the catalogue, the report."""
-    from tqdm import tqdm
+class PassRun:
+    """The flow of ``station run`` of a pass (:class:`station.flow.Flow`): the pass
+    emulated and received, GEO and COR, the products' rows, the report."""
 
-    from station.catalog import CATALOG_FILE, write_catalog
+    report = PASS_RUN
 
-    clock = time.perf_counter
-    timings: dict[str, Any] = {}
-    t_start = clock()
-    stages = tqdm(
-        total=1 + 3 * len(scn.instruments) + quicklooks,
-        desc="emulate",
-        unit="stage",
-        disable=not progress,
-        leave=False,
-    )
-    acqs, received, tags, options = _emulate_and_receive(scn, out, warm_up, timings, stages)
-    passes = _process(acqs, received, tags, options, timings, stages, progress, runner)
-    hrvs, made = [], []
-    for acq, rec, products in zip(acqs, received, passes, strict=True):
-        hrvs.append(_section(acq, rec, products))
-        made += [(acq.hrv.number, s) for s in products.scenes]
-    t = clock()
-    rows = in_threads(
-        lambda job: _product_row(job[0], job[1], job[2], job[3], out, quicklooks),
-        [(hrv, s, level, path) for hrv, s in made for level, path in s.paths.items()],
-    )
-    if quicklooks:
-        timings["quicklooks"] = clock() - t
-        _log.info("quicklooks drawn in %.1f s", timings["quicklooks"])
-        stages.update()
-    stages.set_description("report")
-    t = clock()
-    write_catalog(out, scn.name, f"the products of a run of scenario {scn.name} (spot-station)")
-    timings["catalog"] = clock() - t
-    timings["total"] = clock() - t_start
-    report = {
-        **PASS_RUN.header(scenario=scenario_entry(scn)),
-        "hrvs": hrvs,
-        **(
-            {"dem": {"file": f"{scn.name}.dem.tif", **asdict(scn.dem)}}
-            if scn.dem is not None
-            else {}
-        ),
-        "products": rows,
-        "catalog": CATALOG_FILE,
-        "timings_s": _rounded(timings),
-    }
-    write_json(out / "report.json", report)
-    stages.close()
-    return report
+    def __init__(self, scn: Scenario, warm_up: bool = False) -> None:
+        self.scn, self.warm_up = scn, warm_up
+        self._received: list[_Received] = []
+        self._acqs: list[Any] = []
+        self._truth: StationTruth | None = None
+        self._bar: Any = None
+
+    @property
+    def owner(self) -> object:
+        return self.scn.name
+
+    def owner_of(self, report: dict[str, Any]) -> object:
+        return report["scenario"]["name"]
+
+    def what(self, owner: object) -> str:
+        return f"a run of scenario {owner!r}"
+
+    def inputs(self) -> list[Path]:
+        return self.scn.inputs()
+
+    def check(self, out: Path) -> None:
+        check_run(self.scn, out)
+
+    def catalog(self) -> tuple[str, str]:
+        name = self.scn.name
+        return name, f"the products of a run of scenario {name} (spot-station)"
+
+    def measure(self) -> Measure:
+        assert self._truth is not None  # acquired first
+        return self._truth
+
+    def acquire(self, stage: Path, state: FlowRun) -> Request:
+        """The pass emulated, its DEM exported, each HRV's channel and L0 archive."""
+        from tqdm import tqdm
+
+        scn = self.scn
+        self._bar = tqdm(
+            total=1 + 3 * len(scn.instruments) + state.quicklooks,
+            desc="emulate",
+            unit="stage",
+            disable=not state.progress,
+            leave=False,
+        )
+        acqs, received, tags, options = _emulate_and_receive(
+            scn, stage, self.warm_up, state.timings, self._bar
+        )
+        self._acqs, self._received = list(acqs), received
+        self._truth = StationTruth({t: r.truth for t, r in zip(tags, received, strict=True)})
+        self._bar.set_description("GEO and COR")
+        scenes = tqdm(desc="scenes", unit="scene", disable=not state.progress, leave=False)
+
+        def on_scene(_done: Any, total: int) -> None:
+            scenes.total = total
+            scenes.update()
+
+        state.on_scene = on_scene
+        archives = tuple(r.archive for r in received)
+        gcps = tuple(r.gcps for r in received)
+        return Request(
+            options, stage, (Pass(archives, tuple(tags), gcps),), provenance=scn.provenance()
+        )
+
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+        timings, scn = state.timings, self.scn
+        self._bar.update(2)
+        passes = [d for d in result.passes if d.step is Step.SCENES]
+        cor = timings.setdefault("cor", {})
+        for done in passes:
+            timings["geo"] = timings.get("geo", 0.0) + done.products.timings_s["geo"]
+            for s in done.products.scenes:
+                for k, v in s.timings_s.items():
+                    cor[k] = cor.get(k, 0.0) + v
+        hrv_of = {d.name: a.hrv.number for d, a in zip(passes, self._acqs, strict=True)}
+        hrvs = [
+            _section(a, r, d.products)
+            for a, r, d in zip(self._acqs, self._received, passes, strict=True)
+        ]
+        rows = in_threads(
+            lambda m: _product_row(hrv_of[m.key], m, state.drawn.get(m.path), stage),
+            result.of(Step.SCENES),
+        )
+        self._bar.close()
+        return {
+            "header": {"scenario": scenario_entry(scn)},
+            "hrvs": hrvs,
+            **(
+                {"dem": {"file": f"{scn.name}.dem.tif", **asdict(scn.dem)}}
+                if scn.dem is not None
+                else {}
+            ),
+            "products": rows,
+            "catalog": CATALOG_FILE,
+            "timings_s": _rounded(timings),
+        }
 
 
 def _emulate_and_receive(
@@ -190,30 +233,27 @@ def _emulate_and_receive(
     return acqs, received, tags, options
 
 
-def _product_row(
-    hrv: int, s: Any, level: str, path: Path, out: Path, quicklooks: bool
-) -> dict[str, Any]:
-    """What a run's report says of one product (its quicklook drawn if asked)."""
-    from levels.quicklook import write_quicklook
-
-    p = read_product(path)
+def _product_row(hrv: int, m: Made, quicklook: Path | None, out: Path) -> dict[str, Any]:
+    """What a run's report says of one product (and its quicklook, when drawn)."""
+    p = read_product(m.path, images=False)
+    assert m.scene is not None  # a scene's level
+    index, first_line, n_lines = m.scene
     row: dict[str, Any] = {
         "hrv": hrv,
-        "scene": s.index,
-        "level": level,
-        "first_line": s.first_line,
-        "n_lines": s.n_lines,
-        "file": path.name,
+        "scene": index,
+        "level": m.kind,
+        "first_line": first_line,
+        "n_lines": n_lines,
+        "file": m.path.name,
         "n_rows": p.attrs["n_rows"],
         "n_cols": p.attrs["n_cols"],
         "bands": list(p.bands),
         "valid_fraction": {b: round(float(im.valid.mean()), 6) for b, im in p.bands.items()},
-        "size_mb": round(path.stat().st_size / 1e6, 3),
-        "quality": s.quality[level],
+        "size_mb": round(m.path.stat().st_size / 1e6, 3),
+        "quality": dict(m.quality),
     }
-    if quicklooks:
-        ql = write_quicklook(p, out / "quicklooks" / f"{path.stem}.png")
-        row["quicklook"] = str(ql.relative_to(out))
+    if quicklook is not None:
+        row["quicklook"] = str(quicklook.relative_to(out))
     return row
 
 
@@ -307,51 +347,6 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
         gcps = read_gcps(gcps_path, archive.n_lines, archive.n_columns)
         timings["gcps_found"] = timings.get("gcps_found", 0.0) + clock() - t
     return _Received(l0, archive, decode, truth, gcps, gcps_path, found)
-
-
-def _process(
-    acqs: Any,
-    received: list[_Received],
-    tags: list[str],
-    options: Any,
-    timings: dict[str, Any],
-    stages: Any,
-    progress: bool,
-    runner: Runner | None,
-) -> list[Any]:
-    """GEO and COR of every HRV of the pass (``levels.process.process``: a twin pass's
-    HRVs adjusted together when the scenario asks); adds the wall times to ``timings``."""
-    from tqdm import tqdm
-
-    from levels.process import ProcessingRequest, process
-
-    scn = acqs[0].scenario
-    stages.set_description("GEO and COR")
-    scenes = tqdm(desc="scenes", unit="scene", disable=not progress, leave=False)
-
-    def on_scene(_done: Any, total: int) -> None:
-        scenes.total = total
-        scenes.update()
-
-    request = ProcessingRequest(
-        tuple(r.archive for r in received),
-        options,
-        received[0].l0.parent,
-        tuple(tags),
-        checkpoints=tuple(r.truth for r in received),
-        gcps=tuple(r.gcps for r in received),
-        provenance=scn.provenance(),
-    )
-    passes = process(request, runner, on_scene)
-    scenes.close()
-    cor = timings.setdefault("cor", {})
-    for products in passes:
-        timings["geo"] = timings.get("geo", 0.0) + products.timings_s["geo"]
-        for s in products.scenes:
-            for k, v in s.timings_s.items():
-                cor[k] = cor.get(k, 0.0) + v
-    stages.update(2 * len(passes))
-    return passes
 
 
 def _section(acq: Any, rec: _Received, products: Any) -> dict[str, Any]:
@@ -563,26 +558,80 @@ def run_block(
     each pass as ``station run`` runs one (``<out>/<pass>/``); the tie points between every
     two passes whose 2A scenes overlap (:mod:`levels.tiepoints`, ``<out>/ties/``); then, with
     level 2 asked and ``adjustment = "block"``, every pass's level 2 on one adjustment
-    (``<out>/block/``, checkpoints against each pass's truth). Published whole, as a run."""
+    (``<out>/block/``, checkpoints against each pass's truth), the pair's DEM and level 3
+    over it. Published whole, as a run."""
+    flow = BlockRun(blk)
+    return run_flow(flow, out_dir, quicklooks=quicklooks, progress=progress, runner=runner)
 
-    from station.catalog import write_catalog
 
-    name, scns, processing = blk.name, list(blk.passes), blk.processing
-    out = prepare_run_dir(out_dir, name, blk.inputs())
-    for s in scns:
-        check_run(s, out)
-    t0 = time.perf_counter()
-    with published_dir(out) as stage:
-        reports = []
+class BlockRun:
+    """The flow of ``station run`` of a block (:class:`station.flow.Flow`): each pass's
+    flow in its own directory, then the block's request (:mod:`levels.work`) on them."""
+
+    report = BLOCK_RUN
+
+    def __init__(self, blk: BlockScenario) -> None:
+        self.blk = blk
+        self._reports: list[dict[str, Any]] = []
+        self._truth: StationTruth | None = None
+
+    @property
+    def owner(self) -> object:
+        return self.blk.name
+
+    def owner_of(self, report: dict[str, Any]) -> object:
+        return report["scenario"]["name"]
+
+    def what(self, owner: object) -> str:
+        return f"a run of scenario {owner!r}"
+
+    def inputs(self) -> list[Path]:
+        return self.blk.inputs()
+
+    def check(self, out: Path) -> None:
+        for s in self.blk.passes:
+            check_run(s, out)
+
+    def catalog(self) -> tuple[str, str]:
+        name = self.blk.name
+        return name, f"the products of a block run of {name} (spot-station)"
+
+    def measure(self) -> Measure:
+        assert self._truth is not None  # acquired first
+        return self._truth
+
+    def acquire(self, stage: Path, state: FlowRun) -> Request:
+        """Each pass run as a pass's flow in ``<stage>/<pass>/``, the first pass's control
+        points shared; the block's request on their archives."""
+        from station.reprocess import block_request
+
+        name, scns, processing = self.blk.name, list(self.blk.passes), self.blk.processing
         for k, s in enumerate(scns, start=1):
             _log.info("block %s: pass %d of %d, %s", name, k, len(scns), s.name)
             (stage / s.name).mkdir()
-            reports.append(_run(s, stage / s.name, quicklooks, progress, runner, False))
+            mine = FlowRun(state.quicklooks, state.progress, state.runner)
+            self._reports.append(make_flow(PassRun(s), stage / s.name, mine))
         if scns[0].gcps.shared:
             _share_control_points(stage, scns)
-        done = _block(stage, scns, processing, runner, name)
+        opts = processing
+        if processing.adjustment != "block":  # each pass's own adjustment: the ties alone
+            opts = dataclasses.replace(opts, levels=("2A",), stereo=False)
+        _log.info("block %s: tie points, level 2 and the pair's products", name)
+        request, self._truth = block_request(
+            [stage / s.name / f"{s.name}.l0.h5" for s in scns],
+            stage,
+            options=opts,
+            scenarios=scns,
+            names=[s.name for s in scns],
+            gcps=[stage / s.name / f"{s.name}.gcp.csv" for s in scns],
+            made_in=[stage / s.name for s in scns],
+        )
+        return request
+
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+        scns = list(self.blk.passes)
         block, stereo = {}, {}
-        if done.of(Step.LEVEL2):
+        if result.of(Step.LEVEL2):
             block = {
                 "products": [
                     {
@@ -592,11 +641,11 @@ def run_block(
                         "quality": sc.quality[level],
                     }
                     for s in scns
-                    for sc in done.pass_products(s.name, Step.LEVEL2, Step.OVER_PAIR).scenes
+                    for sc in result.pass_products(s.name, Step.LEVEL2, Step.OVER_PAIR).scenes
                     for level, p in sc.paths.items()
                 ],
             }
-        if processing.stereo:
+        if self.blk.processing.stereo:
             stereo = {
                 "dems": [
                     {
@@ -605,72 +654,22 @@ def run_block(
                         "quality": p.quality,
                         "timings_s": {k: round(v, 4) for k, v in p.timings_s.items()},
                     }
-                    for p in done.of(Step.PAIR)
+                    for p in result.of(Step.PAIR)
                 ]
             }
-        ties = dict(done.ties) or {"pairs": []}
-        if quicklooks:
-            _quicklooks(stage, ("block", "stereo"))
-        report = {
-            **BLOCK_RUN.header(
-                scenario={
-                    "name": name,
-                    "file": Path(blk.source).name,
-                    "passes": [s.name for s in scns],
-                }
-            ),
-            "passes": reports,
-            "ties": ties,
+        header = {
+            "name": self.blk.name,
+            "file": Path(self.blk.source).name,
+            "passes": [s.name for s in scns],
+        }
+        return {
+            "header": {"scenario": header},
+            "passes": self._reports,
+            "ties": dict(result.ties) or {"pairs": []},
             "block": block,
             **({"stereo": stereo} if stereo else {}),
-            "timings_s": {"total": round(time.perf_counter() - t0, 3)},
+            "timings_s": {"total": round(state.timings["total"], 3)},
         }
-        write_json(stage / "report.json", report)
-        write_catalog(stage, name, f"the products of a block run of {name} (spot-station)")
-    return report
-
-
-def _block(
-    stage: Path, scns: list[Scenario], processing: Any, runner: Runner | None, name: str
-) -> Result:
-    """The block's tie points, level 2 and 3 and the pair's DEM (:mod:`levels.work`) on the
-    passes' runs in ``stage`` (their scene levels taken as made), measured against each
-    pass's truth."""
-    import dataclasses
-
-    from station.reprocess import reprocess_block
-
-    opts = processing
-    if processing.adjustment != "block":  # each pass's own adjustment: the ties alone
-        opts = dataclasses.replace(opts, levels=("2A",), stereo=False)
-    _log.info("block %s: tie points, level 2 and the pair's products", name)
-    return reprocess_block(
-        [stage / s.name / f"{s.name}.l0.h5" for s in scns],
-        stage,
-        options=opts,
-        scenarios=scns,
-        names=[s.name for s in scns],
-        gcps=[stage / s.name / f"{s.name}.gcp.csv" for s in scns],
-        runner=runner,
-        made_in=[stage / s.name for s in scns],
-    )
-
-
-def _quicklooks(stage: Path, subdirs: tuple[str, ...]) -> None:
-    """A quicklook of every product in ``subdirs`` of a run, in ``<subdir>/quicklooks/``."""
-    from levels.products import is_product_file
-    from levels.quicklook import write_quicklook
-
-    paths = [
-        path
-        for sub in subdirs
-        for path in (sorted((stage / sub).glob("*")) if (stage / sub).is_dir() else [])
-        if is_product_file(path)
-    ]
-    in_threads(
-        lambda p: write_quicklook(read_product(p), p.parent / "quicklooks" / f"{p.stem}.png"),
-        paths,
-    )
 
 
 def _share_control_points(stage: Path, scns: list[Scenario]) -> None:

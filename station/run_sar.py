@@ -264,70 +264,78 @@ def run_sar(scn: SarScenario, out_dir: str | Path, *, quicklooks: bool = False) 
     """Run a SAR scenario into ``out_dir`` (module docstring); returns the report (also in
     ``report.json``). Built in a staging directory that replaces ``out_dir`` only when
     complete: a failure leaves the previous run as it was."""
-    from station.outdir import published_dir
-    from station.run import prepare_run_dir
+    from station.flow import run_flow
 
-    out = prepare_run_dir(out_dir, scn.name, scn.inputs())
-    for p in scn.inputs():
-        if not p.is_file():
-            raise ScenarioError(f"{scn.name}: {p} not found")
-    with published_dir(out) as stage:
-        return _run(scn, stage, quicklooks)
+    return run_flow(SarRun(scn), out_dir, quicklooks=quicklooks)
 
 
-def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
-    from levels.files import write_json
-    from levels.frame import process_frame
-    from levels.quicklook import write_quicklook
-    from levels.readers.envisat import read_envisat
-    from levels.writers.envisat import write_envisat
-    from levels.writers.sar import write_sar_frame
-    from station.catalog import CATALOG_FILE, write_catalog
-    from station.run import scenario_entry
-    from station.spacecraft.sar import emulate_frame
+class SarRun:
+    """The flow of ``station run`` of a SAR frame (:class:`station.flow.Flow`): the frame
+    emulated, written in ESA's format and read back, its DEM exported, its products."""
 
-    clock = time.perf_counter
-    timings: dict[str, float] = {}
-    t = clock()
-    world = _world(scn)
-    image, truth = emulate_frame(_frame(scn), world)
-    timings["emulate"] = clock() - t
-    _log.info("SAR frame %s emulated in %.1f s", scn.name, timings["emulate"])
-    ann = image.annotation
-    ref = scn.reference_height_m
-    t = clock()
-    dem, dem_row = _exported_dem(scn, world, ann, out)
-    if dem is not None:
-        timings["dem_export"] = clock() - t
-    t = clock()
-    house = write_sar_frame(out / f"{scn.name}.frame.h5", image, scn.name, ERS_INSTRUMENT)
-    # processed from ESA's format (the frame quantised and annotated as ESA's products
-    # are), so that its reader is on every run's path; the house file keeps it exact
-    frame_path = write_envisat(out / f"{scn.name}.E1", image)
-    frame = read_envisat(frame_path)
-    timings["frame_file"] = clock() - t
-    made = process_frame(
-        frame,
-        frame_options(scn),
-        out,
-        dem=dem,
-        dem_source=dem_row.get("file", ""),
-        measure=_measure(scn, image, truth),
-        provenance=scenario_provenance(scn),
-    )
-    rows = []
-    for m in made:
-        for k, v in m.timings_s.items():
-            timings[f"{k}_{m.level}"] = v
-        if quicklooks:
-            write_quicklook(m.product, out / "quicklooks" / f"{m.path.stem}.png")
-        rows.append(_product_row(m))
-    t = clock()
-    write_catalog(out, scn.name, f"the products of a run of SAR scenario {scn.name} (spot-station)")
-    timings["catalog"] = clock() - t
-    report = {
-        **SAR_RUN.header(scenario=scenario_entry(scn)),
-        "frame": {
+    report = SAR_RUN
+
+    def __init__(self, scn: SarScenario) -> None:
+        self.scn = scn
+        self._truth: Any = None
+        self._frame: dict[str, Any] = {}
+        self._dem_row: dict[str, Any] = {}
+
+    @property
+    def owner(self) -> object:
+        return self.scn.name
+
+    def owner_of(self, report: dict[str, Any]) -> object:
+        return report["scenario"]["name"]
+
+    def what(self, owner: object) -> str:
+        return f"a run of scenario {owner!r}"
+
+    def inputs(self) -> list[Path]:
+        return self.scn.inputs()
+
+    def check(self, out: Path) -> None:
+        for p in self.scn.inputs():
+            if not p.is_file():
+                raise ScenarioError(f"{self.scn.name}: {p} not found")
+
+    def catalog(self) -> tuple[str, str]:
+        name = self.scn.name
+        return name, f"the products of a run of SAR scenario {name} (spot-station)"
+
+    def measure(self) -> Any:
+        return self._truth
+
+    def acquire(self, stage: Path, state: Any) -> Any:
+        """The frame emulated over the world, its DEM exported, the frame written in the
+        house format and in ESA's, and read back from ESA's (so that its reader is on every
+        run's path; the house file keeps it exact)."""
+        from levels.options import ProcessingOptions
+        from levels.readers.envisat import read_envisat
+        from levels.work import Frame, Request
+        from levels.writers.envisat import write_envisat
+        from levels.writers.sar import write_sar_frame
+        from station.spacecraft.sar import emulate_frame
+        from station.truth.measure import StationTruth
+
+        scn, clock, timings = self.scn, time.perf_counter, state.timings
+        t = clock()
+        world = _world(scn)
+        image, truth = emulate_frame(_frame(scn), world)
+        timings["emulate"] = clock() - t
+        _log.info("SAR frame %s emulated in %.1f s", scn.name, timings["emulate"])
+        ann = image.annotation
+        t = clock()
+        dem, self._dem_row = _exported_dem(scn, world, ann, stage)
+        if dem is not None:
+            timings["dem_export"] = clock() - t
+        t = clock()
+        house = write_sar_frame(stage / f"{scn.name}.frame.h5", image, scn.name, ERS_INSTRUMENT)
+        frame_path = write_envisat(stage / f"{scn.name}.E1", image)
+        frame = read_envisat(frame_path)
+        timings["frame_file"] = clock() - t
+        self._truth = StationTruth({}, frame=_measure(scn, image, truth))
+        self._frame = {
             "file": frame_path.name,
             "house_file": house.name,
             "instrument": ERS_INSTRUMENT,
@@ -339,15 +347,36 @@ def _run(scn: SarScenario, out: Path, quicklooks: bool) -> dict[str, Any]:
             "state_error_m": scn.sar.state_error_m,
             "state_bias_m": list(scn.sar.state_bias_m),
             "state_drift_m_per_s": list(scn.sar.state_drift_m_per_s),
-            "reference_height_m": ref,
-        },
-        **({"dem": dem_row} if dem_row else {}),
-        "products": rows,
-        "catalog": CATALOG_FILE,
-        "timings_s": {k: round(v, 3) for k, v in timings.items()},
-    }
-    write_json(out / "report.json", report)
-    return report
+            "reference_height_m": scn.reference_height_m,
+        }
+        return Request(
+            ProcessingOptions(),
+            stage,
+            frames=(Frame(frame),),
+            frame_options=frame_options(scn),
+            dem=dem,
+            dem_source=self._dem_row.get("file", ""),
+            provenance=scenario_provenance(scn),
+        )
+
+    def sections(self, stage: Path, result: Any, state: Any) -> dict[str, Any]:
+        from station.catalog import CATALOG_FILE
+        from station.run import scenario_entry
+
+        timings = state.timings
+        rows = []
+        for m in result.products:
+            for k, v in m.timings_s.items():
+                timings[f"{k}_{m.kind}"] = v
+            rows.append(_product_row(m))
+        return {
+            "header": {"scenario": scenario_entry(self.scn)},
+            "frame": self._frame,
+            **({"dem": self._dem_row} if self._dem_row else {}),
+            "products": rows,
+            "catalog": CATALOG_FILE,
+            "timings_s": {k: round(v, 3) for k, v in timings.items()},
+        }
 
 
 def _exported_dem(scn: SarScenario, world: Any, ann: Any, out: Path) -> tuple[Any, dict[str, Any]]:
@@ -368,19 +397,21 @@ def _exported_dem(scn: SarScenario, world: Any, ann: Any, out: Path) -> tuple[An
 
 
 def _product_row(m: Any) -> dict[str, Any]:
-    """What a SAR run's report says of a product (:class:`levels.frame.FrameMade`): its
-    size, valid share, anchors' error and the truth's figures."""
-    grid = m.geocoded.grid
+    """What a SAR run's report says of a product (a :class:`levels.work.Made`): its size,
+    valid share, anchors' error and the truth's figures."""
+    from levels.products import read_product
+
+    attrs = read_product(m.path, images=False).attrs
     return {
-        "level": m.level,
+        "level": m.kind,
         "file": m.path.name,
-        "n_rows": grid.n_rows,
-        "n_cols": grid.n_cols,
-        "pixel_size_m": grid.pixel_size_m,
-        "valid_fraction": round(float(np.isfinite(m.geocoded.intensity).mean()), 6),
+        "n_rows": int(attrs["n_rows"]),
+        "n_cols": int(attrs["n_cols"]),
+        "pixel_size_m": float(attrs["pixel_size_m"]),
+        "valid_fraction": round(float(m.quality["valid_fraction"]), 6),
         "size_mb": round(m.path.stat().st_size / 1e6, 3),
-        "anchor_error_px": m.geocoded.anchor_error,
-        "quality": {k: v for k, v in m.product.quality.items() if k in _TRUTH_KEYS},
+        "anchor_error_px": m.quality["anchor_error_px"],
+        "quality": {k: v for k, v in m.quality.items() if k in _TRUTH_KEYS},
     }
 
 
