@@ -34,7 +34,7 @@ from levels.tasks import Runner
 from levels.work import Measure, Request, Result, plan, run
 from station.reports import ReportFormat
 
-__all__ = ["Flow", "FlowRun", "make_flow", "quicklooks_of", "run_flow"]
+__all__ = ["Flow", "FlowRun", "flow_dir", "make_flow", "quicklooks_of", "run_flow"]
 
 
 @dataclass
@@ -107,15 +107,23 @@ def run_flow(
     on_scene: Callable[[Any, int], None] | None = None,
 ) -> dict[str, Any]:
     """Run ``flow`` into ``out_dir`` (module docstring); returns its report."""
-    from station.outdir import published_dir, replaceable_dir
+    from station.outdir import published_dir
 
-    out = replaceable_dir(
-        out_dir, flow.report.file, flow.owner_of, flow.owner, flow.what, flow.inputs()
-    )
+    out = flow_dir(flow, out_dir)
     flow.check(out)
     state = FlowRun(quicklooks, progress, runner, on_scene=on_scene)
     with published_dir(out) as stage:
         return make_flow(flow, stage, state)
+
+
+def flow_dir(flow: Flow, out_dir: str | Path) -> Path:
+    """The flow's output directory, checked before any work: absent, empty, or an earlier
+    output of the same flow (:func:`station.outdir.replaceable_dir`)."""
+    from station.outdir import replaceable_dir
+
+    return replaceable_dir(
+        out_dir, flow.report.file, flow.owner_of, flow.owner, flow.what, flow.inputs()
+    )
 
 
 def make_flow(flow: Flow, stage: Path, state: FlowRun) -> dict[str, Any]:

@@ -21,17 +21,14 @@ from levels.process import (
     PassPlan,
     PassProducts,
     ProcessingRequest,
-    all_made,
     plan,
     plan_levels,
-    process,
-    run_plans,
 )
 from levels.readers.formats import open_archive
 from levels.readers.gcp import read_gcps
 from levels.readers.l0 import L0Archive, read_l0
 from levels.tasks import Runner
-from levels.work import Request, Result
+from levels.work import Pass, Request, Result
 from station.chain.gcps import measured_control_points
 from station.scenario import Scenario
 from station.spacecraft.emulator import Acquisition, emulate
@@ -43,12 +40,14 @@ __all__ = [
     "block_request",
     "gcps_beside",
     "l0_stem",
+    "pass_request",
     "plan_reprocess",
     "process_scenario",
     "reprocess_block",
     "reprocess_l0",
     "reprocess_pass",
     "run_dem",
+    "scenario_request",
     "with_exported_dem",
 ]
 
@@ -98,7 +97,10 @@ def reprocess_pass(
     (:func:`levels.process.plan`: with ``adjustment = "twin"``, level 2 adjusts
     both HRVs at once). ``names`` and ``gcps``, when given, one per archive; the scenes
     are tasks of ``runner`` (:mod:`levels.tasks`, in this process by default)."""
-    plans = plan_reprocess(
+    from levels.work import Step, run
+    from levels.work import plan as plan_work
+
+    request, truth = pass_request(
         l0_paths,
         out_dir,
         options=options,
@@ -107,7 +109,8 @@ def reprocess_pass(
         gcps=gcps,
         ties_dir=ties_dir,
     )
-    return all_made(run_plans(plans, runner))
+    result = run(plan_work(request), runner, truth)
+    return [result.pass_products(n, Step.SCENES) for n in request.passes[0].names]
 
 
 def plan_reprocess(
@@ -120,9 +123,46 @@ def plan_reprocess(
     gcps: list[str | Path] | None = None,
     ties_dir: str | Path | None = None,
 ) -> list[PassPlan]:
-    """Everything of :func:`reprocess_pass` before its scene tasks: the archives read
-    lazily (a scene's counts are read by its task), GEO, the truth, the adjustment (of a
-    block: each archive's ``<name>.tie.csv`` from ``ties_dir``, else beside it)."""
+    """Everything of :func:`reprocess_pass` before its scene tasks (the scene driver's
+    plans, :func:`levels.process.plan`: what a campaign batches)."""
+    request, truth = pass_request(
+        l0_paths,
+        out_dir,
+        options=options,
+        scenario=scenario,
+        names=names,
+        gcps=gcps,
+        ties_dir=ties_dir,
+    )
+    (one,) = request.passes
+    return plan(
+        ProcessingRequest(
+            one.archives,
+            request.options,
+            request.out_dir,
+            one.names,
+            checkpoints=tuple(truth.checkpoints(n) for n in one.names),
+            gcps=one.gcps,
+        )
+    )
+
+
+def pass_request(
+    l0_paths: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    options: ProcessingOptions | None = None,
+    scenario: Scenario | list[Scenario] | None = None,
+    names: Sequence[str] | None = None,
+    gcps: Sequence[str | Path] | None = None,
+    ties_dir: str | Path | None = None,
+) -> tuple[Request, StationTruth]:
+    """Recorded archives processed together (one per HRV of a pass; a block's, each tied
+    by its ``<name>.tie.csv`` from ``ties_dir``, else beside it) as one request of
+    :mod:`levels.work`, and their truth (the scenario that made them, one for the archives
+    of one pass or one per archive; none: no truth). The archives are read lazily (a
+    scene's counts are read by its task); the options default to the scenario's, the DEM
+    to the run's beside the first archive, the control points to those beside each."""
     paths = [Path(p) for p in l0_paths]
     for what, given in (("names", names), ("control-point files", gcps)):
         if given is not None and len(given) != len(paths):
@@ -134,9 +174,11 @@ def plan_reprocess(
         raise L0Error(f"{len(archives)} L0 archives but {len(per)} scenarios")
     first = per[0] if per else None
     opts = options or (first.processing if first is not None else ProcessingOptions())
-    truths = [
-        truth_for(s, a) if s is not None else None for s, a in zip(per, archives, strict=True)
-    ]
+    names = tuple(names or [l0_stem(p) for p in paths])
+    truths = {
+        n: truth_for(s, a) if s is not None else None
+        for n, s, a in zip(names, per, archives, strict=True)
+    }
     needs = {n for m in plan_levels(opts.levels) for n in m.needs}
     if Need.DEM in needs and not opts.dem_path:
         opts = dataclasses.replace(opts, dem_path=str(run_dem(paths[0], archives[0])))
@@ -152,15 +194,8 @@ def plan_reprocess(
                 tie = Path(ties_dir) / name if ties_dir else p.with_name(name)
                 if tie.is_file():
                     points[k] = points[k] + read_gcps(tie, a.n_lines, a.n_columns)
-    request = ProcessingRequest(
-        tuple(archives),
-        opts,
-        Path(out_dir),
-        tuple(names or [l0_stem(p) for p in paths]),
-        checkpoints=tuple(truths),
-        gcps=tuple(points or ()),
-    )
-    return plan(request)
+    one = Pass(tuple(archives), names, tuple(points or ()))
+    return Request(opts, Path(out_dir), (one,)), StationTruth(truths)
 
 
 def with_exported_dem(scn: Scenario, acqs: Sequence[Acquisition], out: Path) -> ProcessingOptions:
@@ -240,6 +275,20 @@ def process_scenario(
 ) -> tuple[PassProducts, Path]:
     """Emulate, downlink, record and process a scenario; products measured against truth,
     the scenes as tasks of ``runner`` (:mod:`levels.tasks`)."""
+    from levels.work import Step, run
+    from levels.work import plan as plan_work
+
+    request, truth, l0 = scenario_request(scn, out_dir, l0_path)
+    result = run(plan_work(request), runner, truth)
+    return result.pass_products(scn.name, Step.SCENES), l0
+
+
+def scenario_request(
+    scn: Scenario, out_dir: str | Path, l0_path: str | Path | None = None
+) -> tuple[Request, StationTruth, Path]:
+    """A scenario's pass emulated, downlinked and recorded (its L0 archive ``l0_path``, by
+    default ``<out>/<name>.l0.h5``, and its control points beside it) as one request of
+    :mod:`levels.work`, its truth and its archive's path."""
     from station.chain.session import downlink, record
 
     out = Path(out_dir)
@@ -251,17 +300,13 @@ def process_scenario(
     truth, gcps = measured_control_points(
         acq, archive, Path(l0).with_name(f"{l0_stem(l0)}.gcp.csv")
     )
-    request = ProcessingRequest(
-        (archive,),
+    request = Request(
         with_exported_dem(scn, [acq], out),
         out,
-        (scn.name,),
-        checkpoints=(truth,),
-        gcps=(gcps,),
+        (Pass((archive,), (scn.name,), (gcps,)),),
         provenance=scn.provenance(),
     )
-    [products] = process(request, runner)
-    return products, l0
+    return request, StationTruth({scn.name: truth}), l0
 
 
 def reprocess_block(
@@ -301,8 +346,6 @@ def block_request(
     pair's products and level 3 over the pair's DEM into ``<out>/ties``, ``block`` and
     ``stereo``. With the scenarios (one per archive), every product is measured against
     their truth and is the run's, bit for bit."""
-    from levels.work import Pass
-
     paths = [Path(p) for p in l0_paths]
     out = Path(out_dir)
     names = list(names or [l0_stem(p) for p in paths])

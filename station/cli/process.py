@@ -166,13 +166,11 @@ def _options(args: argparse.Namespace, base: Any) -> Any:
 
 
 def _process(args: argparse.Namespace) -> int:
-    from levels.process import pair_kinds_of
-    from station.outdir import replaceable_dir
     from station.scenario import check_name
 
     sources = [Path(s) for s in args.source]
     if len(sources) == 1 and _is_frame(sources[0]):
-        return _process_frame(args, sources[0])
+        return _done(args, _frame_flow(args, sources[0]), "frame")
     scenarios, block_options = _scenarios(args, sources)
     if len(scenarios) > 1 and len(scenarios) != len(sources):
         raise StationError(
@@ -181,32 +179,60 @@ def _process(args: argparse.Namespace) -> int:
         )
     if args.name:
         check_name(args.name, "--name")
-    from_scenario = any(s.suffix == ".toml" for s in sources)
-    if from_scenario:
-        scn = _scenario_source(args, sources, scenarios)
-        options, names, inputs = scn.processing, [scn.name], scn.inputs()
-    else:
-        options, names, inputs = _archive_sources(args, sources, scenarios, block_options)
-    out = Path(args.out) if args.out else Path(f"{names[0]}_products")
-    replaceable_dir(
-        out, PROCESS_REPORT, lambda r: r["names"], names, lambda n: f"products of {n}", inputs
-    )
-    if from_scenario:
-        from station.run import check_run
+    return _done(args, _pass_flow(args, sources, scenarios, block_options), "pass")
 
-        found = check_run(scn, out)
-    else:
-        found = _check_archives(sources, options, args, out)
+
+def _pass_flow(
+    args: argparse.Namespace, sources: list[Path], scenarios: list[Any], block_options: Any
+) -> Any:
+    """The flow of a scenario's pass, of recorded archives, or of several passes to a
+    pair's products (``station.processing``)."""
+    from levels.process import pair_kinds_of
+    from station.processing import ProcessArchives, ProcessBlock, ProcessScenario
+
+    if any(s.suffix == ".toml" for s in sources):
+        return ProcessScenario(_scenario_source(args, sources, scenarios))
+    options, names, inputs = _archive_sources(args, sources, scenarios, block_options)
+    given = {"scenarios": scenarios, "gcps": args.gcps, "workers": args.workers or 0}
+    if len(sources) > 1 and pair_kinds_of(options):
+        return ProcessBlock(sources, names, options, inputs, **given)
+    return ProcessArchives(
+        sources,
+        names,
+        options,
+        inputs,
+        ties_dir=args.ties,
+        reference=getattr(args, "reference", None),
+        **given,
+    )
+
+
+def _done(args: argparse.Namespace, flow: Any, what: str) -> int:
+    """``--check``: what the flow needs, checked, nothing written; else the flow run
+    (:func:`station.flow.run_flow`) and its report printed."""
+    from station.flow import flow_dir, run_flow
+
+    out = Path(args.out) if args.out else Path(f"{flow.names[0]}_products")
     if args.check:
         from station.cli.run import check_text
 
-        emit(args, found, lambda f: check_text(", ".join(names), f, out))
+        flow.check(flow_dir(flow, out), full=True)
+        emit(args, flow.found, lambda f: check_text(", ".join(flow.names), f, out))
         return 0
-    if not from_scenario and len(sources) > 1 and pair_kinds_of(options):
-        return _process_block(args, sources, scenarios, names, options, out)
-    return _process_pass(
-        args, sources, scenarios, names, options, out, scn if from_scenario else None
-    )
+    with runner_of(args) as runner:
+        report = run_flow(flow, out, quicklooks=False, runner=runner)
+    if what == "frame":
+        emit(args, report, _frame_text)
+        return exit_made(len(report["products"]), "station process")
+    body = {k: v for k, v in report.items() if k not in ("format", "format_version", "software")}
+    body.pop("names", None)
+    if "pairs" in body:
+        emit(args, body, _block_text)
+        made = sum(len(d["products"]) for d in body["archives"] + body["block"])
+        return exit_made(made + len(body["pairs"]), "station process")
+    emit(args, body, _text)
+    data = body["archives"] if "archives" in body else [body]
+    return exit_made(sum(len(d["products"]) for d in data), "station process")
 
 
 def _scenario_source(args: argparse.Namespace, sources: list[Path], scenarios: list[Any]) -> Any:
@@ -267,89 +293,22 @@ def _recorded_cut(sources: list[Path]) -> Any:
     )
 
 
-def _process_pass(
-    args: argparse.Namespace,
-    sources: list[Path],
-    scenarios: list[Any],
-    names: list[str],
-    options: Any,
-    out: Path,
-    scn: Any,
-) -> int:
-    """A pass (one archive per HRV, or a block's archives with their ties) reprocessed, or
-    a scenario's pass emulated and processed (``scn``), into ``out``, published whole."""
-    from levels.files import write_json
-    from station.catalog import write_catalog
-    from station.outdir import published_dir
-    from station.reprocess import process_scenario, reprocess_pass
-
-    with published_dir(out) as stage, runner_of(args) as runner:
-        gcps = args.gcps
-        if getattr(args, "reference", None):  # the control points found first, kept
-            gcps = [_reference_points(args, sources, names, options, stage)]
-        if scn is not None:
-            products, l0 = process_scenario(scn, stage, runner=runner)
-            made = [(out / l0.name, products)]
-        else:
-            passes = reprocess_pass(
-                sources,
-                stage,
-                options=options,
-                scenario=scenarios if len(scenarios) > 1 else (scenarios or [None])[0],
-                names=names,
-                gcps=gcps,
-                runner=runner,
-                ties_dir=args.ties,
-            )
-            made = list(zip(sources, passes, strict=True))
-        data = [_archive_data(l0, out, products) for l0, products in made]
-        report = data[0] if len(data) == 1 else {"archives": data}
-        write_json(
-            stage / PROCESS_REPORT,
-            PROCESS.header(names=names, **report),
-        )
-        write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
-    emit(args, report, _text)
-    return exit_made(sum(len(d["products"]) for d in data), "station process")
-
-
-def _reference_points(
-    args: argparse.Namespace, sources: list[Path], names: list[str], options: Any, stage: Path
-) -> Path:
-    """``--reference``: the pass's control points found on the reference ortho-image and
-    the DEM (``station gcps``), written as ``<name>.reference.gcp.csv`` with the products."""
-    from station.refgcps import gcps_from_reference
-
-    if len(sources) != 1 or args.gcps:
-        raise StationError("--reference finds one archive's control points: give one, no --gcps")
-    if not options.dem_path:
-        raise StationError("--reference needs the DEM under the pass: give --dem")
-    out = stage / f"{names[0]}.reference.gcp.csv"
-    gcps_from_reference(sources[0], args.reference, options.dem_path, out, options=options)
-    return out
-
-
 def _is_frame(path: Path) -> bool:
     from levels.readers.formats import is_frame_file
 
     return is_frame_file(path)
 
 
-def _process_frame(args: argparse.Namespace, source: Path) -> int:
-    """A SAR frame file (``levels.readers.sar``) to its geocoded products
-    (``levels.frame``): its levels, pixel and reference height from ``--scenario`` (the SAR
-    scenario that made it: its products measured against the truth, and the run's), else
-    ``--levels`` and the DEM's."""
-    from levels.files import write_json
-    from levels.frame import FrameOptions, margin_of_dem, process_frame
+def _frame_flow(args: argparse.Namespace, source: Path) -> Any:
+    """A SAR frame file's flow (``station.processing.ProcessFrame``): its levels, pixel and
+    reference height from ``--scenario`` (the SAR scenario that made it: its products
+    measured against the truth, and the run's), else ``--levels`` and the DEM's."""
+    from levels.frame import FrameOptions, margin_of_dem
     from levels.readers.dem import read_dem
     from levels.readers.formats import open_frame
-    from levels.sar import frame_grid
-    from station.catalog import write_catalog
     from station.loader import load_sar
-    from station.outdir import published_dir, replaceable_dir
-    from station.preflight import check_needs, frame_needs
-    from station.run_sar import frame_options, frame_quality, scenario_provenance
+    from station.processing import ProcessFrame
+    from station.run_sar import frame_options
 
     frame = open_frame(source)
     scn = load_sar(args.scenario[0]) if args.scenario else None
@@ -365,50 +324,8 @@ def _process_frame(args: argparse.Namespace, source: Path) -> int:
             reference_height_m=ref,
             margin_m=margin_of_dem(dem, ref) if dem is not None else 0.0,
         )
-    out = Path(args.out) if args.out else Path(f"{frame.name}_products")
-    inputs = [source, *([Path(args.dem)] if args.dem else [])]
-    replaceable_dir(
-        out,
-        PROCESS_REPORT,
-        lambda r: r["names"],
-        [frame.name],
-        lambda n: f"products of {n}",
-        inputs,
-    )
-    ann = frame.image().annotation
-    grid = frame_grid(ann, options.pixel_size_m, options.reference_height_m, options.margin_m)
-    needs = frame_needs(grid.n_rows * grid.n_cols, ann.shape[0] * ann.shape[1], len(options.levels))
-    check_needs(needs, out)  # before the grid is allocated
-    with published_dir(out) as stage:
-        made = process_frame(
-            frame,
-            options,
-            stage,
-            dem=dem,
-            dem_source=Path(args.dem).name if args.dem else "",
-            measure=frame_quality(scn, frame) if scn is not None else None,
-            provenance=scenario_provenance(scn) if scn is not None else None,
-            grid=grid,  # laid once: the one its memory was checked for
-        )
-        rows = [
-            {
-                "level": m.level,
-                "file": m.path.name,
-                "n_rows": m.geocoded.grid.n_rows,
-                "n_cols": m.geocoded.grid.n_cols,
-                "valid": round(float(np.isfinite(m.geocoded.intensity).mean()), 6),
-                "quality": m.product.quality,
-            }
-            for m in made
-        ]
-        report = {"frame": str(source), "out": str(out), "products": rows}
-        write_json(
-            stage / PROCESS_REPORT,
-            PROCESS.header(names=[frame.name], **report),
-        )
-        write_catalog(stage, out.name, f"the products of the SAR frame {frame.name}")
-    emit(args, report, _frame_text)
-    return exit_made(len(rows), "station process")
+    dem_file = Path(args.dem) if args.dem else None
+    return ProcessFrame(source, frame, options, dem=dem, dem_file=dem_file, scenario=scn)
 
 
 def _frame_kinds(with_dem: bool) -> tuple[str, ...]:
@@ -464,58 +381,6 @@ def _scenarios(args: argparse.Namespace, sources: list[Path]) -> tuple[list[Any]
     return loaded, None
 
 
-def _process_block(
-    args: argparse.Namespace,
-    sources: list[Path],
-    scenarios: list[Any],
-    names: list[str],
-    options: Any,
-    out: Path,
-) -> int:
-    """Several passes to a pair's products (``station.reprocess.reprocess_block``):
-    every pass's scene levels in ``<out>/<name>/``, the tie points, the block's level 2
-    and 3 and the pair's DEM in ``ties/``, ``block/`` and ``stereo/``."""
-    from levels.files import write_json
-    from levels.work import Step
-    from station.catalog import write_catalog
-    from station.outdir import published_dir
-    from station.reprocess import reprocess_block
-    from station.run import product_entry
-
-    with published_dir(out) as stage, runner_of(args) as runner:
-        done = reprocess_block(
-            sources,
-            stage,
-            options=options,
-            scenarios=scenarios or None,
-            names=names,
-            gcps=args.gcps,
-            runner=runner,
-        )
-        data = [
-            _archive_data(l0, out / n, done.pass_products(n, Step.SCENES))
-            for l0, n in zip(sources, names, strict=True)
-        ]
-        level2 = [
-            _archive_data(l0, out / "block", done.pass_products(n, Step.LEVEL2, Step.OVER_PAIR))
-            for l0, n in zip(sources, names, strict=True)
-            if done.of(Step.LEVEL2)
-        ]
-        pairs = [
-            {**product_entry(p.path, "stereo/"), "quality": p.quality} for p in done.of(Step.PAIR)
-        ]
-        ties = dict(done.ties) or {"pairs": []}
-        report = {"archives": data, "block": level2, "ties": ties, "pairs": pairs}
-        write_json(
-            stage / PROCESS_REPORT,
-            PROCESS.header(names=names, **report),
-        )
-        write_catalog(stage, out.name, f"the products of a reprocessing of {', '.join(names)}")
-    emit(args, report, _block_text)
-    made = sum(len(d["products"]) for d in data + level2) + len(pairs)
-    return exit_made(made, "station process")
-
-
 def _block_text(report: dict[str, Any]) -> str:
     from station.tables import product_table
 
@@ -527,47 +392,6 @@ def _block_text(report: dict[str, Any]) -> str:
         lines.append("the pair's products:")
         lines += product_table(report["pairs"], [])
     return "\n".join(lines)
-
-
-def _check_archives(sources: list[Path], options: Any, args: argparse.Namespace, out: Path) -> dict:
-    """What reprocessing ``sources`` into ``out`` needs, before any work: the archives
-    readable (their headers) and the memory and disk their scenes take
-    (``station.preflight``); with ``--check``, also their control points when level 2 is
-    asked and the DEM when a level needs one (a reprocessing reads those itself before
-    its first scene: read here too, they would be read twice)."""
-    from levels.makers.base import Need
-    from levels.process import nominal_pixel_size_m, pass_dem, plan_levels
-    from levels.readers.formats import open_archive
-    from levels.readers.gcp import read_gcps
-    from station.preflight import check_needs, scene_needs
-    from station.reprocess import gcps_beside, run_dem
-
-    archives = [open_archive(s) for s in sources]
-    makers = plan_levels(options.levels)
-    if args.check and any(Need.ADJUSTMENT in m.needs for m in makers):
-        where = args.gcps or [gcps_beside(s) for s in sources]
-        for w, a in zip(where, archives, strict=True):
-            read_gcps(w, a.n_lines, a.n_columns)
-    if args.check:
-        if not options.dem_path and any(Need.DEM in m.needs for m in makers):
-            dem_path = str(run_dem(sources[0], archives[0]))
-            options = dataclasses.replace(options, dem_path=dem_path)
-        pass_dem(options, makers)
-    a = archives[0]
-    lines = min(options.scene_lines or a.n_columns, a.n_lines)
-    n_scenes = sum(-(-x.n_lines // lines) for x in archives)
-    native_m = nominal_pixel_size_m(next(iter(a.bands.values())).look)
-    needs = scene_needs(
-        lines,
-        a.n_columns,
-        len(a.bands),
-        len(makers),
-        n_scenes,
-        args.workers or 0,
-        native_m,
-        options.pixel_size_m,
-    )
-    return {"archives": [str(s) for s in sources], **check_needs(needs, out)}
 
 
 def _campaign(args: argparse.Namespace) -> int:
@@ -622,33 +446,6 @@ def _campaign_text(report: dict[str, Any]) -> str:
         )
         lines.append(f"  {a['name']:<28} {a['time_s']:6.1f} s  {what}")
     return "\n".join(lines)
-
-
-def _archive_data(l0: Path, out: Path, products: Any) -> dict[str, Any]:
-    from station.run import product_entry
-
-    rows = []
-    for s in products.scenes:
-        for lv in s.paths:
-            entry = product_entry(s.paths[lv])  # its size and valid share, as a run says
-            rows.append(
-                {
-                    "scene": s.index,
-                    "level": lv,
-                    "path": str(out / s.paths[lv].name),
-                    **{k: entry[k] for k in ("n_rows", "n_cols", "valid")},
-                    **s.quality[lv],
-                    "timings_s": s.timings_s,
-                }
-            )
-    return {
-        "l0": str(l0),
-        "out": str(out),
-        "tail_lines": products.tail_lines,
-        "timings_s": products.timings_s,
-        "products": rows,
-        "skipped": [dataclasses.asdict(k) for k in products.skipped],
-    }
 
 
 def _text(data: dict[str, Any]) -> str:

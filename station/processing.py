@@ -1,0 +1,385 @@
+"""``station process`` as flows of the run skeleton (:mod:`station.flow`): recorded archives
+(one pass's HRVs, or a block's tied beside them), a scenario's pass (emulated and recorded
+first), several passes over one ground (a pair's products) and a SAR frame, each into one
+output directory with ``process.json`` (:data:`station.reports.PROCESS`) and its catalogue.
+
+Each flow's report says, per archive, its products (scene, level, path, size, valid share,
+headline figures, timings) and the scenes it skipped; a block's adds the block's level 2
+and 3, the ties and the pair's products; a frame's, its products.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from levels.options import ProcessingOptions
+from levels.process import PassProducts
+from levels.work import Frame, Measure, Request, Result, Step
+from station.flow import FlowRun
+from station.reports import PROCESS
+from station.scenario import Scenario
+from station.truth.measure import StationTruth
+
+__all__ = [
+    "ProcessArchives",
+    "ProcessBlock",
+    "ProcessFrame",
+    "ProcessScenario",
+    "archive_data",
+    "check_archives",
+]
+
+
+class _Processing:
+    """What every ``station process`` flow shares: its report, what its output is made of
+    (the names of its products), the files it reads, its catalogue."""
+
+    report = PROCESS
+
+    def __init__(self, names: Sequence[str], inputs: Sequence[Path], description: str) -> None:
+        self.names, self._inputs, self._description = list(names), list(inputs), description
+        self.out = Path()
+        self._truth: Measure | None = None
+
+    @property
+    def owner(self) -> object:
+        return self.names
+
+    def owner_of(self, report: dict[str, Any]) -> object:
+        return report["names"]
+
+    def what(self, owner: object) -> str:
+        return f"products of {owner}"
+
+    def inputs(self) -> list[Path]:
+        return self._inputs
+
+    def catalog(self) -> tuple[str, str]:
+        return self.out.name, self._description
+
+    def measure(self) -> Measure:
+        assert self._truth is not None  # acquired first
+        return self._truth
+
+
+class ProcessArchives(_Processing):
+    """Recorded archives processed together (``station.reprocess.pass_request``), with
+    their control points found on a reference first when one is given (kept with the
+    products as ``<name>.reference.gcp.csv``)."""
+
+    def __init__(
+        self,
+        sources: Sequence[Path],
+        names: Sequence[str],
+        options: ProcessingOptions,
+        inputs: Sequence[Path],
+        *,
+        scenarios: Sequence[Scenario] = (),
+        gcps: Sequence[str | Path] | None = None,
+        ties_dir: str | Path | None = None,
+        reference: str | Path | None = None,
+        workers: int = 0,
+    ) -> None:
+        super().__init__(names, inputs, f"the products of a reprocessing of {', '.join(names)}")
+        self.sources, self.options, self.scenarios = list(sources), options, list(scenarios)
+        self.gcps, self.ties_dir, self.reference, self.workers = gcps, ties_dir, reference, workers
+        self.found: dict[str, Any] = {}
+
+    def check(self, out: Path, full: bool = False) -> None:
+        """The archives readable and their scenes' memory and disk (``full``: their
+        control points and DEM too, :func:`check_archives`)."""
+        self.out = out
+        self.found = check_archives(self.sources, self.options, out, self.gcps, full, self.workers)
+
+    def acquire(self, stage: Path, state: FlowRun) -> Request:
+        from station.reprocess import pass_request
+
+        gcps = self.gcps
+        if self.reference is not None:  # the control points found first, kept
+            gcps = [self._reference_points(stage)]
+        per = self.scenarios
+        request, self._truth = pass_request(
+            self.sources,
+            stage,
+            options=self.options,
+            scenario=per if len(per) > 1 else (per[0] if per else None),
+            names=self.names,
+            gcps=gcps,
+            ties_dir=self.ties_dir,
+        )
+        return request
+
+    def _reference_points(self, stage: Path) -> Path:
+        """The pass's control points found on the reference ortho-image and the DEM
+        (``station gcps``), written as ``<name>.reference.gcp.csv`` with the products."""
+        from station.errors import StationError
+        from station.refgcps import gcps_from_reference
+
+        if len(self.sources) != 1 or self.gcps:
+            raise StationError(
+                "--reference finds one archive's control points: give one, no --gcps"
+            )
+        if not self.options.dem_path:
+            raise StationError("--reference needs the DEM under the pass: give --dem")
+        out = stage / f"{self.names[0]}.reference.gcp.csv"
+        assert self.reference is not None
+        gcps_from_reference(
+            self.sources[0], self.reference, self.options.dem_path, out, options=self.options
+        )
+        return out
+
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+        data = [
+            archive_data(l0, self.out, result.pass_products(n, Step.SCENES))
+            for l0, n in zip(self.sources, self.names, strict=True)
+        ]
+        body = data[0] if len(data) == 1 else {"archives": data}
+        return {"header": {"names": self.names}, **body}
+
+
+class ProcessScenario(_Processing):
+    """A scenario's pass emulated, downlinked and recorded, then processed
+    (``station.reprocess.scenario_request``)."""
+
+    def __init__(self, scn: Scenario) -> None:
+        super().__init__([scn.name], scn.inputs(), f"the products of a reprocessing of {scn.name}")
+        self.scn = scn
+        self.found: dict[str, Any] = {}
+        self._l0 = Path()
+
+    def check(self, out: Path, full: bool = False) -> None:
+        from station.run import check_run
+
+        self.out = out
+        self.found = check_run(self.scn, out)
+
+    def acquire(self, stage: Path, state: FlowRun) -> Request:
+        from station.reprocess import scenario_request
+
+        request, self._truth, self._l0 = scenario_request(self.scn, stage)
+        return request
+
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+        products = result.pass_products(self.scn.name, Step.SCENES)
+        return {
+            "header": {"names": self.names},
+            **archive_data(self.out / self._l0.name, self.out, products),
+        }
+
+
+class ProcessBlock(_Processing):
+    """Several passes to a pair's products (``station.reprocess.block_request``): every
+    pass's scene levels in ``<out>/<name>/``, the tie points, the block's level 2 and 3 and
+    the pair's DEM in ``ties/``, ``block/`` and ``stereo/``."""
+
+    def __init__(
+        self,
+        sources: Sequence[Path],
+        names: Sequence[str],
+        options: ProcessingOptions,
+        inputs: Sequence[Path],
+        *,
+        scenarios: Sequence[Scenario] = (),
+        gcps: Sequence[str | Path] | None = None,
+        workers: int = 0,
+    ) -> None:
+        super().__init__(names, inputs, f"the products of a reprocessing of {', '.join(names)}")
+        self.sources, self.options, self.scenarios = list(sources), options, list(scenarios)
+        self.gcps, self.workers = gcps, workers
+        self.found: dict[str, Any] = {}
+
+    def check(self, out: Path, full: bool = False) -> None:
+        self.out = out
+        self.found = check_archives(self.sources, self.options, out, self.gcps, full, self.workers)
+
+    def acquire(self, stage: Path, state: FlowRun) -> Request:
+        from station.reprocess import block_request
+
+        request, self._truth = block_request(
+            self.sources,
+            stage,
+            options=self.options,
+            scenarios=self.scenarios or None,
+            names=self.names,
+            gcps=self.gcps,
+        )
+        return request
+
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+        from station.run import product_entry
+
+        pairs = zip(self.sources, self.names, strict=True)
+        data = [
+            archive_data(l0, self.out / n, result.pass_products(n, Step.SCENES)) for l0, n in pairs
+        ]
+        level2 = [
+            archive_data(
+                l0, self.out / "block", result.pass_products(n, Step.LEVEL2, Step.OVER_PAIR)
+            )
+            for l0, n in zip(self.sources, self.names, strict=True)
+            if result.of(Step.LEVEL2)
+        ]
+        made = [
+            {**product_entry(p.path, "stereo/"), "quality": p.quality} for p in result.of(Step.PAIR)
+        ]
+        return {
+            "header": {"names": self.names},
+            "archives": data,
+            "block": level2,
+            "ties": dict(result.ties) or {"pairs": []},
+            "pairs": made,
+        }
+
+
+class ProcessFrame(_Processing):
+    """A SAR frame file to its geocoded products (:class:`levels.frame.FrameOptions`:
+    the SAR scenario's when given, with its truth; else the levels asked and the DEM's
+    heights)."""
+
+    def __init__(
+        self,
+        source: Path,
+        frame: Any,
+        options: Any,
+        *,
+        dem: Any = None,
+        dem_file: Path | None = None,
+        scenario: Any = None,
+    ) -> None:
+        inputs = [source, *([dem_file] if dem_file else [])]
+        super().__init__([frame.name], inputs, f"the products of the SAR frame {frame.name}")
+        self.source, self.frame, self.options = source, frame, options
+        self.dem, self.dem_file, self.scenario = dem, dem_file, scenario
+        self.found: dict[str, Any] = {}
+        self._grid: Any = None
+
+    def check(self, out: Path, full: bool = False) -> None:
+        """The frame's grid laid and its memory checked before it is allocated."""
+        from levels.sar import frame_grid
+        from station.preflight import check_needs, frame_needs
+
+        self.out = out
+        o, ann = self.options, self.frame.image().annotation
+        self._grid = frame_grid(ann, o.pixel_size_m, o.reference_height_m, o.margin_m)
+        cells = self._grid.n_rows * self._grid.n_cols
+        needs = frame_needs(cells, ann.shape[0] * ann.shape[1], len(o.levels))
+        self.found = {"frame": str(self.source), **check_needs(needs, out)}
+
+    def acquire(self, stage: Path, state: FlowRun) -> Request:
+        from station.run_sar import frame_quality, scenario_provenance
+
+        scn = self.scenario
+        measure = frame_quality(scn, self.frame) if scn is not None else None
+        self._truth = StationTruth({}, frame=measure)
+        return Request(
+            ProcessingOptions(),
+            stage,
+            frames=(Frame(self.frame, self._grid),),  # laid once: its memory was checked
+            frame_options=self.options,
+            dem=self.dem,
+            dem_source=self.dem_file.name if self.dem_file else "",
+            provenance=scenario_provenance(scn) if scn is not None else {},
+        )
+
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+        from levels.products import read_product
+
+        rows = []
+        for m in result.of(Step.FRAME):
+            attrs = read_product(m.path, images=False).attrs
+            rows.append(
+                {
+                    "level": m.kind,
+                    "file": m.path.name,
+                    "n_rows": int(attrs["n_rows"]),
+                    "n_cols": int(attrs["n_cols"]),
+                    "valid": round(float(m.quality["valid_fraction"]), 6),
+                    "quality": m.quality,
+                }
+            )
+        return {
+            "header": {"names": self.names},
+            "frame": str(self.source),
+            "out": str(self.out),
+            "products": rows,
+        }
+
+
+def check_archives(
+    sources: Sequence[Path],
+    options: ProcessingOptions,
+    out: Path,
+    gcps: Sequence[str | Path] | None = None,
+    full: bool = False,
+    workers: int = 0,
+) -> dict[str, Any]:
+    """What reprocessing ``sources`` into ``out`` needs, before any work: the archives
+    readable (their headers) and the memory and disk their scenes take
+    (``station.preflight``); ``full`` (``--check``): also their control points when level 2
+    is asked and the DEM when a level needs one (a reprocessing reads those itself before
+    its first scene: read here too, they would be read twice)."""
+    from levels.makers.base import Need
+    from levels.process import nominal_pixel_size_m, pass_dem, plan_levels
+    from levels.readers.formats import open_archive
+    from levels.readers.gcp import read_gcps
+    from station.preflight import check_needs, scene_needs
+    from station.reprocess import gcps_beside, run_dem
+
+    archives = [open_archive(s) for s in sources]
+    makers = plan_levels(options.levels)
+    if full and any(Need.ADJUSTMENT in m.needs for m in makers):
+        where = gcps or [gcps_beside(s) for s in sources]
+        for w, a in zip(where, archives, strict=True):
+            read_gcps(w, a.n_lines, a.n_columns)
+    if full:
+        if not options.dem_path and any(Need.DEM in m.needs for m in makers):
+            dem_path = str(run_dem(sources[0], archives[0]))
+            options = dataclasses.replace(options, dem_path=dem_path)
+        pass_dem(options, makers)
+    a = archives[0]
+    lines = min(options.scene_lines or a.n_columns, a.n_lines)
+    n_scenes = sum(-(-x.n_lines // lines) for x in archives)
+    native_m = nominal_pixel_size_m(next(iter(a.bands.values())).look)
+    needs = scene_needs(
+        lines,
+        a.n_columns,
+        len(a.bands),
+        len(makers),
+        n_scenes,
+        workers,
+        native_m,
+        options.pixel_size_m,
+    )
+    return {"archives": [str(s) for s in sources], **check_needs(needs, out)}
+
+
+def archive_data(l0: Path, out: Path, products: PassProducts) -> dict[str, Any]:
+    """What ``process.json`` says of one archive's products (its size and valid share, as
+    a run says them; its figures; its timings) and the scenes it skipped."""
+    from station.run import product_entry
+
+    rows = []
+    for s in products.scenes:
+        for lv in s.paths:
+            entry = product_entry(s.paths[lv])
+            rows.append(
+                {
+                    "scene": s.index,
+                    "level": lv,
+                    "path": str(out / s.paths[lv].name),
+                    **{k: entry[k] for k in ("n_rows", "n_cols", "valid")},
+                    **s.quality[lv],
+                    "timings_s": s.timings_s,
+                }
+            )
+    return {
+        "l0": str(l0),
+        "out": str(out),
+        "tail_lines": products.tail_lines,
+        "timings_s": products.timings_s,
+        "products": rows,
+        "skipped": [dataclasses.asdict(k) for k in products.skipped],
+    }
