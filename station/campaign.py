@@ -27,12 +27,9 @@ from pathlib import Path
 from typing import Any
 
 from levels.errors import LevelsError
-from levels.files import write_json
 from levels.options import ProcessingOptions
 from levels.tasks import Runner
-from station.catalog import write_catalog
 from station.errors import StationError
-from station.outdir import published_dir, replaceable_dir
 from station.reports import CAMPAIGN
 
 __all__ = ["CAMPAIGN_FORMAT", "campaign_archives", "run_campaign"]
@@ -93,28 +90,82 @@ def run_campaign(
         raise StationError(
             f"archives with the same name would share a directory: {', '.join(clashes)}"
         )
-    target = replaceable_dir(
-        out,
-        "campaign.json",
-        lambda r: r["format"] if r["format"] == CAMPAIGN_FORMAT else None,
-        CAMPAIGN_FORMAT,
-        lambda _: "a campaign",
-        [*archives, *([options.dem_path] if options.dem_path else [])],
-    )
-    previous = target.is_dir() and any(target.iterdir())
-    with published_dir(target) as stage:  # the previous campaign stays whole until this one is
-        report = _run(archives, names, target, stage, options, progress, runner)
-        failed = [a for a in report["archives"] if a["status"] != "ok"]
-        if failed and previous:  # never a campaign with failures over a good one
+    from station.flow import run_flow
+
+    flow = Campaign(archives, names, options, progress, runner)
+    return run_flow(flow, out, quicklooks=False, runner=runner)
+
+
+class Campaign:
+    """The campaign as a flow of the run skeleton (:mod:`station.flow`): its archives
+    planned and made in batches by its own loop (:func:`_run`), its report."""
+
+    report = CAMPAIGN
+
+    def __init__(
+        self,
+        archives: list[Path],
+        names: list[str],
+        options: ProcessingOptions,
+        progress: Callable[[int, int, str], None] | None,
+        runner: Runner | None,
+    ) -> None:
+        self.archives, self.names, self.options = archives, names, options
+        self.progress, self.runner = progress, runner
+        self.target, self.previous = Path(), False
+        self._body: dict[str, Any] = {}
+
+    @property
+    def owner(self) -> object:
+        return CAMPAIGN_FORMAT
+
+    def owner_of(self, report: dict[str, Any]) -> object:
+        return report["format"] if report["format"] == CAMPAIGN_FORMAT else None
+
+    def what(self, owner: object) -> str:
+        return "a campaign"
+
+    def inputs(self) -> list[Path]:
+        dem = [Path(self.options.dem_path)] if self.options.dem_path else []
+        return [*self.archives, *dem]
+
+    def check(self, out: Path) -> None:
+        self.target = out
+        self.previous = out.is_dir() and any(out.iterdir())
+
+    def catalog(self) -> tuple[str, str]:
+        n = len(self.archives)
+        return self.target.name, f"the products of a campaign of {n} archive(s)"
+
+    def measure(self) -> Any:
+        return None
+
+    def acquire(self, stage: Path, state: Any) -> None:
+        """Every archive planned and made into ``stage/<name>/`` (:func:`_run`): nothing
+        left for the skeleton's request."""
+        self._body = _run(
+            self.archives,
+            self.names,
+            self.target,
+            stage,
+            self.options,
+            self.progress,
+            self.runner,
+        )
+
+    def sections(self, stage: Path, result: Any, state: Any) -> dict[str, Any]:
+        """The report; a campaign with failures is not published over a previous one."""
+        failed = [a for a in self._body["archives"] if a["status"] != "ok"]
+        if failed and self.previous:  # never a campaign with failures over a good one
             what = "; ".join(f"{a['name']}: {a['reason']}" for a in failed)
             message = (
-                f"{len(failed)} of {len(archives)} archive(s) failed ({what}): not published "
-                "over the previous campaign"
+                f"{len(failed)} of {len(self.archives)} archive(s) failed ({what}): not "
+                "published over the previous campaign"
             )
             if any(a["kind"] == "internal error" for a in failed):
                 raise RuntimeError(message)  # a bug made it fail: said as one
             raise StationError(message)
-    return report
+        return self._body
 
 
 def _run(
@@ -126,7 +177,8 @@ def _run(
     progress: Callable[[int, int, str], None] | None,
     runner: Runner | None,
 ) -> dict[str, Any]:
-    """:func:`run_campaign` into ``stage``, the report naming the paths in ``target``."""
+    """:func:`run_campaign`'s archives made into ``stage``: the report's body, naming the
+    paths in ``target``."""
     from levels.process import run_plans
     from station.reprocess import plan_reprocess
 
@@ -177,8 +229,7 @@ def _run(
     if progress is not None:
         progress(total, total, "")
     failed = [e for e in entries if e["status"] != "ok"]
-    report = {
-        **CAMPAIGN.header(),
+    return {
         "options": dataclasses.asdict(options),
         "workers": workers,
         "archives": entries,
@@ -191,9 +242,6 @@ def _run(
             "time_s": clock() - t0,
         },
     }
-    write_json(stage / "campaign.json", report)
-    write_catalog(stage, target.name, f"the products of a campaign of {len(entries)} archive(s)")
-    return report
 
 
 def _record(entry: dict[str, Any], result: Any, out: Path) -> None:

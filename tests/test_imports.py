@@ -119,6 +119,44 @@ def test_the_emulator_imported_alone_loads_no_processing_stage() -> None:
     assert not [m for m in loaded if m.startswith(stages) or m.startswith("levels.makers")]
 
 
+#: What only the run skeleton (station/flow.py) calls: publishing a directory, writing its
+#: catalogue, a report's header (issue 58: one skeleton, not seven publish sites).
+SKELETON_ONLY = ("published_dir", "write_catalog", ".header")
+#: The drivers of levels: the only callers of the makers and writers of products (the
+#: plan, the scene driver, the frame's, and the pair's DEM maker writing its own).
+PRODUCT_WRITERS = {"levels/work.py", "levels/process.py", "levels/frame.py", "levels/makers/dem.py"}
+
+
+def _calls(path: Path) -> set[str]:
+    """The names called in ``path``: ``f`` of ``f(...)``, ``.f`` of ``x.f(...)``."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            f = node.func
+            out.add(
+                f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
+            )
+    return out
+
+
+@pytest.mark.parametrize("path", _modules("station"), ids=lambda p: str(p.relative_to(ROOT)))
+def test_only_the_skeleton_publishes_catalogues_and_heads_reports(path: Path) -> None:
+    if path.relative_to(ROOT).as_posix() == "station/flow.py":
+        return
+    assert not _calls(path) & set(SKELETON_ONLY), f"{path.relative_to(ROOT)}: station.flow's"
+
+
+@pytest.mark.parametrize(
+    "path", _modules("levels") + _modules("station"), ids=lambda p: str(p.relative_to(ROOT))
+)
+def test_only_the_drivers_make_and_write_products(path: Path) -> None:
+    if path.relative_to(ROOT).as_posix() in PRODUCT_WRITERS:
+        return
+    called = _calls(path) & {"write_product", ".write_product", ".make", "make_scene"}
+    assert not called, f"{path.relative_to(ROOT)} calls {sorted(called)}: the drivers' own"
+
+
 #: Size bounds of the house (issue 48): a function a reader takes in at once, a module
 #: a reader can hold; numba kernels (one loop nest each, split only at a cost) excepted.
 MAX_FUNCTION_LINES = 80
