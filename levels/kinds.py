@@ -32,7 +32,7 @@ from enum import StrEnum
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from levels.products import Product
+    from levels.product import Product
 
 __all__ = [
     "BandSpec",

@@ -23,7 +23,7 @@ from levels.choices import Level
 from levels.kinds import ProductKind, Unit
 
 if TYPE_CHECKING:
-    from levels.products import Product
+    from levels.product import Product
 
 __all__ = [
     "BUILT_IN",

@@ -164,4 +164,3 @@ def quicklooks_of(paths: list[Path]) -> dict[Path, Path]:
         paths,
     )
     return dict(zip(paths, drawn, strict=True))
-

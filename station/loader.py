@@ -1,7 +1,7 @@
 """One scenario loader: a scenario file read once and returned as what it describes.
 
 A file with ``[[passes]]`` is a block of passes (:class:`BlockScenario`), one with a
-``[sar]`` table a SAR frame (:class:`station.run_sar.SarScenario`), any other a pass
+``[sar]`` table a SAR frame (:class:`station.sar_scenario.SarScenario`), any other a pass
 (:class:`station.scenario.Scenario`). :func:`load_any` reads the TOML once, checks it
 whole and returns the one that it is; :func:`load_scenario` (a pass), :func:`load_block`
 and :func:`load_sar` refuse the other kinds in one line, naming what the file is.
@@ -13,19 +13,25 @@ import dataclasses
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from levels.options import ProcessingOptions
+from levels.options import ProcessingOptions, describe_section
 from station.errors import ScenarioError
-from station.scenario import Scenario, check_name, merge_tables, read_toml, scenario_from_dict
-
-if TYPE_CHECKING:
-    from station.run_sar import SarScenario
+from station.sar_scenario import SarConfig, SarScenario, sar_scenario_from_dict
+from station.scenario import (
+    SECTIONS,
+    Scenario,
+    check_name,
+    merge_tables,
+    read_toml,
+    scenario_from_dict,
+)
 
 __all__ = [
     "BLOCK_KEY",
     "SAR_KEY",
     "BlockScenario",
+    "describe_keys",
     "load_any",
     "load_block",
     "load_sar",
@@ -85,8 +91,6 @@ def _of_table(data: dict[str, Any], raw: bytes, p: Path) -> Scenario | BlockScen
         return _block(data, raw, p)
     scn: Scenario | SarScenario
     if SAR_KEY in data:
-        from station.run_sar import sar_scenario_from_dict
-
         scn = sar_scenario_from_dict(data, p)
     else:
         scn = scenario_from_dict(data, p.resolve().parent)
@@ -116,8 +120,6 @@ def load_block(path: str | Path) -> BlockScenario:
 
 def load_sar(path: str | Path) -> SarScenario:
     """A SAR frame's scenario file (``[sar]``), read and checked."""
-    from station.run_sar import SarScenario
-
     return _only(path, SarScenario, "a SAR frame")
 
 
@@ -163,3 +165,19 @@ def _block(data: dict[str, Any], raw: bytes, p: Path) -> BlockScenario:
         source=str(p.resolve()),
         source_sha256=hashlib.sha256(raw).hexdigest(),
     )
+
+
+def describe_keys() -> str:
+    """Every key of every section, with its default (TOML units), range and meaning; then
+    a block's ``[[passes]]`` and a SAR frame's ``[sar]``."""
+    lines = [line for section, cls in SECTIONS.items() for line in describe_section(section, cls)]
+    lines += [
+        "[[passes]]  # a block of passes (twice or more, docs/blocks.md): each table merged "
+        "over the file's other tables",
+        "  name = 'p1'  # the pass, named <block name>_<name>; p1, p2… by default",
+        "  seed = 0  # its errors' seed; default: the block's seed plus the pass's rank",
+        "  # and any section above ([pass], [instrument], [gcps] …): the pass's own values",
+    ]
+    lines += describe_section("sar", SarConfig)
+    lines.append("  # a SAR frame's file (docs/sar.md) takes [sar], [world] and [dem] only")
+    return "\n".join(lines)

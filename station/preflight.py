@@ -230,7 +230,7 @@ def check_scenario(scn: Scenario) -> list[str]:
             )
         done.append(f"TLE {path.name} ({len(records)} element sets)")
     if scn.world.kind == "dem":
-        from station.spacecraft.dem import read_hgt
+        from station.spacecraft.hgt import read_hgt
 
         path = scn.path(scn.world.dem_path)
         read_hgt(path)

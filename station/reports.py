@@ -27,6 +27,7 @@ __all__ = [
     "SAR_RUN",
     "ReportFormat",
     "report_of",
+    "scenario_entry",
 ]
 
 
@@ -78,3 +79,14 @@ def report_of(d: Path) -> ReportFormat | None:
             raise StationError(f"{path}: format {fmt!r} is no report this version knows ({names})")
         return known[0]
     return None
+
+
+def scenario_entry(scn: Any) -> dict[str, Any]:
+    """What a run's report says of its scenario (a pass's or a SAR frame's): name, file,
+    its bytes' SHA-256, seed."""
+    return {
+        "name": scn.name,
+        "file": Path(scn.source).name if scn.source else "",
+        "sha256": scn.source_sha256,
+        "seed": scn.seed,
+    }

@@ -43,7 +43,7 @@ from station.catalog import CATALOG_FILE
 from station.flow import FlowRun, make_flow, run_flow
 from station.loader import BlockScenario
 from station.outdir import replaceable_dir
-from station.reports import BLOCK_RUN, PASS_RUN
+from station.reports import BLOCK_RUN, PASS_RUN, scenario_entry
 from station.scenario import Scenario
 from station.tables import product_table
 from station.truth.measure import StationTruth
@@ -53,7 +53,6 @@ __all__ = [
     "comparable_report",
     "prepare_run_dir",
     "run_scenario",
-    "scenario_entry",
     "summary_table",
 ]
 
@@ -255,17 +254,6 @@ def _product_row(hrv: int, m: Made, quicklook: Path | None, out: Path) -> dict[s
     if quicklook is not None:
         row["quicklook"] = str(quicklook.relative_to(out))
     return row
-
-
-def scenario_entry(scn: Any) -> dict[str, Any]:
-    """What a run's report says of its scenario (a pass's or a SAR frame's): name, file,
-    its bytes' SHA-256, seed."""
-    return {
-        "name": scn.name,
-        "file": Path(scn.source).name if scn.source else "",
-        "sha256": scn.source_sha256,
-        "seed": scn.seed,
-    }
 
 
 def prepare_run_dir(out_dir: str | Path, name: str, inputs: list[Path] | None = None) -> Path:

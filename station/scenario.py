@@ -9,8 +9,8 @@ a :class:`ScenarioError` naming the key, the value and what is allowed.
 
 Every field of every section is declared once with :func:`levels.options.option`: its TOML
 name, the factor to SI, its allowed range and a one-line meaning. The error messages and the
-listing of :func:`describe_keys` are generated from those declarations, so they cannot drift
-apart.
+listing of :func:`station.loader.describe_keys` are generated from those declarations, so
+they cannot drift apart.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from levels.options import ProcessingOptions, build_section, describe_section, option
+from levels.options import ProcessingOptions, build_section, option
 from levels.spot import MODES
 from station.errors import ScenarioError
 from station.telemetry.format import CNES_EPOCH
@@ -48,7 +48,6 @@ __all__ = [
     "ScenarioError",
     "WorldConfig",
     "check_name",
-    "describe_keys",
     "merge_tables",
     "read_toml",
     "scenario_from_dict",
@@ -553,7 +552,8 @@ class ChannelConfig:
 ProcessingConfig = ProcessingOptions
 
 
-_SECTIONS = {
+#: A pass's sections, by table name: what each holds (:func:`station.loader.describe_keys`).
+SECTIONS = {
     "orbit": OrbitConfig,
     "pass": PassConfig,
     "ground_station": GroundStationConfig,
@@ -696,7 +696,7 @@ def merge_tables(*tables: dict[str, Any]) -> dict[str, Any]:
 def scenario_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Scenario:
     """A :class:`Scenario` from a parsed TOML table (see the module docstring)."""
     top = {"name": str, "seed": int}
-    allowed = sorted([*top, *_SECTIONS])
+    allowed = sorted([*top, *SECTIONS])
     kwargs: dict[str, Any] = {"base_dir": str(base_dir)}
     for key, value in data.items():
         if key in top:
@@ -713,9 +713,9 @@ def scenario_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> Scen
                 )
             built = [build_section(InstrumentConfig, "instrument", v, ScenarioError) for v in value]
             kwargs["instrument"], kwargs["more_instruments"] = built[0], tuple(built[1:])
-        elif key in _SECTIONS:
+        elif key in SECTIONS:
             kwargs["pass_" if key == "pass" else key] = build_section(
-                _SECTIONS[key], key, value, ScenarioError
+                SECTIONS[key], key, value, ScenarioError
             )
         elif key == "passes":
             raise ScenarioError(
@@ -746,21 +746,3 @@ def read_toml(path: str | Path, what: str = "scenario") -> tuple[dict[str, Any],
         raise ScenarioError(f"{p}: not a text file (UTF-8)") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{p}: not valid TOML ({exc})") from None
-
-
-def describe_keys() -> str:
-    """Every key of every section, with its default (TOML units), range and meaning; then
-    a block's ``[[passes]]`` and a SAR frame's ``[sar]``."""
-    from station.run_sar import SarConfig
-
-    lines = [line for section, cls in _SECTIONS.items() for line in describe_section(section, cls)]
-    lines += [
-        "[[passes]]  # a block of passes (twice or more, docs/blocks.md): each table merged "
-        "over the file's other tables",
-        "  name = 'p1'  # the pass, named <block name>_<name>; p1, p2… by default",
-        "  seed = 0  # its errors' seed; default: the block's seed plus the pass's rank",
-        "  # and any section above ([pass], [instrument], [gcps] …): the pass's own values",
-    ]
-    lines += describe_section("sar", SarConfig)
-    lines.append("  # a SAR frame's file (docs/sar.md) takes [sar], [world] and [dem] only")
-    return "\n".join(lines)

@@ -9,8 +9,8 @@ import pytest
 from scipy.interpolate import RegularGridInterpolator
 
 from station.scenario import scenario_from_dict
-from station.spacecraft.dem import DemError, read_hgt
 from station.spacecraft.emulator import emulate, truth_model
+from station.spacecraft.hgt import DemError, read_hgt
 from station.spacecraft.imaging import HEIGHT_TOL_M, trace_pixels
 
 REPROJECTION_TOL_PX = 0.01

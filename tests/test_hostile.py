@@ -270,7 +270,7 @@ def test_an_empty_scenario_is_refused_not_run_as_a_full_scene(tmp_path, capsys) 
 
 
 def test_every_kind_of_scenario_file_has_its_keys_described() -> None:
-    from station.scenario import describe_keys
+    from station.loader import describe_keys
 
     text = describe_keys()
     assert "[[passes]]" in text and "[sar]" in text

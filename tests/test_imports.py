@@ -119,6 +119,49 @@ def test_the_emulator_imported_alone_loads_no_processing_stage() -> None:
     assert not [m for m in loaded if m.startswith(stages) or m.startswith("levels.makers")]
 
 
+def _module_graph() -> dict[str, set[str]]:
+    """Every module of levels and station and the modules of the two it imports anywhere
+    (at the top, inside functions, under TYPE_CHECKING): a lazy import is an arrow too."""
+    mods = {}
+    for path in _modules("levels") + _modules("station"):
+        name = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+        mods[name.removesuffix(".__init__")] = path
+    graph: dict[str, set[str]] = {}
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        seen: set[str] = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                seen.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                seen.add(node.module)
+                seen.update(f"{node.module}.{a.name}" for a in node.names)
+        graph[name] = {m for m in seen if m in mods and m != name and mods[m].name != "__init__.py"}
+    return graph
+
+
+def test_no_import_circle_lazy_imports_counted() -> None:
+    """No module reaches itself through the imports of others (issue 58: the house has
+    floors; a package's face, which only hands names on, is not a room)."""
+    graph = _module_graph()
+    circles = []
+    state: dict[str, int] = {}  # 1: on the path, 2: done
+
+    def visit(m: str, path: list[str]) -> None:
+        state[m] = 1
+        for n in sorted(graph[m]):
+            if state.get(n) == 1:
+                circles.append([*path[path.index(n) :], n])
+            elif n not in state:
+                visit(n, [*path, n])
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m, [m])
+    assert not circles, " ; ".join(" -> ".join(c) for c in circles[:5])
+
+
 #: What only the run skeleton (station/flow.py) calls: publishing a directory, writing its
 #: catalogue, a report's header (issue 58: one skeleton, not seven publish sites).
 SKELETON_ONLY = ("published_dir", "write_catalog", ".header")

@@ -14,8 +14,8 @@ from levels.geo.maps import map_crs
 from levels.readers.dem import DemError, egm96_grid_installed, read_dem
 from station.fixtures import emulated_scene
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
-from station.spacecraft.dem import read_hgt
 from station.spacecraft.emulator import emulate
+from station.spacecraft.hgt import read_hgt
 from station.truth.optical import Truth, checkpoints_2a, checkpoints_3
 
 #: The issue's figures for an exact DEM with the errors off: RMS and max (output pixels).

@@ -7,11 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from station.loader import load_scenario
+from station.loader import describe_keys, load_scenario
 from station.scenario import (
     Scenario,
     ScenarioError,
-    describe_keys,
     scenario_from_dict,
 )
 
@@ -113,7 +112,7 @@ def test_one_loader_reads_each_file_once_and_says_what_it_is(monkeypatch) -> Non
     file each; the typed loaders refuse the other kinds naming what the file is."""
     import station.loader as loader
     from station.loader import BlockScenario, load_any, load_block, load_sar
-    from station.run_sar import SarScenario
+    from station.sar_scenario import SarScenario
 
     reads: list[Path] = []
     real = loader.read_toml

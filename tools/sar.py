@@ -29,7 +29,8 @@ def main(argv: list[str] | None = None) -> int:
     from levels.options import build_section
     from station.errors import ScenarioError
     from station.loader import load_sar
-    from station.run_sar import _SECTIONS, run_sar, sar_summary
+    from station.run_sar import run_sar, sar_summary
+    from station.sar_scenario import SECTIONS
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("names", nargs="*", default=["ers_gec", "ers_gtc"])
@@ -42,10 +43,10 @@ def main(argv: list[str] | None = None) -> int:
         scn = load_sar(path)
         table = tomllib.loads(path.read_text())
         for section, keys in changes.items():
-            if section not in _SECTIONS:
-                raise ScenarioError(f"--set {section}.…: a SAR scenario has {list(_SECTIONS)}")
+            if section not in SECTIONS:
+                raise ScenarioError(f"--set {section}.…: a SAR scenario has {list(SECTIONS)}")
             merged = {**table.get(section, {}), **keys}
-            built = build_section(_SECTIONS[section], section, merged, ScenarioError)
+            built = build_section(SECTIONS[section], section, merged, ScenarioError)
             scn = dataclasses.replace(scn, **{section: built})
         out = Path(args.out) / scn.name
         report = run_sar(scn, out)

@@ -47,7 +47,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from station.loader import BlockScenario, load_any
     from station.run import run_scenario, summary_table
-    from station.run_sar import SarScenario
+    from station.sar_scenario import SarScenario
 
     path = Path(args.scenario) if args.scenario else DEFAULT_SCENARIO
     if not args.scenario and not path.is_file():

@@ -26,7 +26,7 @@ from levels.geometry.sensor import mirror_angle_rad
 from levels.geometry.times import Epoch
 from station.scenario import GcpConfig, Scenario
 from station.spacecraft.attitude import GyroRecord, TruthAttitude, sample_gyros
-from station.spacecraft.dem import read_hgt
+from station.spacecraft.hgt import read_hgt
 from station.spacecraft.imaging import RenderedBand, render_band, trace_pixels
 from station.spacecraft.instrument import TWIN_SEPARATION_RAD, Hrv, build_hrv
 from station.spacecraft.orbit import OrbitError, TruthOrbit
