@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from levels.errors import OptionsError
 from levels.makers.pairs import PairMade, PairMaker, PairMeasure, PairScene
@@ -35,6 +35,13 @@ from levels.work import (
     run,
     tie_points,
 )
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from levels.sar.geocoding import Geocoded
+    from levels.stereo import StereoDem
 
 __all__ = [
     "LEVEL2",
@@ -122,10 +129,12 @@ class _Given:
     def checkpoints(self, name: str) -> CheckpointSource | None:
         return self._checkpoints.get(name)
 
-    def pair(self, made: Any) -> dict[str, Any]:
+    def pair(self, made: StereoDem) -> dict[str, Any]:
         return self._measure(made) if self._measure is not None else {}
 
-    def frame(self, level: str, geocoded: Any, gamma0: Any) -> dict[str, Any]:
+    def frame(
+        self, level: str, geocoded: Geocoded, gamma0: NDArray[np.float32] | None
+    ) -> dict[str, Any]:
         return {}
 
 

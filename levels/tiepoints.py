@@ -33,7 +33,7 @@ two lines of sight (an approximation: a block adjustment solves it).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,6 +45,9 @@ from levels.geometry.model import PushbroomModel
 from levels.readers.dem import EARTH_HEIGHTS_M
 from levels.readers.gcp import ControlPointSet
 from levels.stereo import closest_approach
+
+if TYPE_CHECKING:
+    from levels.product import Product
 
 __all__ = [
     "BACK_MATCH_PX",
@@ -104,7 +107,7 @@ class MapView:
     reference_height_m: float = 0.0
 
     @classmethod
-    def of_product(cls, product: Any, band: str | None = None) -> MapView:
+    def of_product(cls, product: Product, band: str | None = None) -> MapView:
         """The view of a map product (2A or 2) of one band (default its first)."""
         from levels.geo.scenes import models_of_tree
 

@@ -74,6 +74,7 @@ if TYPE_CHECKING:
     from levels.geo.maps import MapGrid
     from levels.readers.sar import SarFrame
     from levels.sar.geocoding import Geocoded
+    from levels.stereo import StereoDem
 
 _log = logging.getLogger(__name__)
 
@@ -120,7 +121,7 @@ class Measure(Protocol):
         """Where the checkpoints of archive ``name`` truly are (its scenes' quality)."""
         ...
 
-    def pair(self, made: Any) -> dict[str, Any]:
+    def pair(self, made: StereoDem) -> dict[str, Any]:
         """A pair product's quality from what its maker made (a :class:`levels.stereo.
         StereoDem`)."""
         ...
@@ -138,7 +139,7 @@ class _NoTruth:
     def checkpoints(self, name: str) -> CheckpointSource | None:
         return None
 
-    def pair(self, made: Any) -> dict[str, Any]:
+    def pair(self, made: StereoDem) -> dict[str, Any]:
         return {}
 
     def frame(

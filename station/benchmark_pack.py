@@ -28,7 +28,7 @@ import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,6 +38,10 @@ from levels.geometry.ellipsoid import WGS84
 from levels.products import Product, read_product
 from levels.readers.dimap import AttitudeChoice
 from station.errors import StationError
+
+if TYPE_CHECKING:
+    from station.scenario import Scenario
+    from station.spacecraft.emulator import Acquisition
 
 __all__ = ["PACK_FILE", "SCENE_FOLDER", "PackResult", "write_pack", "zip_pack"]
 
@@ -193,7 +197,7 @@ def write_pack(
     return PackResult(Path(target), scn is not None, scores)
 
 
-def _truth(stage: Path, scn: Any, scn_path: Path, product: Product, scene: Any) -> dict:
+def _truth(stage: Path, scn: Scenario, scn_path: Path, product: Product, scene: Any) -> dict:
     """Write the truth files and return the scores of this station's model at the
     checkpoints (the DIMAP scene read back, INPE's attitude and the null one)."""
     from levels.readers.dimap import read_dimap
@@ -253,7 +257,7 @@ def _utc(epoch: Any, t: NDArray) -> list[str]:
     return [str(u) for u in np.datetime_as_string(epoch.utc(t), unit="ns")]
 
 
-def _truth_tables(truth_dir: Path, acq: Any, first: int, scene: Any) -> None:
+def _truth_tables(truth_dir: Path, acq: Acquisition, first: int, scene: Any) -> None:
     """The true ephemeris, attitude and look angles over the scene (and
     :data:`TRUTH_MARGIN_S` about it) as CSV files in ``truth_dir``."""
     period = acq.hrv.line_period_s
@@ -318,7 +322,7 @@ def _scores(
 
 
 def _control_points(
-    stage: Path, truth_dir: Path, acq: Any, first: int, scene: Any, scn: Any
+    stage: Path, truth_dir: Path, acq: Acquisition, first: int, scene: Any, scn: Scenario
 ) -> None:
     """The scenario's control points inside the scene: as measured (with the scenario's
     errors, what a user is handed) and their truth."""

@@ -24,13 +24,17 @@ import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from levels.errors import LevelsError
 from levels.options import ProcessingOptions
 from levels.tasks import Runner
 from station.errors import StationError
 from station.reports import CAMPAIGN
+
+if TYPE_CHECKING:
+    from levels.work import Result
+    from station.flow import FlowRun
 
 __all__ = ["CAMPAIGN_FORMAT", "campaign_archives", "run_campaign"]
 
@@ -140,7 +144,7 @@ class Campaign:
     def measure(self) -> Any:
         return None
 
-    def acquire(self, stage: Path, state: Any) -> None:
+    def acquire(self, stage: Path, state: FlowRun) -> None:
         """Every archive planned and made into ``stage/<name>/`` (:func:`_run`): nothing
         left for the skeleton's request."""
         self._body = _run(
@@ -153,7 +157,7 @@ class Campaign:
             self.runner,
         )
 
-    def sections(self, stage: Path, result: Any, state: Any) -> dict[str, Any]:
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
         """The report; a campaign with failures is not published over a previous one."""
         failed = [a for a in self._body["archives"] if a["status"] != "ok"]
         if failed and self.previous:  # never a campaign with failures over a good one

@@ -26,13 +26,16 @@ import datetime as dt
 import logging
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from levels.kinds import Unit
 from levels.products import Product, is_product_file, read_product
 from levels.registry import kind_of
+
+if TYPE_CHECKING:
+    import pystac
 
 _log = logging.getLogger(__name__)
 
@@ -283,7 +286,7 @@ def _projection(product: Product) -> dict[str, Any]:
     return props
 
 
-def _add_assets(item: Any, path: Path, title: str) -> None:
+def _add_assets(item: pystac.Item, path: Path, title: str) -> None:
     """An Item's assets: the product (``data``), its RPC sidecar (``rpc``) and its
     quicklook (``thumbnail``) where they are beside it."""
     import pystac
@@ -321,7 +324,7 @@ def _add_assets(item: Any, path: Path, title: str) -> None:
         )
 
 
-def _fill(catalog: Any, directory: Path, root: Path) -> int:
+def _fill(catalog: pystac.Catalog, directory: Path, root: Path) -> int:
     """Add the products of ``directory`` as Items and its sub-directories holding
     products as child catalogues; the number of Items added."""
     import pystac

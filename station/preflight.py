@@ -20,10 +20,13 @@ import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from station.errors import StationError
 from station.scenario import Scenario
+
+if TYPE_CHECKING:
+    from levels.readers.dem import Dem
 
 _log = logging.getLogger(__name__)
 
@@ -266,7 +269,7 @@ def _warn_outside_service(scn: Scenario) -> None:
         )
 
 
-def _check_covers(scn: Scenario, dem: Any) -> None:
+def _check_covers(scn: Scenario, dem: Dem) -> None:
     """:class:`StationError` when the level 3 DEM lies off the pass: the pass's footprint
     traced on the geometry alone (no image rendered: a fraction of a second), its corners
     and centre against the DEM's grid (``levels.geo.coverage.on_dem``)."""

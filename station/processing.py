@@ -13,24 +13,41 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from levels.options import ProcessingOptions
 from levels.process import PassProducts
 from levels.work import Frame, Measure, Request, Result, Step
-from station.flow import FlowRun
+from station.flow import Flow, FlowRun
 from station.reports import PROCESS
 from station.scenario import Scenario
 from station.truth.measure import StationTruth
 
+if TYPE_CHECKING:
+    from levels.frame import FrameOptions
+    from levels.readers.dem import Dem
+    from levels.readers.sar import SarFrame
+    from station.sar_scenario import SarScenario
+
 __all__ = [
     "ProcessArchives",
     "ProcessBlock",
+    "ProcessFlow",
     "ProcessFrame",
     "ProcessScenario",
     "archive_data",
     "check_archives",
 ]
+
+
+class ProcessFlow(Flow, Protocol):
+    """A ``station process`` flow: what it names its products, what its checks found, and
+    its checks, the whole of them with ``full`` (``--check``)."""
+
+    names: list[str]
+    found: dict[str, Any]
+
+    def check(self, out: Path, full: bool = False) -> None: ...
 
 
 class _Processing:
@@ -242,12 +259,12 @@ class ProcessFrame(_Processing):
     def __init__(
         self,
         source: Path,
-        frame: Any,
-        options: Any,
+        frame: SarFrame,
+        options: FrameOptions,
         *,
-        dem: Any = None,
+        dem: Dem | None = None,
         dem_file: Path | None = None,
-        scenario: Any = None,
+        scenario: SarScenario | None = None,
     ) -> None:
         inputs = [source, *([dem_file] if dem_file else [])]
         super().__init__([frame.name], inputs, f"the products of the SAR frame {frame.name}")

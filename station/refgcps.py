@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,6 +21,10 @@ from numpy.typing import NDArray
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
 from levels.reference import ReferencePoints
+
+if TYPE_CHECKING:
+    from station.scenario import Scenario
+    from station.truth.optical import Truth
 
 __all__ = ["gcps_from_reference", "point_errors_en", "points_source", "reference_sigma_m"]
 
@@ -62,8 +66,8 @@ def gcps_from_reference(
     *,
     options: ProcessingOptions | None = None,
     ce95_m: float | None = None,
-    scenario: Any = None,
-    truth: Any = None,
+    scenario: Scenario | None = None,
+    truth: Truth | None = None,
 ) -> tuple[ReferencePoints, dict[str, Any]]:
     """Find, write and (with ``scenario``, or the run's ``truth`` of the archive) score the
     pass's control points (module docstring); returns them and the summary the command
@@ -117,7 +121,7 @@ def _reference_bias_m(path: str | Path) -> tuple[float, float] | None:
         return None
 
 
-def point_errors_en(truth: Any, points: ControlPointSet) -> NDArray[np.float64]:
+def point_errors_en(truth: Truth, points: ControlPointSet) -> NDArray[np.float64]:
     """Each point's ground less where its raw pixel truly looks on the terrain (``truth``:
     :class:`station.truth.optical.Truth` of the archive), east and north (m), (N, 2); NaN
     where the pixel's ray missed."""
@@ -132,7 +136,7 @@ def point_errors_en(truth: Any, points: ControlPointSet) -> NDArray[np.float64]:
 
 
 def _scored(
-    truth: Any, found: ReferencePoints, bias: tuple[float, float] | None
+    truth: Truth, found: ReferencePoints, bias: tuple[float, float] | None
 ) -> dict[str, float]:
     """Each point's ground against where its raw pixel truly looks (east, north, m); with
     the reference's true ``bias``, also against it: what the matching alone missed."""

@@ -13,10 +13,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from station import __version__
 from station.errors import StationError
+
+if TYPE_CHECKING:
+    from station.sar_scenario import SarScenario
+    from station.scenario import Scenario
 
 __all__ = [
     "BLOCK_RUN",
@@ -81,7 +85,7 @@ def report_of(d: Path) -> ReportFormat | None:
     return None
 
 
-def scenario_entry(scn: Any) -> dict[str, Any]:
+def scenario_entry(scn: Scenario | SarScenario) -> dict[str, Any]:
     """What a run's report says of its scenario (a pass's or a SAR frame's): name, file,
     its bytes' SHA-256, seed."""
     return {

@@ -32,7 +32,7 @@ import logging
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from levels.files import json_default
 from levels.products import read_product
@@ -47,6 +47,11 @@ from station.reports import BLOCK_RUN, PASS_RUN, scenario_entry
 from station.scenario import Scenario
 from station.tables import product_table
 from station.truth.measure import StationTruth
+
+if TYPE_CHECKING:
+    from levels.adjust import Adjustment
+    from levels.process import PassProducts
+    from station.spacecraft.emulator import Acquisition
 
 __all__ = [
     "check_run",
@@ -298,7 +303,9 @@ class _Received:
     found: dict[str, Any] | None = None
 
 
-def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any) -> _Received:
+def _receive(
+    acq: Acquisition, out: Path, tag: str, timings: dict[str, Any], stages: Any
+) -> _Received:
     """One HRV's channel, its L0 archive and its control-point file; adds the wall times
     to ``timings``."""
     from levels.readers.l0 import read_l0
@@ -337,7 +344,7 @@ def _receive(acq: Any, out: Path, tag: str, timings: dict[str, Any], stages: Any
     return _Received(l0, archive, decode, truth, gcps, gcps_path, found)
 
 
-def _section(acq: Any, rec: _Received, products: Any) -> dict[str, Any]:
+def _section(acq: Acquisition, rec: _Received, products: PassProducts) -> dict[str, Any]:
     """One HRV's section of the run report."""
     scn, decode, archive, l0 = acq.scenario, rec.decode, rec.archive, rec.l0
     gcps_path = rec.gcps_path
@@ -407,7 +414,7 @@ def _found_line(gcps: dict[str, Any]) -> str:
     return line
 
 
-def _adjustment(adjustment: Any, acq: Any) -> dict[str, Any]:
+def _adjustment(adjustment: Adjustment, acq: Acquisition) -> dict[str, Any]:
     """Level 2's adjustment in the report: its summary, and the blunders the emulator
     planted (``[gcps] blunder_fraction``) beside those it rejected."""
     import numpy as np

@@ -24,13 +24,21 @@ import dataclasses
 import logging
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from station.errors import ScenarioError, StationError
 from station.reports import SAR_RUN
 from station.sar_scenario import SarScenario
+
+if TYPE_CHECKING:
+    from levels.readers.sar import SarFrame
+    from levels.sar import SarAnnotation, SarImage
+    from levels.work import Made, Result
+    from station.flow import FlowRun
+    from station.spacecraft.sar import SarTruth
+    from station.spacecraft.world import World
 
 _log = logging.getLogger(__name__)
 
@@ -68,7 +76,9 @@ def _frame(scn: SarScenario) -> Any:
     )
 
 
-def _footprint_rad(ann: Any, heights: tuple[float, float]) -> tuple[float, float, float, float]:
+def _footprint_rad(
+    ann: SarAnnotation, heights: tuple[float, float]
+) -> tuple[float, float, float, float]:
     """(south, north, west, east) of the frame's footprint over a span of heights."""
     lat, lon = (np.concatenate(a) for a in zip(*map(ann.edge_ground, heights), strict=True))
     return float(lat.min()), float(lat.max()), float(lon.min()), float(lon.max())
@@ -106,7 +116,7 @@ def scenario_provenance(scn: SarScenario) -> dict[str, Any]:
     }
 
 
-def frame_quality(scn: SarScenario, frame: Any) -> Any:
+def frame_quality(scn: SarScenario, frame: SarFrame) -> Any:
     """The truth of the frame a SAR scenario made, as a frame's ``measure``
     (:data:`levels.frame.Measure`): the scenario's frame emulated again (its geometry
     alone), checked to be the frame given (its annotation), and each product held to it."""
@@ -127,7 +137,7 @@ def frame_quality(scn: SarScenario, frame: Any) -> Any:
     return _measure(scn, image, truth)
 
 
-def _measure(scn: SarScenario, image: Any, truth: Any) -> Any:
+def _measure(scn: SarScenario, image: SarImage, truth: SarTruth) -> Any:
     """Each product of the scenario's frame held to its truth (a frame's ``measure``)."""
     from station.truth.sar import frame_truth
 
@@ -182,7 +192,7 @@ class SarRun:
     def measure(self) -> Any:
         return self._truth
 
-    def acquire(self, stage: Path, state: Any) -> Any:
+    def acquire(self, stage: Path, state: FlowRun) -> Any:
         """The frame emulated over the world, its DEM exported, the frame written in the
         house format and in ESA's, and read back from ESA's (so that its reader is on every
         run's path; the house file keeps it exact)."""
@@ -235,7 +245,7 @@ class SarRun:
             provenance=scenario_provenance(scn),
         )
 
-    def sections(self, stage: Path, result: Any, state: Any) -> dict[str, Any]:
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
         from station.catalog import CATALOG_FILE
         from station.reports import scenario_entry
 
@@ -255,7 +265,9 @@ class SarRun:
         }
 
 
-def _exported_dem(scn: SarScenario, world: Any, ann: Any, out: Path) -> tuple[Any, dict[str, Any]]:
+def _exported_dem(
+    scn: SarScenario, world: World, ann: SarAnnotation, out: Path
+) -> tuple[Any, dict[str, Any]]:
     """With ``[dem]``: the world's terrain over the frame (and as far as its relief can
     reach) exported as ``<name>.dem.tif``, read back as the station is handed it, and what
     the report says of it; else nothing."""
@@ -272,7 +284,7 @@ def _exported_dem(scn: SarScenario, world: Any, ann: Any, out: Path) -> tuple[An
     return read_dem(dem_path, "ellipsoid"), {"file": dem_path.name, **dataclasses.asdict(scn.dem)}
 
 
-def _product_row(m: Any) -> dict[str, Any]:
+def _product_row(m: Made) -> dict[str, Any]:
     """What a SAR run's report says of a product (a :class:`levels.work.Made`): its size,
     valid share, anchors' error and the truth's figures."""
     from levels.products import read_product

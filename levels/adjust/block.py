@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +37,9 @@ from levels.geo.scenes import PassGeometry
 from levels.geometry.ellipsoid import WGS84
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
+
+if TYPE_CHECKING:
+    from levels.readers.dem import Dem
 
 #: A block's iterations stop when the χ² drops by less than this, one unit: a step that
 #: lowers it by less than one moves no combination of the unknowns by more than its σ. A
@@ -75,7 +78,7 @@ def adjust_block(
     passes: list[list[Strip]],
     ties: list[list[ControlPointSet]],
     options: ProcessingOptions,
-    dem: Any = None,
+    dem: Dem | None = None,
     dem_sigma_m: float = 10.0,
 ) -> list[tuple[Adjustment, ...]]:
     """Refine several passes over one ground together (ADRIN's blocks, paper ``001_…``,
@@ -196,7 +199,7 @@ class _Block:
         passes: list[list[Strip]],
         ties: list[list[ControlPointSet]],
         options: ProcessingOptions,
-        dem: Any,
+        dem: Dem | None,
         dem_sigma_m: float,
     ) -> None:
         self.options, self.dem, self.dem_sigma_m = options, dem, dem_sigma_m
@@ -325,6 +328,7 @@ class _Block:
         """Each tie point's height minus the DEM's under it, over ``dem_sigma_m``; the
         Jacobian by the point's up offset and the DEM's slope east and north."""
         dem, t = self.dem, np.flatnonzero(self.heights_known)
+        assert dem is not None  # rows of the DEM only when one is given
         lat, lon, h = WGS84.to_geodetic(g[t])
         h_dem = dem.heights(lat, lon)
         rows = np.nan_to_num((h - h_dem) / self.dem_sigma_m)

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyproj
@@ -52,6 +52,9 @@ from levels.geo.scenes import SceneGeometry
 from levels.geometry.dem import Dem, bilinear_surface, geoid_to_ellipsoid
 from levels.geometry.sensor import butting_columns
 from levels.threads import one_blas_thread
+
+if TYPE_CHECKING:
+    from levels.geometry.model import PushbroomModel
 
 __all__ = [
     "ANCHOR_TOLERANCE_PX",
@@ -465,7 +468,11 @@ def _union_grid(ends: list[Level2AGeometry], inverse_step_px: int) -> Level2AGeo
 
 
 def on_terrain(
-    model: Any, line: NDArray[np.float64], column: NDArray[np.float64], dem: Dem, h0_m: float
+    model: PushbroomModel,
+    line: NDArray[np.float64],
+    column: NDArray[np.float64],
+    dem: Dem,
+    h0_m: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """Where raw pixels meet the DEM (the direct method's step): latitude, longitude (rad),
     height, and whether the damped fixed point ``h ← DEM(ground(h))`` converged to 1 cm

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,6 +43,9 @@ from levels.geo.level1b import Level1BGeometry
 from levels.geometry.ellipsoid import WGS84
 from levels.geometry.model import PushbroomModel
 from levels.threads import one_blas_thread
+
+if TYPE_CHECKING:
+    from levels.readers.dem import Dem
 
 __all__ = [
     "RPC_CHECK_LATTICE",
@@ -335,7 +338,7 @@ class Rpc:
 
 
 def ground_on_dem(
-    rpc: Rpc, line: ArrayLike, sample: ArrayLike, dem: Any, start_m: float | None = None
+    rpc: Rpc, line: ArrayLike, sample: ArrayLike, dem: Dem, start_m: float | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Latitude, longitude (degrees) and height (m) where image points' rays meet a DEM
     (:class:`levels.geometry.dem.Dem`, ellipsoidal heights through its datum): the ground

@@ -6,7 +6,7 @@ from the raw pixels.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyproj
@@ -18,6 +18,9 @@ from levels.errors import GeometryError
 from levels.geo.inverse_grid import bilinear_grid
 from levels.geo.level2a import Level2AGeometry
 from levels.geometry.model import PushbroomModel
+
+if TYPE_CHECKING:
+    from levels.product import Product
 
 #: Spacing of the epipolar grid's nodes (pixels): the model through level 2's inverse grid
 #: there, bilinearly between (its approximation error is stored with the pair).
@@ -41,7 +44,7 @@ class StereoView:
     time_utc: str = ""  # the scene's centre time (ISO 8601, UTC)
 
     @classmethod
-    def of_products(cls, level2: Any, level1a: Any, band: str | None = None) -> StereoView:
+    def of_products(cls, level2: Product, level1a: Product, band: str | None = None) -> StereoView:
         """The view of a scene from its level 2 product (the adjusted model and grids) and
         its level 1A (the raw pixels)."""
         from levels.geo.scenes import models_of_tree

@@ -25,7 +25,7 @@ import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,6 +35,10 @@ from levels.errors import DimapError, ProductError
 from levels.geometry.attitude import SampledAttitude
 from levels.geometry.times import Epoch
 from levels.readers.dimap import BandCalibration, DimapScene
+
+if TYPE_CHECKING:
+    from levels.geometry.model import PushbroomModel
+    from levels.product import Product
 
 __all__ = [
     "BAND_INDEX",
@@ -368,7 +372,7 @@ def rates_reproducing(
 
 
 def dimap_scene_of(
-    product: Any,
+    product: Product,
     *,
     mission_index: int | None = None,
     calibration: dict[str, tuple[NDArray, NDArray]] | None = None,
@@ -449,7 +453,7 @@ def dimap_scene_of(
     )
 
 
-def _frame(model: Any) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+def _frame(model: PushbroomModel) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """The frame's four corners and its centre (1-based rows and columns, the centre
     ``n // 2`` as the real files) located by the model on the ellipsoid (degrees)."""
     n_rows, n_cols = model.n_lines, model.n_columns
@@ -461,7 +465,7 @@ def _frame(model: Any) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     return rows, cols, np.degrees(g.lat_rad), np.degrees(g.lon_rad)
 
 
-def _look_table(model: Any, n_cols: int) -> Any:
+def _look_table(model: PushbroomModel, n_cols: int) -> Any:
     """A model's look angles as a DIMAP file tabulates them (one per detector)."""
     from levels.geometry.sensor import LookAngleTable
 
@@ -484,7 +488,7 @@ def _band_calibration(
     )
 
 
-def band_descriptions(product: Any) -> dict[int, str]:
+def band_descriptions(product: Product) -> dict[int, str]:
     """Each DIMAP band index's ``BAND_DESCRIPTION`` for a product's bands."""
     return {
         BAND_INDEX.get(name, k + 1): _BAND_DESCRIPTION.get(name, name)

@@ -25,12 +25,15 @@ import os
 import sys
 import traceback
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from levels.errors import LevelsError
 from station import __version__
 from station.cli import capacity, gcps, locate, process, products, run, spacecraft
 from station.errors import StationError
+
+if TYPE_CHECKING:
+    from station.cli._options import Subparsers
 
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -68,7 +71,7 @@ def _add_verbosity(parser: argparse.ArgumentParser, default: object) -> None:
 class _Commands:
     """The subparsers, each given ``-v`` and ``-q`` (after the command as before it)."""
 
-    def __init__(self, sub: Any) -> None:
+    def __init__(self, sub: Subparsers) -> None:
         self._sub = sub
 
     def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser:

@@ -7,7 +7,7 @@ import contextlib
 import json
 import sys
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import Any, TypeAlias
 
 from levels.files import json_default
 
@@ -78,3 +78,7 @@ def exit_made(n_products: int, what: str) -> int:
         f"station: error: {what} made no product (every scene skipped: see above)", file=sys.stderr
     )
     return 2
+
+
+#: What a command module's ``register(sub)`` adds its parsers to.
+Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"

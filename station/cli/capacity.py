@@ -5,15 +5,18 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from station.cli._options import add_json, add_out, add_runner, emit, runner_of
 from station.errors import StationError
 
+if TYPE_CHECKING:
+    from station.cli._options import Subparsers
+
 __all__ = ["register"]
 
 
-def register(sub: Any) -> None:
+def register(sub: Subparsers) -> None:
     cap = sub.add_parser(
         "capacity",
         help="capacity planning: a simpy model of the station, or `calibrate`",

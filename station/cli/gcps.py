@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from station.cli._options import add_json, emit
+
+if TYPE_CHECKING:
+    from station.cli._options import Subparsers
 
 __all__ = ["register"]
 
 
-def register(sub: Any) -> None:
+def register(sub: Subparsers) -> None:
     p = sub.add_parser(
         "gcps",
         help="find a pass's control points on a reference ortho-image",

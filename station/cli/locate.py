@@ -4,17 +4,20 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from station.cli._options import add_json, emit
 from station.errors import StationError
 
+if TYPE_CHECKING:
+    from station.cli._options import Subparsers
+
 __all__ = ["register"]
 
 
-def register(sub: Any) -> None:
+def register(sub: Subparsers) -> None:
     p = sub.add_parser(
         "locate",
         help="predict the frame of a real SPOT scene from its METADATA.DIM",

@@ -8,13 +8,18 @@ import argparse
 import dataclasses
 import logging
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from station.cli._options import add_json, add_out, add_runner, emit, exit_made, runner_of
 from station.errors import StationError
 from station.reports import PROCESS
+
+if TYPE_CHECKING:
+    from levels.options import ProcessingOptions
+    from station.cli._options import Subparsers
+    from station.processing import ProcessFlow
 
 _log = logging.getLogger(__name__)
 
@@ -24,12 +29,12 @@ __all__ = ["PROCESS_REPORT", "register"]
 PROCESS_REPORT = PROCESS.file
 
 
-def register(sub: Any) -> None:
+def register(sub: Subparsers) -> None:
     _add_process(sub)
     _add_campaign(sub)
 
 
-def _add_process(sub: Any) -> None:
+def _add_process(sub: Subparsers) -> None:
     p = sub.add_parser(
         "process",
         help="make level products of an L0 archive (or of a scenario's pass)",
@@ -110,7 +115,7 @@ def _add_process(sub: Any) -> None:
     p.set_defaults(func=_process)
 
 
-def _add_campaign(sub: Any) -> None:
+def _add_campaign(sub: Subparsers) -> None:
     c = sub.add_parser(
         "campaign",
         help="reprocess many L0 archives as one campaign, with one report",
@@ -132,7 +137,7 @@ def _add_campaign(sub: Any) -> None:
     c.set_defaults(func=_campaign)
 
 
-def _options(args: argparse.Namespace, base: Any) -> Any:
+def _options(args: argparse.Namespace, base: ProcessingOptions) -> Any:
     from levels.options import ProcessingOptions
     from levels.registry import level_names
     from station.errors import ScenarioError
@@ -207,7 +212,7 @@ def _pass_flow(
     )
 
 
-def _done(args: argparse.Namespace, flow: Any, what: str) -> int:
+def _done(args: argparse.Namespace, flow: ProcessFlow, what: str) -> int:
     """``--check``: what the flow needs, checked, nothing written; else the flow run
     (:func:`station.flow.run_flow`) and its report printed."""
     from station.flow import flow_dir, run_flow

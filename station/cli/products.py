@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from station.cli._options import add_json, add_out, emit
 from station.errors import StationError
 
+if TYPE_CHECKING:
+    from station.cli._options import Subparsers
+
 __all__ = ["register"]
 
 
-def register(sub: Any) -> None:
+def register(sub: Subparsers) -> None:
     comp = sub.add_parser(
         "compare",
         help="compare two products or two run directories (exit 0 within "

@@ -6,10 +6,16 @@ import argparse
 import sys
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from station.cli._options import add_json, add_out, add_runner, exit_made, runner_of
 from station.errors import StationError
+
+if TYPE_CHECKING:
+    from station.cli._options import Subparsers
+    from station.loader import BlockScenario
+    from station.sar_scenario import SarScenario
+    from station.scenario import Scenario
 
 __all__ = ["DEFAULT_SCENARIO", "register"]
 
@@ -17,7 +23,7 @@ __all__ = ["DEFAULT_SCENARIO", "register"]
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "quickstart.toml"
 
 
-def register(sub: Any) -> None:
+def register(sub: Subparsers) -> None:
     p = sub.add_parser(
         "run",
         help="run a scenario end to end (the default scenario without one)",
@@ -78,7 +84,7 @@ def _run(args: argparse.Namespace) -> int:
     return exit_made(len(report["products"]), "the run")
 
 
-def _run_block(blk: Any, path: Path, args: argparse.Namespace) -> int:
+def _run_block(blk: BlockScenario, path: Path, args: argparse.Namespace) -> int:
     """A block scenario (``[[passes]]``): every pass, their tie points, the block."""
     import json
 
@@ -125,7 +131,7 @@ def _run_block(blk: Any, path: Path, args: argparse.Namespace) -> int:
     return exit_made(made, "the block")
 
 
-def _run_sar(scn: Any, path: Path, args: argparse.Namespace) -> int:
+def _run_sar(scn: SarScenario, path: Path, args: argparse.Namespace) -> int:
     """A SAR frame's scenario (``[sar]``): the frame, its GEC and GTC, the truth's figures."""
     import json
 
@@ -154,7 +160,7 @@ def _run_sar(scn: Any, path: Path, args: argparse.Namespace) -> int:
     return exit_made(len(report["products"]), "the run")
 
 
-def _check(scn: Any, out: Path, args: argparse.Namespace) -> int:
+def _check(scn: Scenario, out: Path, args: argparse.Namespace) -> int:
     """``--check``: the run's checks (``station.run.check_run``) and what they found."""
     import json
 

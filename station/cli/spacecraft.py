@@ -5,14 +5,17 @@ from __future__ import annotations
 
 import argparse
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from station.cli._options import add_json, add_out, emit
+
+if TYPE_CHECKING:
+    from station.cli._options import Subparsers
 
 __all__ = ["register"]
 
 
-def register(sub: Any) -> None:
+def register(sub: Subparsers) -> None:
     emul = sub.add_parser(
         "emulate",
         help="run the spacecraft emulator on a scenario file and summarise it",

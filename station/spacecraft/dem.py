@@ -17,6 +17,7 @@ from station.spacecraft.hgt import DemError
 if TYPE_CHECKING:
     from station.scenario import DemConfig
     from station.spacecraft.emulator import Acquisition
+    from station.spacecraft.world import World
 
 __all__ = ["export_dem", "export_dem_over", "footprint_rad", "world_dem"]
 
@@ -66,7 +67,7 @@ def export_dem(acqs: Sequence[Acquisition], cfg: DemConfig, seed: int, path: str
 
 
 def export_dem_over(
-    world: Any,
+    world: World,
     footprint: tuple[float, float, float, float],
     cfg: DemConfig,
     seed: int,
@@ -133,7 +134,7 @@ def export_dem_over(
 
 
 def world_dem(
-    world: Any,
+    world: World,
     lat_range_rad: tuple[float, float],
     lon_range_rad: tuple[float, float],
     spacing_deg: float,

@@ -25,13 +25,20 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyproj
 from numpy.typing import NDArray
 
 from station.scenario import ReferenceConfig
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from station.scenario import Scenario
+    from station.spacecraft.emulator import Acquisition
+    from station.spacecraft.world import World
 
 __all__ = [
     "CE95_PER_SIGMA",
@@ -91,7 +98,7 @@ def _smooth_field(shape: tuple[int, int], scale_px: float, rng: np.random.Genera
 
 
 def render_reference(
-    world: Any,
+    world: World,
     lat_range_rad: tuple[float, float],
     lon_range_rad: tuple[float, float],
     config: ReferenceConfig,
@@ -129,7 +136,7 @@ def render_reference(
 
 
 def _integrated(
-    world: Any,
+    world: World,
     crs_wkt: str,
     gt: tuple[float, ...],
     shape: tuple[int, int],
@@ -185,7 +192,7 @@ def write_reference(path: str | Path, ref: ReferenceImage) -> Path:
     return target
 
 
-def reference_path(scn: Any, out: Path) -> Path:
+def reference_path(scn: Scenario, out: Path) -> Path:
     """Where a run's reference image is: the scenario's ``[reference] file``, else the
     one the run renders (``<name>.reference.tif`` in ``out``)."""
     cfg = scn.reference
@@ -194,7 +201,7 @@ def reference_path(scn: Any, out: Path) -> Path:
     return out / f"{scn.name}.reference.tif"
 
 
-def export_reference(scn: Any, acqs: Any, out: Path) -> Path | None:
+def export_reference(scn: Scenario, acqs: Sequence[Acquisition], out: Path) -> Path | None:
     """The scenario's ``[reference]`` over its pass (the strips' footprint and the
     section's margin) written as ``<name>.reference.tif`` into ``out``; its ``file`` as it
     is (checked to exist: two passes registered to one reference); None without."""

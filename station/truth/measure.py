@@ -6,10 +6,17 @@ every unit of work alike."""
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from levels.quality import CheckpointSource
 from station.truth.optical import Truth
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from levels.sar.geocoding import Geocoded
+    from levels.stereo import StereoDem
 
 __all__ = ["StationTruth"]
 
@@ -33,7 +40,7 @@ class StationTruth:
     def checkpoints(self, name: str) -> CheckpointSource | None:
         return self._truths.get(name)
 
-    def pair(self, made: Any) -> dict[str, Any]:
+    def pair(self, made: StereoDem) -> dict[str, Any]:
         from station.truth.stereo import StereoTruth, stereo_quality
 
         a, b = [*self._pair, None, None][:2]
@@ -42,5 +49,7 @@ class StationTruth:
         truth = StereoTruth(a, b)
         return stereo_quality(made, truth, truth.a.acq.world)
 
-    def frame(self, level: str, geocoded: Any, gamma0: Any) -> dict[str, Any]:
+    def frame(
+        self, level: str, geocoded: Geocoded, gamma0: NDArray[np.float32] | None
+    ) -> dict[str, Any]:
         return self._frame(level, geocoded, gamma0) if self._frame is not None else {}

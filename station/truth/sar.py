@@ -7,12 +7,20 @@ products are :mod:`levels.frame`'s.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyproj
 
 from levels.registry import kind
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from levels.sar import SarImage
+    from levels.sar.geocoding import Geocoded
+    from station.spacecraft.sar import SarTruth
 
 __all__ = [
     "CHECKPOINTS",
@@ -30,7 +38,9 @@ CHECKPOINTS = 200
 TRUTH_MASK_OVERSAMPLE = 4
 
 
-def checkpoint_errors(g: Any, truth: Any, n: int = CHECKPOINTS, seed: int = 1) -> dict[str, Any]:
+def checkpoint_errors(
+    g: Geocoded, truth: SarTruth, n: int = CHECKPOINTS, seed: int = 1
+) -> dict[str, Any]:
     """Where a geocoded frame puts terrain points against where they are: ``n`` points drawn
     over the inner output grid, each at the world's height, the truth's (line, column) of
     it taken back onto the output grid through the product's per-pixel (line, column)
@@ -77,7 +87,9 @@ def checkpoint_errors(g: Any, truth: Any, n: int = CHECKPOINTS, seed: int = 1) -
     return {"di": di, "dj": dj, "height_m": h[ok], "incidence_rad": inc, "figures": figures}
 
 
-def flattening_figures(g: Any, gamma0: Any, image: Any, truth: Any) -> dict[str, Any]:
+def flattening_figures(
+    g: Geocoded, gamma0: NDArray[np.float32], image: SarImage, truth: SarTruth
+) -> dict[str, Any]:
     """γ⁰ (:func:`levels.sar.terrain_flattening`) against the world's own reflectance ρ at
     each pixel, outside layover and shadow: under the ``gamma`` law γ⁰ is ρ whatever the
     slope. By sixths of the flattening's correction (γ⁰ over σ⁰ / cos θ on the ellipsoid),
@@ -111,7 +123,7 @@ def flattening_figures(g: Any, gamma0: Any, image: Any, truth: Any) -> dict[str,
     }
 
 
-def mask_figures(g: Any, truth: Any) -> dict[str, Any]:
+def mask_figures(g: Geocoded, truth: SarTruth) -> dict[str, Any]:
     """Layover and shadow against the truth's, over the frame (its valid pixels' box)."""
     from levels.geo.maps import MapGrid
 
@@ -144,10 +156,10 @@ def mask_figures(g: Any, truth: Any) -> dict[str, Any]:
 
 def frame_truth(
     level: str,
-    g: Any,
-    gamma0: Any,
-    image: Any,
-    truth: Any,
+    g: Geocoded,
+    gamma0: NDArray[np.float32] | None,
+    image: SarImage,
+    truth: SarTruth,
     reference_height_m: float,
     backscatter: str,
 ) -> dict[str, Any]:

@@ -18,7 +18,7 @@ terrain under the DEM, and checkpoints measured in both images.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyproj
@@ -28,6 +28,9 @@ from levels.geometry.ellipsoid import WGS84
 from levels.quality import error_stats
 from levels.stereo import EpipolarPair, StereoDem, StereoView, triangulate_raw
 from station.truth.optical import Truth
+
+if TYPE_CHECKING:
+    from station.spacecraft.world import World
 
 __all__ = [
     "SLOPE_CLASSES_DEG",
@@ -133,7 +136,7 @@ def robust_stats(err: NDArray[np.float64]) -> dict[str, float]:
     }
 
 
-def true_heights(dem: StereoDem, world: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def true_heights(dem: StereoDem, world: World) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The world's terrain height (m) and slope (degrees) at the DEM's cell centres."""
     grid = dem.grid
     x, y = np.meshgrid(grid.x_m(), grid.y_m())
@@ -173,7 +176,7 @@ def _seen_by_both(
     return seen.reshape(x.shape)
 
 
-def dem_errors(dem: StereoDem, truth: StereoTruth, world: Any) -> dict[str, Any]:
+def dem_errors(dem: StereoDem, truth: StereoTruth, world: World) -> dict[str, Any]:
     """The DEM against the true terrain (module docstring)."""
     h_true, slope = true_heights(dem, world)
     err = dem.height_m.astype(np.float64) - h_true
@@ -233,7 +236,7 @@ def _datum_plane(
 def checkpoints(
     pair: EpipolarPair,
     truth: StereoTruth,
-    world: Any,
+    world: World,
     count: int = 25,
     pointing_px: float = 0.3,
     rng: np.random.Generator | None = None,
@@ -288,7 +291,7 @@ def checkpoints(
 
 
 def stereo_quality(
-    dem: StereoDem, truth: StereoTruth, world: Any, exact_step: int = 4
+    dem: StereoDem, truth: StereoTruth, world: World, exact_step: int = 4
 ) -> dict[str, Any]:
     """A DEM's figures against the truth, as its product keeps them: the disparity against
     the exact one, the heights against the terrain (by slope class), the checkpoints."""
