@@ -26,9 +26,9 @@ from numpy.typing import NDArray
 
 from levels.errors import DemError, OptionsError
 from levels.geo.maps import MapGrid
+from levels.geometry.dem import Dem
 from levels.kinds import Unit
 from levels.products import Product, write_product
-from levels.readers.dem import Dem
 from levels.readers.sar import SarFrame
 from levels.registry import kind, kind_names
 from levels.sar import frame_grid

@@ -26,7 +26,13 @@ from levels.readers.l0 import read_l0
 from station.errors import StationError
 from station.reports import BLOCK_RUN, CAMPAIGN, PROCESS, SAR_RUN, ReportFormat, report_of
 
-__all__ = ["compare_campaigns", "compare_inputs", "compare_runs", "directory_kind"]
+__all__ = [
+    "compare_campaigns",
+    "compare_inputs",
+    "compare_runs",
+    "directory_kind",
+    "tolerances_of",
+]
 
 
 #: A directory with no report (:mod:`station.reports`): products alone.
@@ -310,3 +316,11 @@ def _decode_by_hrv(report: dict[str, Any]) -> dict[Any, dict[str, Any]]:
     if "decode" in report:
         return {report.get("instrument", {}).get("hrv"): report["decode"]}
     return {}
+
+
+def tolerances_of(path: str | Path | None) -> dict[str, dict[str, float]]:
+    """``compare``'s tolerances: the defaults, overridden by a TOML file's
+    (:func:`levels.compare.load_tolerances`)."""
+    from levels.compare import load_tolerances
+
+    return load_tolerances(path)

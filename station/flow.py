@@ -23,18 +23,22 @@ is :func:`make_flow` in the outer one's staging directory.
 
 from __future__ import annotations
 
+import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from levels.files import write_json
 from levels.tasks import Runner
 from levels.work import Measure, Request, Result, plan, run
 from station.reports import ReportFormat
 
-__all__ = ["Flow", "FlowRun", "flow_dir", "make_flow", "quicklooks_of", "run_flow"]
+if TYPE_CHECKING:
+    from levels.tasks import DaskRunner, InProcess
+
+__all__ = ["Flow", "FlowRun", "flow_dir", "make_flow", "quicklooks_of", "run_flow", "runner_for"]
 
 
 @dataclass
@@ -95,6 +99,26 @@ class Flow(Protocol):
     def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
         """Its report's header fields and body, in order (``header``: the header's)."""
         ...
+
+
+@contextlib.contextmanager
+def runner_for(
+    workers: int | None = None, scheduler: str | None = None
+) -> Iterator[InProcess | DaskRunner]:
+    """Where a flow's tasks run (:func:`levels.tasks.dask_runner`): in this process, on a
+    local Dask cluster of ``workers`` processes, or on the cluster at ``scheduler``."""
+    from levels.tasks import dask_runner
+    from station.errors import StationError
+
+    if workers is not None and workers < 1:
+        raise StationError(
+            f"--workers {workers}: give a positive number of workers (without "
+            "--workers the tasks run in this process)"
+        )
+    if workers and scheduler:
+        raise StationError("give --workers (a local cluster) or --scheduler, not both")
+    with dask_runner(scheduler, workers or 0) as runner:
+        yield runner
 
 
 def run_flow(

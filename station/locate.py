@@ -22,7 +22,14 @@ from levels.readers.dimap2 import Dimap2Scene, is_dimap2, read_dimap2
 from levels.readers.envisat import is_envisat
 from station.errors import StationError
 
-__all__ = ["FrameCheck", "GcpCheck", "check_frame", "check_gcps", "write_rpc"]
+__all__ = [
+    "FrameCheck",
+    "GcpCheck",
+    "check_frame",
+    "check_gcps",
+    "parse_heights",
+    "write_rpc",
+]
 
 _GEOD = Geod(ellps="WGS84")
 
@@ -345,9 +352,10 @@ def write_rpc(
     OSSIM's keyword list of it (``.geom``), and write them as the sidecar GDAL reads beside
     an image (``_RPC.TXT``, or ``.RPB`` if ``out`` ends so); returns what was written and
     the fit's error."""
-    from levels.files import atomic_path
+    from levels.files import atomic_path, writable_dir
     from levels.geo.rpc import rpc_of_model
 
+    writable_dir(Path(out).parent)  # before the fit, not after
     if Path(path).suffix.lower() == ".geom":  # OSSIM's keyword list of a SPOT 5 scene
         from levels.readers.ossim import read_ossim_geom
 
@@ -374,3 +382,21 @@ def write_rpc(
         "fit_error_px": rpc.fit_error_px,
         "gdal_metadata": rpc.gdal_metadata(),
     }
+
+
+def parse_heights(text: str) -> tuple[float, float]:
+    """``LO,HI`` (m above the ellipsoid): finite, LO < HI, both on Earth
+    (:data:`levels.readers.dem.EARTH_HEIGHTS_M`); :class:`StationError` otherwise."""
+    from levels.readers.dem import EARTH_HEIGHTS_M
+
+    try:
+        lo, hi = (float(x) for x in text.split(","))
+    except ValueError:
+        raise StationError(f"--heights {text!r}: expected LO,HI in metres") from None
+    a, b = EARTH_HEIGHTS_M
+    if not (a <= lo < hi <= b):
+        raise StationError(
+            f"--heights {text!r}: expected LO < HI within {a:g}–{b:g} m (heights on Earth, "
+            "in metres above the ellipsoid)"
+        )
+    return lo, hi

@@ -26,7 +26,7 @@ from station.errors import StationError
 from station.scenario import Scenario
 
 if TYPE_CHECKING:
-    from levels.readers.dem import Dem
+    from levels.geometry.dem import Dem
 
 _log = logging.getLogger(__name__)
 

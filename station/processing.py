@@ -10,7 +10,9 @@ and 3, the ties and the pair's products; a frame's, its products.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
+import logging
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -25,9 +27,11 @@ from station.truth.measure import StationTruth
 
 if TYPE_CHECKING:
     from levels.frame import FrameOptions
-    from levels.readers.dem import Dem
+    from levels.geometry.dem import Dem
     from levels.readers.sar import SarFrame
     from station.sar_scenario import SarScenario
+
+_log = logging.getLogger(__name__)
 
 __all__ = [
     "ProcessArchives",
@@ -36,7 +40,13 @@ __all__ = [
     "ProcessFrame",
     "ProcessScenario",
     "archive_data",
+    "archives_flow",
     "check_archives",
+    "command_options",
+    "frame_flow",
+    "is_frame",
+    "options_of",
+    "recorded_cut",
 ]
 
 
@@ -400,3 +410,166 @@ def archive_data(l0: Path, out: Path, products: PassProducts) -> dict[str, Any]:
         "products": rows,
         "skipped": [dataclasses.asdict(k) for k in products.skipped],
     }
+
+
+def command_options(
+    base: ProcessingOptions | None = None,
+    *,
+    options_file: str | Path | None = None,
+    levels: str | None = None,
+    adjustment: str | None = None,
+    dem: str | Path | None = None,
+) -> ProcessingOptions:
+    """The options a command's arguments ask for, over ``base`` (the library's defaults):
+    ``options_file``'s ``[processing]`` table (a scenario file will do; its DEM relative to
+    it), ``levels`` (comma-separated, each known, none twice), level 2's ``adjustment``,
+    level 3's ``dem``."""
+    from levels.choices import AdjustmentScope
+    from levels.registry import level_names
+    from station.errors import ScenarioError
+    from station.scenario import read_toml
+
+    opts = base or ProcessingOptions()
+    if options_file:
+        table, _ = read_toml(options_file, "options")
+        opts = ProcessingOptions.from_table(table.get("processing", {}), error=ScenarioError)
+        if opts.dem_path and not Path(opts.dem_path).is_absolute():  # relative to the file
+            opts = dataclasses.replace(
+                opts, dem_path=str(Path(options_file).parent / opts.dem_path)
+            )
+    if levels:
+        wanted = [lv.strip() for lv in levels.split(",") if lv.strip()]
+        known = level_names()
+        bad = [lv for lv in wanted if lv not in known] or ([] if wanted else [levels])
+        if bad or len(set(wanted)) != len(wanted):
+            raise ScenarioError(
+                f"--levels {levels}: expected a comma-separated list, "
+                f"without repeats, of {', '.join(known)}"
+            )
+        opts = dataclasses.replace(opts, levels=tuple(wanted))
+    if adjustment:
+        opts = dataclasses.replace(opts, adjustment=AdjustmentScope(adjustment))
+    if dem:  # a pass's level 3 (a SAR frame's GTC reads it apart)
+        opts = dataclasses.replace(opts, dem_path=str(dem))
+    return opts
+
+
+def options_of(args: argparse.Namespace, base: ProcessingOptions | None) -> ProcessingOptions:
+    """:func:`command_options` of a command's ``--options``, ``--levels``, ``--adjustment``
+    and ``--dem`` (those it has)."""
+    return command_options(
+        base,
+        options_file=args.options,
+        levels=args.levels,
+        adjustment=getattr(args, "adjustment", None),
+        dem=getattr(args, "dem", None),
+    )
+
+
+def recorded_cut(sources: Sequence[Path]) -> ProcessingOptions:
+    """The processing options by default: the scenes cut as the station that recorded the
+    archives cut them (``L0Archive.scene_cut``), so that a reprocessing makes the run's
+    scenes; the library's default for archives that do not say, or say differently."""
+    from levels.readers.formats import open_archive
+
+    cuts = [open_archive(s).scene_cut for s in sources]
+    if not cuts or not cuts[0] or any(c != cuts[0] for c in cuts):
+        return ProcessingOptions()
+    cut = cuts[0]
+    return ProcessingOptions(
+        scene_lines=cut.get("scene_lines", 0), overlap_lines=cut.get("overlap_lines", 0)
+    )
+
+
+def is_frame(path: Path) -> bool:
+    """Whether ``path`` is a SAR frame (``levels.readers.formats``)."""
+    from levels.readers.formats import is_frame_file
+
+    return is_frame_file(path)
+
+
+def archives_flow(
+    sources: Sequence[Path],
+    names: Sequence[str],
+    options: ProcessingOptions,
+    inputs: Sequence[Path],
+    *,
+    scenarios: Sequence[Scenario] = (),
+    gcps: Sequence[str | Path] | None = None,
+    ties_dir: str | Path | None = None,
+    reference: str | Path | None = None,
+    workers: int = 0,
+) -> ProcessFlow:
+    """Recorded archives' flow: several passes asking for a pair's kinds are a block
+    (:class:`ProcessBlock`), any other set of archives is processed together
+    (:class:`ProcessArchives`)."""
+    from levels.process import pair_kinds_of
+
+    if len(sources) > 1 and pair_kinds_of(options):
+        return ProcessBlock(
+            sources, names, options, inputs, scenarios=scenarios, gcps=gcps, workers=workers
+        )
+    return ProcessArchives(
+        sources,
+        names,
+        options,
+        inputs,
+        scenarios=scenarios,
+        gcps=gcps,
+        ties_dir=ties_dir,
+        reference=reference,
+        workers=workers,
+    )
+
+
+def frame_flow(
+    source: Path,
+    *,
+    scenario: str | Path | None = None,
+    dem: str | Path | None = None,
+    levels: str | None = None,
+) -> ProcessFrame:
+    """A SAR frame file's flow: its levels, pixel and reference height from ``scenario``
+    (the SAR scenario that made it: its products measured against the truth, and the
+    run's), else ``levels`` (comma-separated) and the DEM's heights."""
+    import numpy as np
+
+    from levels.frame import FrameOptions, margin_of_dem
+    from levels.readers.dem import read_dem
+    from levels.readers.formats import open_frame
+    from station.loader import load_sar
+    from station.run_sar import frame_options
+
+    frame = open_frame(source)
+    scn = load_sar(scenario) if scenario else None
+    grid_dem = read_dem(dem, "ellipsoid") if dem else None
+    asked = tuple(lv.strip() for lv in levels.split(",")) if levels else None
+    if scn is not None:
+        options = frame_options(scn)
+        options = dataclasses.replace(options, levels=asked or options.levels)
+    else:
+        ref = float(np.nanmedian(grid_dem.height_m)) if grid_dem is not None else 0.0
+        options = FrameOptions(
+            levels=asked or _frame_kinds(grid_dem is not None),
+            reference_height_m=ref,
+            margin_m=margin_of_dem(grid_dem, ref) if grid_dem is not None else 0.0,
+        )
+    dem_file = Path(dem) if dem else None
+    return ProcessFrame(source, frame, options, dem=grid_dem, dem_file=dem_file, scenario=scn)
+
+
+def _frame_kinds(with_dem: bool) -> tuple[str, ...]:
+    """A SAR frame's kinds, those that need a DEM only ``with_dem``: the others said, not
+    skipped in silence."""
+    from levels.kinds import Unit
+    from levels.registry import kind, kind_names
+
+    kinds = [(n, "dem" in kind(n).needs) for n in kind_names(Unit.FRAME)]
+    skipped = [n for n, needs_dem in kinds if needs_dem and not with_dem]
+    if skipped:
+        _log.warning(
+            "%s not made: %s a DEM (give --dem DEM.tif)",
+            ", ".join(skipped),
+            "it needs" if len(skipped) == 1 else "they need",
+        )
+    return tuple(n for n, needs_dem in kinds if with_dem or not needs_dem)

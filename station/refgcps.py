@@ -20,13 +20,19 @@ from numpy.typing import NDArray
 
 from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
-from levels.reference import ReferencePoints
+from levels.reference import KEEP_SIGMAS, ReferencePoints
 
 if TYPE_CHECKING:
     from station.scenario import Scenario
     from station.truth.optical import Truth
 
-__all__ = ["gcps_from_reference", "point_errors_en", "points_source", "reference_sigma_m"]
+__all__ = [
+    "KEEP_SIGMAS",
+    "gcps_from_reference",
+    "point_errors_en",
+    "points_source",
+    "reference_sigma_m",
+]
 
 
 def reference_sigma_m(path: str | Path, ce95_m: float | None) -> float:

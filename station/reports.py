@@ -30,6 +30,7 @@ __all__ = [
     "REPORTS",
     "SAR_RUN",
     "ReportFormat",
+    "json_text",
     "report_of",
     "scenario_entry",
 ]
@@ -94,3 +95,10 @@ def scenario_entry(scn: Scenario | SarScenario) -> dict[str, Any]:
         "sha256": scn.source_sha256,
         "seed": scn.seed,
     }
+
+
+def json_text(data: object) -> str:
+    """A report (or any of its parts) as indented JSON, NumPy values as numbers."""
+    from levels.files import json_default
+
+    return json.dumps(data, indent=2, default=json_default)

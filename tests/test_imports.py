@@ -162,6 +162,13 @@ def test_no_import_circle_lazy_imports_counted() -> None:
     assert not circles, " ; ".join(" -> ".join(c) for c in circles[:5])
 
 
+@pytest.mark.parametrize("path", _modules("station/cli"), ids=lambda p: str(p.relative_to(ROOT)))
+def test_the_command_line_imports_nothing_from_levels_but_its_errors(path: Path) -> None:
+    """The CLI parses, calls one function of the station and prints (issue 58)."""
+    bad = sorted(n for n in _imports(path) if _top(n) == "levels" and n != "levels.errors")
+    assert not bad, f"{path.relative_to(ROOT)} imports {bad}"
+
+
 #: What only the run skeleton (station/flow.py) calls: publishing a directory, writing its
 #: catalogue, a report's header (issue 58: one skeleton, not seven publish sites).
 SKELETON_ONLY = ("published_dir", "write_catalog", ".header")

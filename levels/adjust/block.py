@@ -39,7 +39,7 @@ from levels.options import ProcessingOptions
 from levels.readers.gcp import ControlPointSet
 
 if TYPE_CHECKING:
-    from levels.readers.dem import Dem
+    from levels.geometry.dem import Dem
 
 #: A block's iterations stop when the χ² drops by less than this, one unit: a step that
 #: lowers it by less than one moves no combination of the unknowns by more than its σ. A

@@ -45,7 +45,7 @@ from levels.geometry.model import PushbroomModel
 from levels.threads import one_blas_thread
 
 if TYPE_CHECKING:
-    from levels.readers.dem import Dem
+    from levels.geometry.dem import Dem
 
 __all__ = [
     "RPC_CHECK_LATTICE",

@@ -36,10 +36,10 @@ from numpy.typing import NDArray
 
 from levels.adjust import Adjustment
 from levels.geo.scenes import PassGeometry, SceneGeometry
+from levels.geometry.dem import Dem
 from levels.options import ProcessingOptions
 from levels.products import BandImage, MapGrid
 from levels.quality import CheckpointSource
-from levels.readers.dem import Dem
 from levels.readers.l0 import L0Archive
 
 __all__ = [

@@ -6,6 +6,10 @@ comparison with the truth is possible only because the pass was emulated.
 
 from __future__ import annotations
 
+import time
+from pathlib import Path
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -18,6 +22,7 @@ __all__ = [
     "STATION_RATE_BIT_PER_S",
     "comparable",
     "downlink_report",
+    "downlink_scenario",
     "expected_valid",
     "lost_data_frames",
 ]
@@ -137,3 +142,32 @@ def comparable(report: dict) -> dict:
         "truth_check": report["truth_check"],
         "link": {k: report["link"][k] for k in ("cadus_sent", "bit_errors", "bursts", "fades")},
     }
+
+
+def downlink_scenario(scenario: str | Path, out: str | Path | None = None) -> dict[str, Any]:
+    """``station downlink``: a scenario's pass emulated, sent through its channel, decoded
+    and recorded as an L0 archive at ``out`` (default ``<name>.l0.h5``; only an earlier
+    archive of the same scenario is replaced); the downlink's report, with the archive."""
+    from levels.readers.l0 import l0_scenario
+    from station.chain.session import downlink, record
+    from station.loader import load_scenario
+    from station.outdir import replaceable_file
+    from station.spacecraft.emulator import emulate
+
+    start = time.perf_counter()
+    scn = load_scenario(scenario)
+    path = replaceable_file(
+        out or f"{scn.name}.l0.h5",
+        l0_scenario,
+        scn.name,
+        lambda name: f"the L0 archive of scenario {name!r}",
+    )
+    acq = emulate(scn)
+    t_emulate = time.perf_counter() - start
+    result = downlink(acq)
+    t0 = time.perf_counter()
+    record(acq, result, path)
+    result.timings_s.update(emulate=t_emulate, record=time.perf_counter() - t0)
+    rep = downlink_report(acq, result)
+    rep["l0"] = {"path": str(path), "size_mb": round(path.stat().st_size / 1e6, 2)}
+    return rep

@@ -4,12 +4,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import sys
 from collections.abc import Callable, Iterator
 from typing import Any, TypeAlias
-
-from levels.files import json_default
 
 __all__ = ["add_json", "add_out", "add_runner", "emit", "exit_made", "runner_of"]
 
@@ -26,7 +23,9 @@ def add_out(parser: argparse.ArgumentParser, help_text: str) -> None:
 
 def emit(args: argparse.Namespace, data: Any, text: Callable[[Any], str]) -> None:
     """Print ``data`` as JSON with ``--json``, else as ``text(data)``."""
-    print(json.dumps(data, indent=2, default=json_default) if args.json else text(data))
+    from station.reports import json_text
+
+    print(json_text(data) if args.json else text(data))
 
 
 def add_runner(parser: argparse.ArgumentParser, what: str = "scenes") -> None:
@@ -54,18 +53,10 @@ def add_runner(parser: argparse.ArgumentParser, what: str = "scenes") -> None:
 
 @contextlib.contextmanager
 def runner_of(args: argparse.Namespace) -> Iterator[Any]:
-    """The runner :func:`add_runner`'s options ask for (``levels.tasks.dask_runner``)."""
-    from levels.tasks import dask_runner
-    from station.errors import StationError
+    """The runner :func:`add_runner`'s options ask for (:func:`station.flow.runner_for`)."""
+    from station.flow import runner_for
 
-    if args.workers is not None and args.workers < 1:
-        raise StationError(
-            f"--workers {args.workers}: give a positive number of workers (without "
-            "--workers the tasks run in this process)"
-        )
-    if args.workers and args.scheduler:
-        raise StationError("give --workers (a local cluster) or --scheduler, not both")
-    with dask_runner(args.scheduler, args.workers or 0) as runner:
+    with runner_for(args.workers, args.scheduler) as runner:
         yield runner
 
 

@@ -46,16 +46,16 @@ def register(sub: Subparsers) -> None:
 
 
 def _gcps(args: argparse.Namespace) -> int:
-    from station.cli.process import _options, _recorded_cut
     from station.loader import load_scenario
     from station.outdir import replaceable_file
+    from station.processing import options_of, recorded_cut
     from station.refgcps import gcps_from_reference, points_source
 
     source = Path(args.source).name
     replaceable_file(args.out, points_source, source, lambda s: f"the control points found for {s}")
     scn = load_scenario(args.scenario) if args.scenario else None
-    base = scn.processing if scn is not None else _recorded_cut([Path(args.source)])
-    options = _options(args, base)  # --options and --dem as station process reads them
+    base = scn.processing if scn is not None else recorded_cut([Path(args.source)])
+    options = options_of(args, base)  # --options and --dem as station process reads them
     _, summary = gcps_from_reference(
         args.source,
         args.reference,
@@ -70,7 +70,7 @@ def _gcps(args: argparse.Namespace) -> int:
 
 
 def _text(d: dict) -> str:
-    from levels.reference import KEEP_SIGMAS
+    from station.refgcps import KEEP_SIGMAS
 
     lines = [
         f"{d['points']} control points found on {d['reference']} written to {d['out']} "

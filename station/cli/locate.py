@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -70,13 +69,10 @@ def register(sub: Subparsers) -> None:
 
 
 def _locate(args: argparse.Namespace) -> int:
-    from station.locate import check_frame, check_gcps, write_rpc
+    from station.locate import check_frame, check_gcps, parse_heights, write_rpc
 
     if args.rpc:
-        from levels.files import writable_dir
-
-        lo, hi = _heights(args.heights)
-        writable_dir(Path(args.rpc).parent)  # before the fit, not after
+        lo, hi = parse_heights(args.heights)
         emit(args, write_rpc(args.metadata, args.rpc, (lo, hi), args.attitude), _rpc_text)
         return 0
     if args.metadata.lower().endswith(".geom"):
@@ -96,23 +92,6 @@ def _locate(args: argparse.Namespace) -> int:
         )
     emit(args, check.as_dict() if args.json else check, _text)
     return 0
-
-
-def _heights(text: str) -> tuple[float, float]:
-    """``--heights LO,HI``: finite, LO < HI, both on Earth (``EARTH_HEIGHTS_M``)."""
-    from levels.readers.dem import EARTH_HEIGHTS_M
-
-    try:
-        lo, hi = (float(x) for x in text.split(","))
-    except ValueError:
-        raise StationError(f"--heights {text!r}: expected LO,HI in metres") from None
-    a, b = EARTH_HEIGHTS_M
-    if not (a <= lo < hi <= b):
-        raise StationError(
-            f"--heights {text!r}: expected LO < HI within {a:g}–{b:g} m (heights on Earth, "
-            "in metres above the ellipsoid)"
-        )
-    return lo, hi
 
 
 def _rpc_text(d: dict) -> str:

@@ -10,14 +10,12 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from station.cli._options import add_json, add_out, add_runner, emit, exit_made, runner_of
 from station.errors import StationError
+from station.processing import frame_flow, is_frame, options_of, recorded_cut
 from station.reports import PROCESS
 
 if TYPE_CHECKING:
-    from levels.options import ProcessingOptions
     from station.cli._options import Subparsers
     from station.processing import ProcessFlow
 
@@ -137,45 +135,18 @@ def _add_campaign(sub: Subparsers) -> None:
     c.set_defaults(func=_campaign)
 
 
-def _options(args: argparse.Namespace, base: ProcessingOptions) -> Any:
-    from levels.options import ProcessingOptions
-    from levels.registry import level_names
-    from station.errors import ScenarioError
-    from station.scenario import read_toml
-
-    opts = base
-    if args.options:
-        table, _ = read_toml(args.options, "options")
-        opts = ProcessingOptions.from_table(table.get("processing", {}), error=ScenarioError)
-        if opts.dem_path and not Path(opts.dem_path).is_absolute():  # relative to the file
-            opts = dataclasses.replace(
-                opts, dem_path=str(Path(args.options).parent / opts.dem_path)
-            )
-    if args.levels:
-        levels = [lv.strip() for lv in args.levels.split(",") if lv.strip()]
-        known = level_names()
-        bad = [lv for lv in levels if lv not in known] or ([] if levels else [args.levels])
-        if bad or len(set(levels)) != len(levels):
-            raise ScenarioError(
-                f"--levels {args.levels}: expected a comma-separated list, "
-                f"without repeats, of {', '.join(known)}"
-            )
-        opts = dataclasses.replace(opts, levels=tuple(levels))
-    if getattr(args, "adjustment", None):
-        from levels.choices import AdjustmentScope
-
-        opts = dataclasses.replace(opts, adjustment=AdjustmentScope(args.adjustment))
-    if getattr(args, "dem", None):  # a pass's level 3 (a SAR frame's GTC reads it apart)
-        opts = dataclasses.replace(opts, dem_path=str(args.dem))
-    return opts
-
-
 def _process(args: argparse.Namespace) -> int:
     from station.scenario import check_name
 
     sources = [Path(s) for s in args.source]
-    if len(sources) == 1 and _is_frame(sources[0]):
-        return _done(args, _frame_flow(args, sources[0]), "frame")
+    if len(sources) == 1 and is_frame(sources[0]):
+        flow = frame_flow(
+            sources[0],
+            scenario=args.scenario[0] if args.scenario else None,
+            dem=args.dem,
+            levels=args.levels,
+        )
+        return _done(args, flow, "frame")
     scenarios, block_options = _scenarios(args, sources)
     if len(scenarios) > 1 and len(scenarios) != len(sources):
         raise StationError(
@@ -189,26 +160,24 @@ def _process(args: argparse.Namespace) -> int:
 
 def _pass_flow(
     args: argparse.Namespace, sources: list[Path], scenarios: list[Any], block_options: Any
-) -> Any:
+) -> ProcessFlow:
     """The flow of a scenario's pass, of recorded archives, or of several passes to a
     pair's products (``station.processing``)."""
-    from levels.process import pair_kinds_of
-    from station.processing import ProcessArchives, ProcessBlock, ProcessScenario
+    from station.processing import ProcessScenario, archives_flow
 
     if any(s.suffix == ".toml" for s in sources):
         return ProcessScenario(_scenario_source(args, sources, scenarios))
     options, names, inputs = _archive_sources(args, sources, scenarios, block_options)
-    given = {"scenarios": scenarios, "gcps": args.gcps, "workers": args.workers or 0}
-    if len(sources) > 1 and pair_kinds_of(options):
-        return ProcessBlock(sources, names, options, inputs, **given)
-    return ProcessArchives(
+    return archives_flow(
         sources,
         names,
         options,
         inputs,
+        scenarios=scenarios,
+        gcps=args.gcps,
         ties_dir=args.ties,
         reference=getattr(args, "reference", None),
-        **given,
+        workers=args.workers or 0,
     )
 
 
@@ -257,7 +226,7 @@ def _scenario_source(args: argparse.Namespace, sources: list[Path], scenarios: l
         )
     scn = load_scenario(sources[0])
     return dataclasses.replace(
-        scn, processing=_options(args, scn.processing), name=args.name or scn.name
+        scn, processing=options_of(args, scn.processing), name=args.name or scn.name
     )
 
 
@@ -275,79 +244,11 @@ def _archive_sources(
             f"--gcps given {len(args.gcps)} time(s) for {len(sources)} L0 archive(s): "
             "once per archive, or not at all"
         )
-    base = scenarios[0].processing if scenarios else _recorded_cut(sources)
-    options = _options(args, block_options or base)
+    base = scenarios[0].processing if scenarios else recorded_cut(sources)
+    options = options_of(args, block_options or base)
     names = [args.name] if args.name else [l0_stem(s) for s in sources]
     given = [*(args.gcps or []), *([options.dem_path] if options.dem_path else [])]
     return options, names, [*sources, *(Path(g) for g in given)]
-
-
-def _recorded_cut(sources: list[Path]) -> Any:
-    """The processing options by default: the scenes cut as the station that recorded the
-    archives cut them (``L0Archive.scene_cut``), so that a reprocessing makes the run's
-    scenes; the library's default for archives that do not say, or say differently."""
-    from levels.options import ProcessingOptions
-    from levels.readers.formats import open_archive
-
-    cuts = [open_archive(s).scene_cut for s in sources]
-    if not cuts or not cuts[0] or any(c != cuts[0] for c in cuts):
-        return ProcessingOptions()
-    cut = cuts[0]
-    return ProcessingOptions(
-        scene_lines=cut.get("scene_lines", 0), overlap_lines=cut.get("overlap_lines", 0)
-    )
-
-
-def _is_frame(path: Path) -> bool:
-    from levels.readers.formats import is_frame_file
-
-    return is_frame_file(path)
-
-
-def _frame_flow(args: argparse.Namespace, source: Path) -> Any:
-    """A SAR frame file's flow (``station.processing.ProcessFrame``): its levels, pixel and
-    reference height from ``--scenario`` (the SAR scenario that made it: its products
-    measured against the truth, and the run's), else ``--levels`` and the DEM's."""
-    from levels.frame import FrameOptions, margin_of_dem
-    from levels.readers.dem import read_dem
-    from levels.readers.formats import open_frame
-    from station.loader import load_sar
-    from station.processing import ProcessFrame
-    from station.run_sar import frame_options
-
-    frame = open_frame(source)
-    scn = load_sar(args.scenario[0]) if args.scenario else None
-    dem = read_dem(args.dem, "ellipsoid") if args.dem else None
-    levels = tuple(lv.strip() for lv in args.levels.split(",")) if args.levels else None
-    if scn is not None:
-        options = frame_options(scn)
-        options = dataclasses.replace(options, levels=levels or options.levels)
-    else:
-        ref = float(np.nanmedian(dem.height_m)) if dem is not None else 0.0
-        options = FrameOptions(
-            levels=levels or _frame_kinds(dem is not None),
-            reference_height_m=ref,
-            margin_m=margin_of_dem(dem, ref) if dem is not None else 0.0,
-        )
-    dem_file = Path(args.dem) if args.dem else None
-    return ProcessFrame(source, frame, options, dem=dem, dem_file=dem_file, scenario=scn)
-
-
-def _frame_kinds(with_dem: bool) -> tuple[str, ...]:
-    """A SAR frame's kinds, those that need a DEM only ``with_dem``: the others said, not
-    skipped in silence."""
-    from levels.kinds import Unit
-    from levels.registry import kind, kind_names
-
-    kinds = [(n, "dem" in kind(n).needs) for n in kind_names(Unit.FRAME)]
-    skipped = [n for n, needs_dem in kinds if needs_dem and not with_dem]
-    if skipped:
-        _log.warning(
-            "%s not made: %s a DEM (give --dem DEM.tif)",
-            ", ".join(skipped),
-            "it needs" if len(skipped) == 1 else "they need",
-        )
-    return tuple(n for n, needs_dem in kinds if with_dem or not needs_dem)
 
 
 def _frame_text(report: dict[str, Any]) -> str:
@@ -402,11 +303,10 @@ def _block_text(report: dict[str, Any]) -> str:
 def _campaign(args: argparse.Namespace) -> int:
     import sys
 
-    from levels.options import ProcessingOptions
     from station.campaign import campaign_archives, run_campaign
 
     archives = campaign_archives(args.source)
-    options = _options(args, ProcessingOptions())
+    options = options_of(args, None)
     with runner_of(args) as runner:  # a scheduler that does not answer fails first
         bar = None
         if not args.quiet and not args.json and sys.stderr.isatty():  # not into a log

@@ -95,22 +95,9 @@ def register(sub: Subparsers) -> None:
 
 
 def _tie(args: argparse.Namespace) -> int:
-    from levels.products import read_product
-    from levels.readers.gcp import write_gcps
-    from levels.tiepoints import MapView, match_views
+    from station.products import tie_products
 
-    a, b = (MapView.of_product(read_product(p), args.band) for p in (args.a, args.b))
-    if a.name == b.name and a.hrv == b.hrv:
-        raise StationError(f"{args.a} and {args.b} are the same pass ({a.name}, HRV{a.hrv})")
-    tp = match_views(a, b)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
-    for which, view in (("a", a), ("b", b)):
-        tag = view.name  # the archive's name: station process --ties looks for it
-        comment = f"tie points of {a.name} HRV{a.hrv} and {b.name} HRV{b.hrv} (docs/gcp.md)"
-        files.append(str(write_gcps(out / f"{tag}.tie.csv", tp.control_points(which), comment)))
-    result = {"files": files, "points": len(tp), "counts": tp.counts}
+    result = tie_products(args.a, args.b, args.band, args.out)
     emit(
         args,
         result,
@@ -123,31 +110,27 @@ def _tie(args: argparse.Namespace) -> int:
             + ", ".join(r["files"])
         ),
     )
-    return 0 if len(tp) else 2
+    return 0 if result["points"] else 2
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from levels.compare import load_tolerances
-    from station.compare import compare_inputs
+    from station.compare import compare_inputs, tolerances_of
 
-    result = compare_inputs(args.a, args.b, load_tolerances(args.tolerances))
+    result = compare_inputs(args.a, args.b, tolerances_of(args.tolerances))
     emit(args, result.as_dict() if args.json else result, lambda r: r.text())
     return 0 if result.ok else 1
 
 
 def _inspect(args: argparse.Namespace) -> int:
-    from levels.inspect import product_summary, summary_text
-    from levels.products import read_product
+    from station.products import inspect_product
 
-    summary = product_summary(read_product(args.product), args.product)
-    emit(args, summary, summary_text)
+    summary, text = inspect_product(args.product)
+    emit(args, summary, lambda _: text)
     return 0
 
 
 def _export(args: argparse.Namespace) -> int:
-    from levels.export import export_identity, exported_identity, write_geotiff
-    from levels.products import read_product
-    from station.outdir import replaceable_file
+    from station.products import export_geotiff
 
     src = Path(args.product)
     if args.dimap:
@@ -162,20 +145,5 @@ def _export(args: argparse.Namespace) -> int:
         return 0
     if args.scenario:
         raise StationError("--scenario goes with --dimap")
-    # where the user says, else here: never into a run directory the station replaces whole
-    out = Path(args.out) if args.out else Path(src.with_suffix(".tif").name)
-    if out.is_dir():  # a directory: the product's name in it
-        out = out / src.with_suffix(".tif").name
-    above = next((d for d in out.parents if d.exists()), None)
-    if above is not None and not above.is_dir():
-        raise StationError(f"--out {out}: {above} is a file, not a directory")
-    product = read_product(src)
-    identity = export_identity(product)
-    replaceable_file(out, exported_identity, identity, _an_export)
-    print(f"wrote {write_geotiff(product, out)}")
+    print(f"wrote {export_geotiff(src, args.out)}")
     return 0
-
-
-def _an_export(identity: object) -> str:
-    name, scene, level = (str(x) for x in identity) if isinstance(identity, tuple) else ("",) * 3
-    return f"a GeoTIFF export of {name} scene {scene} level {level}"

@@ -96,30 +96,9 @@ def _emulate_text(summary: dict[str, Any]) -> str:
 
 
 def _downlink(args: argparse.Namespace) -> int:
-    from levels.readers.l0 import l0_scenario
-    from station.chain.report import downlink_report
-    from station.chain.session import downlink, record
-    from station.loader import load_scenario
-    from station.outdir import replaceable_file
-    from station.spacecraft.emulator import emulate
+    from station.chain.report import downlink_scenario
 
-    start = time.perf_counter()
-    scn = load_scenario(args.scenario)
-    out = replaceable_file(
-        args.out or f"{scn.name}.l0.h5",
-        l0_scenario,
-        scn.name,
-        lambda name: f"the L0 archive of scenario {name!r}",
-    )
-    acq = emulate(scn)
-    t_emulate = time.perf_counter() - start
-    result = downlink(acq)
-    t0 = time.perf_counter()
-    record(acq, result, out)
-    result.timings_s.update(emulate=t_emulate, record=time.perf_counter() - t0)
-    rep = downlink_report(acq, result)
-    rep["l0"] = {"path": str(out), "size_mb": round(out.stat().st_size / 1e6, 2)}
-    emit(args, rep, _downlink_text)
+    emit(args, downlink_scenario(args.scenario, args.out), _downlink_text)
     return 0
 
 
