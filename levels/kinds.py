@@ -45,6 +45,7 @@ __all__ = [
     "counts_band",
     "figure_at",
     "flag_band",
+    "headline",
 ]
 
 
@@ -132,8 +133,22 @@ class Figure:
     legend: str = ""
 
 
+def headline(
+    of: Callable[[Mapping[str, Any]], object], attr: str
+) -> Callable[[Mapping[str, Any]], float | None]:
+    """A figure's reader: attribute ``attr`` of a kind's typed headline, ``of(figures)``
+    (:class:`levels.quality.Headline` and its kin), as a float."""
+
+    def value(figures: Mapping[str, Any]) -> float | None:
+        v = getattr(of(figures), attr)
+        return None if v is None else float(v)
+
+    return value
+
+
 def figure_at(*keys: str) -> Callable[[Mapping[str, Any]], float | None]:
-    """A figure's reader: the first of ``keys`` the flattened quality has, as a float."""
+    """A figure's reader: the first of ``keys`` the flattened quality has, as a float (a
+    kind declared outside the library, without a typed headline of its own)."""
 
     def value(figures: Mapping[str, Any]) -> float | None:
         for key in keys:

@@ -23,6 +23,8 @@ if TYPE_CHECKING:  # the geometries import this module's statistics
 
 __all__ = [
     "CheckpointSource",
+    "DemHeadline",
+    "FrameHeadline",
     "Headline",
     "error_stats",
     "image_shift_px",
@@ -141,6 +143,90 @@ def _approximation_max_px(figures: Mapping[str, Any]) -> float | None:
         figures.get(f"inverse_vs_model/{figures.get('inverse_method', '')}/max_px"),
     )
     return None if value is None else float(value)
+
+
+def _number(figures: Mapping[str, Any], key: str) -> float | None:
+    v = figures.get(key)
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+
+@dataclass(frozen=True)
+class DemHeadline:
+    """A pair's DEM's headline figures, read back from its flattened quality (the truth's
+    part, ``station.truth.stereo``): what the console shows. None where the product has
+    no such figure (a DEM made without the truth).
+
+    Attributes
+    ----------
+    rmse_m, nmad_m
+        Its heights against the true terrain, as made (its datum from the control points).
+    bias_m
+        The datum's offset (the mean of the heights' error).
+    less_datum_rmse_m
+        Its own error, with the datum (offset and tilt) taken off.
+    coverage
+        The share of the cells both views see that it holds a height for.
+    disparity_rms_px
+        The dense matching's disparity against the exact one.
+    """
+
+    rmse_m: float | None
+    bias_m: float | None
+    less_datum_rmse_m: float | None
+    nmad_m: float | None
+    coverage: float | None
+    disparity_rms_px: float | None
+
+    @classmethod
+    def of(cls, figures: Mapping[str, Any]) -> DemHeadline:
+        """The headline of ``figures`` (a DEM product's :func:`scalar_figures`)."""
+        return cls(
+            _number(figures, "heights/rmse"),
+            _number(figures, "heights/datum/bias_m"),
+            _number(figures, "heights/datum_removed/rmse"),
+            _number(figures, "heights/nmad"),
+            _number(figures, "heights/coverage_of_seen"),
+            _number(figures, "disparity/rms_px"),
+        )
+
+
+@dataclass(frozen=True)
+class FrameHeadline:
+    """A SAR frame product's headline figures, read back from its flattened quality (the
+    truth's part, ``station.truth.sar``). None where the product has no such figure.
+
+    Attributes
+    ----------
+    checkpoints_rms_px, checkpoints_rms_east_m, checkpoints_rms_north_m
+        Terrain points where the product puts them against where they are.
+    relief_ratio_error
+        A GEC's: the worst relief displacement measured against ``Δh / tan θ``.
+    layover_iou, shadow_iou
+        A GTC's masks against the truth's (intersection over union).
+    gamma0_to_truth
+        γ⁰ by terrain flattening over the world's reflectance, on the mean.
+    """
+
+    checkpoints_rms_px: float | None
+    checkpoints_rms_east_m: float | None
+    checkpoints_rms_north_m: float | None
+    relief_ratio_error: float | None
+    layover_iou: float | None
+    shadow_iou: float | None
+    gamma0_to_truth: float | None
+
+    @classmethod
+    def of(cls, figures: Mapping[str, Any]) -> FrameHeadline:
+        """The headline of ``figures`` (a frame product's :func:`scalar_figures`)."""
+        return cls(
+            _number(figures, "checkpoints/rms_px"),
+            _number(figures, "checkpoints/rms_east_m"),
+            _number(figures, "checkpoints/rms_north_m"),
+            _number(figures, "relief_displacement/worst_ratio_error"),
+            _number(figures, "masks/layover/iou"),
+            _number(figures, "masks/shadow/iou"),
+            _number(figures, "gamma0/mean_to_truth"),
+        )
 
 
 class CheckpointSource(Protocol):

@@ -26,10 +26,11 @@ from levels.kinds import (
     Inspection,
     ProductKind,
     Unit,
-    figure_at,
+    headline,
 )
 from levels.makers.pairs import PairMade, PairMaker, PairMeasure, PairScene
 from levels.products import BandImage, Product
+from levels.quality import DemHeadline
 from levels.stereo import REFINE_WINDOW_PX, StereoDem, StereoPoints
 
 __all__ = ["KIND", "dem_name", "dem_product"]
@@ -119,12 +120,12 @@ KIND = ProductKind(
     figures=(
         # against the true terrain: as made (its datum from the control points), and its
         # own error with the datum (bias and tilt) taken off; the disparity's own error
-        Figure("RMSE m", "8.2f", figure_at("heights/rmse")),
-        Figure("bias m", "8.2f", figure_at("heights/datum/bias_m")),
-        Figure("less datum m", "13.2f", figure_at("heights/datum_removed/rmse")),
-        Figure("NMAD m", "8.2f", figure_at("heights/nmad")),
-        Figure("coverage", "9.3f", figure_at("heights/coverage_of_seen")),
-        Figure("disparity rms px", "17.3f", figure_at("disparity/rms_px")),
+        Figure("RMSE m", "8.2f", headline(DemHeadline.of, "rmse_m")),
+        Figure("bias m", "8.2f", headline(DemHeadline.of, "bias_m")),
+        Figure("less datum m", "13.2f", headline(DemHeadline.of, "less_datum_rmse_m")),
+        Figure("NMAD m", "8.2f", headline(DemHeadline.of, "nmad_m")),
+        Figure("coverage", "9.3f", headline(DemHeadline.of, "coverage")),
+        Figure("disparity rms px", "17.3f", headline(DemHeadline.of, "disparity_rms_px")),
     ),
     browse=Browse("height_m", "terrain", "height above the WGS84 ellipsoid (m)"),
     stac=_stac,

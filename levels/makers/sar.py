@@ -25,10 +25,11 @@ from levels.kinds import (
     Inspection,
     ProductKind,
     Unit,
-    figure_at,
     flag_band,
+    headline,
 )
 from levels.products import BandImage, Product
+from levels.quality import FrameHeadline
 from levels.sar import ANCHOR_STEP_PX, SarImage
 from levels.sar.geocoding import Geocoded
 
@@ -81,9 +82,9 @@ _GAMMA0 = BandSpec(
     "gamma0", "SAR backscatter gamma0 by radiometric terrain flattening, linear", optional=True
 )
 _CHECKPOINTS = (
-    Figure("checkpoints rms px", "19.3f", figure_at("checkpoints/rms_px")),
-    Figure("E rms m", "8.1f", figure_at("checkpoints/rms_east_m")),
-    Figure("N rms m", "8.1f", figure_at("checkpoints/rms_north_m")),
+    Figure("checkpoints rms px", "19.3f", headline(FrameHeadline.of, "checkpoints_rms_px")),
+    Figure("E rms m", "8.1f", headline(FrameHeadline.of, "checkpoints_rms_east_m")),
+    Figure("N rms m", "8.1f", headline(FrameHeadline.of, "checkpoints_rms_north_m")),
 )
 
 
@@ -123,7 +124,7 @@ GEC = ProductKind(
     bands=_BANDS,
     figures=(
         *_CHECKPOINTS,
-        Figure("relief ratio error", "19.4f", figure_at("relief_displacement/worst_ratio_error")),
+        Figure("relief ratio error", "19.4f", headline(FrameHeadline.of, "relief_ratio_error")),
     ),
     **_COMMON,
 )
@@ -134,9 +135,9 @@ GTC = ProductKind(
     needs=frozenset({"dem"}),
     figures=(
         *_CHECKPOINTS,
-        Figure("layover IoU", "12.3f", figure_at("masks/layover/iou")),
-        Figure("shadow IoU", "11.3f", figure_at("masks/shadow/iou")),
-        Figure("γ⁰/truth", "9.3f", figure_at("gamma0/mean_to_truth")),
+        Figure("layover IoU", "12.3f", headline(FrameHeadline.of, "layover_iou")),
+        Figure("shadow IoU", "11.3f", headline(FrameHeadline.of, "shadow_iou")),
+        Figure("γ⁰/truth", "9.3f", headline(FrameHeadline.of, "gamma0_to_truth")),
     ),
     notes=_mask_notes,
     **_COMMON,

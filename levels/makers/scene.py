@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from levels.kinds import Export, Figure, Inspection, ProductKind, Unit
+from levels.kinds import Export, Figure, Inspection, ProductKind, Unit, headline
 from levels.makers.base import LevelMaker, no_map_grid
 from levels.quality import Headline
 from levels.registry import kind, kind_names, register_kind, unregister_kind
@@ -36,35 +36,27 @@ __all__ = [
 Section = Callable[["Product"], tuple[dict[str, Any], tuple[str, ...]]]
 
 
-def _headline(attr: str) -> Callable[[Mapping[str, Any]], float | None]:
-    def value(figures: Mapping[str, Any]) -> float | None:
-        v = getattr(Headline.of(figures), attr)
-        return None if v is None else float(v)
-
-    return value
-
-
 #: The scene levels' columns: checkpoint errors along the line of sight (RMS, max) and on
 #: the ground (RMS), and the product's geometry against the rigorous model.
 SCENE_FIGURES = (
     Figure(
         "LOS rms m",
         "10.1f",
-        _headline("los_rms_m"),
+        headline(Headline.of, "los_rms_m"),
         "LOS: the checkpoints' error along their line of sight, the model's own",
     ),
-    Figure("LOS max m", "10.1f", _headline("los_max_m")),
+    Figure("LOS max m", "10.1f", headline(Headline.of, "los_max_m")),
     Figure(
         "ground rms m",
         "13.1f",
-        _headline("ground_rms_m"),
+        headline(Headline.of, "ground_rms_m"),
         "ground: against where each pixel's ground truly is; on a map of one reference "
         "height (1B, 2A, 2) it carries the relief displacement, which only level 3 takes off",
     ),
     Figure(
         "approx max px",
         "14.4f",
-        _headline("approx_max_px"),
+        headline(Headline.of, "approx_max_px"),
         "approx: the product's geometry against the rigorous model",
     ),
 )
