@@ -32,10 +32,9 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from levels import __version__
 from levels.adjust import Adjustment, Strip, adjust, adjust_block, adjust_strips
@@ -45,19 +44,28 @@ from levels.cor.resample import with_nan
 from levels.errors import DemError, GcpError, GeometryError, LevelsError, OptionsError
 from levels.export import write_rpc_sidecar
 from levels.geo.coverage import check_coverage
-from levels.geo.scenes import PassGeometry, SceneCut, SceneGeometry, cut_scenes, pass_geometry
-from levels.geometry.sensor import LookAngleTable
+from levels.geo.scenes import SceneGeometry
 from levels.makers.base import BandPixels, LevelMaker, Need, PassContext, Reads, SceneWork
 from levels.makers.scene import level_maker
 from levels.options import ProcessingOptions
+from levels.passes import (
+    PassSetup,
+    SkippedScene,
+    geo_pass,
+    nominal_pixel_size_m,
+    passes_of,
+    platform_records,
+)
 from levels.products import Product, product_name, write_product
 from levels.quality import CheckpointSource, scalar_figures
 from levels.readers.dem import Dem, read_dem
 from levels.readers.gcp import ControlPointSet
 from levels.readers.l0 import L0Archive
-from levels.spot import ORBIT_ALTITUDE_M
 from levels.tasks import InProcess, Runner, TaskFailure, raise_first
 from levels.threads import one_blas_thread
+
+if TYPE_CHECKING:
+    from levels.reference import ReferenceInput, ReferencePoints
 
 _log = logging.getLogger(__name__)
 
@@ -97,17 +105,6 @@ class SceneProducts:
 
 
 @dataclass(frozen=True)
-class SkippedScene:
-    """A scene of the pass that could not be made, and why (lost in the downlink, or GEO
-    could not place it: no attitude or ephemeris over it)."""
-
-    index: int
-    first_line: int
-    n_lines: int
-    reason: str
-
-
-@dataclass(frozen=True)
 class PassProducts:
     """All scenes of a pass, the rows left after the last whole scene, GEO's time."""
 
@@ -116,107 +113,8 @@ class PassProducts:
     timings_s: dict[str, float] = field(default_factory=dict)
     skipped: list[SkippedScene] = field(default_factory=list)
     adjustment: Adjustment | None = None
-
-
-def nominal_pixel_size_m(look: LookAngleTable) -> float:
-    """The nominal output pixel: the look table's angular pitch at 822 km, to 10 m (10 m
-    for P, 20 m for XS, and proportionally more for a reduced detector count)."""
-    # per detector: a table of each, or of the first and last (a DIMAP's)
-    pitch = float(np.median(np.abs(np.diff(look.psi_y_rad) / np.diff(look.column))))
-    return max(10.0, 10.0 * round(pitch * ORBIT_ALTITUDE_M / 10.0))
-
-
-@dataclass(frozen=True, eq=False)
-class PassSetup:
-    """GEO of one HRV's pass: the pass set-up, the scenes it can place and those it skips."""
-
-    archive: L0Archive
-    pg: PassGeometry
-    scenes: list[SceneGeometry]
-    skipped: list[SkippedScene]
-    scene_lines: int
-    time_s: float
-
-
-def platform_records(
-    archives: Sequence[L0Archive],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The platform's gyro records of a pass imaged by several HRVs: every record any HRV's
-    channel brought (each carries the same platform data; a record lost on one channel may
-    have come through the other). Times and rates, unsorted (GEO sorts and deduplicates)."""
-    first = archives[0]
-    for a in archives[1:]:
-        if a.epoch != first.epoch:
-            raise GeometryError(
-                f"{a.path} and {first.path} count time from different epochs: not the same pass"
-            )
-    return (
-        np.concatenate([a.aux_t_s for a in archives]),
-        np.concatenate([a.gyro_rates_rad_per_s for a in archives]),
-    )
-
-
-@one_blas_thread
-def geo_pass(
-    archive: L0Archive,
-    options: ProcessingOptions,
-    records: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-) -> PassSetup:
-    """GEO's set-up of a pass and its scenes (``records``: the platform's gyro records,
-    by default the archive's own; :func:`platform_records` for a twin pass)."""
-    t0 = time.perf_counter()
-    band_names = list(archive.bands)
-    gyro_t, gyro = records or (archive.aux_t_s, archive.gyro_rates_rad_per_s)
-    pg = pass_geometry(
-        archive.epoch,
-        archive.line_t_s,
-        archive.line_period_s,
-        archive.ephemeris,
-        gyro_t,
-        gyro,
-        {b: archive.bands[b].look for b in band_names},
-    )
-    n_det = archive.bands[band_names[0]].counts.shape[1]
-    scene_lines = options.scene_lines or n_det
-    cuts = cut_scenes(archive.n_lines, scene_lines, options.overlap_lines, partial=True)
-    # a row is seen when one of its segments arrived (every segment has detectors)
-    rows_seen = np.logical_or.reduce([archive.bands[b].valid.any(axis=1) for b in band_names])
-    scenes, skipped = [], []
-    for c in cuts:
-        reason = _too_few_lines(c, rows_seen, min(scene_lines, archive.n_lines), options)
-        if reason:
-            skipped.append(SkippedScene(c.index, c.first_line, c.n_lines, reason))
-            continue
-        try:
-            scenes.append(pg.scene(c, options.reference_height_m))
-        except GeometryError as exc:
-            skipped.append(
-                SkippedScene(c.index, c.first_line, c.n_lines, f"GEO could not place it: {exc}")
-            )
-    return PassSetup(archive, pg, scenes, skipped, scene_lines, time.perf_counter() - t0)
-
-
-def _too_few_lines(
-    cut: SceneCut, rows_seen: NDArray[np.bool_], whole: int, options: ProcessingOptions
-) -> str:
-    """Why scene ``cut`` is not made, or "": no line of it arrived, or fewer than
-    ``options.min_valid_share`` of a ``whole`` scene's lines (a partial last scene's
-    missing lines count as not arrived)."""
-    seen = int(np.count_nonzero(rows_seen[cut.first_line : cut.first_line + cut.n_lines]))
-    if not seen:
-        return "no valid line: lost in the downlink"
-    share = seen / whole
-    if share >= options.min_valid_share:
-        return ""
-    what = (
-        f"a partial last scene of {cut.n_lines} lines, {seen} valid"
-        if cut.n_lines < whole
-        else f"{seen} valid lines of {cut.n_lines}"
-    )
-    return (
-        f"{what}: {share:.1%} of a scene's {whole} lines, below [processing] "
-        f"min_valid_share = {options.min_valid_share:g}"
-    )
+    #: The control points found on a reference for level 2 (``ProcessingRequest.references``).
+    found: ReferencePoints | None = None
 
 
 def plan_levels(levels: Sequence[str], given: Sequence[str] = ()) -> tuple[LevelMaker, ...]:
@@ -331,6 +229,10 @@ class ProcessingRequest:
     adjustments
         Level 2's adjustment per archive when made already, taken as it is (a block's level 3
         over the pair's own DEM: :func:`levels.block.process_block` says why).
+    references
+        Per archive, a reference ortho-image and a DEM to find its control points on when
+        it has none (:class:`levels.reference.ReferenceInput`): found on GEO's set-up of
+        the pass before level 2's adjustment, GEO made once.
     given
         Levels of the options made already by an earlier step (the block's level 2 before
         level 3 over the pair's DEM): the levels made here are on their model (level 3 on
@@ -348,6 +250,7 @@ class ProcessingRequest:
     root: Path | None = None
     adjustments: tuple[Adjustment | None, ...] = ()
     given: tuple[str, ...] = ()
+    references: tuple[ReferenceInput | None, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.archives)
@@ -357,6 +260,7 @@ class ProcessingRequest:
             "names": tuple(self.names),
             "checkpoints": tuple(self.checkpoints) or (None,) * n,  # none given: none each
             "gcps": tuple(self.gcps) or (None,) * n,
+            "references": tuple(self.references) or (None,) * n,
         }
         for what, value in normal.items():
             object.__setattr__(self, what, value)
@@ -394,6 +298,7 @@ class PassPlan:
     skipped: list[SkippedScene]
     tail_lines: int
     timings_s: dict[str, float]
+    found: ReferencePoints | None = None
 
     def task_name(self, scene: SceneGeometry) -> str:
         """How a scene's task is named in reports: ``<name>-s<scene index>``."""
@@ -439,7 +344,9 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
     needs = _needs(makers)
     if request.adjustments:  # made already: taken as they are
         needs |= {Need.ADJUSTMENT}
-    elif Need.ADJUSTMENT in needs and any(g is None for g in request.gcps):
+    elif Need.ADJUSTMENT in needs and any(
+        g is None and r is None for g, r in zip(request.gcps, request.references, strict=True)
+    ):
         raise GcpError(
             "level 2 needs control points: give the pass's control-point file "
             "(docs/gcp.md), or leave '2' out of the levels"
@@ -459,20 +366,52 @@ def plan(request: ProcessingRequest) -> list[PassPlan]:
             for group in groups
             for k in group
         }
-        placed = [geo_pass(a, opt, platform[k]) for k, a in enumerate(archives)]
-        setups = list(placed)
-        adjustments = made or _block_adjustment(request, placed, groups, dem)
+        setups = [geo_pass(a, opt, platform[k]) for k, a in enumerate(archives)]
     elif twin and len(archives) > 1:
         records = platform_records(archives)
-        placed = [geo_pass(a, opt, records) for a in archives]
-        setups = list(placed)
-        adjustments = made or _twin_adjustment(request, placed)
-    elif made:
+        setups = [geo_pass(a, opt, records) for a in archives]
+    request, found = _found_points(request, setups, Need.ADJUSTMENT in needs and not made)
+    placed = [s for s in setups if s is not None]
+    if made:
         adjustments = made
+    elif block:
+        adjustments = _block_adjustment(request, placed, passes_of(archives), dem)
+    elif twin and len(archives) > 1:
+        adjustments = _twin_adjustment(request, placed)
     return [
-        _plan_archive(request, k, makers, setups[k], adjustments[k], dem)
+        _plan_archive(request, k, makers, setups[k], adjustments[k], dem, found[k])
         for k in range(len(archives))
     ]
+
+
+def _found_points(
+    request: ProcessingRequest, setups: list[PassSetup | None], needed: bool
+) -> tuple[ProcessingRequest, list[ReferencePoints | None]]:
+    """The control points of the archives that have none found on their reference
+    (:func:`levels.reference.find_on_reference`), on their GEO set-up (made here when not
+    yet, and kept in ``setups`` for the scenes): the request with them."""
+    from levels.reference import find_on_reference
+
+    found: list[ReferencePoints | None] = [None] * len(request.archives)
+    if not needed:
+        return request, found
+    for k, (given, points) in enumerate(zip(request.references, request.gcps, strict=True)):
+        if given is None or points is not None:
+            continue
+        archive = request.archives[k]
+        setup = setups[k] or geo_pass(archive, request.options)
+        setups[k] = setup
+        t0 = time.perf_counter()
+        points_found = find_on_reference(archive, setup.pg, setup.scenes, given, request.options)
+        found[k] = points_found
+        _log.info(
+            "%s: %d control points found on the reference in %.1f s",
+            request.names[k],
+            len(points_found.points),
+            time.perf_counter() - t0,
+        )
+    gcps = tuple(f.points if f is not None else g for f, g in zip(found, request.gcps, strict=True))
+    return replace(request, gcps=gcps), found
 
 
 def _twin_adjustment(
@@ -499,23 +438,6 @@ def _twin_adjustment(
         for k, adj in zip(placed, adjust_strips(strips, request.options), strict=True):
             out[k] = adj
     return out
-
-
-def passes_of(archives: Sequence[L0Archive]) -> list[list[int]]:
-    """The archives of a block grouped by pass: those counting time from one epoch are the
-    HRVs of one pass (a twin pass, :func:`platform_records`), in the order given; an HRV
-    twice in one pass is refused."""
-    groups: dict[Any, list[int]] = {}
-    for k, a in enumerate(archives):
-        groups.setdefault(a.epoch, []).append(k)
-    for group in groups.values():
-        hrvs = [archives[k].hrv for k in group]
-        if len(set(hrvs)) != len(hrvs):
-            raise GeometryError(
-                f"{', '.join(str(archives[k].path) for k in group)}: one pass (one epoch) "
-                f"with HRVs {hrvs}: one archive per HRV of a pass"
-            )
-    return list(groups.values())
 
 
 def _block_adjustment(
@@ -567,6 +489,7 @@ def _plan_archive(
     setup: PassSetup | None,
     adjustment: Adjustment | None,
     dem: Dem | None,
+    found: ReferencePoints | None = None,
 ) -> PassPlan:
     """The plan of the request's archive ``k`` (:func:`plan`)."""
     archive, options, name = request.archives[k], request.options, request.names[k]
@@ -631,7 +554,7 @@ def _plan_archive(
         len(setup.skipped),
         t_geo,
     )
-    return PassPlan(ctx, list(scenes), list(setup.skipped), tail, timings)
+    return PassPlan(ctx, list(scenes), list(setup.skipped), tail, timings, found)
 
 
 def run_plans(
@@ -680,6 +603,7 @@ def run_plans(
             timings,
             p.skipped,
             p.ctx.adjustment,
+            p.found,
         )
         out.append(ScenesFailed(failed[k], [products]) if failed[k] else products)
     return out

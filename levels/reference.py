@@ -29,6 +29,7 @@ loop, the mean and largest shift: what COSI-Corr reports.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
@@ -55,7 +56,9 @@ __all__ = [
     "MAX_LOOPS",
     "PATCH_PX",
     "Reference",
+    "ReferenceInput",
     "ReferencePoints",
+    "find_on_reference",
     "phase_shifts",
     "raw_images",
     "read_reference",
@@ -667,3 +670,35 @@ def _measure(
         reference=np.ones(int(matched.sum()), dtype=bool),
     )
     return gcps, shift[matched], peak[matched], to_raw[matched]
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceInput:
+    """A pass's control points to be found on a reference ortho-image over a DEM: a node
+    of the plan before level 2's adjustment, on GEO's set-up of the pass (made once)."""
+
+    reference: Reference
+    dem: Dem
+
+
+def find_on_reference(
+    archive: L0Archive,
+    pg: PassGeometry,
+    scenes: Sequence[SceneGeometry],
+    given: ReferenceInput,
+    options: ProcessingOptions,
+) -> ReferencePoints:
+    """:func:`reference_control_points` of an archive's scenes placed by GEO (its first
+    band), the points as their file records them (:meth:`ControlPointSet.as_recorded`)."""
+    band = next(iter(archive.bands))
+    found = reference_control_points(
+        pg,
+        scenes,
+        raw_images(archive, band),
+        given.reference,
+        given.dem,
+        options,
+        archive.hrv,
+        band,
+    )
+    return dataclasses.replace(found, points=found.points.as_recorded())

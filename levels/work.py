@@ -7,6 +7,8 @@ into a :class:`Plan`, a graph of :class:`Node` s (a step, a key, the kinds it ma
 nodes it requires) laid from each kind's declaration across the units of work
 (:class:`levels.kinds.Unit`):
 
+- ``reference:<pass>``: a lone pass's control points found on a reference ortho-image
+  (:mod:`levels.reference`), on GEO's set-up of the pass that its scenes are then made on;
 - ``scenes:<pass>``: a pass's scene levels, made by the scene driver's tasks
   (:mod:`levels.process`); a lone pass's level 2 and 3 among them, on its own adjustment;
 - ``ties:block``: the tie points between every two passes' overlapping 2A scenes;
@@ -73,6 +75,7 @@ if TYPE_CHECKING:
     from levels.frame import FrameOptions
     from levels.geo.maps import MapGrid
     from levels.readers.sar import SarFrame
+    from levels.reference import ReferenceInput
     from levels.sar.geocoding import Geocoded
     from levels.stereo import StereoDem
 
@@ -104,6 +107,7 @@ TIES, LEVEL2, PAIRS = "ties", "block", "stereo"
 class Step(StrEnum):
     """The steps of a plan (module docstring), in the order :func:`run` takes them."""
 
+    REFERENCE = "reference"
     SCENES = "scenes"
     TIES = "ties"
     ADJUSTMENT = "adjustment"
@@ -157,18 +161,21 @@ class Pass:
     """One pass of a request: its archives (one per HRV, :func:`levels.readers.l0.read_l0`),
     the names of their products, their control points (level 2; empty: none), its own
     options for its scene levels (a block's pass run by its own scenario; None: the
-    request's) and ``made_in``: the directory where its scene levels are already (the step
-    taken, not made)."""
+    request's), ``made_in``: the directory where its scene levels are already (the step
+    taken, not made), and ``references``: per archive without control points, the
+    reference ortho-image and DEM to find them on (a node before the adjustment)."""
 
     archives: tuple[L0Archive, ...]
     names: tuple[str, ...]
     gcps: tuple[ControlPointSet | None, ...] = ()
     options: ProcessingOptions | None = None
     made_in: Path | None = None
+    references: tuple[ReferenceInput | None, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.archives)
         object.__setattr__(self, "gcps", tuple(self.gcps) or (None,) * n)
+        object.__setattr__(self, "references", tuple(self.references) or (None,) * n)
         if len(self.names) != n or len(self.gcps) != n:
             raise ValueError(f"{n} archives, {len(self.names)} names, {len(self.gcps)} gcps")
 
@@ -377,7 +384,10 @@ def _check_pass_needs(request: Request, levels: Sequence[str], pair_dem: bool) -
     needs = {n for m in plan_levels(levels) for n in m.needs}
     if Need.ADJUSTMENT in needs:
         missing = [
-            n for p in request.passes for n, g in zip(p.names, p.gcps, strict=True) if g is None
+            n
+            for p in request.passes
+            for n, g, r in zip(p.names, p.gcps, p.references, strict=True)
+            if g is None and r is None
         ]
         if missing:
             raise GcpError(
@@ -404,7 +414,14 @@ def _pass_nodes(request: Request) -> list[Node]:
     levels = _scene_levels(opt)
     plan_levels(levels)  # an unknown or circular level refused here
     _check_pass_needs(request, levels, False)
-    return [Node(Step.SCENES, "+".join(one.names), levels, taken=one.made_in)]
+    key = "+".join(one.names)
+    found = (
+        [Node(Step.REFERENCE, key)]
+        if Level.L2 in levels and any(r is not None for r in one.references)
+        else []
+    )
+    scenes = Node(Step.SCENES, key, levels, tuple(n.id for n in found), taken=one.made_in)
+    return [*found, scenes]
 
 
 def _block_nodes(request: Request) -> list[Node]:
@@ -419,6 +436,11 @@ def _block_nodes(request: Request) -> list[Node]:
     l2_l3 = (Level.L2,) * (Level.L2 in opt.levels) + (Level.L3,) * with_l3
     _check_pass_needs(request, l2_l3, bool(kinds))  # a pair's DEM is level 3's
     for p in passes:
+        if any(r is not None for r in p.references):
+            raise OptionsError(
+                f"{p.names[0]}: control points found on a reference are a lone pass's; a "
+                "block's passes give theirs"
+            )
         if len(p.archives) != 1:
             raise OptionsError(
                 f"a block's pass is one archive: {', '.join(p.names)} are {len(p.archives)} "
@@ -538,6 +560,7 @@ class _Making:
                     p.names,
                     checkpoints=tuple(self.measure.checkpoints(n) for n in p.names),
                     gcps=p.gcps if not req.block else (),
+                    references=p.references if not req.block else (),
                     provenance=req.provenance,
                     dem=req.dem,
                     root=req.root if not req.block else None,

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from levels.frame import FrameOptions
     from levels.geometry.dem import Dem
     from levels.readers.sar import SarFrame
+    from levels.reference import ReferenceInput
     from station.sar_scenario import SarScenario
 
 _log = logging.getLogger(__name__)
@@ -124,9 +125,6 @@ class ProcessArchives(_Processing):
     def acquire(self, stage: Path, state: FlowRun) -> Request:
         from station.reprocess import pass_request
 
-        gcps = self.gcps
-        if self.reference is not None:  # the control points found first, kept
-            gcps = [self._reference_points(stage)]
         per = self.scenarios
         request, self._truth = pass_request(
             self.sources,
@@ -134,16 +132,19 @@ class ProcessArchives(_Processing):
             options=self.options,
             scenario=per if len(per) > 1 else (per[0] if per else None),
             names=self.names,
-            gcps=gcps,
+            gcps=self.gcps,
             ties_dir=self.ties_dir,
+            references=(self._reference(),) if self.reference is not None else (),
         )
         return request
 
-    def _reference_points(self, stage: Path) -> Path:
-        """The pass's control points found on the reference ortho-image and the DEM
-        (``station gcps``), written as ``<name>.reference.gcp.csv`` with the products."""
+    def _reference(self) -> ReferenceInput:
+        """The reference ortho-image and the DEM the pass's control points are found on
+        (as ``station gcps`` finds them), when the plan makes its GEO."""
+        from levels.readers.dem import read_dem
+        from levels.reference import ReferenceInput, read_reference
         from station.errors import StationError
-        from station.refgcps import gcps_from_reference
+        from station.refgcps import reference_sigma_m
 
         if len(self.sources) != 1 or self.gcps:
             raise StationError(
@@ -151,20 +152,30 @@ class ProcessArchives(_Processing):
             )
         if not self.options.dem_path:
             raise StationError("--reference needs the DEM under the pass: give --dem")
-        out = stage / f"{self.names[0]}.reference.gcp.csv"
         assert self.reference is not None
-        gcps_from_reference(
-            self.sources[0], self.reference, self.options.dem_path, out, options=self.options
-        )
-        return out
+        ref = read_reference(self.reference, reference_sigma_m(self.reference, None))
+        return ReferenceInput(ref, read_dem(self.options.dem_path, self.options.dem_vertical))
 
     def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+        done = [result.pass_products(n, Step.SCENES) for n in self.names]
+        if self.reference is not None and done[0].found is not None:  # kept with them
+            from station.refgcps import record_found
+
+            out = stage / f"{self.names[0]}.reference.gcp.csv"
+            ref = self.reference
+            record_found(self.sources[0], ref, out, done[0].found, _sigma(ref))
         data = [
-            archive_data(l0, self.out, result.pass_products(n, Step.SCENES))
-            for l0, n in zip(self.sources, self.names, strict=True)
+            archive_data(l0, self.out, products)
+            for l0, products in zip(self.sources, done, strict=True)
         ]
         body = data[0] if len(data) == 1 else {"archives": data}
         return {"header": {"names": self.names}, **body}
+
+
+def _sigma(reference: str | Path) -> float:
+    from station.refgcps import reference_sigma_m
+
+    return reference_sigma_m(reference, None)
 
 
 class ProcessScenario(_Processing):

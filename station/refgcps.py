@@ -31,6 +31,7 @@ __all__ = [
     "gcps_from_reference",
     "point_errors_en",
     "points_source",
+    "record_found",
     "reference_sigma_m",
 ]
 
@@ -81,19 +82,34 @@ def gcps_from_reference(
     from levels.process import geo_pass
     from levels.readers.dem import read_dem
     from levels.readers.formats import open_archive
-    from levels.readers.gcp import write_gcps
-    from levels.reference import raw_images, read_reference, reference_control_points
+    from levels.reference import ReferenceInput, find_on_reference, read_reference
 
     archive = open_archive(source)
     opts = options or ProcessingOptions()
     setup = geo_pass(archive, opts)
-    band = next(iter(archive.bands))
-
     ref = read_reference(reference, reference_sigma_m(reference, ce95_m))
-    dem = read_dem(dem_path, opts.dem_vertical)
-    found = reference_control_points(
-        setup.pg, setup.scenes, raw_images(archive, band), ref, dem, opts, archive.hrv, band
-    )
+    given = ReferenceInput(ref, read_dem(dem_path, opts.dem_vertical))
+    found = find_on_reference(archive, setup.pg, setup.scenes, given, opts)
+    if truth is None and scenario is not None:
+        from station.truth.optical import truth_for
+
+        truth = truth_for(scenario, archive)
+    return found, record_found(source, reference, out, found, ref.sigma_m, truth)
+
+
+def record_found(
+    source: str | Path,
+    reference: str | Path,
+    out: str | Path,
+    found: ReferencePoints,
+    sigma_m: float,
+    truth: Truth | None = None,
+) -> dict[str, Any]:
+    """The points found on a reference written to ``out`` (``docs/gcp.md``, kind
+    ``reference``), and what finding them did: the reference, its stated σ, each loop, the
+    adjustment's summary and, with the archive's ``truth``, the points scored against it."""
+    from levels.readers.gcp import write_gcps
+
     write_gcps(
         out,
         found.points,
@@ -105,17 +121,13 @@ def gcps_from_reference(
         "reference": str(reference),
         "out": str(out),
         "points": len(found.points),
-        "reference_sigma_m": ref.sigma_m,
+        "reference_sigma_m": sigma_m,
         "loops": found.loops,
         "adjustment": found.adjustment.summary() if found.adjustment is not None else {},
     }
-    if truth is None and scenario is not None:
-        from station.truth.optical import truth_for
-
-        truth = truth_for(scenario, archive)
     if truth is not None:
         summary["truth"] = _scored(truth, found, _reference_bias_m(reference))
-    return found, summary
+    return summary
 
 
 def _reference_bias_m(path: str | Path) -> tuple[float, float] | None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from levels.errors import L0Error
 from levels.makers.base import Need
@@ -34,6 +35,9 @@ from station.scenario import Scenario
 from station.spacecraft.emulator import Acquisition, emulate
 from station.truth.measure import StationTruth
 from station.truth.optical import truth_for
+
+if TYPE_CHECKING:
+    from levels.reference import ReferenceInput
 
 __all__ = [
     "PACK_POINTS",
@@ -156,13 +160,15 @@ def pass_request(
     names: Sequence[str] | None = None,
     gcps: Sequence[str | Path] | None = None,
     ties_dir: str | Path | None = None,
+    references: Sequence[ReferenceInput | None] = (),
 ) -> tuple[Request, StationTruth]:
     """Recorded archives processed together (one per HRV of a pass; a block's, each tied
     by its ``<name>.tie.csv`` from ``ties_dir``, else beside it) as one request of
     :mod:`levels.work`, and their truth (the scenario that made them, one for the archives
     of one pass or one per archive; none: no truth). The archives are read lazily (a
     scene's counts are read by its task); the options default to the scenario's, the DEM
-    to the run's beside the first archive, the control points to those beside each."""
+    to the run's beside the first archive, the control points to those beside each, or to
+    those found on ``references`` (per archive, :class:`levels.reference.ReferenceInput`)."""
     paths = [Path(p) for p in l0_paths]
     for what, given in (("names", names), ("control-point files", gcps)):
         if given is not None and len(given) != len(paths):
@@ -183,7 +189,7 @@ def pass_request(
     if Need.DEM in needs and not opts.dem_path:
         opts = dataclasses.replace(opts, dem_path=str(run_dem(paths[0], archives[0])))
     points = None
-    if Need.ADJUSTMENT in needs:
+    if Need.ADJUSTMENT in needs and not any(references):
         where = [Path(g) for g in gcps] if gcps else [gcps_beside(p) for p in paths]
         points = [
             read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)
@@ -194,7 +200,7 @@ def pass_request(
                 tie = Path(ties_dir) / name if ties_dir else p.with_name(name)
                 if tie.is_file():
                     points[k] = points[k] + read_gcps(tie, a.n_lines, a.n_columns)
-    one = Pass(tuple(archives), names, tuple(points or ()))
+    one = Pass(tuple(archives), names, tuple(points or ()), references=tuple(references))
     return Request(opts, Path(out_dir), (one,)), StationTruth(truths)
 
 

@@ -51,6 +51,8 @@ from station.truth.measure import StationTruth
 if TYPE_CHECKING:
     from levels.adjust import Adjustment
     from levels.process import PassProducts
+    from levels.readers.gcp import ControlPointSet
+    from levels.reference import ReferenceInput
     from station.spacecraft.emulator import Acquisition
 
 __all__ = [
@@ -155,9 +157,9 @@ class PassRun:
         state.on_scene = on_scene
         archives = tuple(r.archive for r in received)
         gcps = tuple(r.gcps for r in received)
-        return Request(
-            options, stage, (Pass(archives, tuple(tags), gcps),), provenance=scn.provenance()
-        )
+        found_on = tuple(r.reference for r in received)
+        one = Pass(archives, tuple(tags), gcps, references=found_on)
+        return Request(options, stage, (one,), provenance=scn.provenance())
 
     def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
         timings, scn = state.timings, self.scn
@@ -171,7 +173,7 @@ class PassRun:
                     cor[k] = cor.get(k, 0.0) + v
         hrv_of = {d.name: a.hrv.number for d, a in zip(passes, self._acqs, strict=True)}
         hrvs = [
-            _section(a, r, d.products)
+            _section(a, r, d.products, _found_record(r, d.products))
             for a, r, d in zip(self._acqs, self._received, passes, strict=True)
         ]
         rows = in_threads(
@@ -299,8 +301,10 @@ class _Received:
     truth: Any
     gcps: Any
     gcps_path: Path
-    #: With ``[gcps] source = "reference"``: what finding them reported, scored.
-    found: dict[str, Any] | None = None
+    #: With ``[gcps] source = "reference"``: the reference and DEM they are found on,
+    #: and the reference's file.
+    reference: ReferenceInput | None = None
+    reference_file: Path | None = None
 
 
 def _receive(
@@ -327,24 +331,36 @@ def _receive(
     stages.update()
     archive = read_l0(l0, lazy=True)  # each scene task reads its own rows
     gcps_path = out / f"{tag}.gcp.csv"
-    truth, gcps = measured_control_points(acq, archive, gcps_path)
-    scn, found = acq.scenario, None
-    if scn.gcps.source == "reference":  # found on the run's reference, not drawn
-        from levels.readers.gcp import read_gcps
-        from station.refgcps import gcps_from_reference
+    truth, drawn = measured_control_points(acq, archive, gcps_path)
+    scn, reference, path = acq.scenario, None, None
+    gcps: ControlPointSet | None = drawn
+    if scn.gcps.source == "reference":  # found on the run's reference when planned
+        from levels.readers.dem import read_dem
+        from levels.reference import ReferenceInput, read_reference
+        from station.refgcps import reference_sigma_m
         from station.spacecraft.reference import reference_path
 
-        t = clock()
-        reference, dem = reference_path(scn, out), out / f"{scn.name}.dem.tif"
-        _, found = gcps_from_reference(
-            l0, reference, dem, gcps_path, options=scn.processing, truth=truth
-        )
-        gcps = read_gcps(gcps_path, archive.n_lines, archive.n_columns)
-        timings["gcps_found"] = timings.get("gcps_found", 0.0) + clock() - t
-    return _Received(l0, archive, decode, truth, gcps, gcps_path, found)
+        path = reference_path(scn, out)
+        ref = read_reference(path, reference_sigma_m(path, None))
+        dem = read_dem(out / f"{scn.name}.dem.tif", scn.processing.dem_vertical)
+        reference, gcps = ReferenceInput(ref, dem), None  # the drawn points not used
+    return _Received(l0, archive, decode, truth, gcps, gcps_path, reference, path)
 
 
-def _section(acq: Acquisition, rec: _Received, products: PassProducts) -> dict[str, Any]:
+def _found_record(rec: _Received, products: PassProducts) -> dict[str, Any] | None:
+    """The control points found on the run's reference, written beside the archive as the
+    run's record (``<tag>.gcp.csv``) and scored against the truth; None when none were."""
+    from station.refgcps import record_found
+
+    if products.found is None or rec.reference is None or rec.reference_file is None:
+        return None
+    sigma = rec.reference.reference.sigma_m
+    return record_found(rec.l0, rec.reference_file, rec.gcps_path, products.found, sigma, rec.truth)
+
+
+def _section(
+    acq: Acquisition, rec: _Received, products: PassProducts, found: dict[str, Any] | None
+) -> dict[str, Any]:
     """One HRV's section of the run report."""
     scn, decode, archive, l0 = acq.scenario, rec.decode, rec.archive, rec.l0
     gcps_path = rec.gcps_path
@@ -366,8 +382,8 @@ def _section(acq: Acquisition, rec: _Received, products: PassProducts) -> dict[s
         },
         "gcps": {
             "file": gcps_path.name,
-            "points": int(acq.gcps.line.size) if rec.found is None else rec.found["points"],
-            **({"found": _found(rec.found)} if rec.found is not None else {}),
+            "points": int(acq.gcps.line.size) if found is None else found["points"],
+            **({"found": _found(found)} if found is not None else {}),
         },
         **({"adjustment": _adjustment(products.adjustment, acq)} if products.adjustment else {}),
         "processing": {

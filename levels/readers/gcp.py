@@ -22,6 +22,7 @@ A file inside a zip is named as GDAL names it, the zip a folder: ``scene.zip/con
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import zipfile
 from dataclasses import dataclass, fields
@@ -107,6 +108,26 @@ class ControlPointSet:
                 np.concatenate([getattr(self, f.name), getattr(other, f.name)])
                 for f in fields(self)[1:]
             ),
+        )
+
+    def as_recorded(self) -> ControlPointSet:
+        """The points as their file records them (:func:`write_gcps`: 1e-9° on the ground,
+        1 mm in height, 0.001 px in the image, six digits of σ), so that points handed on
+        in memory are the numbers a reprocessing reads from the file."""
+
+        def kept(values: NDArray[np.float64], spec: str) -> NDArray[np.float64]:
+            return np.array([float(format(v, spec)) for v in values], dtype=np.float64)
+
+        return dataclasses.replace(
+            self,
+            lon_rad=np.radians(kept(np.degrees(self.lon_rad), ".9f")),
+            lat_rad=np.radians(kept(np.degrees(self.lat_rad), ".9f")),
+            h_m=kept(self.h_m, ".3f"),
+            line=kept(self.line, ".3f"),
+            column=kept(self.column, ".3f"),
+            sigma_ground_m=kept(self.sigma_ground_m, "g"),
+            sigma_h_m=kept(self.sigma_h_m, "g"),
+            sigma_px=kept(self.sigma_px, "g"),
         )
 
     def _subset(self, k: NDArray[np.bool_]) -> ControlPointSet:
