@@ -256,11 +256,22 @@ def test_no_point_handed_on_beyond_three_sigma_of_its_truth(run, tmp_path, chang
     assert np.all(np.abs(en) <= 3.0 * sigma[:, None]), np.abs(en).max()
 
 
-def test_a_run_finds_its_control_points_on_its_reference(tmp_path) -> None:
+def test_a_run_finds_its_control_points_on_its_reference(tmp_path, monkeypatch) -> None:
     """``[gcps] source = "reference"``: the run writes its reference and DEM, finds the
     pass's points on them (kind reference) and makes level 2 on them: within 0.1 px of the
-    truth, and within [0.7, 1.5] of the σ its adjustment predicts (one draw); without
-    ``[reference]`` the scenario is refused before work."""
+    truth, and within [0.7, 1.5] of the σ its adjustment predicts (one draw); GEO made once
+    for finding and processing (a node of the plan, issue 58); without ``[reference]`` the
+    scenario is refused before work."""
+    import levels.process
+
+    geo_calls = []
+    geo_pass = levels.process.geo_pass
+
+    def counted(*args, **kwargs):
+        geo_calls.append(1)
+        return geo_pass(*args, **kwargs)
+
+    monkeypatch.setattr(levels.process, "geo_pass", counted)
     from station.cli import main
     from station.errors import ScenarioError
     from station.scenario import scenario_from_dict
@@ -271,6 +282,7 @@ def test_a_run_finds_its_control_points_on_its_reference(tmp_path) -> None:
     toml = tmp_path / "ref_run.toml"
     toml.write_text(text, encoding="utf-8")
     assert main(["run", str(toml), "--out", str(tmp_path / "run"), "-q", "--no-quicklooks"]) == 0
+    assert len(geo_calls) == 1
     report = json.loads((tmp_path / "run" / "report.json").read_text())
     [row] = [r for r in report["products"] if r["level"] == "2"]
     q = row["quality"]
