@@ -1,15 +1,20 @@
 """The processing centre's public face: what a user of ``levels`` alone needs, in one place.
 
-    from levels.api import ProcessingOptions, ProcessingRequest, process, read_l0
+    from pathlib import Path
 
-    archive = read_l0("pass.l0.h5", lazy=True)
-    request = ProcessingRequest.of(archive, ProcessingOptions(levels=("1A", "2A")), "out")
-    [products] = process(request)
+    from levels.api import Pass, ProcessingOptions, Request, open_archive, plan, run
 
-The inputs (readers), the three drivers (a pass's scenes, a block of passes with the kinds
-of a pair, a SAR frame), the product kinds and their registry, and what reads products
-(compare, export, inspect). Everything here is importable from its own module too; this
-module adds nothing of its own. ``docs/architecture.md`` maps the packages behind it.
+    archive = open_archive("pass.l0.h5")
+    one = Pass((archive,), ("p",))
+    request = Request(ProcessingOptions(levels=("1A", "2A")), Path("out"), (one,))
+    result = run(plan(request))          # result.products: kind, path, quality, timings
+
+One unit of work (:mod:`levels.work`: a request of passes and SAR frames, its plan, one
+result), the inputs (readers, and the registry of formats), its stages (a pass's scenes,
+a block of passes with the kinds of a pair, a SAR frame), the product kinds and their
+registry, and what reads products (compare, export, inspect). Everything here is
+importable from its own module too; this module adds nothing of its own.
+``docs/architecture.md`` maps the packages behind it.
 """
 
 from __future__ import annotations
@@ -26,23 +31,32 @@ from levels.process import PassProducts, ProcessingRequest, process
 from levels.products import Product, read_product, write_product
 from levels.readers.dem import read_dem
 from levels.readers.dimap import read_dimap
+from levels.readers.formats import open_archive, open_frame
 from levels.readers.gcp import read_gcps, write_gcps
 from levels.readers.l0 import read_l0
 from levels.readers.sar import SarFrame, read_sar_frame
 from levels.registry import kind, kind_names, register_kind
+from levels.work import Frame, Made, Measure, Pass, Plan, Request, Result, plan, run
 
 __all__ = [
     "BandSpec",
     "BlockProducts",
     "BlockRequest",
     "Export",
+    "Frame",
     "FrameOptions",
+    "Made",
+    "Measure",
     "PairMaker",
+    "Pass",
     "PassProducts",
+    "Plan",
     "ProcessingOptions",
     "ProcessingRequest",
     "Product",
     "ProductKind",
+    "Request",
+    "Result",
     "SarFrame",
     "Unit",
     "compare_paths",
@@ -50,6 +64,9 @@ __all__ = [
     "kind",
     "kind_names",
     "load_tolerances",
+    "open_archive",
+    "open_frame",
+    "plan",
     "process",
     "process_block",
     "process_frame",
@@ -62,6 +79,7 @@ __all__ = [
     "read_sar_frame",
     "register_kind",
     "register_level",
+    "run",
     "summary_text",
     "write_gcps",
     "write_geotiff",

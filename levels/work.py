@@ -228,6 +228,11 @@ class Request:
     root: Path | None = None
     ties_dir: Path | None = None
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "out_dir", Path(self.out_dir))
+        object.__setattr__(self, "passes", tuple(self.passes))
+        object.__setattr__(self, "frames", tuple(self.frames))
+
     @property
     def block(self) -> bool:
         """Several passes over one ground: planned as one block."""

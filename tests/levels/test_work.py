@@ -127,3 +127,49 @@ def test_what_cannot_be_made_is_refused_while_planning(recorded: Path, tmp_path:
     with pytest.raises(OptionsError, match="level 2 too"):
         plan(dataclasses.replace(two, options=dataclasses.replace(two.options, levels=("DEM",))))
     assert not out.exists()
+
+
+def test_the_shipped_archive_through_the_one_plan(tmp_path: Path) -> None:
+    """``levels.api``'s example: the archive shipped with the package, one pass of one
+    request, its plan one node, every product in the one result with its scene."""
+    from levels.api import open_archive
+    from levels.warmup import WARM_UP_ARCHIVE
+
+    one = Pass((open_archive(WARM_UP_ARCHIVE),), ("w",))
+    work = plan(Request(ProcessingOptions(levels=("1A", "2A")), tmp_path, (one,)))
+    assert [n.id for n in work.nodes] == ["scenes:w"]
+    result = run(work)
+    assert [(m.kind, m.key, m.scene is not None) for m in result.of(Step.SCENES)] == [
+        ("1A", "w", True),
+        ("2A", "w", True),
+    ]
+    assert all(m.path.is_file() for m in result.products)
+    assert result.pass_products("w", Step.SCENES).scenes[0].paths.keys() == {"1A", "2A"}
+
+
+def test_points_handed_on_in_memory_are_those_their_file_records(tmp_path: Path) -> None:
+    """Control points found on a reference go to the adjustment in memory, as their file
+    records them: a reprocessing from the file reads the same numbers, bit for bit."""
+    import numpy as np
+
+    from levels.readers.gcp import ControlPointSet, write_gcps
+
+    rng = np.random.default_rng(58)
+    n = 40
+    points = ControlPointSet(
+        tuple(f"p{k}" for k in range(n)),
+        np.radians(rng.uniform(-60.0, -50.0, n)),
+        np.radians(rng.uniform(-20.0, -10.0, n)),
+        rng.uniform(0.0, 2000.0, n),
+        rng.uniform(0.0, 599.0, n),
+        rng.uniform(0.0, 599.0, n),
+        rng.uniform(1.0, 30.0, n),
+        rng.uniform(1.0, 30.0, n),
+        rng.uniform(0.1, 1.0, n),
+        np.ones(n, dtype=np.int64),
+        reference=np.ones(n, dtype=bool),
+    )
+    kept = points.as_recorded()
+    read = read_gcps(write_gcps(tmp_path / "p.gcp.csv", points), 600, 600)
+    for field in ("lon_rad", "lat_rad", "h_m", "line", "column", "sigma_ground_m", "sigma_px"):
+        assert np.array_equal(getattr(kept, field), getattr(read, field)), field
