@@ -30,6 +30,15 @@ SPOT_A_M = 7200.5e3
 SPOT_E = 1.2e-3
 SPOT_I_RAD = np.radians(98.7)
 
+#: The HRV's P detector pitch (rad) and its 4 CCDs' along-track butting (rad), as the
+#: emulator's defaults (DESIGN.md: SPOT facts).
+P_PITCH_RAD = 1.1987e-5
+BUTTING_RAD = np.array([0.0, 4.0, -3.0, 2.0]) * 1e-6
+
+#: The mean anomaly at t = 0 that puts ``synthetic_pass``'s scene on a descending track at
+#: about 15° S (argument of latitude ≈ 195° with ``kepler_eci``'s argument of perigee).
+DESCENDING_M0_RAD = 2.79
+
 EPOCH = Epoch(np.datetime64("1998-02-20T09:16:00", "ns"), name="test epoch")
 
 
@@ -119,3 +128,32 @@ def hrv_model(mirror_step=48, n_lines=6000, n_columns=6000, jitter=True, step_s=
         np.array([0.0, n_columns - 1.0]), np.array([1.07e-2, 1.11e-2]), psi_y, n_columns
     )
     return PushbroomModel(EPOCH, clock, eph, att, table, n_lines)
+
+
+def synthetic_pass(n_lines=400, n_detectors=400, mirror_step=48, reference_height_m=450.0):
+    """GEO of a synthetic pass (``levels.geo.scenes.pass_geometry``), without the emulator:
+    the Keplerian ephemeris every 60 s, gyro records every 0.125 s of a slow steady drift,
+    a look-angle table of ``n_detectors`` across the HRV's 60 km at nadir (its P pitch
+    scaled to the detector count, its 4 CCDs butted by ``BUTTING_RAD``), ``n_lines`` lines
+    of 1.504 ms × 6000 / ``n_detectors``.
+    Returns the pass, its scene (all its lines) and the nominal pixel."""
+    from levels.geo.scenes import cut_scenes, pass_geometry
+    from levels.passes import nominal_pixel_size_m
+
+    t_eph = np.arange(0.0, 8 * 60.0, 60.0)
+    # descending over 15° S at the scene, as the station's passes over Brazil are
+    r, v = ecef_states(t_eph, lambda t: kepler_eci(t, m0_rad=DESCENDING_M0_RAD))
+    period = 1.504e-3 * 6000 / n_detectors
+    t0 = t_eph[3] + 0.37 * 60.0 - 0.5 * (n_lines - 1) * period
+    line_t = t0 + period * np.arange(n_lines)
+    gyro_t = np.arange(line_t[0] - 1.0, line_t[-1] + 1.0, 0.125)
+    rates = np.tile([1e-6, 2e-6, -1e-6], (gyro_t.size, 1))
+    # the HRV's P pitch scaled to the detector count, its 4 CCDs butted along the track
+    j = np.arange(n_detectors, dtype=np.float64)
+    pitch = P_PITCH_RAD * 6000 / n_detectors
+    psi_y = (j - (n_detectors - 1) / 2) * pitch + mirror_angle_rad(mirror_step)
+    ccd = np.minimum((4 * (j + 0.5) / n_detectors).astype(int), 3)
+    table = LookAngleTable(j, BUTTING_RAD[ccd], psi_y, n_detectors)
+    pg = pass_geometry(EPOCH, line_t, period, Ephemeris(t_eph, r, v), gyro_t, rates, {"P": table})
+    (cut,) = cut_scenes(n_lines, n_lines)
+    return pg, pg.scene(cut, reference_height_m), nominal_pixel_size_m(table)

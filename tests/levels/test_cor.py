@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _orbits import synthetic_pass
 
 from levels.cor.radiometry import (
     calibrate,
@@ -17,9 +18,6 @@ from levels.cor.radiometry import (
 from levels.cor.resample import resample_1b, resample_2a, with_nan
 from levels.geo.level1b import level1b_geometry
 from levels.geo.level2a import level2a_geometry, map_crs
-from station.fixtures import emulated_scene
-from station.scenario import scenario_from_dict
-from station.spacecraft.emulator import emulate
 
 #: float32 image values against float64 references: 1e-3 counts is far below the 8-bit step.
 FLOAT32_COUNTS = 1e-3
@@ -27,11 +25,8 @@ FLOAT32_COUNTS = 1e-3
 
 @pytest.fixture(scope="module")
 def scene():
-    """A 400 × 400 scene (4 CCDs of 100 detectors) and its pixel size."""
-    acq = emulate(
-        scenario_from_dict({"instrument": {"n_detectors": 400, "n_lines": 400}}), render=False
-    )
-    _pg, scene, res = emulated_scene(acq, 400)
+    """A 400 × 400 scene (a synthetic pass, ``_orbits.synthetic_pass``) and its pixel."""
+    _pg, scene, res = synthetic_pass(400, 400)
     return scene, res
 
 
@@ -173,7 +168,8 @@ def test_1b_pixel_is_valid_when_every_raw_pixel_it_reads_is(geometry, interpolat
     reads_valid = valid[np.clip(li, 0, 399)[:, None], taps].all(axis=1)
     expected = (inside & reads_valid).reshape(ok.shape)
     assert np.array_equal(ok, expected)
-    assert 0.3 < ok.mean() < 0.95 and not out[~ok].any()
+    # 2 % of the raw pixels are invalid: at least as many 1B pixels (more with Keys' 4 taps)
+    assert 0.3 < ok.mean() < 1.0 - 0.015 and not out[~ok].any()
     again = resample_1b(with_nan(img, valid), None, g1, interpolation, lines="nearest")
     assert np.array_equal(again[0], out) and np.array_equal(again[1], ok)
 
