@@ -157,3 +157,29 @@ def synthetic_pass(n_lines=400, n_detectors=400, mirror_step=48, reference_heigh
     pg = pass_geometry(EPOCH, line_t, period, Ephemeris(t_eph, r, v), gyro_t, rates, {"P": table})
     (cut,) = cut_scenes(n_lines, n_lines)
     return pg, pg.scene(cut, reference_height_m), nominal_pixel_size_m(table)
+
+
+def synthetic_gcps(scene, n=40, seed=3, sigma_ground_m=8.0, sigma_h_m=5.0, sigma_px=0.3):
+    """Control points of a synthetic scene: ``n`` image points drawn over it, located by
+    its own model at heights of a few hundred metres (``levels.readers.gcp``'s set; their
+    stated σ the emulator's defaults)."""
+    from levels.readers.gcp import ControlPointSet
+
+    rng = np.random.default_rng(seed)
+    model = next(iter(scene.models.values()))
+    line = rng.uniform(0.0, model.n_lines - 1.0, n)
+    column = rng.uniform(0.0, model.look_angles.n_columns - 1.0, n)
+    h = rng.uniform(200.0, 800.0, n)
+    g = model.image_to_ground(line, column, h)
+    return ControlPointSet(
+        tuple(f"g{k}" for k in range(n)),
+        g.lon_rad,
+        g.lat_rad,
+        g.h_m,
+        line,
+        column,
+        np.full(n, sigma_ground_m),
+        np.full(n, sigma_h_m),
+        np.full(n, sigma_px),
+        np.ones(n, dtype=np.int64),
+    )

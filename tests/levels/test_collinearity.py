@@ -5,14 +5,11 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from _orbits import synthetic_gcps, synthetic_pass
 
 import levels.adjust.model as la
 from levels.adjust.passes import _nodes
 from levels.options import ProcessingOptions
-from station.chain.gcps import control_points
-from station.fixtures import emulated_pass
-from station.scenario import scenario_from_dict
-from station.spacecraft.emulator import emulate
 
 #: Kernel against numpy, same formulas in another order of operations: the condition in
 #: pixels agrees to round-off (1e-16 of angles of 0.1 rad over a 1.2e-5 rad pitch, ~1e-12,
@@ -24,12 +21,9 @@ JACOBIAN_TOL = 1e-6
 
 
 def _problem():
-    scn = scenario_from_dict(
-        {"name": "k", "seed": 3, "instrument": {"n_lines": 12000}, "gcps": {"count": 40}}
-    )
-    acq = emulate(scn, render=False)
-    pg, scenes = emulated_pass(acq, 6000)
-    strips = [la.Strip(pg, scenes, control_points(acq))]
+    pg, scene, _res = synthetic_pass(n_lines=6000, n_detectors=6000)
+    scenes = [scene]
+    strips = [la.Strip(pg, scenes, synthetic_gcps(scene, 40))]
     nodes = _nodes(strips)
     t_ref = float(np.mean(pg.line_t_s[[0, -1]]))
     prob, _lost = la._problem(
