@@ -226,3 +226,22 @@ def test_an_image_geometry_export_carries_its_rpcs_for_otb(level, run_dir, tmp_p
     spacing = [float(v) for v in re.findall(r"estimatedgroundspacing[xy]: ([\d.]+)", out)]
     pixel = 200.0  # the small scene's: 10 m × 6000 / 300 detectors
     assert spacing and all(abs(s / pixel - 1.0) <= OTB_SPACING_REL for s in spacing), spacing
+
+
+def test_a_products_own_rpc_sidecar_as_gdal_reads_it(run_dir) -> None:
+    """A 1A product's RPCs through GDAL's HDF5 driver (its ``.aux.xml``), as written."""
+    import numpy as np
+
+    from levels.geo.rpc import Rpc
+    from levels.products import read_product
+    from levels.readers.rpc import read_gdal_rpc
+
+    product = run_dir / "small_test_s000_1A.h5"
+    ours = Rpc.from_tree(read_product(product).geometry["rpc"]["P"])
+    gdal = read_gdal_rpc(f'HDF5:"{product}"://P')
+    rng = np.random.default_rng(3)
+    lat = ours.lat_off + ours.lat_scale * rng.uniform(-0.9, 0.9, 1000)
+    lon = ours.lon_off + ours.lon_scale * rng.uniform(-0.9, 0.9, 1000)
+    h = rng.uniform(0.0, 1500.0, 1000)
+    (la, sa), (lb, sb) = ours.image_of(lat, lon, h), gdal.image_of(lat, lon, h)
+    assert max(np.abs(la - lb).max(), np.abs(sa - sb).max()) <= 1e-6  # round-off only
