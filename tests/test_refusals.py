@@ -351,7 +351,7 @@ def test_the_tail_of_a_pass_is_made_or_said(scene_lines, made, skipped, run_dir,
 def test_a_scene_of_few_valid_lines_is_skipped() -> None:
     from levels.geo.scenes import SceneCut
     from levels.options import ProcessingOptions
-    from levels.process import _too_few_lines
+    from levels.passes import _too_few_lines
 
     seen = np.zeros(600, dtype=bool)
     seen[100:107] = True
