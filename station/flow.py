@@ -38,7 +38,16 @@ from station.reports import ReportFormat
 if TYPE_CHECKING:
     from levels.tasks import DaskRunner, InProcess
 
-__all__ = ["Flow", "FlowRun", "flow_dir", "make_flow", "quicklooks_of", "run_flow", "runner_for"]
+__all__ = [
+    "Flow",
+    "FlowRun",
+    "ScenarioRun",
+    "flow_dir",
+    "make_flow",
+    "quicklooks_of",
+    "run_flow",
+    "runner_for",
+]
 
 
 @dataclass
@@ -99,6 +108,35 @@ class Flow(Protocol):
     def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
         """Its report's header fields and body, in order (``header``: the header's)."""
         ...
+
+
+class ScenarioRun:
+    """What the flows of ``station run`` share: their output is a run of one scenario (its
+    name in the report's ``scenario``), replaced only by a run of the same scenario, and
+    reads the scenario's files. ``scenario`` has a ``name`` and ``inputs()``."""
+
+    def __init__(self, scenario: _Named) -> None:
+        self._scenario = scenario
+
+    @property
+    def owner(self) -> object:
+        return self._scenario.name
+
+    def owner_of(self, report: dict[str, Any]) -> object:
+        return report["scenario"]["name"]
+
+    def what(self, owner: object) -> str:
+        return f"a run of scenario {owner!r}"
+
+    def inputs(self) -> list[Path]:
+        return self._scenario.inputs()
+
+
+class _Named(Protocol):
+    @property
+    def name(self) -> str: ...
+
+    def inputs(self) -> list[Path]: ...
 
 
 @contextlib.contextmanager

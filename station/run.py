@@ -40,7 +40,7 @@ from levels.tasks import Runner
 from levels.threads import in_threads
 from levels.work import Made, Measure, Pass, Request, Result, Step
 from station.catalog import CATALOG_FILE
-from station.flow import FlowRun, make_flow, run_flow
+from station.flow import FlowRun, ScenarioRun, make_flow, run_flow
 from station.loader import BlockScenario
 from station.outdir import replaceable_dir
 from station.reports import BLOCK_RUN, PASS_RUN, scenario_entry
@@ -93,31 +93,19 @@ def run_scenario(
     return run_flow(flow, out_dir, quicklooks=quicklooks, progress=progress, runner=runner)
 
 
-class PassRun:
+class PassRun(ScenarioRun):
     """The flow of ``station run`` of a pass (:class:`station.flow.Flow`): the pass
     emulated and received, GEO and COR, the products' rows, the report."""
 
     report = PASS_RUN
 
     def __init__(self, scn: Scenario, warm_up: bool = False) -> None:
+        super().__init__(scn)
         self.scn, self.warm_up = scn, warm_up
         self._received: list[_Received] = []
         self._acqs: list[Any] = []
         self._truth: StationTruth | None = None
         self._bar: Any = None
-
-    @property
-    def owner(self) -> object:
-        return self.scn.name
-
-    def owner_of(self, report: dict[str, Any]) -> object:
-        return report["scenario"]["name"]
-
-    def what(self, owner: object) -> str:
-        return f"a run of scenario {owner!r}"
-
-    def inputs(self) -> list[Path]:
-        return self.scn.inputs()
 
     def check(self, out: Path) -> None:
         check_run(self.scn, out)
@@ -575,29 +563,17 @@ def run_block(
     return run_flow(flow, out_dir, quicklooks=quicklooks, progress=progress, runner=runner)
 
 
-class BlockRun:
+class BlockRun(ScenarioRun):
     """The flow of ``station run`` of a block (:class:`station.flow.Flow`): each pass's
     flow in its own directory, then the block's request (:mod:`levels.work`) on them."""
 
     report = BLOCK_RUN
 
     def __init__(self, blk: BlockScenario) -> None:
+        super().__init__(blk)
         self.blk = blk
         self._reports: list[dict[str, Any]] = []
         self._truth: StationTruth | None = None
-
-    @property
-    def owner(self) -> object:
-        return self.blk.name
-
-    def owner_of(self, report: dict[str, Any]) -> object:
-        return report["scenario"]["name"]
-
-    def what(self, owner: object) -> str:
-        return f"a run of scenario {owner!r}"
-
-    def inputs(self) -> list[Path]:
-        return self.blk.inputs()
 
     def check(self, out: Path) -> None:
         for s in self.blk.passes:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from station.errors import ScenarioError, StationError
+from station.flow import ScenarioRun
 from station.reports import SAR_RUN
 from station.sar_scenario import SarScenario
 
@@ -155,30 +156,18 @@ def run_sar(scn: SarScenario, out_dir: str | Path, *, quicklooks: bool = False) 
     return run_flow(SarRun(scn), out_dir, quicklooks=quicklooks)
 
 
-class SarRun:
+class SarRun(ScenarioRun):
     """The flow of ``station run`` of a SAR frame (:class:`station.flow.Flow`): the frame
     emulated, written in ESA's format and read back, its DEM exported, its products."""
 
     report = SAR_RUN
 
     def __init__(self, scn: SarScenario) -> None:
+        super().__init__(scn)
         self.scn = scn
         self._truth: Any = None
         self._frame: dict[str, Any] = {}
         self._dem_row: dict[str, Any] = {}
-
-    @property
-    def owner(self) -> object:
-        return self.scn.name
-
-    def owner_of(self, report: dict[str, Any]) -> object:
-        return report["scenario"]["name"]
-
-    def what(self, owner: object) -> str:
-        return f"a run of scenario {owner!r}"
-
-    def inputs(self) -> list[Path]:
-        return self.scn.inputs()
 
     def check(self, out: Path) -> None:
         for p in self.scn.inputs():
