@@ -123,9 +123,6 @@ class Campaign:
     def owner(self) -> object:
         return CAMPAIGN_FORMAT
 
-    def owner_of(self, report: dict[str, Any]) -> object:
-        return report["format"] if report["format"] == CAMPAIGN_FORMAT else None
-
     def what(self, owner: object) -> str:
         return "a campaign"
 

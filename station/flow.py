@@ -76,10 +76,6 @@ class Flow(Protocol):
         """What its output is made of, as its report names it (a scenario's name)."""
         ...
 
-    def owner_of(self, report: dict[str, Any]) -> object:
-        """What an earlier output's report says it was made of."""
-        ...
-
     def what(self, owner: object) -> str:
         """An output made of ``owner``, in words."""
         ...
@@ -121,9 +117,6 @@ class ScenarioRun:
     @property
     def owner(self) -> object:
         return self._scenario.name
-
-    def owner_of(self, report: dict[str, Any]) -> object:
-        return report["scenario"]["name"]
 
     def what(self, owner: object) -> str:
         return f"a run of scenario {owner!r}"
@@ -184,7 +177,7 @@ def flow_dir(flow: Flow, out_dir: str | Path) -> Path:
     from station.outdir import replaceable_dir
 
     return replaceable_dir(
-        out_dir, flow.report.file, flow.owner_of, flow.owner, flow.what, flow.inputs()
+        out_dir, flow.report.file, flow.report.owner_in, flow.owner, flow.what, flow.inputs()
     )
 
 

@@ -76,9 +76,6 @@ class _Processing:
     def owner(self) -> object:
         return self.names
 
-    def owner_of(self, report: dict[str, Any]) -> object:
-        return report["names"]
-
     def what(self, owner: object) -> str:
         return f"products of {owner}"
 

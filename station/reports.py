@@ -11,6 +11,7 @@ only directories of one kind.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -45,6 +46,18 @@ class ReportFormat:
     name: str
     version: int
     what: str
+    #: Where the report names what its directory is made of (its keys, in order): a
+    #: scenario's name, the products' names; an output of another is not replaced.
+    owner: tuple[str, ...] = ("scenario", "name")
+
+    def owner_in(self, report: Mapping[str, object]) -> object:
+        """What ``report`` (an earlier output's) says its directory is made of, or None."""
+        value: object = report
+        for key in self.owner:
+            if not isinstance(value, Mapping) or key not in value:
+                return None
+            value = value[key]
+        return value
 
     def header(self, **fields: Any) -> dict[str, Any]:
         """The report's opening: its format, version and the software that wrote it, then
@@ -61,8 +74,8 @@ class ReportFormat:
 PASS_RUN = ReportFormat("report.json", "spot-station-run", 2, "the run of a pass")
 BLOCK_RUN = ReportFormat("report.json", "spot-station-block-run", 1, "the run of a block")
 SAR_RUN = ReportFormat("report.json", "spot-station-sar-run", 1, "the run of a SAR frame")
-PROCESS = ReportFormat("process.json", "spot-station-process", 1, "a reprocessing")
-CAMPAIGN = ReportFormat("campaign.json", "spot-station-campaign", 1, "a campaign")
+PROCESS = ReportFormat("process.json", "spot-station-process", 1, "a reprocessing", ("names",))
+CAMPAIGN = ReportFormat("campaign.json", "spot-station-campaign", 1, "a campaign", ("format",))
 #: Every report this version writes.
 REPORTS = (PASS_RUN, BLOCK_RUN, SAR_RUN, PROCESS, CAMPAIGN)
 

@@ -257,8 +257,8 @@ def prepare_run_dir(out_dir: str | Path, name: str, inputs: list[Path] | None = 
     (:mod:`station.outdir`); another scenario's run or other files there are refused."""
     return replaceable_dir(
         out_dir,
-        "report.json",
-        lambda r: r["scenario"]["name"],
+        PASS_RUN.file,
+        PASS_RUN.owner_in,
         name,
         lambda n: f"a run of scenario {n!r}",
         inputs or [],
