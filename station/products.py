@@ -1,15 +1,25 @@
-"""What the station does with products on their own (``station tie``, ``inspect``,
-``export``): tie points between two passes' map products, a product's summary, a product
-as a GeoTIFF, each a function the command line calls and prints."""
+"""What the station does with products and real metadata on their own (``station tie``,
+``inspect``, ``export``, ``locate``): tie points between two passes' map products, a
+product's summary, a product as a GeoTIFF, a real scene's frame located by its model
+(:mod:`levels.locate`), each a function the command line calls and prints."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
+from levels.locate import check_frame, check_gcps, write_rpc
 from station.errors import StationError
 
-__all__ = ["export_geotiff", "inspect_product", "tie_products"]
+__all__ = [
+    "check_frame",
+    "check_gcps",
+    "export_geotiff",
+    "inspect_product",
+    "parse_heights",
+    "tie_products",
+    "write_rpc",
+]
 
 
 def tie_products(a: str | Path, b: str | Path, band: str | None, out: str | Path) -> dict[str, Any]:
@@ -66,3 +76,21 @@ def export_geotiff(src: Path, out: str | Path | None) -> Path:
 def _an_export(identity: object) -> str:
     name, scene, level = (str(x) for x in identity) if isinstance(identity, tuple) else ("",) * 3
     return f"a GeoTIFF export of {name} scene {scene} level {level}"
+
+
+def parse_heights(text: str) -> tuple[float, float]:
+    """``LO,HI`` (m above the ellipsoid): finite, LO < HI, both on Earth
+    (:data:`levels.readers.dem.EARTH_HEIGHTS_M`); :class:`StationError` otherwise."""
+    from levels.readers.dem import EARTH_HEIGHTS_M
+
+    try:
+        lo, hi = (float(x) for x in text.split(","))
+    except ValueError:
+        raise StationError(f"--heights {text!r}: expected LO,HI in metres") from None
+    a, b = EARTH_HEIGHTS_M
+    if not (a <= lo < hi <= b):
+        raise StationError(
+            f"--heights {text!r}: expected LO < HI within {a:g}–{b:g} m (heights on Earth, "
+            "in metres above the ellipsoid)"
+        )
+    return lo, hi

@@ -21,12 +21,12 @@ from _dimap2 import write_dim_xml, write_rpc_xml
 from levels.errors import DimapError
 from levels.geo.rpc import Rpc
 from levels.geo.scenes import models_of_tree
+from levels.locate import check_frame
 from levels.products import read_product
 from levels.readers.dimap import read_dimap
 from levels.readers.dimap2 import read_dimap2
 from levels.readers.rpc import read_rpc_txt
 from station.cli import main
-from station.locate import check_frame
 
 #: The frame's height (m): where the producer located it (the file's ``H``).
 FRAME_H_M = 500.0

@@ -206,9 +206,9 @@ def test_locate_rpc_takes_an_ossim_keyword_list(refdata, tmp_path, capsys) -> No
 def test_control_points_through_the_algebraic_model(name, refdata, tmp_path, capsys) -> None:
     """``station locate --gcps G --model rpc``: the ground → image step through RPCs lands
     where the rigorous model does, within the RPC's own fit error (PHOTOMOD's comparison)."""
+    from levels.locate import check_gcps
     from levels.readers.dimap import read_dimap
     from station.cli import main
-    from station.locate import check_gcps
 
     path = refdata / "dimap" / name
     scene = read_dimap(path)

@@ -45,7 +45,7 @@ Row = tuple[str, str, str]  # figure, measured, README
 
 
 def geometry() -> Iterator[Row]:
-    from station.locate import check_frame
+    from levels.locate import check_frame
 
     for name, readme in (
         ("spot5_hrg1_A_20050313_altai_METADATA.DIM", "0.053 m"),

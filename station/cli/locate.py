@@ -69,7 +69,7 @@ def register(sub: Subparsers) -> None:
 
 
 def _locate(args: argparse.Namespace) -> int:
-    from station.locate import check_frame, check_gcps, parse_heights, write_rpc
+    from station.products import check_frame, check_gcps, parse_heights, write_rpc
 
     if args.rpc:
         lo, hi = parse_heights(args.heights)

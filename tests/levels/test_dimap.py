@@ -15,8 +15,8 @@ from _frames import frame_gcps
 from pyproj import Geod
 
 from levels.errors import DimapError
+from levels.locate import check_frame
 from levels.readers import read_dimap
-from station.locate import check_frame
 
 #: The issue's bar for the Dataset_Frame corners and centre (ellipsoid height 0). SPOT 1–4
 #: times are given to 1 ms, i.e. ±3.3 m along track at 6.6 km/s: 3 m is what they allow.
@@ -186,8 +186,8 @@ def test_control_points_of_a_real_scene(name: str, refdata: Path, tmp_path: Path
     """A user's control points on a real scene (docs/gcp.md), here the producer's own frame
     corners: the DIMAP model misses them as the frame check says; a point measured 10
     columns off is seen 10 pixels off."""
+    from levels.locate import check_frame, check_gcps
     from levels.readers.dimap import read_dimap
-    from station.locate import check_frame, check_gcps
 
     path = refdata / "dimap" / name
     scene = read_dimap(path)

@@ -17,17 +17,16 @@ from typing import Any
 import numpy as np
 from pyproj import Geod
 
+from levels.errors import OptionsError
 from levels.readers.dimap import AttitudeChoice, read_dimap
 from levels.readers.dimap2 import Dimap2Scene, is_dimap2, read_dimap2
 from levels.readers.envisat import is_envisat
-from station.errors import StationError
 
 __all__ = [
     "FrameCheck",
     "GcpCheck",
     "check_frame",
     "check_gcps",
-    "parse_heights",
     "write_rpc",
 ]
 
@@ -266,7 +265,7 @@ def check_gcps(
     from levels.readers.gcp import read_gcps
 
     if model not in ("rigorous", "rpc"):
-        raise StationError(f"model {model!r}: expected 'rigorous' or 'rpc'")
+        raise OptionsError(f"model {model!r}: expected 'rigorous' or 'rpc'")
     if is_envisat(path):
         return _sar_gcps(path, gcp_path)
     name, rigorous, used = _scene_model(path, attitude)
@@ -382,21 +381,3 @@ def write_rpc(
         "fit_error_px": rpc.fit_error_px,
         "gdal_metadata": rpc.gdal_metadata(),
     }
-
-
-def parse_heights(text: str) -> tuple[float, float]:
-    """``LO,HI`` (m above the ellipsoid): finite, LO < HI, both on Earth
-    (:data:`levels.readers.dem.EARTH_HEIGHTS_M`); :class:`StationError` otherwise."""
-    from levels.readers.dem import EARTH_HEIGHTS_M
-
-    try:
-        lo, hi = (float(x) for x in text.split(","))
-    except ValueError:
-        raise StationError(f"--heights {text!r}: expected LO,HI in metres") from None
-    a, b = EARTH_HEIGHTS_M
-    if not (a <= lo < hi <= b):
-        raise StationError(
-            f"--heights {text!r}: expected LO < HI within {a:g}–{b:g} m (heights on Earth, "
-            "in metres above the ellipsoid)"
-        )
-    return lo, hi
