@@ -183,3 +183,40 @@ def synthetic_gcps(scene, n=40, seed=3, sigma_ground_m=8.0, sigma_h_m=5.0, sigma
         np.full(n, sigma_px),
         np.ones(n, dtype=np.int64),
     )
+
+
+#: ERS-1's C-band wavelength (m), its pulse repetition frequency (Hz) and its slant-range
+#: sample (m): the AMI's (the emulator's ``ERS1``).
+ERS_WAVELENGTH_M = 0.05656
+ERS_PRF_HZ = 1679.9
+ERS_RANGE_SAMPLE_M = 7.905
+
+
+def synthetic_frame(n_lines=120, n_samples=100, azimuth_looks=5, range_looks=2, seed=3):
+    """A detected ERS-like slant-range frame without the emulator (``levels.sar``): five
+    state vectors 10 s apart of ``kepler_eci``'s orbit on its descending track, zero
+    Doppler, right-looking at 850 km of near range, and speckled intensity (three looks)
+    over a smooth pattern."""
+    from levels.sar import SarAnnotation, SarImage
+
+    t = np.arange(5) * 10.0
+    r, v = ecef_states(t, lambda tt: kepler_eci(tt, m0_rad=DESCENDING_M0_RAD))
+    annotation = SarAnnotation(
+        EPOCH,
+        t,
+        r,
+        v,
+        first_line_s=18.0,
+        line_interval_s=azimuth_looks / ERS_PRF_HZ,
+        near_range_m=850e3,
+        range_spacing_m=range_looks * ERS_RANGE_SAMPLE_M,
+        wavelength_m=ERS_WAVELENGTH_M,
+        doppler_hz=(0.0,),
+        shape=(n_lines, n_samples),
+        looks=float(azimuth_looks),
+    )
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:n_lines, 0:n_samples]
+    pattern = 0.2 + 0.1 * np.sin(xx / 7.0) * np.cos(yy / 11.0)
+    intensity = (pattern * rng.gamma(3.0, 1.0 / 3.0, pattern.shape)).astype(np.float32)
+    return SarImage(annotation, intensity)
