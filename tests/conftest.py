@@ -25,11 +25,23 @@ def refdata() -> Path:
 
 @pytest.fixture(scope="session")
 def run_dir(tmp_path_factory) -> Path:
-    """``scenarios/small_test.toml`` run once (no quicklooks): tests read it, or copy it
-    before they change anything in it."""
-    from station.cli import main
+    """``scenarios/small_test.toml`` run once by the station's command in a process of its
+    own (no quicklooks): the files a station records, which tests read (``levels``' among
+    them, as any user of the library reads a station's output), or copy before they change
+    anything in it."""
+    import subprocess
+    import sys
 
-    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "small_test.toml"
+    root = Path(__file__).resolve().parents[1]
     out = tmp_path_factory.mktemp("run") / "small"
-    assert main(["run", str(scenario), "--out", str(out), "--quiet", "--no-quicklooks"]) == 0
+    command = [
+        sys.executable,
+        "-m",
+        "station.cli",
+        "run",
+        str(root / "scenarios" / "small_test.toml"),
+    ]
+    subprocess.run(
+        [*command, "--out", str(out), "--quiet", "--no-quicklooks"], check=True, timeout=600
+    )
     return out
