@@ -220,3 +220,11 @@ def synthetic_frame(n_lines=120, n_samples=100, azimuth_looks=5, range_looks=2, 
     pattern = 0.2 + 0.1 * np.sin(xx / 7.0) * np.cos(yy / 11.0)
     intensity = (pattern * rng.gamma(3.0, 1.0 / 3.0, pattern.shape)).astype(np.float32)
     return SarImage(annotation, intensity)
+
+
+def smooth_table(table):
+    """A look-angle table's smooth part: a cubic across the line, without the CCD
+    buttings' steps."""
+    c = np.asarray(table.column, dtype=np.float64)
+    fit = (np.polyval(np.polyfit(c, a, 3), c) for a in (table.psi_x_rad, table.psi_y_rad))
+    return LookAngleTable(c, *fit, table.n_columns)

@@ -18,19 +18,9 @@ from station.spacecraft.world import World
 from tests._cli import bounded, one_line
 
 LON0 = np.radians(-56.1)
-#: GDAL's GCPs (ESA's grid) against where levels.sar locates their ground: the issue's
-#: 0.1 px; they differ by the grid's 1e-6° rounding (0.11 m, 0.014 px).
-GCP_PX = 0.1
 #: ESA's grid against our prediction from the file (same model both sides): the issue's
 #: 1 m; measured 0.14 m (the rounding above, and the file's float32 slant-range time).
 GRID_M = 1.0
-#: The near range through the file's float32 two-way time in ns (0.5 ns: 7.5 cm).
-NEAR_RANGE_M = 0.1
-#: The amplitude's 16-bit counts, the median at 1000: an intensity's relative error
-#: 2 × 0.5 / 1000 at the median (measured 5e-4).
-INTENSITY_REL = 1e-3
-#: The five state vectors' centimetre and 10 µm/s, and their re-interpolation (m).
-ORBIT_M = 0.02
 
 VARIANTS = {
     "imp": {},

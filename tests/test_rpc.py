@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from _frames import frame_gcps
+from _orbits import smooth_table
 
 from levels.geo.rpc import rpc_of_model
-from levels.geometry.sensor import LookAngleTable
 from station.fixtures import emulated_scene
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
 from station.spacecraft.emulator import emulate
@@ -32,13 +32,6 @@ def _scene(mirror_step: int, errors: dict) -> object:
     return scene
 
 
-def _smooth(table: LookAngleTable) -> LookAngleTable:
-    """The table's smooth part: a cubic across the line, without the CCD buttings' steps."""
-    c = np.asarray(table.column, dtype=np.float64)
-    fit = (np.polyval(np.polyfit(c, a, 3), c) for a in (table.psi_x_rad, table.psi_y_rad))
-    return LookAngleTable(c, *fit, table.n_columns)
-
-
 @pytest.fixture(scope="module", params=[48, 93], ids=["nadir", "27deg"])
 def scenes(request) -> tuple:
     """The P scene at the mirror step, errors off and with the default errors
@@ -56,7 +49,9 @@ def test_what_keeps_spot_rpcs_above_a_hundredth_of_a_pixel(scenes) -> None:
         e = rpc_of_model(scene.model, HEIGHTS_M).fit_error_px
         assert e["line_max_px"] > 3 * e["sample_max_px"]  # the steps are along track
         assert 0.1 < e["rms_px"] < 0.3 and e["max_px"] < 0.6
-    smooth_noisy = dataclasses.replace(noisy.model, look_angles=_smooth(noisy.model.look_angles))
+    smooth_noisy = dataclasses.replace(
+        noisy.model, look_angles=smooth_table(noisy.model.look_angles)
+    )
     e = rpc_of_model(smooth_noisy, HEIGHTS_M).fit_error_px
     assert e["rms_px"] > 5 * RPC_RMS_PX  # the attitude's jitter alone keeps it above
 

@@ -10,10 +10,9 @@ import dataclasses
 
 import numpy as np
 import pytest
-from _orbits import synthetic_pass
+from _orbits import smooth_table, synthetic_pass
 
 from levels.geo.rpc import Rpc, rpc_of_model
-from levels.geometry.sensor import LookAngleTable
 
 #: The issue's figures for the algebraic model against the rigorous one (pixels).
 RPC_RMS_PX, RPC_MAX_PX = 0.01, 0.05
@@ -26,13 +25,6 @@ HEIGHTS_M = (0.0, 1500.0)
 OSSIM_AGREEMENT_M = 0.01
 
 
-def _smooth(table: LookAngleTable) -> LookAngleTable:
-    """The table's smooth part: a cubic across the line, without the CCD buttings' steps."""
-    c = np.asarray(table.column, dtype=np.float64)
-    fit = (np.polyval(np.polyfit(c, a, 3), c) for a in (table.psi_x_rad, table.psi_y_rad))
-    return LookAngleTable(c, *fit, table.n_columns)
-
-
 @pytest.fixture(scope="module", params=[48, 93], ids=["nadir", "27deg"])
 def scene(request) -> object:
     """A full P scene at the mirror step, on a smooth attitude (a steady drift)."""
@@ -43,7 +35,7 @@ def scene(request) -> object:
 def test_rpcs_follow_a_smooth_rigorous_model(scene) -> None:
     """A smooth attitude and the buttings' steps taken out of the look table: the RPCs are within
     the issue's figures over the image and 1500 m of height."""
-    model = dataclasses.replace(scene.model, look_angles=_smooth(scene.model.look_angles))
+    model = dataclasses.replace(scene.model, look_angles=smooth_table(scene.model.look_angles))
     e = rpc_of_model(model, HEIGHTS_M).fit_error_px
     assert e["n_points"] > 1000
     assert e["rms_px"] <= RPC_RMS_PX and e["max_px"] <= RPC_MAX_PX
