@@ -29,6 +29,7 @@ from levels.work import (
     Pass,
     Request,
     Step,
+    TiesFound,
     pair_kinds,
     pass_levels,
     plan,
@@ -112,7 +113,7 @@ class BlockProducts:
     """What a block made: its tie points (per pair of scenes), every pass's level 2 and 3
     (:class:`levels.process.PassProducts`, in the archives' order) and its pair products."""
 
-    ties: dict[str, Any]
+    ties: TiesFound
     passes: list[PassProducts]
     pairs: list[PairMade]
 
@@ -158,7 +159,7 @@ def process_block(
     result = run(plan(work), runner, _Given(request, measure))
     made = {d.name for d in result.passes if d.step is Step.LEVEL2}
     return BlockProducts(
-        dict(result.ties) or {"pairs": []},
+        result.ties,
         [result.pass_products(n, Step.LEVEL2, Step.OVER_PAIR) for n in request.names if n in made],
         [
             PairMade(m.path, m.export, dict(m.quality), dict(m.timings_s))

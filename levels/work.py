@@ -42,7 +42,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 from levels.choices import AdjustmentScope, Level
 from levels.errors import DemError, GcpError, GeometryError, OptionsError
@@ -93,6 +93,8 @@ __all__ = [
     "Request",
     "Result",
     "Step",
+    "TiePair",
+    "TiesFound",
     "pair_kinds",
     "pass_levels",
     "plan",
@@ -102,6 +104,24 @@ __all__ = [
 
 #: Where a block's products go, under the request's output directory.
 TIES, LEVEL2, PAIRS = "ties", "block", "stereo"
+
+
+class TiePair(TypedDict):
+    """Two passes' scenes that tie points were found between, and how many."""
+
+    a: str
+    b: str
+    scene_a: int
+    scene_b: int
+    points: int
+    counts: dict[str, int]
+
+
+class TiesFound(TypedDict):
+    """The tie points a block found (:func:`tie_points`), per pair of scenes; none when its
+    ties were taken from a directory."""
+
+    pairs: list[TiePair]
 
 
 class Step(StrEnum):
@@ -310,7 +330,7 @@ class Result:
 
     products: tuple[Made, ...]
     passes: tuple[PassDone, ...]
-    ties: Mapping[str, Any] = field(default_factory=dict)
+    ties: TiesFound = field(default_factory=lambda: TiesFound(pairs=[]))
 
     def of(self, *steps: Step) -> list[Made]:
         """The products of ``steps``, in the order they were made."""
@@ -530,7 +550,7 @@ class _Making:
         self.request, self.runner, self.measure, self.on_scene = request, runner, measure, on_scene
         self.products: list[Made] = []
         self.passes: list[PassDone] = []
-        self.ties_found: dict[str, Any] = {}
+        self.ties_found = TiesFound(pairs=[])
         self.ties_dir = request.ties_dir or request.out_dir / TIES
         self.made_pairs: list[PairMade] = []
 
@@ -718,7 +738,7 @@ def _sides(a: PairScene, b: PairScene) -> tuple[str, int, str, int]:
     return a.name, a.scene, b.name, b.scene
 
 
-def tie_points(scene_dirs: dict[str, Path], out: Path) -> dict[str, Any]:
+def tie_points(scene_dirs: dict[str, Path], out: Path) -> TiesFound:
     """Tie points between every two passes' overlapping 2A scenes (the ``*_2A.nc`` of each
     pass's directory in ``scene_dirs``), each pass's merged into ``out/<pass>.tie.csv``;
     what was found, per pair of scenes."""
@@ -741,11 +761,14 @@ def tie_points(scene_dirs: dict[str, Path], out: Path) -> dict[str, Any]:
                 continue
             per[a].append(tp.control_points("a"))
             per[b].append(tp.control_points("b"))
-            pair = {"a": a, "b": b, "scene_a": va.scene, "scene_b": vb.scene}
-            pairs.append({**pair, "points": len(tp), "counts": tp.counts})
+            pairs.append(
+                TiePair(
+                    a=a, b=b, scene_a=va.scene, scene_b=vb.scene, points=len(tp), counts=tp.counts
+                )
+            )
     out.mkdir(parents=True, exist_ok=True)
     for n, sets in per.items():
         if sets:
             comment = f"tie points of {n} (docs/gcp.md)"
             write_gcps(out / f"{n}.tie.csv", functools.reduce(operator.add, sets), comment)
-    return {"pairs": pairs}
+    return TiesFound(pairs=pairs)

@@ -264,7 +264,7 @@ class ProcessBlock(_Processing):
             "header": {"names": self.names},
             "archives": data,
             "block": level2,
-            "ties": dict(result.ties) or {"pairs": []},
+            "ties": result.ties,
             "pairs": made,
         }
 

@@ -652,7 +652,7 @@ class BlockRun(ScenarioRun):
         return {
             "header": {"scenario": header},
             "passes": self._reports,
-            "ties": dict(result.ties) or {"pairs": []},
+            "ties": result.ties,
             "block": block,
             **({"stereo": stereo} if stereo else {}),
             "timings_s": {"total": round(state.timings["total"], 3)},
