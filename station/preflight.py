@@ -20,7 +20,7 @@ import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict
 
 from station.errors import StationError
 from station.scenario import Scenario
@@ -37,6 +37,7 @@ __all__ = [
     "MEMORY_BYTES_PER_OUTPUT_PIXEL",
     "MEMORY_BYTES_PER_PIXEL",
     "OUTPUT_GRID_SHARE",
+    "Checked",
     "Needs",
     "available_memory_bytes",
     "check_needs",
@@ -181,7 +182,22 @@ def available_memory_bytes() -> float | None:
     return None
 
 
-def check_needs(needs: Needs, out: Path) -> dict[str, float | None]:
+class Checked(TypedDict, total=False):
+    """What a check before work found (``--check`` prints it): the files or archives it
+    read, the pixels a run makes, the memory and disk the job takes and the machine has
+    (bytes; None where the machine does not say)."""
+
+    files: list[str]
+    archives: list[str]
+    frame: str
+    pixels: float
+    memory_bytes: float
+    memory_available_bytes: float | None
+    disk_bytes: float
+    disk_free_bytes: float | None
+
+
+def check_needs(needs: Needs, out: Path) -> Checked:
     """:class:`StationError` when the job will not fit the machine's available memory, or
     ``out``'s nearest existing directory cannot be written or lacks the disk (a staged
     output and the previous one coexist until the swap); returns the figures checked."""
@@ -204,12 +220,12 @@ def check_needs(needs: Needs, out: Path) -> dict[str, float | None]:
             f"this writes up to {needs.disk_bytes / 2**30:.1f} GiB ({needs.what}) and "
             f"{parent} has {free / 2**30:.1f} GiB free: free some space or give another --out"
         )
-    return {
-        "memory_bytes": needs.memory_bytes,
-        "memory_available_bytes": memory,
-        "disk_bytes": needs.disk_bytes,
-        "disk_free_bytes": free,
-    }
+    return Checked(
+        memory_bytes=needs.memory_bytes,
+        memory_available_bytes=memory,
+        disk_bytes=needs.disk_bytes,
+        disk_free_bytes=free,
+    )
 
 
 def check_scenario(scn: Scenario) -> list[str]:

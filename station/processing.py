@@ -21,6 +21,7 @@ from levels.options import ProcessingOptions
 from levels.process import PassProducts
 from levels.work import Frame, Measure, Request, Result, Step
 from station.flow import Flow, FlowRun
+from station.preflight import Checked
 from station.reports import PROCESS
 from station.scenario import Scenario
 from station.truth.measure import StationTruth
@@ -56,7 +57,7 @@ class ProcessFlow(Flow, Protocol):
     its checks, the whole of them with ``full`` (``--check``)."""
 
     names: list[str]
-    found: dict[str, Any]
+    found: Checked
 
     def check(self, out: Path, full: bool = False) -> None: ...
 
@@ -111,7 +112,7 @@ class ProcessArchives(_Processing):
         super().__init__(names, inputs, f"the products of a reprocessing of {', '.join(names)}")
         self.sources, self.options, self.scenarios = list(sources), options, list(scenarios)
         self.gcps, self.ties_dir, self.reference, self.workers = gcps, ties_dir, reference, workers
-        self.found: dict[str, Any] = {}
+        self.found = Checked()
 
     def check(self, out: Path, full: bool = False) -> None:
         """The archives readable and their scenes' memory and disk (``full``: their
@@ -182,7 +183,7 @@ class ProcessScenario(_Processing):
     def __init__(self, scn: Scenario) -> None:
         super().__init__([scn.name], scn.inputs(), f"the products of a reprocessing of {scn.name}")
         self.scn = scn
-        self.found: dict[str, Any] = {}
+        self.found = Checked()
         self._l0 = Path()
 
     def check(self, out: Path, full: bool = False) -> None:
@@ -224,7 +225,7 @@ class ProcessBlock(_Processing):
         super().__init__(names, inputs, f"the products of a reprocessing of {', '.join(names)}")
         self.sources, self.options, self.scenarios = list(sources), options, list(scenarios)
         self.gcps, self.workers = gcps, workers
-        self.found: dict[str, Any] = {}
+        self.found = Checked()
 
     def check(self, out: Path, full: bool = False) -> None:
         self.out = out
@@ -288,7 +289,7 @@ class ProcessFrame(_Processing):
         super().__init__([frame.name], inputs, f"the products of the SAR frame {frame.name}")
         self.source, self.frame, self.options = source, frame, options
         self.dem, self.dem_file, self.scenario = dem, dem_file, scenario
-        self.found: dict[str, Any] = {}
+        self.found = Checked()
         self._grid: Any = None
 
     def check(self, out: Path, full: bool = False) -> None:
@@ -301,7 +302,7 @@ class ProcessFrame(_Processing):
         self._grid = frame_grid(ann, o.pixel_size_m, o.reference_height_m, o.margin_m)
         cells = self._grid.n_rows * self._grid.n_cols
         needs = frame_needs(cells, ann.shape[0] * ann.shape[1], len(o.levels))
-        self.found = {"frame": str(self.source), **check_needs(needs, out)}
+        self.found = Checked(frame=str(self.source), **check_needs(needs, out))
 
     def acquire(self, stage: Path, state: FlowRun) -> Request:
         from station.run_sar import frame_quality, scenario_provenance
@@ -350,7 +351,7 @@ def check_archives(
     gcps: Sequence[str | Path] | None = None,
     full: bool = False,
     workers: int = 0,
-) -> dict[str, Any]:
+) -> Checked:
     """What reprocessing ``sources`` into ``out`` needs, before any work: the archives
     readable (their headers) and the memory and disk their scenes take
     (``station.preflight``); ``full`` (``--check``): also their control points when level 2
@@ -388,7 +389,7 @@ def check_archives(
         native_m,
         options.pixel_size_m,
     )
-    return {"archives": [str(s) for s in sources], **check_needs(needs, out)}
+    return Checked(archives=[str(s) for s in sources], **check_needs(needs, out))
 
 
 def archive_data(l0: Path, out: Path, products: PassProducts) -> dict[str, Any]:

@@ -53,6 +53,7 @@ if TYPE_CHECKING:
     from levels.process import PassProducts
     from levels.readers.gcp import ControlPointSet
     from levels.reference import ReferenceInput
+    from station.preflight import Checked
     from station.spacecraft.emulator import Acquisition
 
 __all__ = [
@@ -265,17 +266,17 @@ def prepare_run_dir(out_dir: str | Path, name: str, inputs: list[Path] | None = 
     )
 
 
-def check_run(scn: Scenario, out: Path) -> dict[str, Any]:
+def check_run(scn: Scenario, out: Path) -> Checked:
     """Everything the run of ``scn`` into ``out`` needs, checked before any work
     (:mod:`station.preflight`): the files the scenario names, a DEM for the levels that
     need one, a writable place for ``out``, and the memory and disk the run will take.
     Returns what was checked; :class:`StationError` (or the library's error) on the
     first failure."""
-    from station.preflight import check_needs, check_scenario, run_needs
+    from station.preflight import Checked, check_needs, check_scenario, run_needs
 
     files = check_scenario(scn)
     needs = run_needs(scn)
-    return {"files": files, "pixels": needs.pixels, **check_needs(needs, out)}
+    return Checked(files=files, pixels=needs.pixels, **check_needs(needs, out))
 
 
 @dataclass(frozen=True, eq=False)
