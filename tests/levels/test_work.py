@@ -138,6 +138,7 @@ def test_the_shipped_archive_through_the_one_plan(tmp_path: Path) -> None:
     one = Pass((open_archive(WARM_UP_ARCHIVE),), ("w",))
     work = plan(Request(ProcessingOptions(levels=("1A", "2A")), tmp_path, (one,)))
     assert [n.id for n in work.nodes] == ["scenes:w"]
+    assert work.text() == ["scenes:w: 1A, 2A"]  # what the plan says before any work
     result = run(work)
     assert [(m.kind, m.key, m.scene is not None) for m in result.of(Step.SCENES)] == [
         ("1A", "w", True),
