@@ -50,7 +50,6 @@ __all__ = [
     "TIES",
     "BlockProducts",
     "BlockRequest",
-    "Measure",
     "PairMade",
     "PairMaker",
     "PairScene",
@@ -59,9 +58,6 @@ __all__ = [
     "process_block",
     "tie_points",
 ]
-
-#: A pair product's measure (:data:`levels.makers.pairs.PairMeasure`).
-Measure = PairMeasure
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,7 +14,7 @@ import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from station import __version__
 from station.errors import StationError
@@ -31,6 +31,7 @@ __all__ = [
     "REPORTS",
     "SAR_RUN",
     "ReportFormat",
+    "ScenarioEntry",
     "json_text",
     "report_of",
     "scenario_entry",
@@ -99,15 +100,24 @@ def report_of(d: Path) -> ReportFormat | None:
     return None
 
 
-def scenario_entry(scn: Scenario | SarScenario) -> dict[str, Any]:
+class ScenarioEntry(TypedDict):
+    """What a run's report says of its scenario."""
+
+    name: str
+    file: str
+    sha256: str
+    seed: int
+
+
+def scenario_entry(scn: Scenario | SarScenario) -> ScenarioEntry:
     """What a run's report says of its scenario (a pass's or a SAR frame's): name, file,
     its bytes' SHA-256, seed."""
-    return {
-        "name": scn.name,
-        "file": Path(scn.source).name if scn.source else "",
-        "sha256": scn.source_sha256,
-        "seed": scn.seed,
-    }
+    return ScenarioEntry(
+        name=scn.name,
+        file=Path(scn.source).name if scn.source else "",
+        sha256=scn.source_sha256,
+        seed=scn.seed,
+    )
 
 
 def json_text(data: object) -> str:

@@ -32,7 +32,7 @@ import logging
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from levels.files import json_default
 from levels.products import read_product
@@ -480,18 +480,28 @@ def _downlink_line(dec: dict[str, Any]) -> str:
     )
 
 
-def product_entry(path: Path, where: str = "") -> dict[str, Any]:
+class ProductEntry(TypedDict):
+    """What a run's report says of a product beside its quality."""
+
+    level: str
+    file: str
+    n_rows: int
+    n_cols: int
+    valid: float
+
+
+def product_entry(path: Path, where: str = "") -> ProductEntry:
     """What a run's report says of a product beside its quality: its kind, its file (under
     ``where`` in the run directory), its size in pixels and its first band's valid share."""
     p = read_product(path, images=False)
     first = next(iter(p.bands.values()))
-    return {
-        "level": p.level,
-        "file": f"{where}{path.name}",
-        "n_rows": int(p.attrs["n_rows"]),
-        "n_cols": int(p.attrs["n_cols"]),
-        "valid": round(float(first.valid.mean()), 6),
-    }
+    return ProductEntry(
+        level=p.level,
+        file=f"{where}{path.name}",
+        n_rows=int(p.attrs["n_rows"]),
+        n_cols=int(p.attrs["n_cols"]),
+        valid=round(float(first.valid.mean()), 6),
+    )
 
 
 def table_row(r: dict[str, Any]) -> dict[str, Any]:

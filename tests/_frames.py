@@ -6,6 +6,14 @@ from pathlib import Path
 
 from levels.readers.dimap import DimapScene
 
+#: The ENVISAT products a frame is written as in the tests: ``SAR_IMP_1P`` on slant and on
+#: ground range, and ``SAR_IMS_1P`` (``levels.writers.envisat.write_envisat``'s options).
+ENVISAT_VARIANTS: dict[str, dict[str, object]] = {
+    "imp": {},
+    "ims": {"product": "SAR_IMS_1P"},
+    "imp_ground": {"ground_range": True},
+}
+
 HEADER = "id,lon_deg,lat_deg,h_m,line,column,sigma_ground_m,sigma_h_m,sigma_px,hrv"
 
 

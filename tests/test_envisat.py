@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _frames import ENVISAT_VARIANTS
 
 from station.spacecraft.sar import ErsFrame, emulate_frame
 from station.spacecraft.world import World
@@ -22,11 +23,7 @@ LON0 = np.radians(-56.1)
 #: 1 m; measured 0.14 m (the rounding above, and the file's float32 slant-range time).
 GRID_M = 1.0
 
-VARIANTS = {
-    "imp": {},
-    "ims": {"product": "SAR_IMS_1P"},
-    "imp_ground": {"ground_range": True},
-}
+VARIANTS = ENVISAT_VARIANTS
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _frames import ENVISAT_VARIANTS
 from _orbits import synthetic_frame
 
 #: GDAL's GCPs (ESA's grid) against where levels.sar locates their ground: the issue's
@@ -25,11 +26,7 @@ INTENSITY_REL = 1e-3
 #: The five state vectors' centimetre and 10 µm/s, and their re-interpolation (m).
 ORBIT_M = 0.02
 
-VARIANTS = {
-    "imp": {},
-    "ims": {"product": "SAR_IMS_1P"},
-    "imp_ground": {"ground_range": True},
-}
+VARIANTS = ENVISAT_VARIANTS
 
 
 @pytest.fixture(scope="module")
