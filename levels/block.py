@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from levels.errors import OptionsError
 from levels.makers.pairs import PairMade, PairMaker, PairMeasure, PairScene
@@ -93,7 +93,7 @@ class BlockRequest:
     out_dir: Path
     checkpoints: tuple[CheckpointSource | None, ...] = ()
     ties_dir: Path | None = None
-    provenance: dict[str, Any] = field(default_factory=dict)
+    provenance: dict[str, object] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         n = len(self.archives)
@@ -126,12 +126,12 @@ class _Given:
     def checkpoints(self, name: str) -> CheckpointSource | None:
         return self._checkpoints.get(name)
 
-    def pair(self, made: StereoDem) -> dict[str, Any]:
+    def pair(self, made: StereoDem) -> dict[str, object]:
         return self._measure(made) if self._measure is not None else {}
 
     def frame(
         self, level: str, geocoded: Geocoded, gamma0: NDArray[np.float32] | None
-    ) -> dict[str, Any]:
+    ) -> dict[str, object]:
         return {}
 
 

@@ -145,7 +145,7 @@ class Comparison:
     def failures(self) -> list[tuple[str, Finding]]:
         return [(k, f) for k, fs in self.findings.items() for f in fs if not f.ok]
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, object]:
         return {
             "a": self.a,
             "b": self.b,
@@ -405,7 +405,7 @@ def _metadata(a: Product, b: Product) -> list[Finding]:
     return out
 
 
-def _paths(tree: dict[str, Any], prefix: str = "") -> set[str]:
+def _paths(tree: dict[str, object], prefix: str = "") -> set[str]:
     out = set()
     for k, v in tree.items():
         out.add(prefix + k)
@@ -659,9 +659,9 @@ def _stored_attrs(name: str, a: Any, b: Any, limit: float) -> list[Finding]:
     return out
 
 
-def _tree_numbers(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+def _tree_numbers(tree: dict[str, object], prefix: str = "") -> dict[str, object]:
     """Every leaf of a tree by its path."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for k, v in tree.items():
         if isinstance(v, dict):
             out.update(_tree_numbers(v, f"{prefix}{k}/"))

@@ -19,7 +19,6 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -95,7 +94,7 @@ class FrameMade:
 
 #: ``measure(level, geocoded, gamma0) -> quality``: what a frame's product is held to (the
 #: station's truth), from its geocoding and its γ⁰ (None when not flattened).
-Measure = Callable[[str, Geocoded, NDArray[np.float32] | None], dict[str, Any]]
+Measure = Callable[[str, Geocoded, NDArray[np.float32] | None], dict[str, object]]
 
 
 def margin_of_dem(dem: Dem, reference_height_m: float) -> float:
@@ -113,7 +112,7 @@ def process_frame(
     dem: Dem | None = None,
     dem_source: str = "",
     measure: Measure | None = None,
-    provenance: dict[str, Any] | None = None,
+    provenance: dict[str, object] | None = None,
     grid: MapGrid | None = None,
 ) -> list[FrameMade]:
     """Every kind ``options`` asks of ``frame`` into ``out`` (module docstring); ``dem`` for

@@ -59,7 +59,7 @@ __all__ = [
 HDF5_FILE_OPTIONS = {"libver": ("v108", "v112")}
 
 
-def checksummed(data: Any) -> dict[str, Any]:
+def checksummed(data: Any) -> dict[str, object]:
     """``create_dataset`` options that store a Fletcher-32 checksum with every chunk of
     ``data`` (verified by HDF5 on each read; a scalar cannot be chunked and has none)."""
     return {"fletcher32": True} if np.ndim(data) > 0 and np.size(data) > 0 else {}
@@ -225,7 +225,7 @@ def attrs_digest(f: h5py.File, attrs: dict[str, dict[str, Any]] | None = None) -
 
 
 def check_attrs_digest(
-    f: h5py.File, required: bool, attrs: dict[str, dict[str, Any]] | None = None
+    f: h5py.File, required: bool, attrs: dict[str, dict[str, object]] | None = None
 ) -> None:
     """Raise ``ValueError`` if the attributes do not match their stored digest (or it is
     missing where ``required``); ``attrs`` as :func:`attrs_digest`'s."""

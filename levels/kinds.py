@@ -179,7 +179,7 @@ class Inspection:
     line, sections of the JSON summary (by key), and lines of text."""
 
     title: str
-    sections: dict[str, Any] = field(default_factory=dict)
+    sections: dict[str, object] = field(default_factory=dict)
     lines: tuple[str, ...] = ()
 
 
@@ -187,7 +187,7 @@ def _no_notes(figures: Mapping[str, Any]) -> tuple[str, ...]:
     return ()
 
 
-def _no_stac(product: Product) -> dict[str, Any]:
+def _no_stac(product: Product) -> dict[str, object]:
     return {}
 
 
@@ -257,7 +257,7 @@ class ProductKind:
     figures: tuple[Figure, ...] = ()
     notes: Callable[[Mapping[str, Any]], tuple[str, ...]] = _no_notes
     browse: Browse = Browse()
-    stac: Callable[[Product], dict[str, Any]] = _no_stac
+    stac: Callable[[Product], dict[str, object]] = _no_stac
     tolerances: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     maker: Any = None
     counts_fill: int | None = None

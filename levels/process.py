@@ -100,7 +100,7 @@ class SceneProducts:
     first_line: int
     n_lines: int
     paths: dict[str, Path]
-    quality: dict[str, dict[str, Any]]
+    quality: dict[str, dict[str, object]]
     timings_s: dict[str, float]
 
 
@@ -679,7 +679,7 @@ def _band_images(work: SceneWork, band_name: str) -> None:
             work.images[m.name][band_name] = m.image(work, band_name, pixels)
 
 
-def _write(work: SceneWork, maker: LevelMaker, quality: dict[str, Any]) -> Path:
+def _write(work: SceneWork, maker: LevelMaker, quality: dict[str, object]) -> Path:
     """The product of one level of the scene, written whole (:mod:`levels.products`)."""
     ctx, level = work.ctx, maker.name
     images = work.images[level]

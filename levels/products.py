@@ -136,7 +136,7 @@ def _attr(value: Any) -> Any:
     return json.dumps(value)
 
 
-def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
+def _write_tree(group: h5py.Group, tree: dict[str, object]) -> None:
     for key, value in tree.items():
         name = str(key)
         if isinstance(value, dict):
@@ -177,7 +177,7 @@ def _metadata_chunks(shape: tuple[int, ...]) -> tuple[int, ...]:
 def _read_tree(group: h5py.Group, attrs: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """A group's attributes (from ``attrs``, :func:`levels.hdf5.all_attrs` of its file) and
     its members, as nested dicts."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for name, value in attrs[group.name[1:]].items():
         out[name] = value.item() if isinstance(value, np.generic) else value
     for name, item in group.items():
@@ -415,7 +415,7 @@ def _required_trees(level: str) -> tuple[str, ...]:
 def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> None:
     """Version 1 trees lacked the grid sizes that version 2 keeps beside the grids."""
     scene = geometry.get("scene", {})
-    look: dict[str, Any] = next(iter(geometry.get("look_angles", {}).values()), {})
+    look: dict[str, object] = next(iter(geometry.get("look_angles", {}).values()), {})
     sizes = {
         "n_rows": attrs.get("n_rows"),
         "n_cols": attrs.get("n_cols"),
@@ -429,7 +429,7 @@ def _upgrade_v1_geometry(geometry: dict[str, Any], attrs: dict[str, Any]) -> Non
                     geometry[key].setdefault(k, v)
 
 
-def _check_scene(scene: dict[str, Any]) -> None:
+def _check_scene(scene: dict[str, object]) -> None:
     """The scene's figures are finite numbers, its lines whole and its corners four."""
     for k in SCENE_KEYS:
         try:

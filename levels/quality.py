@@ -59,10 +59,10 @@ def error_stats(
     return out
 
 
-def scalar_figures(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+def scalar_figures(tree: dict[str, object], prefix: str = "") -> dict[str, object]:
     """The scalar figures of a quality tree, flattened with '/' and as Python numbers; the
     arrays behind them (checkpoint lattices, taps) are left out."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for k, v in tree.items():
         key = f"{prefix}{k}"
         if isinstance(v, dict):
@@ -240,15 +240,15 @@ class CheckpointSource(Protocol):
 
     def level_1b(
         self, scene: SceneGeometry, geometry: Level1BGeometry, band_index: int, per_side: int
-    ) -> dict[str, Any]: ...
+    ) -> dict[str, object]: ...
 
     def level_2a(
         self, scene: SceneGeometry, geometry: Level2AGeometry, band_index: int, per_side: int
-    ) -> dict[str, Any]: ...
+    ) -> dict[str, object]: ...
 
     def level_3(
         self, scene: SceneGeometry, geometry: Level3Geometry, band_index: int, per_side: int
-    ) -> dict[str, Any]: ...
+    ) -> dict[str, object]: ...
 
 
 #: Width of the window's fall at the edges of the mask of :func:`image_shift_px` (pixels).

@@ -145,14 +145,14 @@ class Measure(Protocol):
         """Where the checkpoints of archive ``name`` truly are (its scenes' quality)."""
         ...
 
-    def pair(self, made: StereoDem) -> dict[str, Any]:
+    def pair(self, made: StereoDem) -> dict[str, object]:
         """A pair product's quality from what its maker made (a :class:`levels.stereo.
         StereoDem`)."""
         ...
 
     def frame(
         self, level: str, geocoded: Geocoded, gamma0: NDArray[np.float32] | None
-    ) -> dict[str, Any]:
+    ) -> dict[str, object]:
         """A SAR frame product's quality from its geocoding and its γ⁰."""
         ...
 
@@ -163,12 +163,12 @@ class _NoTruth:
     def checkpoints(self, name: str) -> CheckpointSource | None:
         return None
 
-    def pair(self, made: StereoDem) -> dict[str, Any]:
+    def pair(self, made: StereoDem) -> dict[str, object]:
         return {}
 
     def frame(
         self, level: str, geocoded: Geocoded, gamma0: NDArray[np.float32] | None
-    ) -> dict[str, Any]:
+    ) -> dict[str, object]:
         return {}
 
 

@@ -176,7 +176,7 @@ def write_pack(
         "SOFTWARE_NAME": str(product.provenance.get("software", "spot-station")),
         "PROCESSING_CENTER": "emulated",
     }
-    scores: dict[str, Any] = {}
+    scores: dict[str, object] = {}
     with staged_dir(target) as stage:
         write_dimap(
             scene, stage, image, band_names=band_descriptions(product), production=production

@@ -154,7 +154,7 @@ class Campaign:
             self.runner,
         )
 
-    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, object]:
         """The report; a campaign with failures is not published over a previous one."""
         failed = [a for a in self._body["archives"] if a["status"] != "ok"]
         if failed and self.previous:  # never a campaign with failures over a good one
@@ -177,7 +177,7 @@ def _run(
     options: ProcessingOptions,
     progress: Callable[[int, int, str], None] | None,
     runner: Runner | None,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """:func:`run_campaign`'s archives made into ``stage``: the report's body, naming the
     paths in ``target``."""
     from levels.process import run_plans

@@ -220,7 +220,7 @@ def item_of(path: Path, root: Path) -> Any:
     view = _centre_view(product)
     when = view.pop("datetime").astype("datetime64[us]").astype(dt.datetime)
     level = str(product.level)
-    props: dict[str, Any] = {
+    props: dict[str, object] = {
         "title": str(a.get("title", path.stem)),
         "constellation": "spot",
         **_platform(product),
@@ -247,7 +247,7 @@ def item_of(path: Path, root: Path) -> Any:
     return item
 
 
-def _platform(product: Product) -> dict[str, Any]:
+def _platform(product: Product) -> dict[str, object]:
     """The platform and instrument: an emulated pass's, or those of the real scene a
     product was made from (``levels.readers.scene1a``: ``spot-2``, ``hrv1``; its file and
     imaging date as ``spot:source``, ``spot:imaging_date``)."""
@@ -265,12 +265,12 @@ def _platform(product: Product) -> dict[str, Any]:
     }
 
 
-def _projection(product: Product) -> dict[str, Any]:
+def _projection(product: Product) -> dict[str, object]:
     """The ``proj`` properties of a scene's product: a map level's EPSG code (or WKT2),
     shape and transform; an image-geometry level's shape, ``proj:code`` null (located by
     its RPCs, the asset ``rpc``)."""
     a, grid = product.attrs, product.map_grid
-    props: dict[str, Any] = {"proj:shape": [int(a["n_rows"]), int(a["n_cols"])]}
+    props: dict[str, object] = {"proj:shape": [int(a["n_rows"]), int(a["n_cols"])]}
     if grid is None:
         return {"proj:code": None, **props}
     import pyproj

@@ -129,7 +129,7 @@ def compare_campaigns(
     return out
 
 
-def _compare_made(a: dict[str, Any], b: dict[str, Any]) -> list[Finding]:
+def _compare_made(a: dict[str, object], b: dict[str, object]) -> list[Finding]:
     """What two ``process.json`` say was made: per archive its products (scene, level,
     file), the scenes skipped and why, the tail of lines left; not where, nor how long."""
 
@@ -283,7 +283,7 @@ def _read_report(path: Path) -> dict[str, Any]:
         raise CompareError(f"{path}: not a readable run report ({exc})") from None
 
 
-def _compare_reports(a: dict[str, Any], b: dict[str, Any]) -> list[Finding]:
+def _compare_reports(a: dict[str, object], b: dict[str, object]) -> list[Finding]:
     """The decode statistics of two run reports, HRV by HRV: counts, exactly."""
     out = []
     ha, hb = _decode_by_hrv(a), _decode_by_hrv(b)

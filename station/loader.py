@@ -64,7 +64,7 @@ class BlockScenario:
         return list(seen)
 
 
-def _what(data: dict[str, Any]) -> str:
+def _what(data: dict[str, object]) -> str:
     if BLOCK_KEY in data:
         return "a block of several passes ([[passes]])"
     if SAR_KEY in data:
@@ -80,7 +80,9 @@ def load_any(path: str | Path) -> Scenario | BlockScenario | SarScenario:
     return _of_table(data, raw, p)
 
 
-def _of_table(data: dict[str, Any], raw: bytes, p: Path) -> Scenario | BlockScenario | SarScenario:
+def _of_table(
+    data: dict[str, object], raw: bytes, p: Path
+) -> Scenario | BlockScenario | SarScenario:
     if not data:  # every key has a default: an empty file would run a full 60 km scene
         raise ScenarioError(
             f"{p}: an empty scenario ({len(raw)} bytes, no key): say at least its name; "

@@ -32,7 +32,6 @@ import logging
 import shutil
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any
 
 from levels.files import staged_dir, writable_dir, write_text
 from station.errors import StationError
@@ -116,7 +115,7 @@ def not_own(d: Path) -> list[str]:
 def replaceable_dir(
     out: str | Path,
     report: str,
-    owner: Callable[[dict[str, Any]], object],
+    owner: Callable[[dict[str, object]], object],
     expected: object,
     what: Callable[[object], str],
     inputs: Iterable[str | Path] = (),

@@ -154,7 +154,7 @@ class ProcessArchives(_Processing):
         ref = read_reference(self.reference, reference_sigma_m(self.reference, None))
         return ReferenceInput(ref, read_dem(self.options.dem_path, self.options.dem_vertical))
 
-    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, object]:
         done = [result.pass_products(n, Step.SCENES) for n in self.names]
         if self.reference is not None and done[0].found is not None:  # kept with them
             from station.refgcps import record_found
@@ -198,7 +198,7 @@ class ProcessScenario(_Processing):
         request, self._truth, self._l0 = scenario_request(self.scn, stage)
         return request
 
-    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, object]:
         products = result.pass_products(self.scn.name, Step.SCENES)
         return {
             "header": {"names": self.names},
@@ -244,7 +244,7 @@ class ProcessBlock(_Processing):
         )
         return request
 
-    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, object]:
         from station.run import product_entry
 
         pairs = zip(self.sources, self.names, strict=True)
@@ -320,7 +320,7 @@ class ProcessFrame(_Processing):
             provenance=scenario_provenance(scn) if scn is not None else {},
         )
 
-    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, object]:
         from levels.products import read_product
 
         rows = []
@@ -392,7 +392,7 @@ def check_archives(
     return Checked(archives=[str(s) for s in sources], **check_needs(needs, out))
 
 
-def archive_data(l0: Path, out: Path, products: PassProducts) -> dict[str, Any]:
+def archive_data(l0: Path, out: Path, products: PassProducts) -> dict[str, object]:
     """What ``process.json`` says of one archive's products (its size and valid share, as
     a run says them; its figures; its timings) and the scenes it skipped."""
     from station.run import product_entry

@@ -6,7 +6,6 @@ product's summary, a product as a GeoTIFF, a real scene's frame located by its m
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from levels.locate import check_frame, check_gcps, write_rpc
 from station.errors import StationError
@@ -22,7 +21,9 @@ __all__ = [
 ]
 
 
-def tie_products(a: str | Path, b: str | Path, band: str | None, out: str | Path) -> dict[str, Any]:
+def tie_products(
+    a: str | Path, b: str | Path, band: str | None, out: str | Path
+) -> dict[str, object]:
     """Tie points between two passes' map products (:func:`levels.tiepoints.match_views`),
     written as ``<pass>.tie.csv`` into ``out``: the files, the points kept and the
     matcher's counts."""
@@ -44,7 +45,7 @@ def tie_products(a: str | Path, b: str | Path, band: str | None, out: str | Path
     return {"files": files, "points": len(tp), "counts": tp.counts}
 
 
-def inspect_product(path: str | Path) -> tuple[dict[str, Any], str]:
+def inspect_product(path: str | Path) -> tuple[dict[str, object], str]:
     """A product's summary (:func:`levels.inspect.product_summary`) and its text."""
     from levels.inspect import product_summary, summary_text
     from levels.products import read_product

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -75,7 +75,7 @@ def gcps_from_reference(
     ce95_m: float | None = None,
     scenario: Scenario | None = None,
     truth: Truth | None = None,
-) -> tuple[ReferencePoints, dict[str, Any]]:
+) -> tuple[ReferencePoints, dict[str, object]]:
     """Find, write and (with ``scenario``, or the run's ``truth`` of the archive) score the
     pass's control points (module docstring); returns them and the summary the command
     prints (and the run reports)."""
@@ -104,7 +104,7 @@ def record_found(
     found: ReferencePoints,
     sigma_m: float,
     truth: Truth | None = None,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """The points found on a reference written to ``out`` (``docs/gcp.md``, kind
     ``reference``), and what finding them did: the reference, its stated σ, each loop, the
     adjustment's summary and, with the archive's ``truth``, the points scored against it."""
@@ -116,7 +116,7 @@ def record_found(
         f"{_FOUND} {Path(source).name} found on {Path(reference).name} "
         f"(levels.reference; docs/gcp.md)",
     )
-    summary: dict[str, Any] = {
+    summary: dict[str, object] = {
         "source": str(source),
         "reference": str(reference),
         "out": str(out),

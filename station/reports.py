@@ -60,7 +60,7 @@ class ReportFormat:
             value = value[key]
         return value
 
-    def header(self, **fields: Any) -> dict[str, Any]:
+    def header(self, **fields: Any) -> dict[str, object]:
         """The report's opening: its format, version and the software that wrote it, then
         ``fields`` (in order)."""
         return {

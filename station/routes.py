@@ -124,7 +124,7 @@ def compare_routes(
     scn: Scenario,
     out: str | Path,
     levels: tuple[str, ...] = (Level.L1A, Level.L1B, Level.L2A),
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """Process ``scn``'s pass by the L0 route and by the DIMAP route into ``out``
     (``l0_route/``, ``<name>.zip``, ``dimap_route/``) and compare them (module
     docstring)."""

@@ -150,7 +150,7 @@ class PassRun(ScenarioRun):
         one = Pass(archives, tuple(tags), gcps, references=found_on)
         return Request(options, stage, (one,), provenance=scn.provenance())
 
-    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, Any]:
+    def sections(self, stage: Path, result: Result, state: FlowRun) -> dict[str, object]:
         timings, scn = state.timings, self.scn
         self._bar.update(2)
         passes = [d for d in result.passes if d.step is Step.SCENES]
@@ -185,7 +185,7 @@ class PassRun(ScenarioRun):
 
 
 def _emulate_and_receive(
-    scn: Scenario, out: Path, warm_up: bool, timings: dict[str, Any], stages: Any
+    scn: Scenario, out: Path, warm_up: bool, timings: dict[str, object], stages: Any
 ) -> tuple[Any, list[_Received], list[str], Any]:
     """The pass emulated, its DEM exported, each HRV's channel and L0 archive, while the
     kernels compile in the background (``warm_up``): the acquisitions, what was received,
@@ -228,12 +228,12 @@ def _emulate_and_receive(
     return acqs, received, tags, options
 
 
-def _product_row(hrv: int, m: Made, quicklook: Path | None, out: Path) -> dict[str, Any]:
+def _product_row(hrv: int, m: Made, quicklook: Path | None, out: Path) -> dict[str, object]:
     """What a run's report says of one product (and its quicklook, when drawn)."""
     p = read_product(m.path, images=False)
     assert m.scene is not None  # a scene's level
     index, first_line, n_lines = m.scene
-    row: dict[str, Any] = {
+    row: dict[str, object] = {
         "hrv": hrv,
         "scene": index,
         "level": m.kind,
@@ -286,7 +286,7 @@ class _Received:
 
     l0: Path
     archive: Any
-    decode: dict[str, Any]
+    decode: dict[str, object]
     truth: Any
     gcps: Any
     gcps_path: Path
@@ -419,7 +419,7 @@ def _found_line(gcps: dict[str, Any]) -> str:
     return line
 
 
-def _adjustment(adjustment: Adjustment, acq: Acquisition) -> dict[str, Any]:
+def _adjustment(adjustment: Adjustment, acq: Acquisition) -> dict[str, object]:
     """Level 2's adjustment in the report: its summary, and the blunders the emulator
     planted (``[gcps] blunder_fraction``) beside those it rejected."""
     import numpy as np
@@ -444,7 +444,7 @@ def _rounded(x: Any) -> Any:
     return round(float(x), 4)
 
 
-def comparable_report(report: dict[str, Any]) -> dict[str, Any]:
+def comparable_report(report: dict[str, object]) -> dict[str, object]:
     """The report without what varies between identical runs (wall times, file sizes)."""
 
     def strip(x: Any) -> Any:

@@ -107,7 +107,7 @@ def frame_options(scn: SarScenario) -> Any:
     )
 
 
-def scenario_provenance(scn: SarScenario) -> dict[str, Any]:
+def scenario_provenance(scn: SarScenario) -> dict[str, object]:
     """What a SAR product records of the scenario behind its frame."""
     return {
         "scenario": scn.name,
@@ -166,7 +166,7 @@ class SarRun(ScenarioRun):
         super().__init__(scn)
         self.scn = scn
         self._truth: Any = None
-        self._frame: dict[str, Any] = {}
+        self._frame: dict[str, object] = {}
         self._dem_row: dict[str, Any] = {}
 
     def check(self, out: Path) -> None:

@@ -112,7 +112,7 @@ class SarScenario:
 SECTIONS = {"sar": SarConfig, "world": WorldConfig, "dem": DemConfig}
 
 
-def sar_scenario_from_dict(data: dict[str, Any], p: Path) -> SarScenario:
+def sar_scenario_from_dict(data: dict[str, object], p: Path) -> SarScenario:
     """A SAR scenario from its file's table (``p`` the file: its directory the base of
     its paths, its stem the default name); :class:`ScenarioError` says what is wrong.
     :func:`station.loader.load_any` reads the file."""

@@ -623,7 +623,7 @@ class Scenario:
         """Every HRV imaging the pass: ``instrument`` first (it aims the orbit)."""
         return (self.instrument, *self.more_instruments)
 
-    def provenance(self) -> dict[str, Any]:
+    def provenance(self) -> dict[str, object]:
         """What a product and an L0 archive record of the scenario they were made from."""
         return {
             "scenario": self.name,
@@ -670,7 +670,7 @@ def check_name(name: str, what: str = "name") -> str:
 #: Every error source of the emulator switched off, and a flat world at the default
 #: reference height of the products: merged into a scenario's table
 #: (:func:`merge_tables`), the chain's remaining errors are its approximations alone.
-ERRORS_OFF: dict[str, dict[str, Any]] = {
+ERRORS_OFF: dict[str, dict[str, object]] = {
     "attitude": {
         "roll_offset_urad": 0.0,
         "pitch_offset_urad": 0.0,

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field, fields
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -345,7 +344,7 @@ class Adjustment:
         att = SampledAttitude(a.t_s, a.angles_rad_samples + da, a.hold_s)
         return pg.scene(scene.cut, scene.reference_height_m, ephemeris=eph, attitude=att)
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, object]:
         """Headline figures of the whole adjustment (the run report's)."""
         status = np.array(self.point_status)
         after = np.hypot(*self.residual_after_px[status == "used"].T)
@@ -359,7 +358,7 @@ class Adjustment:
             "sigma0": self.sigma0,
         }
 
-    def product_tree(self, index: int) -> dict[str, Any]:
+    def product_tree(self, index: int) -> dict[str, object]:
         """``geometry/adjustment`` of the scene's level 2 product (``docs/products.md``)."""
         k = self.of_scene(index)
         return {

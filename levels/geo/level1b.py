@@ -158,7 +158,7 @@ class Level1BGeometry:
         )
 
     @staticmethod
-    def product_tree(bands: dict[str, Level1BGeometry]) -> dict[str, Any]:
+    def product_tree(bands: dict[str, Level1BGeometry]) -> dict[str, object]:
         """The ``geometry/level_1b`` tree of a product whose bands have these geometries
         (they share the first band's plane and grid; ``docs/products.md``)."""
         g = next(iter(bands.values()))

@@ -227,7 +227,7 @@ class Level2AGeometry:
         return float(np.ptp(line[inside])), float(np.ptp(col[inside]))
 
     @staticmethod
-    def product_tree(bands: dict[str, Level2AGeometry]) -> dict[str, Any]:
+    def product_tree(bands: dict[str, Level2AGeometry]) -> dict[str, object]:
         """The ``geometry/level_2a`` tree of a product whose bands have these geometries
         (they share the first band's map grid; ``docs/products.md``)."""
         g = next(iter(bands.values()))
@@ -243,7 +243,7 @@ class Level2AGeometry:
             "bands": {b: band._band_tree() for b, band in bands.items()},
         }
 
-    def _band_tree(self) -> dict[str, Any]:
+    def _band_tree(self) -> dict[str, object]:
         polys = {
             f"poly{o}": {"line": np.stack([p.as_array() for p in pl]), "column": pc.as_array()}
             for o, (pl, pc) in self.inverse_polynomials.items()

@@ -109,7 +109,7 @@ class Level3Geometry:
     anchor_error_px: dict[str, float]
 
     @staticmethod
-    def product_tree(bands: dict[str, Level3Geometry]) -> dict[str, Any]:
+    def product_tree(bands: dict[str, Level3Geometry]) -> dict[str, object]:
         """The ``geometry/level_3`` tree of a product whose bands have these geometries
         (``docs/products.md``): the DEM used (its window, CRS, datum, spacing), the anchor
         grids' heights, each height's 2A tree, and the anchor error measured."""
@@ -137,7 +137,7 @@ class Level3Geometry:
         }
 
     @classmethod
-    def from_tree(cls, tree: dict[str, Any], band: str | None = None) -> Level3Geometry:
+    def from_tree(cls, tree: dict[str, object], band: str | None = None) -> Level3Geometry:
         """The geometry of ``band`` (the first by default) from a product's
         ``geometry/level_3`` tree (the DEM's heights on the output grid computed again from
         the DEM window it stores); :class:`ProductError` names what is missing or bad."""
@@ -154,7 +154,7 @@ class Level3Geometry:
         )
 
     @classmethod
-    def check_tree(cls, tree: dict[str, Any], band: str | None = None) -> None:
+    def check_tree(cls, tree: dict[str, object], band: str | None = None) -> None:
         """:class:`ProductError` if ``from_tree`` would fail (without its heavy part)."""
         cls._parts(tree, band)
 

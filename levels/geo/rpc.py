@@ -322,8 +322,8 @@ class Rpc:
         rows += ["END_GROUP = IMAGE", "END;"]
         return "\n".join(rows) + "\n"
 
-    def product_tree(self) -> dict[str, Any]:
-        tree: dict[str, Any] = {k: float(getattr(self, k)) for k in _SCALARS}
+    def product_tree(self) -> dict[str, object]:
+        tree: dict[str, object] = {k: float(getattr(self, k)) for k in _SCALARS}
         tree.update({k: np.asarray(getattr(self, k), dtype=np.float64) for k in _COEFFS})
         tree["fit_error_px"] = {k: float(v) for k, v in self.fit_error_px.items()}
         tree["convention"] = "RPC00B; (line, sample) = (0, 0) at the centre of the first pixel"

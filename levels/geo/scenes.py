@@ -222,7 +222,7 @@ class PassGeometry:
             g.lon_rad[1:],
         )
 
-    def product_tree(self, scene: SceneGeometry) -> dict[str, Any]:
+    def product_tree(self, scene: SceneGeometry) -> dict[str, object]:
         """The part of a product's ``geometry`` tree every level shares: the epoch, the
         scene, its clock, the ephemeris and attitude used (the attitude records within 2 s
         of the scene), the look angles of each band (``docs/products.md``)."""

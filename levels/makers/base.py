@@ -87,7 +87,7 @@ class PassContext:
     out: Path
     name: str
     checkpoints: CheckpointSource | None
-    provenance: dict[str, Any]
+    provenance: dict[str, object]
     adjustment: Adjustment | None
     dem: Dem | None
     makers: tuple[LevelMaker, ...]
@@ -114,7 +114,7 @@ class SceneWork:
         self.ctx = ctx
         self.scene = scene
         self.images: dict[str, dict[str, BandImage]] = {m.name: {} for m in ctx.makers}
-        self.figures: dict[str, dict[str, Any]] = {}
+        self.figures: dict[str, dict[str, object]] = {}
         self.timings_s: dict[str, float] = {}
         self._steps: dict[Callable[..., Any], Any] = {}
         self._inner_s: list[float] = []  # time spent in nested timed blocks, per level
@@ -217,8 +217,8 @@ class LevelMaker:
     name: str
     doc: str
     image: Callable[[SceneWork, str, BandPixels], BandImage]
-    quality: Callable[[SceneWork], dict[str, Any]]
-    geometry_tree: Callable[[SceneWork], dict[str, Any]]
+    quality: Callable[[SceneWork], dict[str, object]]
+    geometry_tree: Callable[[SceneWork], dict[str, object]]
     prepare: Callable[[SceneWork], object] | None = None
     map_grid: Callable[[SceneWork], MapGrid | None] = no_map_grid
     reads: Reads = Reads.DECONVOLVED

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import datetime as dt
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -39,7 +38,7 @@ __all__ = ["KIND", "dem_name", "dem_product"]
 def _inspect(product: Product) -> Inspection:
     a, pair = product.attrs, product.geometry["stereo"]
     views = [str(pair["view_a"]), str(pair["view_b"])]
-    section: dict[str, Any] = {
+    section: dict[str, object] = {
         "views": views,
         "base_to_height": round(float(pair["base_to_height"]), 4),
         "epipolar_error_px": round(float(pair["epipolar_error_px"]), 4),
@@ -54,7 +53,7 @@ def _inspect(product: Product) -> Inspection:
     return Inspection(title, {"stereo": section})
 
 
-def _stac(product: Product) -> dict[str, Any]:
+def _stac(product: Product) -> dict[str, object]:
     """A pair's Item spans its two dates (``datetimes_utc``)."""
     times = sorted(
         dt.datetime.fromisoformat(t[:26]).replace(tzinfo=dt.UTC)
@@ -150,7 +149,7 @@ def _miss_stats(points: StereoPoints) -> dict[str, float]:
 
 
 def dem_product(
-    dem: StereoDem, quality: dict[str, Any] | None = None, inputs: list[str] | None = None
+    dem: StereoDem, quality: dict[str, object] | None = None, inputs: list[str] | None = None
 ) -> Product:
     """The pair's DEM as a map product (``docs/stereo.md``): bands ``height_m`` (above the
     ellipsoid, NaN in holes), ``points`` and ``sigma_m``; the pair's geometry; its quality

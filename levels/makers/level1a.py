@@ -7,8 +7,6 @@ pass's shared tree and RPCs fitted to the rigorous model, so that GDAL can ortho
 
 from __future__ import annotations
 
-from typing import Any
-
 from levels.choices import Level
 from levels.cor.radiometry import stripe_level, to_counts
 from levels.kinds import Export
@@ -28,11 +26,11 @@ def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
     return BandImage(to_counts(px.values), px.valid)
 
 
-def _quality(work: SceneWork) -> dict[str, Any]:
+def _quality(work: SceneWork) -> dict[str, object]:
     return {"stripe_level": work.figures["stripe_level"]}
 
 
-def _geometry_tree(work: SceneWork) -> dict[str, Any]:
+def _geometry_tree(work: SceneWork) -> dict[str, object]:
     return {**common_tree(work), "rpc": {b: r.product_tree() for b, r in rpc_1a(work).items()}}
 
 

@@ -8,8 +8,6 @@ each band) and, with a checkpoint source, the checkpoint errors per band.
 
 from __future__ import annotations
 
-from typing import Any
-
 from levels.choices import Level
 from levels.cor.resample import resample_1b
 from levels.geo.level1b import Level1BGeometry
@@ -33,9 +31,9 @@ def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
     return BandImage(*resample_1b(px.values, None, g, opts.interpolation_1b, lines=opts.lines_1b))
 
 
-def _quality(work: SceneWork) -> dict[str, Any]:
+def _quality(work: SceneWork) -> dict[str, object]:
     scene, g1b, bands = work.scene, geometry_1b(work), work.bands
-    q: dict[str, Any] = {
+    q: dict[str, object] = {
         "radiometry": radiometry(work),
         "polynomials_vs_model": g1b[bands[0]].approximation_error(scene.model),
     }
@@ -45,7 +43,7 @@ def _quality(work: SceneWork) -> dict[str, Any]:
     return q
 
 
-def _geometry_tree(work: SceneWork) -> dict[str, Any]:
+def _geometry_tree(work: SceneWork) -> dict[str, object]:
     return {
         **common_tree(work),
         "level_1b": Level1BGeometry.product_tree(geometry_1b(work)),

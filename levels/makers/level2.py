@@ -9,8 +9,6 @@ refined model) and before (2A's, at the same points).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from levels.choices import Level
@@ -36,7 +34,7 @@ def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
     return BandImage(*resample_2a(px.values, None, g, work.options.resampling_2a))
 
 
-def _adjustment_figures(work: SceneWork) -> dict[str, Any]:
+def _adjustment_figures(work: SceneWork) -> dict[str, object]:
     adjustment = work.ctx.adjustment
     assert adjustment is not None  # Need.ADJUSTMENT: the driver made it
     k = adjustment.of_scene(work.scene.cut.index)
@@ -60,10 +58,10 @@ def _adjustment_figures(work: SceneWork) -> dict[str, Any]:
     }
 
 
-def _quality(work: SceneWork) -> dict[str, Any]:
+def _quality(work: SceneWork) -> dict[str, object]:
     refined, g2 = refined_scene(work), geometry_2(work)
     g = g2[work.bands[0]]
-    q: dict[str, Any] = {
+    q: dict[str, object] = {
         "inverse_vs_model": {
             g.method: g.approximation_error(refined.model, refined.reference_height_m, g.method)
         },
@@ -80,7 +78,7 @@ def _quality(work: SceneWork) -> dict[str, Any]:
     return q
 
 
-def _geometry_tree(work: SceneWork) -> dict[str, Any]:
+def _geometry_tree(work: SceneWork) -> dict[str, object]:
     adjustment = work.ctx.adjustment
     assert adjustment is not None
     return {

@@ -7,8 +7,6 @@ first band's), the one used and, with a checkpoint source, the checkpoint errors
 
 from __future__ import annotations
 
-from typing import Any
-
 from levels.choices import InverseMethod, Level
 from levels.cor.resample import resample_2a
 from levels.geo.level2a import Level2AGeometry
@@ -32,14 +30,14 @@ def _image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
     return BandImage(*resample_2a(px.values, None, g, work.options.resampling_2a))
 
 
-def _quality(work: SceneWork) -> dict[str, Any]:
+def _quality(work: SceneWork) -> dict[str, object]:
     scene = work.scene
     g = geometry_2a(work)[work.bands[0]]
     approx = {
         str(m): g.approximation_error(scene.model, scene.reference_height_m, m)
         for m in InverseMethod
     }
-    q: dict[str, Any] = {
+    q: dict[str, object] = {
         "radiometry": radiometry(work),
         "inverse_vs_model": approx,
         "inverse_method": g.method,
@@ -50,7 +48,7 @@ def _quality(work: SceneWork) -> dict[str, Any]:
     return q
 
 
-def _geometry_tree(work: SceneWork) -> dict[str, Any]:
+def _geometry_tree(work: SceneWork) -> dict[str, object]:
     return {**common_tree(work), "level_2a": Level2AGeometry.product_tree(geometry_2a(work))}
 
 

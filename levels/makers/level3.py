@@ -10,7 +10,6 @@ the checkpoint errors on the terrain.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -47,11 +46,11 @@ def _model(work: SceneWork) -> str:
     return "level 2 (adjusted on control points)"
 
 
-def _quality(work: SceneWork) -> dict[str, Any]:
+def _quality(work: SceneWork) -> dict[str, object]:
     g3, bands = geometry_3(work), work.bands
     g = g3[bands[0]]
     lo, hi = g.terrain_range_m
-    q: dict[str, Any] = {
+    q: dict[str, object] = {
         "radiometry": radiometry(work),
         "model": _model(work),
         "anchor_error_px": {b: dict(g3[b].anchor_error_px) for b in bands},
@@ -74,7 +73,7 @@ def _quality(work: SceneWork) -> dict[str, Any]:
     return q
 
 
-def _geometry_tree(work: SceneWork) -> dict[str, Any]:
+def _geometry_tree(work: SceneWork) -> dict[str, object]:
     tree = {
         **work.ctx.pg.product_tree(scene_3(work)),
         "level_3": Level3Geometry.product_tree(geometry_3(work)),

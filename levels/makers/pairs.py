@@ -33,13 +33,13 @@ class PairMade:
 
     path: Path
     export: Path | None
-    quality: dict[str, Any]
+    quality: dict[str, object]
     timings_s: dict[str, float]
 
 
 #: ``measure(intermediate) -> quality``: what a pair product is held to (the station's
 #: truth), from what its maker made on the way (a :class:`levels.stereo.StereoDem`).
-PairMeasure = Callable[[Any], dict[str, Any]]
+PairMeasure = Callable[[Any], dict[str, object]]
 
 
 @dataclass(frozen=True)

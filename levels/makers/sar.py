@@ -57,7 +57,7 @@ def _inspect(product: Product) -> Inspection:
     return Inspection(title, {"sar": section})
 
 
-def _stac(product: Product) -> dict[str, Any]:
+def _stac(product: Product) -> dict[str, object]:
     """A frame's Item: one instant, its middle line's."""
     t = dt.datetime.fromisoformat(str(product.attrs["time_utc"])[:26]).replace(tzinfo=dt.UTC)
     return {

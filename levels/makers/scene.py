@@ -33,7 +33,7 @@ __all__ = [
 ]
 
 #: A section of ``inspect``: its JSON sections and its lines of text.
-Section = Callable[["Product"], tuple[dict[str, Any], tuple[str, ...]]]
+Section = Callable[["Product"], tuple[dict[str, object], tuple[str, ...]]]
 
 
 #: The scene levels' columns: checkpoint errors along the line of sight (RMS, max) and on
@@ -72,7 +72,7 @@ def _title(product: Product) -> str:
     )
 
 
-def rpc_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
+def rpc_section(product: Product) -> tuple[dict[str, object], tuple[str, ...]]:
     """The RPCs an image-geometry product carries, and their fit to the rigorous model."""
     rpcs = product.geometry.get("rpc") or {}
     section = {
@@ -87,7 +87,7 @@ def rpc_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
     return ({"rpc": section} if section else {}), lines
 
 
-def plane_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
+def plane_section(product: Product) -> tuple[dict[str, object], tuple[str, ...]]:
     """A 1B's tangent plane (INPE's)."""
     g1b = product.geometry["level_1b"]
     plane = {
@@ -97,7 +97,7 @@ def plane_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
     return {"plane": plane}, ()
 
 
-def dem_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
+def dem_section(product: Product) -> tuple[dict[str, object], tuple[str, ...]]:
     """The DEM a level 3 was made over, and its anchor grids."""
     g3 = product.geometry["level_3"]
     dem = g3.get("dem", {})
@@ -119,7 +119,7 @@ def dem_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
     return {"dem": d}, (line,)
 
 
-def adjustment_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...]]:
+def adjustment_section(product: Product) -> tuple[dict[str, object], tuple[str, ...]]:
     """A level 2's adjustment: the accuracy it predicts, the control points it used and
     those it rejected as blunders (by id), their residuals."""
     import json
@@ -163,7 +163,7 @@ def adjustment_section(product: Product) -> tuple[dict[str, Any], tuple[str, ...
 
 def _inspection(*sections: Section) -> Callable[[Product], Inspection]:
     def inspect(product: Product) -> Inspection:
-        found: dict[str, Any] = {}
+        found: dict[str, object] = {}
         lines: list[str] = []
         for s in sections:
             d, more = s(product)
@@ -193,7 +193,7 @@ def _stripe_notes(figures: Mapping[str, Any]) -> tuple[str, ...]:
     return (f"stripes raw → 1A {h.band} {raw:.2f} → {cal:.2f} counts",)
 
 
-def _scene_stac(product: Product) -> dict[str, Any]:
+def _scene_stac(product: Product) -> dict[str, object]:
     return {"processing:level": f"L{product.level}"}
 
 

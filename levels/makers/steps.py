@@ -46,7 +46,7 @@ __all__ = [
 
 
 @scene_step
-def common_tree(work: SceneWork) -> dict[str, Any]:
+def common_tree(work: SceneWork) -> dict[str, object]:
     """The part of the ``geometry`` tree the system-corrected levels share
     (:meth:`levels.geo.scenes.PassGeometry.product_tree`)."""
     return work.ctx.pg.product_tree(work.scene)
@@ -62,7 +62,7 @@ def scene_crs(work: SceneWork) -> pyproj.CRS:
 
 
 @scene_step
-def radiometry(work: SceneWork) -> dict[str, Any]:
+def radiometry(work: SceneWork) -> dict[str, object]:
     """The deconvolution of the resampled levels, and the MTF at Nyquist before and after."""
     taps = work.ctx.taps
     nyquist = np.array([0.5])

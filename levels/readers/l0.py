@@ -145,7 +145,7 @@ class L0Archive:
         return self.ephemeris.reference_velocity or "earth_fixed"
 
     @property
-    def provenance(self) -> dict[str, Any]:
+    def provenance(self) -> dict[str, object]:
         """What the station recorded of where the pass came from (scenario, seed …)."""
         try:
             prov = json.loads(str(self.attrs.get("provenance", "{}")))
@@ -438,7 +438,7 @@ def _archive(
     attrs: dict[str, Any],
     d: dict[str, np.ndarray],
     bands: dict[str, L0Band],
-    decode: dict[str, Any],
+    decode: dict[str, object],
     t_attrs: dict[str, Any],
     ref_v: str,
 ) -> L0Archive:

@@ -287,7 +287,7 @@ def read_scene_1a(path: str | Path, attitude: AttitudeChoice = "auto") -> L0Arch
 
 def _provenance(
     source: Path, scene: DimapScene, names: list[str], attitude: AttitudeChoice
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """What the products say of the scene they were made from (module docstring)."""
     radiance = {}
     for k, name in enumerate(names):

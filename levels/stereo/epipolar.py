@@ -6,7 +6,7 @@ from the raw pixels.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyproj
@@ -150,7 +150,7 @@ class EpipolarPair:
             view.image, self.step, cols, lines, view.geometry.segment_first_column, self.frame.shape
         )
 
-    def tree(self) -> dict[str, Any]:
+    def tree(self) -> dict[str, object]:
         """What a DEM product keeps of the pair's geometry."""
         f = self.frame
         return {

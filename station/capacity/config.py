@@ -372,7 +372,7 @@ class CapacityScenario:
         return p if p.is_absolute() else Path(self.base_dir) / p
 
 
-def capacity_from_dict(data: dict[str, Any], base_dir: str | Path = ".") -> CapacityScenario:
+def capacity_from_dict(data: dict[str, object], base_dir: str | Path = ".") -> CapacityScenario:
     """A :class:`CapacityScenario` from a parsed TOML table."""
     kwargs: dict[str, Any] = {"base_dir": str(base_dir)}
     allowed = sorted(["name", "seed", "satellite", *_SECTIONS])

@@ -111,7 +111,7 @@ def _ci(values: list[float]) -> dict[str, float]:
     return {"mean": m, "ci95": h if n >= MIN_REPLICATIONS_CI else math.nan, "n": n}
 
 
-def _aggregate(reps: list[Replication]) -> dict[str, Any]:
+def _aggregate(reps: list[Replication]) -> dict[str, object]:
     stages = {
         name: {k: _ci([float(r.stages[name][k]) for r in reps]) for k in reps[0].stages[name]}
         for name in reps[0].stages
@@ -132,7 +132,7 @@ def run_study(
     plots: bool = True,
     service: Service | None = None,
     runner: Runner | None = None,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """Replicate the scenario (for each sweep value); write the outputs to ``out_dir``.
 
     Every replication of every sweep value is a task of ``runner`` (:mod:`levels.tasks`:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -144,7 +143,7 @@ def comparable(report: dict) -> dict:
     }
 
 
-def downlink_scenario(scenario: str | Path, out: str | Path | None = None) -> dict[str, Any]:
+def downlink_scenario(scenario: str | Path, out: str | Path | None = None) -> dict[str, object]:
     """``station downlink``: a scenario's pass emulated, sent through its channel, decoded
     and recorded as an L0 archive at ``out`` (default ``<name>.l0.h5``; only an earlier
     archive of the same scenario is replaced); the downlink's report, with the archive."""

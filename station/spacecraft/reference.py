@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyproj
@@ -79,7 +79,7 @@ class ReferenceImage:
         """Its stated accuracy, per axis (m): CE95 / 2.4477."""
         return self.config.error_ce95_m / CE95_PER_SIGMA
 
-    def truth(self) -> dict[str, Any]:
+    def truth(self) -> dict[str, object]:
         return {  # the configuration's own biases are in the drawn ones: those replace them
             **asdict(self.config),
             "bias_east_m": self.bias_m[0],

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from levels.geometry.ellipsoid import WGS84
@@ -17,7 +15,7 @@ def _iso(acq: Acquisition, t_s: float) -> str:
     return str(acq.epoch.utc(t_s))[:23]
 
 
-def summarize(acq: Acquisition) -> dict[str, Any]:
+def summarize(acq: Acquisition) -> dict[str, object]:
     """Orbit, strip, footprint, bands, passes and handovers of an acquisition (JSON-ready;
     angles in degrees, lengths in km or m as named)."""
     hrv = acq.hrv

@@ -6,7 +6,7 @@ every unit of work alike."""
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from levels.quality import CheckpointSource
 from station.truth.optical import Truth
@@ -31,7 +31,7 @@ class StationTruth:
         self,
         truths: Mapping[str, Truth | None],
         pair_of: Sequence[str] = (),
-        frame: Callable[..., dict[str, Any]] | None = None,
+        frame: Callable[..., dict[str, object]] | None = None,
     ) -> None:
         self._truths = dict(truths)
         self._pair = [self._truths.get(n) for n in pair_of[:2]]
@@ -40,7 +40,7 @@ class StationTruth:
     def checkpoints(self, name: str) -> CheckpointSource | None:
         return self._truths.get(name)
 
-    def pair(self, made: StereoDem) -> dict[str, Any]:
+    def pair(self, made: StereoDem) -> dict[str, object]:
         from station.truth.stereo import StereoTruth, stereo_quality
 
         a, b = [*self._pair, None, None][:2]
@@ -51,5 +51,5 @@ class StationTruth:
 
     def frame(
         self, level: str, geocoded: Geocoded, gamma0: NDArray[np.float32] | None
-    ) -> dict[str, Any]:
+    ) -> dict[str, object]:
         return self._frame(level, geocoded, gamma0) if self._frame is not None else {}

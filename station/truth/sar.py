@@ -169,7 +169,7 @@ def frame_truth(
     made at ``reference_height_m``."""
     ref, pixel = reference_height_m, g.grid.pixel_size_m
     cp = checkpoint_errors(g, truth)
-    quality: dict[str, Any] = {"checkpoints": cp["figures"]}
+    quality: dict[str, object] = {"checkpoints": cp["figures"]}
     if "dem" not in kind(level).needs:  # on the ellipsoid: moved by the relief
         moved = np.hypot(cp["di"], cp["dj"]) * pixel
         predicted = np.abs(cp["height_m"] - ref) / np.tan(cp["incidence_rad"])

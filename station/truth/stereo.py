@@ -18,7 +18,7 @@ terrain under the DEM, and checkpoints measured in both images.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyproj
@@ -101,7 +101,7 @@ def exact_disparity(
     return {"u": u[ok], "v": v[ok], "d": (ub - u)[ok], "dv": (vb - v)[ok], "h_m": h[ok]}
 
 
-def disparity_errors(dem: StereoDem, exact: dict[str, NDArray]) -> dict[str, Any]:
+def disparity_errors(dem: StereoDem, exact: dict[str, NDArray]) -> dict[str, object]:
     """The matched disparity against the exact one on the valid pixels of the lattice."""
     iv, iu = exact["v"].astype(np.int64), exact["u"].astype(np.int64)
     d = dem.disparity.d[iv, iu].astype(np.float64)
@@ -176,7 +176,7 @@ def _seen_by_both(
     return seen.reshape(x.shape)
 
 
-def dem_errors(dem: StereoDem, truth: StereoTruth, world: World) -> dict[str, Any]:
+def dem_errors(dem: StereoDem, truth: StereoTruth, world: World) -> dict[str, object]:
     """The DEM against the true terrain (module docstring)."""
     h_true, slope = true_heights(dem, world)
     err = dem.height_m.astype(np.float64) - h_true
@@ -240,7 +240,7 @@ def checkpoints(
     count: int = 25,
     pointing_px: float = 0.3,
     rng: np.random.Generator | None = None,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """``count`` checkpoints spread over the pair's common footprint (PHOTOMOD had 23): the
     terrain there, its true image position in both scenes with a pointing error of
     ``pointing_px`` per axis, triangulated on the adjusted models; east, north, plan and
@@ -292,7 +292,7 @@ def checkpoints(
 
 def stereo_quality(
     dem: StereoDem, truth: StereoTruth, world: World, exact_step: int = 4
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """A DEM's figures against the truth, as its product keeps them: the disparity against
     the exact one, the heights against the terrain (by slope class), the checkpoints."""
     exact = exact_disparity(dem.pair, truth, exact_step)
