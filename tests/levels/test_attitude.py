@@ -7,6 +7,7 @@ import pytest
 
 from levels.errors import GeometryError
 from levels.geometry import ConstantAttitude, SampledAttitude, integrate_rates
+from levels.geometry.attitude import attitude_gaps
 
 ROUND_OFF_RAD = 1e-15
 
@@ -88,3 +89,14 @@ def test_constant_attitude_has_the_shape_of_time() -> None:
 def test_bad_samples_are_rejected(t, a, match) -> None:
     with pytest.raises(GeometryError, match=match):
         SampledAttitude(t, a)
+
+
+def test_geo_holds_the_attitude_across_lost_records() -> None:
+    t = np.r_[np.arange(0.0, 1.0, 0.125), np.arange(5.0, 6.0, 0.125)]
+    rates = np.full((t.size, 3), 1e-4)
+    held = integrate_rates(t, rates, max_gap_s=0.2)
+    across = integrate_rates(t, rates)
+    jump = held.angles_rad(np.array([5.0]))[0] - held.angles_rad(np.array([0.875]))[0]
+    assert np.all(jump == 0.0)
+    assert np.allclose(across.angles_rad(np.array([5.0]))[0], 5.0 * 1e-4)
+    assert attitude_gaps(t).tolist() == [[0.875, 5.0]]
