@@ -1,5 +1,7 @@
-"""Imports go one way: station → levels, never back; geometry below the rest of levels;
-numerical modules do no I/O (no h5py, no file readers in levels.geometry)."""
+"""The station's imports: the receiving station never imports the emulator, which takes only
+primitives from ``levels``; no import circle; the command line imports nothing from
+``levels`` but its errors; only the skeleton publishes and only the drivers make products
+(``levels``' own layers: ``tests/levels/test_layers.py``)."""
 
 from __future__ import annotations
 
@@ -7,72 +9,14 @@ import ast
 from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _imports(path: Path) -> set[str]:
-    tree = ast.parse(path.read_text(), filename=str(path))
-    names = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            names.add(node.module)
-    return names
+from _source import ROOT, imports, modules, too_long, top
 
 
-def _modules(package: str) -> list[Path]:
-    files = sorted((ROOT / package).rglob("*.py"))
-    assert files, f"no modules found under {package}/"
-    return files
-
-
-def _top(name: str) -> str:
-    return name.split(".")[0]
-
-
-@pytest.mark.parametrize("path", _modules("levels"), ids=lambda p: str(p.relative_to(ROOT)))
-def test_levels_never_imports_station(path: Path) -> None:
-    bad = sorted(n for n in _imports(path) if _top(n) == "station")
-    assert not bad, f"{path.relative_to(ROOT)} imports {bad}: the flow is station → levels only"
-
-
-@pytest.mark.parametrize(
-    "path", _modules("levels/geometry"), ids=lambda p: str(p.relative_to(ROOT))
-)
-def test_geometry_is_the_bottom_layer(path: Path) -> None:
-    forbidden = ("h5py", "levels.readers", "levels.geo", "levels.cor", "xml", "rasterio")
-    bad = sorted(
-        n for n in _imports(path) if any(n == f or n.startswith(f + ".") for f in forbidden)
-    )
-    assert not bad, f"{path.relative_to(ROOT)} imports {bad}: geometry is numerical and lowest"
-
-
-def test_the_walker_sees_a_wrong_way_import(tmp_path: Path) -> None:
-    bad = tmp_path / "bad.py"
-    bad.write_text("import numpy\nfrom station.cli import main\n")
-    assert "station.cli" in _imports(bad)
-
-
-@pytest.mark.parametrize(
-    "path", _modules("levels/geo") + _modules("levels/cor"), ids=lambda p: str(p.relative_to(ROOT))
-)
-def test_geo_and_cor_are_numerical(path: Path) -> None:
-    forbidden = ("h5py", "levels.readers", "levels.products", "rasterio")
-    if "levels/geo" in str(path):
-        forbidden += ("levels.cor",)  # GEO computes, COR applies: never the other way
-    bad = sorted(
-        n for n in _imports(path) if any(n == f or n.startswith(f + ".") for f in forbidden)
-    )
-    assert not bad, f"{path.relative_to(ROOT)} imports {bad}: GEO and COR do no I/O"
-
-
-@pytest.mark.parametrize("path", _modules("station/srrs"), ids=lambda p: str(p.relative_to(ROOT)))
+@pytest.mark.parametrize("path", modules("station/srrs"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_the_receiving_station_never_imports_the_emulator(path: Path) -> None:
     """The SRRS sees bytes, as a real station does: the chain that feeds it the emulator's
     passes lives in ``station.chain``."""
-    bad = sorted(n for n in _imports(path) if n.startswith("station.spacecraft"))
+    bad = sorted(n for n in imports(path) if n.startswith("station.spacecraft"))
     assert not bad, f"{path.relative_to(ROOT)} imports {bad}: the station sees bytes only"
 
 
@@ -90,13 +34,13 @@ EMULATOR_MAY_IMPORT = (
 
 
 @pytest.mark.parametrize(
-    "path", _modules("station/spacecraft"), ids=lambda p: str(p.relative_to(ROOT))
+    "path", modules("station/spacecraft"), ids=lambda p: str(p.relative_to(ROOT))
 )
 def test_the_emulator_takes_only_primitives_from_levels(path: Path) -> None:
     bad = sorted(
         n
-        for n in _imports(path)
-        if _top(n) == "levels"
+        for n in imports(path)
+        if top(n) == "levels"
         and not any(n == a or n.startswith(a + ".") for a in EMULATOR_MAY_IMPORT)
     )
     assert not bad, f"{path.relative_to(ROOT)} imports {bad}: the emulator takes primitives only"
@@ -123,7 +67,7 @@ def _module_graph() -> dict[str, set[str]]:
     """Every module of levels and station and the modules of the two it imports anywhere
     (at the top, inside functions, under TYPE_CHECKING): a lazy import is an arrow too."""
     mods = {}
-    for path in _modules("levels") + _modules("station"):
+    for path in modules("levels") + modules("station"):
         name = ".".join(path.relative_to(ROOT).with_suffix("").parts)
         mods[name.removesuffix(".__init__")] = path
     graph: dict[str, set[str]] = {}
@@ -162,10 +106,10 @@ def test_no_import_circle_lazy_imports_counted() -> None:
     assert not circles, " ; ".join(" -> ".join(c) for c in circles[:5])
 
 
-@pytest.mark.parametrize("path", _modules("station/cli"), ids=lambda p: str(p.relative_to(ROOT)))
+@pytest.mark.parametrize("path", modules("station/cli"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_the_command_line_imports_nothing_from_levels_but_its_errors(path: Path) -> None:
     """The CLI parses, calls one function of the station and prints (issue 58)."""
-    bad = sorted(n for n in _imports(path) if _top(n) == "levels" and n != "levels.errors")
+    bad = sorted(n for n in imports(path) if top(n) == "levels" and n != "levels.errors")
     assert not bad, f"{path.relative_to(ROOT)} imports {bad}"
 
 
@@ -190,7 +134,7 @@ def _calls(path: Path) -> set[str]:
     return out
 
 
-@pytest.mark.parametrize("path", _modules("station"), ids=lambda p: str(p.relative_to(ROOT)))
+@pytest.mark.parametrize("path", modules("station"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_only_the_skeleton_publishes_catalogues_and_heads_reports(path: Path) -> None:
     if path.relative_to(ROOT).as_posix() == "station/flow.py":
         return
@@ -198,7 +142,7 @@ def test_only_the_skeleton_publishes_catalogues_and_heads_reports(path: Path) ->
 
 
 @pytest.mark.parametrize(
-    "path", _modules("levels") + _modules("station"), ids=lambda p: str(p.relative_to(ROOT))
+    "path", modules("levels") + modules("station"), ids=lambda p: str(p.relative_to(ROOT))
 )
 def test_only_the_drivers_make_and_write_products(path: Path) -> None:
     if path.relative_to(ROOT).as_posix() in PRODUCT_WRITERS:
@@ -207,32 +151,6 @@ def test_only_the_drivers_make_and_write_products(path: Path) -> None:
     assert not called, f"{path.relative_to(ROOT)} calls {sorted(called)}: the drivers' own"
 
 
-#: Size bounds of the house (issue 48): a function a reader takes in at once, a module
-#: a reader can hold; numba kernels (one loop nest each, split only at a cost) excepted.
-MAX_FUNCTION_LINES = 80
-MAX_MODULE_LINES = 800
-
-
-def _is_kernel(node: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
-    for d in node.decorator_list:
-        f = d.func if isinstance(d, ast.Call) else d
-        if isinstance(f, ast.Attribute) and f.attr == "njit":
-            return True
-    return False
-
-
-@pytest.mark.parametrize(
-    "path", _modules("levels") + _modules("station"), ids=lambda p: str(p.relative_to(ROOT))
-)
-def test_functions_and_modules_stay_readable(path: Path) -> None:
-    text = path.read_text()
-    assert text.count("\n") <= MAX_MODULE_LINES, f"{path.relative_to(ROOT)}: over 800 lines"
-    long = [
-        f"{n.name} ({n.end_lineno - n.lineno + 1} lines)"
-        for n in ast.walk(ast.parse(text))
-        if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)
-        and n.end_lineno is not None
-        and n.end_lineno - n.lineno + 1 > MAX_FUNCTION_LINES
-        and not _is_kernel(n)
-    ]
-    assert not long, f"{path.relative_to(ROOT)}: {', '.join(long)} over {MAX_FUNCTION_LINES}"
+@pytest.mark.parametrize("path", modules("station"), ids=lambda p: str(p.relative_to(ROOT)))
+def test_station_modules_stay_readable(path: Path) -> None:
+    assert not too_long(path), f"{path.relative_to(ROOT)}: {', '.join(too_long(path))}"
