@@ -1,4 +1,5 @@
-"""Level 3: DEMs as users have them, and the orthorectification against the truth."""
+"""Level 3: the orthorectification against the emulated truth (the DEMs as users have them:
+``tests/levels/test_dem_readers.py``)."""
 
 from __future__ import annotations
 
@@ -11,11 +12,10 @@ import pytest
 from levels.geo.level2a import level2a_geometry
 from levels.geo.level3 import ANCHOR_TOLERANCE_PX, level3_geometry
 from levels.geo.maps import map_crs
-from levels.readers.dem import DemError, egm96_grid_installed, read_dem
+from levels.readers.dem import read_dem
 from station.fixtures import emulated_scene
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
 from station.spacecraft.emulator import emulate
-from station.spacecraft.hgt import read_hgt
 from station.truth.optical import Truth, checkpoints_2a, checkpoints_3
 
 #: The issue's figures for an exact DEM with the errors off: RMS and max (output pixels).
@@ -25,50 +25,6 @@ EXACT_RMS_PX, EXACT_MAX_PX = 0.1, 0.3
 @pytest.fixture(scope="module")
 def srtm_path(refdata) -> Path:
     return refdata / "dem" / "N00E010.hgt"
-
-
-def test_dems_in_the_formats_a_station_is_handed(refdata, srtm_path) -> None:
-    srtm = read_dem(srtm_path, "ellipsoid")
-    assert srtm.height_m.shape == (1201, 1201)
-    assert srtm.spacing == pytest.approx((1 / 1200, 1 / 1200))
-    # the same bilinear surface as the emulator's reader of the tile
-    grid = read_hgt(srtm_path)
-    lat, lon = np.radians([0.5, 0.2501, 0.9]), np.radians([10.5, 10.7502, 10.1])
-    from scipy.interpolate import RegularGridInterpolator
-
-    ref = RegularGridInterpolator((grid.lat_rad, grid.lon_rad), grid.height_m)
-    assert srtm.heights(lat, lon) == pytest.approx(ref(np.stack([lat, lon], axis=-1)), abs=1e-9)
-    assert np.isnan(srtm.heights(np.radians([1.5]), np.radians([10.5])))[0]  # outside
-    dted = read_dem(refdata / "dem" / "n43.dt0", "ellipsoid")
-    assert dted.height_m.shape == (121, 121) and dted.void_fraction == 0.0
-    etopo = read_dem(refdata / "dem" / "ETOPO1_Ice_g_geotiff.resampled-1deg.tif", "ellipsoid")
-    assert etopo.heights(np.radians([27.99]), np.radians([86.93]))[0] > 3000.0  # Himalaya
-
-
-def test_dem_errors_are_clear(tmp_path, srtm_path) -> None:
-    with pytest.raises(DemError, match="not found"):
-        read_dem(tmp_path / "none.tif", "ellipsoid")
-    with pytest.raises(DemError, match="vertical datum"):
-        read_dem(srtm_path, "geoid")
-    junk = tmp_path / "junk.tif"
-    junk.write_bytes(b"not a raster")
-    with pytest.raises(DemError, match="not a raster"):
-        read_dem(junk, "ellipsoid")
-
-
-def test_egm96_heights_need_the_geoid_grid(srtm_path) -> None:
-    """EGM96 heights are turned into ellipsoidal ones through PROJ's grid; without the grid,
-    a clear error instead of PROJ's silent null 'ballpark' shift."""
-    dem = read_dem(srtm_path, "egm96")
-    if egm96_grid_installed():
-        h = dem.heights(np.radians([0.5]), np.radians([10.5]))
-        # EGM96's undulation over Gabon is about +10 m
-        assert h[0] - read_dem(srtm_path, "ellipsoid").heights(
-            np.radians([0.5]), np.radians([10.5])
-        )[0] == pytest.approx(10.0, abs=6.0)
-    else:
-        with pytest.raises(DemError, match=r"us_nga_egm96_15\.tif"):
-            dem.heights(np.radians([0.5]), np.radians([10.5]))
 
 
 @pytest.fixture(scope="module")

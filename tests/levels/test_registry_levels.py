@@ -1,11 +1,11 @@
 """Levels declared once: a level written in a test module alone is registered, planned with
-the levels it requires, and made by ``station process`` without a change to the driver."""
+the levels it requires, and made by the unit of work (:mod:`levels.work`) from the shipped
+L0 archive without a change to the driver."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -18,8 +18,10 @@ from levels.makers.steps import common_tree
 from levels.options import ProcessingOptions
 from levels.process import plan_levels
 from levels.products import BandImage, read_product
+from levels.readers.l0 import read_l0
 from levels.registry import level_names
-from station.cli import main
+from levels.warmup import WARM_UP_ARCHIVE
+from levels.work import Pass, Request, plan, run
 
 
 def _mean_image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
@@ -30,7 +32,7 @@ def _mean_image(work: SceneWork, band: str, px: BandPixels) -> BandImage:
     return BandImage(np.array([[round(mean)]], np.uint8), np.ones((1, 1), bool))
 
 
-def _mean_quality(work: SceneWork) -> dict[str, Any]:
+def _mean_quality(work: SceneWork) -> dict[str, object]:
     return {"mean_counts": work.figures["mean_counts"]}
 
 
@@ -76,19 +78,21 @@ def test_registering_twice_or_a_bad_name_is_refused(mean_level: LevelMaker) -> N
         register_level(LevelMaker("a_b", "", _mean_image, _mean_quality, common_tree))
 
 
-def test_station_process_makes_a_registered_level(
-    mean_level: LevelMaker, run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """The toy level's products come out of ``station process``; the 1A it requires is
-    made for it and not written, and its figure is the mean of the 1A product's image."""
-    l0 = str(run_dir / "small_test.l0.h5")
-    assert main(["process", l0, "--levels", "mean", "--out", str(tmp_path / "m")]) == 0
-    made = sorted(p.name for p in (tmp_path / "m").glob("*.h5"))
-    assert made == ["small_test_s000_mean.h5"]
-    assert main(["process", l0, "--levels", "1A", "--out", str(tmp_path / "a")]) == 0
-    capsys.readouterr()
-    product = read_product(tmp_path / "m" / made[0])
-    one_a = read_product(tmp_path / "a" / "small_test_s000_1A.h5").bands["P"]
+def _made(levels: tuple[str, ...], out: Path) -> list[Path]:
+    one = Pass((read_l0(WARM_UP_ARCHIVE),), ("w",))
+    result = run(plan(Request(ProcessingOptions(levels=levels), out, (one,))))
+    return [m.path for m in result.products]
+
+
+def test_the_unit_of_work_makes_a_registered_level(mean_level: LevelMaker, tmp_path: Path) -> None:
+    """The toy level's products come out of the plan; the 1A it requires is made for it
+    and not written, and its figure is the mean of the 1A product's image."""
+    made = _made(("mean",), tmp_path / "m")
+    assert [p.name for p in made] == ["w_s000_mean.h5"]
+    assert sorted(p.name for p in (tmp_path / "m").glob("*.h5")) == ["w_s000_mean.h5"]
+    (one_a_path,) = _made(("1A",), tmp_path / "a")
+    product = read_product(made[0])
+    one_a = read_product(one_a_path).bands["P"]
     mean = float(one_a.image[one_a.valid].mean())
     assert product.level == "mean"
     assert product.quality["mean_counts"]["P"] == mean  # the same counts, the same sum
