@@ -10,11 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
-
-from levels.readers.l0 import read_l0
-from levels.warmup import WARM_UP_ARCHIVE, cache_is_cold, start_warm_up, wait_for_warm_up
 
 ROOT = Path(__file__).resolve().parents[1]
 #: A fresh interpreter runs the warm-up, then a whole default run (emulation included);
@@ -48,16 +44,6 @@ print(json.dumps({k: sorted(v - before.get(k, set())) for k, v in after.items()}
 """
 
 
-def test_warm_up_archive_is_this_versions_l0() -> None:
-    """The shipped archive reads and checks as an L0 archive of this version: the pass of
-    ``scenarios/warmup.toml``, which regenerates it (levels/warmup.py says how)."""
-    archive = read_l0(WARM_UP_ARCHIVE)
-    assert archive.mode == "P"
-    band = archive.bands["P"]
-    assert band.counts.shape == (240, 200)
-    assert np.count_nonzero(band.pixel_valid()) > 0.99 * band.counts.size
-
-
 def test_warm_up_compiles_every_kernel_of_a_default_run(tmp_path: Path) -> None:
     """After the warm-up, a default run (the quickstart's P pass, reduced) calls no kernel
     of ``levels`` with types it has not compiled: with the warm-up's cache, the run's
@@ -76,18 +62,6 @@ def test_warm_up_compiles_every_kernel_of_a_default_run(tmp_path: Path) -> None:
     new = json.loads(done.stdout.strip().splitlines()[-1])
     assert {k: v for k, v in new.items() if v} == {}
     assert len(new) >= 10  # the walk found the kernels (radiometry, resampling, grids, …)
-
-
-def test_no_background_warm_up_when_the_cache_is_warm() -> None:
-    """This test process has compiled (and cached) the kernels by now: nothing is started,
-    and waiting for nothing returns."""
-    from levels.warmup import warm_up
-
-    warm_up()
-    assert not cache_is_cold()
-    process = start_warm_up()
-    assert process is None
-    wait_for_warm_up(process)
 
 
 @pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: no warm-up is started")
