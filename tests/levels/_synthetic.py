@@ -144,10 +144,12 @@ def true_pass(
     mirror_step: int = 48,
     seed: int = 0,
     lost_lines: tuple[int, int] | None = None,
+    attitude_offset_rad: NDArray[np.float64] = ATTITUDE_OFFSET_RAD,
 ) -> TruePass:
     """A P pass of ``n_lines`` over 15° S, descending, flown with the emulator's default
     errors (module docstring). ``lost_lines``: the first and last line of a span whose gyro
-    records the downlink lost, as an outage of the station loses them."""
+    records the downlink lost, as an outage of the station loses them;
+    ``attitude_offset_rad``: the constant attitude GEO is not told (roll, pitch, yaw)."""
     rng = np.random.default_rng(seed)
     t_eph = np.arange(0.0, 8 * 60.0, 60.0)  # 8 bulletins a minute apart, as SPOT 1–4 files
     r, v = ecef_states(t_eph, lambda t: kepler_eci(t, m0_rad=DESCENDING_M0_RAD))
@@ -155,7 +157,7 @@ def true_pass(
     t_mid = 0.5 * (t_eph[0] + t_eph[-1])
     line_t = t_mid + period * (np.arange(n_lines) - 0.5 * (n_lines - 1))
     gyro_t = np.arange(line_t[0] - 1.0, line_t[-1] + 1.0, GYRO_PERIOD_S)
-    true_angles = ATTITUDE_OFFSET_RAD + (gyro_t - gyro_t[0])[:, None] * TRUE_RATES_RAD_PER_S
+    true_angles = attitude_offset_rad + (gyro_t - gyro_t[0])[:, None] * TRUE_RATES_RAD_PER_S
     measured = TRUE_RATES_RAD_PER_S + rng.normal(0.0, GYRO_NOISE_RAD_PER_S, (gyro_t.size, 3))
     j = np.arange(n_detectors, dtype=np.float64)
     psi_y = (j - (n_detectors - 1) / 2) * P_PITCH_RAD * 6000 / n_detectors
