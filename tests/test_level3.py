@@ -6,7 +6,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pyproj
 import pytest
 
 from levels.geo.level2a import level2a_geometry
@@ -67,101 +66,6 @@ def test_level_3_puts_pixels_on_the_terrain(rugged, rugged_level3) -> None:
     assert c3["rms_px"] <= EXACT_RMS_PX and c3["max_px"] <= EXACT_MAX_PX
     # 2A at the same points carries the relief displacement: h·tan θ off its surface
     assert c2["rms_px"] > 10 * EXACT_RMS_PX
-
-
-def test_level_3_resampling_follows_its_geometry(rugged, rugged_level3) -> None:
-    """The kernel's densification is the geometry's: with nearest-neighbour resampling each
-    valid output pixel holds the raw pixel that :meth:`Level3Geometry.raw_of` names."""
-    from levels.cor.ortho import resample_3
-
-    _acq, scene, _res = rugged
-    geom, _crs = rugged_level3
-    rng = np.random.default_rng(3)
-    img = rng.uniform(0, 255, (scene.cut.n_lines, scene.model.n_columns)).astype(np.float32)
-    out, ok, hidden = resample_3(img, np.ones(img.shape, dtype=bool), geom, "nearest")
-    assert out.shape == (geom.map_grid.n_rows, geom.map_grid.n_cols) and 0.5 < ok.mean() < 1.0
-    assert not np.any(ok & hidden)  # a hidden pixel is never given a value
-    r, k = np.nonzero(ok)
-    pick = rng.choice(r.size, 3000, replace=False)
-    line, col = geom.raw_of(r[pick], k[pick])
-    li, ci = (np.floor(x + 0.5).astype(np.int64) for x in (line, col))
-    inside = (li >= 0) & (li < img.shape[0]) & (ci >= 0) & (ci < img.shape[1])
-    expected = np.clip(np.rint(img[li[inside], ci[inside]]), 0, 255)
-    # a pixel within 1e-9 px of a rounding boundary may round the other way: none expected
-    assert np.mean(out[r[pick], k[pick]][inside] == expected) > 0.999
-
-
-WALL_HEIGHT_M = 1500.0
-WALL_CELL_DEG = 1 / 1200  # the wall's DEM spacing (3", about 93 m)
-
-
-@pytest.fixture(scope="module")
-def wall(rugged) -> dict:
-    """A 1500 m wall, three DEM cells (250 m) thick, along the meridian through the scene's
-    centre, seen at 27°; level 3 of a flat image over it (nearest neighbour)."""
-    from levels.cor.ortho import resample_3
-    from levels.readers.dem import Dem
-
-    _acq, scene, res = rugged
-    lat0, lon0 = np.degrees(scene.centre_lat_rad), np.degrees(scene.centre_lon_rad)
-    step, n = WALL_CELL_DEG, 481
-    height = np.zeros((n, n))
-    height[:, n // 2 - 1 : n // 2 + 2] = WALL_HEIGHT_M
-    gt = (lon0 - (n / 2) * step, step, 0.0, lat0 + (n / 2) * step, 0.0, -step)
-    dem = Dem(height, gt, pyproj.CRS.from_epsg(4326).to_wkt(), "ellipsoid", "wall")
-    crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad, None)
-    geom = level3_geometry(scene, dem, res, crs)
-    img = np.full((scene.cut.n_lines, scene.model.n_columns), 100.0, dtype=np.float32)
-    _out, ok, hidden = resample_3(img, None, geom, "nearest")
-    e_wall, _ = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(lon0, lat0)
-    return {"geom": geom, "ok": ok, "hidden": hidden, "e_wall": e_wall}
-
-
-def test_terrain_behind_a_wall_is_hidden(wall) -> None:
-    """The ground just behind the wall (away from the satellite) is hidden and comes out
-    invalid; the ground in front is not."""
-    ok, hidden = wall["ok"], wall["hidden"]
-    assert hidden.any() and not np.any(ok & hidden)
-    # the hidden ground lies on one side of the wall, within h·tan θ ≈ 1500 m × 0.6 of it
-    r, k = np.nonzero(hidden)
-    e, _n = wall["geom"].map_grid.map_of(r, k)
-    side = np.sign(np.median(e - wall["e_wall"]))
-    assert np.mean(np.sign(e - wall["e_wall"]) == side) > 0.95
-    assert np.percentile(np.abs(e - wall["e_wall"]), 95) < 1500.0 * 0.7 + 200.0
-
-
-#: The shadow's edges against H·tan θ: each end of a row's run of hidden pixels is
-#: decided by nearest raw pixels and the DEM's bilinear sides (one 93 m cell), about a
-#: pixel each.
-SHADOW_EDGE_TOLERANCE_PX = 1.5
-
-
-def test_the_whole_shadow_of_a_wall_is_hidden(rugged, wall) -> None:
-    """The wall's vertical faces have no output pixel, but they hide the ground behind: the
-    z-buffer takes the faces between neighbouring pixels. The hidden ground behind the wall
-    is as wide as its shadow along the line of sight, H·tan θ from the back of its top."""
-    _acq, scene, res = rugged
-    geom, hidden = wall["geom"], wall["hidden"]
-    # tan θ at the scene centre: how far the ground point of a raw pixel moves per metre
-    line, col = np.array([scene.cut.n_lines / 2]), np.array([scene.model.n_columns / 2])
-    to_map = pyproj.Transformer.from_crs("EPSG:4326", geom.map_grid.crs_wkt, always_xy=True)
-    low, high = (
-        np.array(to_map.transform(np.degrees(g.lon_rad), np.degrees(g.lat_rad)))[:, 0]
-        for g in (scene.model.image_to_ground(line, col, h) for h in (0.0, 1000.0))
-    )
-    tan_theta = float(np.hypot(*(high - low))) / 1000.0
-    shadow_px = WALL_HEIGHT_M * tan_theta / res
-    per_row = hidden.sum(axis=1)
-    rows = per_row > 0
-    assert rows.sum() > 0.5 * hidden.shape[0]
-    assert np.median(per_row[rows]) == pytest.approx(shadow_px, abs=SHADOW_EDGE_TOLERANCE_PX)
-    # its far edge: the top's back edge (half the plateau, one DEM cell) plus H·tan θ
-    r, k = np.nonzero(hidden)
-    far = np.abs(geom.map_grid.map_of(r, k)[0] - wall["e_wall"]).max()
-    plateau_half_m = np.radians(WALL_CELL_DEG) * 6_378_137.0 * np.cos(scene.centre_lat_rad)
-    assert far == pytest.approx(
-        plateau_half_m + WALL_HEIGHT_M * tan_theta, abs=SHADOW_EDGE_TOLERANCE_PX * res
-    )
 
 
 #: A DEM height error δh moves a level 3 pixel by δh·tan θ: the issue's agreement (the
