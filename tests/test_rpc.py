@@ -1,12 +1,12 @@
-"""RPCs fitted to the rigorous model: their error measured against it, GDAL's evaluation of
-them, real SPOT scenes' DIMAP turned into the sidecar GDAL reads."""
+"""RPCs fitted to the rigorous model of emulated scenes: their error measured against it;
+``station locate --rpc`` refusing what has no model (real scenes' sidecars and control
+points through RPCs: ``tests/levels/test_rpc_sidecars.py``)."""
 
 from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
 
-import numpy as np
 import pytest
 from _frames import frame_gcps
 from _orbits import smooth_table
@@ -56,56 +56,6 @@ def test_what_keeps_spot_rpcs_above_a_hundredth_of_a_pixel(scenes) -> None:
     assert e["rms_px"] > 5 * RPC_RMS_PX  # the attitude's jitter alone keeps it above
 
 
-#: SPOT 1–4 DIMAP tabulate the first and last detector only (a straight line of look
-#: angles) with the corrected attitude constant: the RPC is exact to rounding. SPOT 5
-#: tabulates every detector and samples the attitude at 8 Hz (its own wiggles).
-REAL_MAX_PX = {"spot2": 0.001, "spot4": 0.001, "spot5": 0.15}
-
-
-@pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")  # the blank
-@pytest.mark.parametrize(
-    "name",
-    [
-        "spot2_hrv1_P_19980220_izmit_METADATA.DIM",
-        "spot4_hrvir2_M_20120115_altai_METADATA.DIM",
-        "spot5_hrg1_A_20050313_altai_METADATA.DIM",
-    ],
-)
-def test_real_scenes_get_a_sidecar_gdal_reads(refdata, tmp_path, name, capsys) -> None:
-    """``station locate FILE --rpc OUT``: the ``_RPC.TXT`` beside an image is what GDAL
-    then finds for it, and the fit error is printed."""
-    import rasterio
-
-    from station.cli import main
-
-    image = tmp_path / "scene.tif"
-    with rasterio.open(image, "w", driver="GTiff", width=8, height=8, count=1, dtype="uint8") as ds:
-        ds.write(np.zeros((1, 8, 8), dtype=np.uint8))
-    sidecar = tmp_path / "scene_RPC.TXT"
-    dim = refdata / "dimap" / name
-    assert main(["locate", str(dim), "--rpc", str(sidecar), "--heights", "0,3000"]) == 0
-    out = capsys.readouterr().out
-    assert "RPC" in out and "max" in out
-    with rasterio.open(image) as ds:
-        rpcs = ds.rpcs
-    assert rpcs is not None
-    from levels.readers.dimap import read_dimap
-
-    fitted = rpc_of_model(read_dimap(dim).model(), (0.0, 3000.0))
-    assert rpcs.line_off == pytest.approx(fitted.line_off)
-    assert np.allclose(rpcs.samp_num_coeff, fitted.samp_num, rtol=1e-12, atol=1e-15)
-    assert fitted.fit_error_px["max_px"] <= REAL_MAX_PX[name.split("_")[0]]
-    # DigitalGlobe's .RPB, which GDAL reads as well (once the _RPC.TXT is gone)
-    sidecar.unlink()
-    assert (
-        main(["locate", str(dim), "--rpc", str(image.with_suffix(".RPB")), "--heights", "0,3000"])
-        == 0
-    )
-    with rasterio.open(image) as ds:
-        assert ds.rpcs is not None and ds.rpcs.lat_off == pytest.approx(fitted.lat_off)
-        assert np.allclose(ds.rpcs.line_den_coeff, fitted.line_den, rtol=1e-12, atol=1e-15)
-
-
 def test_locate_rpc_refuses_a_frame_only_file(refdata, tmp_path, capsys) -> None:
     from station.cli import EXIT_BAD_INPUT, main
 
@@ -127,24 +77,13 @@ def test_locate_rpc_takes_an_ossim_keyword_list(refdata, tmp_path, capsys) -> No
     assert "use --rpc" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize(
-    "name", ["spot2_hrv1_P_19980220_izmit_METADATA.DIM", "spot5_hrg1_A_20050313_altai_METADATA.DIM"]
-)
-def test_control_points_through_the_algebraic_model(name, refdata, tmp_path, capsys) -> None:
-    """``station locate --gcps G --model rpc``: the ground → image step through RPCs lands
-    where the rigorous model does, within the RPC's own fit error (PHOTOMOD's comparison)."""
-    from levels.locate import check_gcps
+def test_station_locate_checks_control_points_through_rpcs(refdata, tmp_path, capsys) -> None:
+    """``station locate --gcps G --model rpc`` says the points were predicted through RPCs
+    (what it finds: ``tests/levels/test_rpc_sidecars.py``)."""
     from levels.readers.dimap import read_dimap
     from station.cli import main
 
-    path = refdata / "dimap" / name
-    scene = read_dimap(path)
-    gcps = frame_gcps(scene, tmp_path / "frame.gcp.csv", height_step_m=100.0)
-    rigorous = check_gcps(path, gcps)
-    algebraic = check_gcps(path, gcps, model="rpc")
-    assert algebraic.model == "rpc" and algebraic.rpc_fit_error_px is not None
-    assert algebraic.rpc_vs_rigorous_px is not None
-    assert algebraic.rpc_vs_rigorous_px <= max(1e-3, 2 * algebraic.rpc_fit_error_px["max_px"])
-    assert algebraic.image_miss_px == pytest.approx(rigorous.image_miss_px, abs=0.3)
+    path = refdata / "dimap" / "spot2_hrv1_P_19980220_izmit_METADATA.DIM"
+    gcps = frame_gcps(read_dimap(path), tmp_path / "frame.gcp.csv", height_step_m=100.0)
     assert main(["locate", str(path), "--gcps", str(gcps), "--model", "rpc"]) == 0
     assert "predicted through RPCs" in capsys.readouterr().out
