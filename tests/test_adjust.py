@@ -10,12 +10,9 @@ import numpy as np
 import pytest
 
 from levels.adjust import Strip, adjust, adjust_strips
-from levels.errors import GcpError, GeometryError
+from levels.errors import GeometryError
 from levels.options import ProcessingOptions
-from levels.process import ProcessingRequest, process
 from levels.products import read_product
-from levels.readers.gcp import GCP_COLUMNS, read_gcps
-from levels.readers.l0 import read_l0
 from station.chain.gcps import control_points
 from station.fixtures import emulated_pass
 from station.scenario import scenario_from_dict
@@ -87,22 +84,7 @@ def test_level_2_products_need_points_and_carry_their_adjustment(tmp_path) -> No
     after = q["checkpoints/P/line_of_sight/rms_m"]
     assert after < 0.2 * q["checkpoints_2a/P/line_of_sight/rms_m"]
     assert q["predicted_sigma_m/horizontal"] < 0.2 * q["predicted_sigma_m/prior_horizontal"]
-    with pytest.raises(GcpError, match="level 2 needs control points"):
-        process(
-            ProcessingRequest.of(read_l0(l0), ProcessingOptions(levels=("2",)), tmp_path / "again")
-        )
-    # a file with a header and no point reads (a twin's HRV without points), but level 2
-    # of that HRV alone is refused
-    empty_file = tmp_path / "none.gcp.csv"
-    empty_file.write_text("# nothing measured\n" + ",".join(GCP_COLUMNS) + "\n")
-    empty = read_gcps(empty_file)
-    assert len(empty) == 0
-    with pytest.raises(GcpError, match="no control point of this HRV"):
-        process(
-            ProcessingRequest.of(
-                read_l0(l0), ProcessingOptions(levels=("2",)), tmp_path / "again", gcps=empty
-            )
-        )
+    # refused without points, the product's adjustment: tests/levels/test_level2_work.py
 
 
 def _twin(seed: int, hrvs: list[int]) -> tuple[list, list, list]:
