@@ -73,7 +73,7 @@ def test_level_2_products_need_points_and_carry_their_adjustment(tmp_path) -> No
             "processing": {"levels": ["2"]},
         }
     )
-    made, l0 = process_scenario(scn, tmp_path)
+    made, _l0 = process_scenario(scn, tmp_path)
     p = read_product(made.scenes[0].paths["2"])
     assert p.level == "2" and p.map_grid is not None
     adj = p.geometry["adjustment"]
