@@ -34,18 +34,16 @@ a directory instead of made, as ASP's entry points are: a pass's scene levels
 from __future__ import annotations
 
 import dataclasses
-import functools
 import itertools
 import logging
-import operator
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol, TypedDict
+from typing import TYPE_CHECKING, Any, Protocol
 
 from levels.choices import AdjustmentScope, Level
-from levels.errors import DemError, GcpError, GeometryError, OptionsError
+from levels.errors import DemError, GcpError, OptionsError
 from levels.kinds import ProductKind, Unit
 from levels.makers.base import Need
 from levels.makers.pairs import PairMade, PairMaker, PairScene
@@ -63,15 +61,17 @@ from levels.process import plan as plan_scenes
 from levels.products import product_name
 from levels.quality import CheckpointSource
 from levels.readers.dem import Dem, read_dem
-from levels.readers.gcp import ControlPointSet, read_gcps, write_gcps
+from levels.readers.gcp import ControlPointSet, read_gcps
 from levels.readers.l0 import L0Archive
 from levels.registry import kind, kind_names
+from levels.step_files import TiePair, TiesFound, taken_adjustment, tie_points
 from levels.tasks import Runner
 
 if TYPE_CHECKING:
     import numpy as np
     from numpy.typing import NDArray
 
+    from levels.adjust.model import Adjustment
     from levels.frame import FrameOptions
     from levels.geo.maps import MapGrid
     from levels.readers.sar import SarFrame
@@ -99,29 +99,12 @@ __all__ = [
     "pass_levels",
     "plan",
     "run",
+    "taken_adjustment",
     "tie_points",
 ]
 
 #: Where a block's products go, under the request's output directory.
 TIES, LEVEL2, PAIRS = "ties", "block", "stereo"
-
-
-class TiePair(TypedDict):
-    """Two passes' scenes that tie points were found between, and how many."""
-
-    a: str
-    b: str
-    scene_a: int
-    scene_b: int
-    points: int
-    counts: dict[str, int]
-
-
-class TiesFound(TypedDict):
-    """The tie points a block found (:func:`tie_points`), per pair of scenes; none when its
-    ties were taken from a directory."""
-
-    pairs: list[TiePair]
 
 
 class Step(StrEnum):
@@ -235,6 +218,10 @@ class Request:
         is recorded relative to the products (:class:`levels.process.ProcessingRequest`).
     ties_dir
         A directory of tie points already matched (``<name>.tie.csv``); None: matched.
+    adjustment_dir
+        A directory of level 2 products made already (a run's ``block/``, or a lone pass's
+        products): level 2's adjustment is taken from them (:func:`taken_adjustment`),
+        not solved again, and no control point is needed; None: solved.
     """
 
     options: ProcessingOptions
@@ -247,6 +234,7 @@ class Request:
     provenance: Mapping[str, Any] = field(default_factory=dict)
     root: Path | None = None
     ties_dir: Path | None = None
+    adjustment_dir: Path | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "out_dir", Path(self.out_dir))
@@ -407,7 +395,11 @@ def _scene_levels(opt: ProcessingOptions) -> tuple[str, ...]:
 def _check_pass_needs(request: Request, levels: Sequence[str], pair_dem: bool) -> None:
     """Control points for level 2 and a DEM for level 3 (unless the pair makes one)."""
     needs = {n for m in plan_levels(levels) for n in m.needs}
-    if Need.ADJUSTMENT in needs:
+    if Need.ADJUSTMENT in needs and request.adjustment_dir is not None:
+        for p in request.passes:  # every archive's adjustment there, read before any work
+            for name in p.names:
+                taken_adjustment(request.adjustment_dir, name)
+    elif Need.ADJUSTMENT in needs:
         missing = [
             n
             for p in request.passes
@@ -445,6 +437,8 @@ def _pass_nodes(request: Request) -> list[Node]:
         if Level.L2 in levels and any(r is not None for r in one.references)
         else []
     )
+    if Level.L2 in levels and request.adjustment_dir is not None:
+        found = [Node(Step.ADJUSTMENT, key, taken=request.adjustment_dir)]
     scenes = Node(Step.SCENES, key, levels, tuple(n.id for n in found), taken=one.made_in)
     return [*found, scenes]
 
@@ -478,7 +472,7 @@ def _block_nodes(request: Request) -> list[Node]:
     nodes.append(ties)
     if Level.L2 not in opt.levels:
         return nodes
-    adjustment = Node(Step.ADJUSTMENT, "block", requires=(ties.id,))
+    adjustment = Node(Step.ADJUSTMENT, "block", requires=(ties.id,), taken=request.adjustment_dir)
     # level 3 over the request's DEM on the block's level 2, or over the pair's afterwards
     here = (Level.L3,) * (with_l3 and not kinds)
     level2 = [Node(Step.LEVEL2, p.names[0], (Level.L2, *here), (adjustment.id,)) for p in passes]
@@ -560,6 +554,14 @@ class _Making:
             return p.made_in
         return self.request.out_dir / p.names[0] if self.request.block else self.request.out_dir
 
+    def taken(self, p: Pass) -> tuple[Adjustment, ...]:
+        """Pass ``p``'s adjustments taken from the request's ``adjustment_dir`` (none:
+        solved), one per archive."""
+        where = self.request.adjustment_dir
+        if where is None or Level.L2 not in self.request.options.levels:
+            return ()
+        return tuple(taken_adjustment(where, name) for name in p.names)
+
     def _keep(self, step: Step, names: Sequence[str], done: Sequence[PassProducts]) -> None:
         for name, products in zip(names, done, strict=True):
             self.passes.append(PassDone(name, step, products))
@@ -589,6 +591,7 @@ class _Making:
                     provenance=req.provenance,
                     dem=req.dem,
                     root=req.root if not req.block else None,
+                    adjustments=self.taken(p) if not req.block else (),
                 )
             )
         plans = [pp for r in requests for pp in plan_scenes(r)]
@@ -606,13 +609,16 @@ class _Making:
     def _block_request(self, levels: tuple[str, ...], **more: Any) -> ProcessingRequest:
         """The passes' level 2 (and 3) on the block's adjustment, into ``block/``."""
         req = self.request
-        points, archives, names = [], [], []
+        points: list[ControlPointSet | None] = []
+        archives, names = [], []
         for p in req.passes:
             (archive,), (name,), (gcps,) = p.archives, p.names, p.gcps
-            assert gcps is not None  # plan() checked
             tie = self.ties_dir / f"{name}.tie.csv"
             own = read_gcps(tie, archive.n_lines, archive.n_columns) if tie.is_file() else None
-            points.append(gcps + own if own is not None else gcps)
+            if gcps is None:  # the adjustment taken from a directory (plan() checked)
+                points.append(None)
+            else:
+                points.append(gcps + own if own is not None else gcps)
             archives.append(archive)
             names.append(name)
         opts = dataclasses.replace(
@@ -636,7 +642,8 @@ class _Making:
     def level2(self, nodes: Sequence[Node]) -> None:
         """The block's one adjustment and every pass's level 2 (and 3) on it."""
         _log.info("block: level 2 of every pass on one adjustment")
-        block = self._block_request(nodes[0].kinds, dem=self.request.dem)
+        taken = tuple(a for p in self.request.passes for a in self.taken(p))
+        block = self._block_request(nodes[0].kinds, dem=self.request.dem, adjustments=taken)
         done = all_made(run_plans(plan_scenes(block), self.runner))
         self._keep(Step.LEVEL2, block.names, done)
 
@@ -736,39 +743,3 @@ class _Making:
 
 def _sides(a: PairScene, b: PairScene) -> tuple[str, int, str, int]:
     return a.name, a.scene, b.name, b.scene
-
-
-def tie_points(scene_dirs: dict[str, Path], out: Path) -> TiesFound:
-    """Tie points between every two passes' overlapping 2A scenes (the ``*_2A.nc`` of each
-    pass's directory in ``scene_dirs``), each pass's merged into ``out/<pass>.tie.csv``;
-    what was found, per pair of scenes."""
-    from levels.products import read_product
-    from levels.tiepoints import MapView, match_views
-
-    views = {
-        name: [MapView.of_product(read_product(p)) for p in sorted(d.glob(f"{name}_s*_2A.nc"))]
-        for name, d in scene_dirs.items()
-    }
-    per: dict[str, list[ControlPointSet]] = {n: [] for n in scene_dirs}
-    pairs = []
-    for a, b in itertools.combinations(list(scene_dirs), 2):
-        for va, vb in itertools.product(views[a], views[b]):
-            try:
-                tp = match_views(va, vb)
-            except GeometryError:  # these two scenes do not overlap
-                continue
-            if not len(tp):
-                continue
-            per[a].append(tp.control_points("a"))
-            per[b].append(tp.control_points("b"))
-            pairs.append(
-                TiePair(
-                    a=a, b=b, scene_a=va.scene, scene_b=vb.scene, points=len(tp), counts=tp.counts
-                )
-            )
-    out.mkdir(parents=True, exist_ok=True)
-    for n, sets in per.items():
-        if sets:
-            comment = f"tie points of {n} (docs/gcp.md)"
-            write_gcps(out / f"{n}.tie.csv", functools.reduce(operator.add, sets), comment)
-    return TiesFound(pairs=pairs)

@@ -14,6 +14,7 @@ import argparse
 import dataclasses
 import logging
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -50,6 +51,16 @@ __all__ = [
     "options_of",
     "recorded_cut",
 ]
+
+
+@dataclass(frozen=True)
+class Taken:
+    """Steps of a reprocessing taken from directories, not made again (``station process
+    --ties DIR --adjustment-from DIR``): the tie points (``<name>.tie.csv``) and level 2's
+    adjustment (the level 2 products that carry it: :func:`levels.work.taken_adjustment`)."""
+
+    ties_dir: Path | None = None
+    adjustment_dir: Path | None = None
 
 
 class ProcessFlow(Flow, Protocol):
@@ -105,20 +116,22 @@ class ProcessArchives(_Processing):
         *,
         scenarios: Sequence[Scenario] = (),
         gcps: Sequence[str | Path] | None = None,
-        ties_dir: str | Path | None = None,
+        taken: Taken = Taken(),
         reference: str | Path | None = None,
         workers: int = 0,
     ) -> None:
         super().__init__(names, inputs, f"the products of a reprocessing of {', '.join(names)}")
         self.sources, self.options, self.scenarios = list(sources), options, list(scenarios)
-        self.gcps, self.ties_dir, self.reference, self.workers = gcps, ties_dir, reference, workers
+        self.gcps, self.taken, self.reference, self.workers = gcps, taken, reference, workers
         self.found = Checked()
 
     def check(self, out: Path, full: bool = False) -> None:
         """The archives readable and their scenes' memory and disk (``full``: their
         control points and DEM too, :func:`check_archives`)."""
         self.out = out
-        self.found = check_archives(self.sources, self.options, out, self.gcps, full, self.workers)
+        self.found = check_archives(
+            self.sources, self.options, out, self.gcps, full, self.workers, self.taken
+        )
 
     def acquire(self, stage: Path, state: FlowRun) -> Request:
         from station.reprocess import pass_request
@@ -131,7 +144,8 @@ class ProcessArchives(_Processing):
             scenario=per if len(per) > 1 else (per[0] if per else None),
             names=self.names,
             gcps=self.gcps,
-            ties_dir=self.ties_dir,
+            ties_dir=self.taken.ties_dir,
+            adjustment_dir=self.taken.adjustment_dir,
             references=(self._reference(),) if self.reference is not None else (),
         )
         return request
@@ -220,16 +234,19 @@ class ProcessBlock(_Processing):
         *,
         scenarios: Sequence[Scenario] = (),
         gcps: Sequence[str | Path] | None = None,
+        taken: Taken = Taken(),
         workers: int = 0,
     ) -> None:
         super().__init__(names, inputs, f"the products of a reprocessing of {', '.join(names)}")
         self.sources, self.options, self.scenarios = list(sources), options, list(scenarios)
-        self.gcps, self.workers = gcps, workers
+        self.gcps, self.taken, self.workers = gcps, taken, workers
         self.found = Checked()
 
     def check(self, out: Path, full: bool = False) -> None:
         self.out = out
-        self.found = check_archives(self.sources, self.options, out, self.gcps, full, self.workers)
+        self.found = check_archives(
+            self.sources, self.options, out, self.gcps, full, self.workers, self.taken
+        )
 
     def acquire(self, stage: Path, state: FlowRun) -> Request:
         from station.reprocess import block_request
@@ -241,6 +258,8 @@ class ProcessBlock(_Processing):
             scenarios=self.scenarios or None,
             names=self.names,
             gcps=self.gcps,
+            ties_dir=self.taken.ties_dir,
+            adjustment_dir=self.taken.adjustment_dir,
         )
         return request
 
@@ -351,12 +370,14 @@ def check_archives(
     gcps: Sequence[str | Path] | None = None,
     full: bool = False,
     workers: int = 0,
+    taken: Taken = Taken(),
 ) -> Checked:
     """What reprocessing ``sources`` into ``out`` needs, before any work: the archives
     readable (their headers) and the memory and disk their scenes take
     (``station.preflight``); ``full`` (``--check``): also their control points when level 2
     is asked and the DEM when a level needs one (a reprocessing reads those itself before
-    its first scene: read here too, they would be read twice)."""
+    its first scene: read here too, they would be read twice), unless level 2's adjustment
+    is ``taken`` from a directory."""
     from levels.makers.base import Need
     from levels.process import nominal_pixel_size_m, pass_dem, plan_levels
     from levels.readers.formats import open_archive
@@ -366,7 +387,7 @@ def check_archives(
 
     archives = [open_archive(s) for s in sources]
     makers = plan_levels(options.levels)
-    if full and any(Need.ADJUSTMENT in m.needs for m in makers):
+    if full and taken.adjustment_dir is None and any(Need.ADJUSTMENT in m.needs for m in makers):
         where = gcps or [gcps_beside(s) for s in sources]
         for w, a in zip(where, archives, strict=True):
             read_gcps(w, a.n_lines, a.n_columns)
@@ -505,7 +526,7 @@ def archives_flow(
     *,
     scenarios: Sequence[Scenario] = (),
     gcps: Sequence[str | Path] | None = None,
-    ties_dir: str | Path | None = None,
+    taken: Taken = Taken(),
     reference: str | Path | None = None,
     workers: int = 0,
 ) -> ProcessFlow:
@@ -516,7 +537,14 @@ def archives_flow(
 
     if len(sources) > 1 and pair_kinds_of(options):
         return ProcessBlock(
-            sources, names, options, inputs, scenarios=scenarios, gcps=gcps, workers=workers
+            sources,
+            names,
+            options,
+            inputs,
+            scenarios=scenarios,
+            gcps=gcps,
+            taken=taken,
+            workers=workers,
         )
     return ProcessArchives(
         sources,
@@ -525,7 +553,7 @@ def archives_flow(
         inputs,
         scenarios=scenarios,
         gcps=gcps,
-        ties_dir=ties_dir,
+        taken=taken,
         reference=reference,
         workers=workers,
     )

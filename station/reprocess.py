@@ -161,6 +161,7 @@ def pass_request(
     gcps: Sequence[str | Path] | None = None,
     ties_dir: str | Path | None = None,
     references: Sequence[ReferenceInput | None] = (),
+    adjustment_dir: str | Path | None = None,
 ) -> tuple[Request, StationTruth]:
     """Recorded archives processed together (one per HRV of a pass; a block's, each tied
     by its ``<name>.tie.csv`` from ``ties_dir``, else beside it) as one request of
@@ -168,7 +169,9 @@ def pass_request(
     of one pass or one per archive; none: no truth). The archives are read lazily (a
     scene's counts are read by its task); the options default to the scenario's, the DEM
     to the run's beside the first archive, the control points to those beside each, or to
-    those found on ``references`` (per archive, :class:`levels.reference.ReferenceInput`)."""
+    those found on ``references`` (per archive, :class:`levels.reference.ReferenceInput`);
+    none read when level 2's adjustment is taken from ``adjustment_dir`` (a directory of its
+    level 2 products: :func:`levels.work.taken_adjustment`)."""
     paths = [Path(p) for p in l0_paths]
     for what, given in (("names", names), ("control-point files", gcps)):
         if given is not None and len(given) != len(paths):
@@ -189,7 +192,7 @@ def pass_request(
     if Need.DEM in needs and not opts.dem_path:
         opts = dataclasses.replace(opts, dem_path=str(run_dem(paths[0], archives[0])))
     points = None
-    if Need.ADJUSTMENT in needs and not any(references):
+    if Need.ADJUSTMENT in needs and not any(references) and adjustment_dir is None:
         where = [Path(g) for g in gcps] if gcps else [gcps_beside(p) for p in paths]
         points = [
             read_gcps(w, a.n_lines, a.n_columns) for w, a in zip(where, archives, strict=True)
@@ -201,7 +204,8 @@ def pass_request(
                 if tie.is_file():
                     points[k] = points[k] + read_gcps(tie, a.n_lines, a.n_columns)
     one = Pass(tuple(archives), names, tuple(points or ()), references=tuple(references))
-    return Request(opts, Path(out_dir), (one,)), StationTruth(truths)
+    taken = Path(adjustment_dir) if adjustment_dir is not None else None
+    return Request(opts, Path(out_dir), (one,), adjustment_dir=taken), StationTruth(truths)
 
 
 def with_exported_dem(scn: Scenario, acqs: Sequence[Acquisition], out: Path) -> ProcessingOptions:
@@ -344,6 +348,8 @@ def block_request(
     names: Sequence[str] | None = None,
     gcps: Sequence[str | Path] | None = None,
     made_in: Sequence[Path] | None = None,
+    ties_dir: str | Path | None = None,
+    adjustment_dir: str | Path | None = None,
 ) -> tuple[Request, StationTruth]:
     """Several recorded passes over one ground as one request of :mod:`levels.work`, and
     their truth: each pass's scene levels into ``<out>/<name>/`` (2A for the tie points, 1A
@@ -351,7 +357,9 @@ def block_request(
     taken from ``made_in``, a run's passes), then the tie points, the block's level 2, the
     pair's products and level 3 over the pair's DEM into ``<out>/ties``, ``block`` and
     ``stereo``. With the scenarios (one per archive), every product is measured against
-    their truth and is the run's, bit for bit."""
+    their truth and is the run's, bit for bit. The tie points may be taken from
+    ``ties_dir`` and level 2's adjustment from ``adjustment_dir`` (a run's ``ties/`` and
+    ``block/``): then no control point is read."""
     paths = [Path(p) for p in l0_paths]
     out = Path(out_dir)
     names = list(names or [l0_stem(p) for p in paths])
@@ -370,10 +378,17 @@ def block_request(
         Pass(
             (a,),
             (n,),
-            (read_gcps(w, a.n_lines, a.n_columns),),
+            (read_gcps(w, a.n_lines, a.n_columns),) if adjustment_dir is None else (),
             options=s.processing if s is not None else None,
             made_in=made_in[k] if made_in else None,
         )
         for k, (a, n, w, s) in enumerate(zip(archives, names, where, per, strict=True))
     )
-    return Request(options, out, passes), StationTruth(truths, names)
+    request = Request(
+        options,
+        out,
+        passes,
+        ties_dir=Path(ties_dir) if ties_dir is not None else None,
+        adjustment_dir=Path(adjustment_dir) if adjustment_dir is not None else None,
+    )
+    return request, StationTruth(truths, names)

@@ -225,6 +225,30 @@ def test_station_process_makes_the_runs_dem_and_level_3_from_its_archives(
     assert done["ties"]["pairs"][0]["points"] == report["ties"]["pairs"][0]["points"]
 
 
+def test_station_process_takes_the_runs_ties_and_adjustment(
+    stereo_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`station process A B --levels 2,DEM --ties RUN/ties --adjustment-from RUN/block`:
+    no control point, nothing matched or adjusted, and the run's level 2 and DEM again
+    (with the block's scenario, for the truth they are measured against)."""
+    import levels.process
+    from station.cli import main
+
+    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "stereo" / "stereo_pair.toml"
+    solved: list[int] = []
+    monkeypatch.setattr(levels.process, "adjust_block", lambda *a, **k: solved.append(1))
+    out = tmp_path / "taken"
+    taken = ["--ties", str(stereo_run / "ties"), "--adjustment-from", str(stereo_run / "block")]
+    args = ["process", *_archives(stereo_run), "--levels", "2,DEM", *taken, "-q"]
+    args += ["--scenario", str(scenario)]
+    assert main([*args, "--out", str(out)]) == 0
+    assert solved == []
+    (entry,) = json.loads((stereo_run / "report.json").read_text())["stereo"]["dems"]
+    for name in [entry["file"], *(f"block/stereo_pair_{s}_s000_2.nc" for s in "ab")]:
+        assert main(["compare", str(stereo_run / name), str(out / name), "-q"]) == 0, name
+    assert not (out / "ties").exists()  # taken, not matched into the products
+
+
 @dataclasses.dataclass(frozen=True)
 class _Toy:
     """A toy kind of a pair, declared in this test module alone: the two scenes' level 2

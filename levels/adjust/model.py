@@ -7,7 +7,10 @@ and a strip of scenes (:class:`Strip`).
 from __future__ import annotations
 
 import functools
+import json
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -392,6 +395,61 @@ class Adjustment:
             },
             **({"ties_rejected": list(self.ties_rejected)} if self.mode == "block" else {}),
         }
+
+    @classmethod
+    def from_trees(cls, scenes: Sequence[tuple[int, Mapping[str, Any]]]) -> Adjustment:
+        """The adjustment again from the ``geometry/adjustment`` trees of its scenes' level
+        2 products (:meth:`product_tree`; ``(scene index, tree)`` each), as a step taken
+        from a directory takes it: every figure but the priors' east and north σ (not
+        written: NaN) and the time it took (none here). Trees of different adjustments
+        are refused."""
+        if not scenes:
+            raise GeometryError("no level 2 product to take the adjustment from")
+        order = sorted(scenes, key=lambda s: s[0])
+        first = order[0][1]
+        points = first["points"]
+        for index, tree in order:
+            if str(tree["mode"]) != str(first["mode"]) or _listed(tree["points"]["id"]) != (
+                _listed(points["id"])
+            ):
+                raise GeometryError(
+                    f"scene {index}'s level 2 is of another adjustment than scene {order[0][0]}'s"
+                )
+
+        def stacked(key: str) -> NDArray[np.float64]:
+            return np.stack([np.asarray(t[key], dtype=np.float64) for _, t in order])
+
+        sigma = [t["predicted_sigma_m"] for _, t in order]
+        nan = np.full(len(order), np.nan)
+        return cls(
+            mode=str(first["mode"]),
+            t_ref_s=float(first["t_ref_s"]),
+            scene_index=np.array([i for i, _ in order], dtype=np.int64),
+            t_centre_s=stacked("t_centre_s"),
+            pass_parameters=stacked("pass_parameters"),
+            scene_parameters=stacked("scene_parameters"),
+            covariance=stacked("covariance"),
+            predicted_sigma_m=np.array([[s["east"], s["north"], s["horizontal"]] for s in sigma]),
+            prior_sigma_m=np.stack([nan, nan, [s["prior_horizontal"] for s in sigma]], axis=1),
+            increment_sigma_rad=stacked("attitude_jump_sigma_rad"),
+            gap_s=stacked("attitude_gap_s"),
+            point_id=tuple(_listed(points["id"])),
+            point_scene=np.asarray(points["scene"], dtype=np.int64),
+            point_status=tuple(_listed(points["status"])),
+            residual_before_px=np.asarray(points["residual_before_px"], dtype=np.float64),
+            residual_after_px=np.asarray(points["residual_after_px"], dtype=np.float64),
+            normalised_residual=np.asarray(points["normalised_residual"], dtype=np.float64),
+            sigma0=float(first["sigma0"]),
+            timings_s={"adjust": 0.0},  # taken, not solved
+            ties_rejected=tuple(_listed(first.get("ties_rejected", []))),
+        )
+
+
+def _listed(value: object) -> list[str]:
+    """A list of names as written (a JSON array in an attribute) or as made."""
+    if isinstance(value, str | bytes):
+        return [str(v) for v in json.loads(value)]
+    return [str(v) for v in value]  # type: ignore[attr-defined]
 
 
 def _increment_sigma(

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from station.cli._options import add_json, add_out, add_runner, emit, exit_made, runner_of
 from station.errors import StationError
-from station.processing import frame_flow, is_frame, options_of, recorded_cut
+from station.processing import Taken, frame_flow, is_frame, options_of, recorded_cut
 from station.reports import PROCESS
 
 if TYPE_CHECKING:
@@ -72,6 +72,29 @@ def _add_process(sub: Subparsers) -> None:
     p.add_argument(
         "--levels", help="comma-separated levels to make (e.g. 1A,2A); overrides the options'"
     )
+    _add_level2_inputs(p)
+    p.add_argument(
+        "--dem",
+        metavar="DEM.tif",
+        help="the DEM of level 3 (overrides [processing] dem_path) or of a SAR frame's GTC "
+        "(heights above the ellipsoid; a GeoTIFF)",
+    )
+    p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="check everything the processing needs (archives, control points, DEM, --out, "
+        "memory, disk) and stop: nothing is written",
+    )
+    add_out(p, "directory of the products (default: <name>_products)")
+    add_runner(p)
+    add_json(p)
+    p.set_defaults(func=_process)
+
+
+def _add_level2_inputs(p: argparse.ArgumentParser) -> None:
+    """What level 2 is made from: its adjustment's scope, the control points (or the
+    reference they are found on), and the steps taken from an earlier run."""
     p.add_argument(
         "--adjustment",
         choices=("pass", "scene", "twin", "block"),
@@ -87,30 +110,20 @@ def _add_process(sub: Subparsers) -> None:
     p.add_argument(
         "--ties",
         metavar="DIR",
-        help="with --adjustment block: the directory of the passes' tie files "
-        "(<name>.tie.csv, station tie; default: beside each archive)",
+        help="the directory of the passes' tie files (<name>.tie.csv, station tie): with "
+        "--adjustment block, default beside each archive; for a pair, a run's ties/ "
+        "taken instead of matching them again",
     )
     p.add_argument(
-        "--dem",
-        metavar="DEM.tif",
-        help="the DEM of level 3 (overrides [processing] dem_path) or of a SAR frame's GTC "
-        "(heights above the ellipsoid; a GeoTIFF)",
+        "--adjustment-from",
+        metavar="DIR",
+        help="level 2's adjustment taken from the level 2 products in DIR (a run's or a "
+        "reprocessing's; a pair's block/), not solved again: no control point is needed",
     )
     p.add_argument(
         "--reference", metavar="REF.tif", help="level 2's control points found on this "
         "reference ortho-image first (station gcps; --dem), kept with the products",
     )  # fmt: skip
-    p.add_argument("--name", help="product name prefix (default: the archive's or scenario's)")
-    p.add_argument(
-        "--check",
-        action="store_true",
-        help="check everything the processing needs (archives, control points, DEM, --out, "
-        "memory, disk) and stop: nothing is written",
-    )
-    add_out(p, "directory of the products (default: <name>_products)")
-    add_runner(p)
-    add_json(p)
-    p.set_defaults(func=_process)
 
 
 def _add_campaign(sub: Subparsers) -> None:
@@ -175,10 +188,16 @@ def _pass_flow(
         inputs,
         scenarios=scenarios,
         gcps=args.gcps,
-        ties_dir=args.ties,
+        taken=_taken(args),
         reference=getattr(args, "reference", None),
         workers=args.workers or 0,
     )
+
+
+def _taken(args: argparse.Namespace) -> Taken:
+    """The steps ``--ties`` and ``--adjustment-from`` take from directories."""
+    ties, adjustment = args.ties, getattr(args, "adjustment_from", None)
+    return Taken(Path(ties) if ties else None, Path(adjustment) if adjustment is not None else None)
 
 
 def _done(args: argparse.Namespace, flow: ProcessFlow, what: str) -> int:

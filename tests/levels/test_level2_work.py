@@ -35,10 +35,16 @@ def _model(path: Path) -> PushbroomModel:
     return models["P"]
 
 
-def _make(levels: tuple[str, ...], out: Path, gcps: ControlPointSet | None = None) -> list:
+def _request(
+    levels: tuple[str, ...], out: Path, gcps: ControlPointSet | None = None, **more: object
+) -> Request:
     archive = read_l0(WARM_UP_ARCHIVE)
     one = Pass((archive,), ("w",), () if gcps is None else (gcps,))
-    return list(run(plan(Request(ProcessingOptions(levels=levels), out, (one,)))).products)
+    return Request(ProcessingOptions(levels=levels), out, (one,), **more)  # type: ignore[arg-type]
+
+
+def _make(levels: tuple[str, ...], out: Path, gcps: ControlPointSet | None = None) -> list:
+    return list(run(plan(_request(levels, out, gcps))).products)
 
 
 @pytest.fixture(scope="module")
@@ -106,3 +112,33 @@ def test_level_2_without_points_is_refused_while_planning(tmp_path: Path) -> Non
     assert len(empty) == 0
     with pytest.raises(GcpError, match="no control point of this HRV"):
         _make(("2",), tmp_path / "empty", empty)
+
+
+def test_level_2_takes_its_adjustment_from_a_directory(
+    points, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A step taken from a directory, as ASP's entry points are: level 2 made again on the
+    adjustment its products carry (no point given, nothing solved) is the same product,
+    byte for byte in its image; a directory without them is refused while planning."""
+    import levels.adjust.passes
+
+    gcps, _ = points
+    (first,) = _make(("2",), tmp_path / "a", gcps)
+    solved: list[int] = []
+    adjust_strips = levels.adjust.passes.adjust_strips
+    monkeypatch.setattr(
+        levels.adjust.passes,
+        "adjust_strips",
+        lambda *a, **k: solved.append(1) or adjust_strips(*a, **k),
+    )
+    work = plan(_request(("2",), tmp_path / "b", adjustment_dir=tmp_path / "a"))
+    assert f"adjustment:w: - (taken from {tmp_path / 'a'})" in work.text()
+    (again,) = run(work).products
+    assert solved == []
+    a, b = (read_product(m.path) for m in (first, again))
+    assert np.array_equal(a.bands["P"].image, b.bands["P"].image)
+    ta, tb = a.geometry["adjustment"], b.geometry["adjustment"]
+    assert np.array_equal(ta["covariance"], tb["covariance"])
+    assert np.array_equal(ta["pass_parameters"], tb["pass_parameters"])
+    with pytest.raises(GcpError, match="no level 2 of w in"):
+        plan(_request(("2",), tmp_path / "c", adjustment_dir=tmp_path / "b" / "none"))

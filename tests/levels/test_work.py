@@ -108,6 +108,40 @@ def test_two_passes_make_their_dem_and_level_3_each_node_once(
     assert result.ties["pairs"][0]["points"] > 0
 
 
+def test_the_block_takes_its_ties_and_adjustment_from_a_run(
+    recorded: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Level 2 of the block again, its tie points and its adjustment taken from the first
+    run's ``ties/`` and ``block/`` (as ASP's entry points take a step's files): no point
+    needed, nothing matched or solved, the same images byte for byte."""
+    import numpy as np
+
+    import levels.process
+    import levels.work
+
+    first = run(plan(_request(recorded, tmp_path / "a", levels=("2",))))
+    calls: list[str] = []
+    monkeypatch.setattr(levels.process, "adjust_block", lambda *a, **k: calls.append("adjust"))
+    monkeypatch.setattr(levels.work, "tie_points", lambda *a, **k: calls.append("ties"))
+    two = _request(recorded, tmp_path / "b", levels=("2",))
+    bare = tuple(dataclasses.replace(p, gcps=()) for p in two.passes)
+    taken = dataclasses.replace(
+        two, passes=bare, ties_dir=tmp_path / "a" / "ties", adjustment_dir=tmp_path / "a" / "block"
+    )
+    work = plan(taken)
+    assert [n.taken is not None for n in work.of(Step.TIES) + work.of(Step.ADJUSTMENT)] == [
+        True,
+        True,
+    ]
+    again = run(work)
+    assert calls == []
+    pairs = zip(first.of(Step.LEVEL2), again.of(Step.LEVEL2), strict=True)
+    for a, b in pairs:
+        assert a.path.name == b.path.name
+        ia, ib = (read_product(m.path).bands for m in (a, b))
+        assert all(np.array_equal(ia[k].image, ib[k].image) for k in ia)
+
+
 def test_what_cannot_be_made_is_refused_while_planning(recorded: Path, tmp_path: Path) -> None:
     """A kind of pair with one pass, level 2 without control points, level 3 without a
     DEM, an unknown kind: each refused by :func:`levels.work.plan`, nothing written."""
