@@ -78,14 +78,21 @@ def cache_is_cold() -> bool:
 
 def warm_up() -> None:
     """Process :data:`WARM_UP_ARCHIVE` through levels 1A, 1B and 2A into a temporary
-    directory, compiling (and caching) the kernels a default run calls."""
+    directory and export its 2A as a run does (the GeoTIFF's fill), compiling (and
+    caching) the kernels a default run calls."""
+    from levels.export import write_geotiff
     from levels.options import ProcessingOptions
     from levels.process import ProcessingRequest, process
+    from levels.products import read_product
     from levels.readers.l0 import read_l0
 
     options = ProcessingOptions(levels=("1A", "1B", "2A"))
     with tempfile.TemporaryDirectory(prefix="levels-warmup-") as tmp:
-        process(ProcessingRequest.of(read_l0(WARM_UP_ARCHIVE, lazy=True), options, tmp, "warmup"))
+        made = process(
+            ProcessingRequest.of(read_l0(WARM_UP_ARCHIVE, lazy=True), options, tmp, "warmup")
+        )
+        two_a = made[0].scenes[0].paths["2A"]
+        write_geotiff(read_product(two_a), Path(tmp) / "warmup_2A.tif")
 
 
 def start_warm_up() -> subprocess.Popen | None:

@@ -29,7 +29,7 @@ from station.telemetry.crc import crc16_kernel, crc_table
 from station.telemetry.randomiser import pn_sequence
 from station.telemetry.rs import decode_codeblock, rs_tables
 
-__all__ = ["decode_cadus", "find_cadus"]
+__all__ = ["decode_cadus", "find_cadus", "find_more", "horizon_bit", "sync_state"]
 
 _CADU_BITS = 8 * tf.CADU_BYTES
 
@@ -132,6 +132,128 @@ def find_cadus(
         if n < cap:
             return offsets[:n], confirmed[:n], int(searched), int(losses)
         cap *= 4
+
+
+#: The state of a resumable search (:func:`find_more`): where the search stands, whether
+#: locked and on which marker, the bits scanned and the losses of lock so far.
+POS, LOCKED, LAST, SEARCHED, LOSSES = range(5)
+
+
+def sync_state() -> NDArray[np.int64]:
+    """A search that has seen nothing yet (:func:`find_more`)."""
+    return np.array([0, 0, -1, 0, 0], np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _find_more(
+    stream: NDArray[np.uint8],
+    base: int,
+    n_bits: int,
+    final: bool,
+    asm: int,
+    search_tol: int,
+    lock_tol: int,
+    state: NDArray[np.int64],
+    offsets: NDArray[np.int64],
+    confirmed: NDArray[np.bool_],
+) -> int:
+    """:func:`_find` on a stream that arrives piece by piece: ``stream`` holds bits
+    ``base`` … ``base + 8·size`` of it, ``n_bits`` of which have arrived; every decision
+    that needs a bit not yet arrived waits (``state`` says where) unless ``final`` (the
+    stream has ended: the batch's decisions at its end). The same markers, in the same
+    order, as :func:`_find` on the whole stream."""
+    n = 0
+    pos, locked, last = state[POS], state[LOCKED] == 1, state[LAST]
+    while n < offsets.size:
+        if locked:
+            expected = last + _CADU_BITS
+            if expected + _CADU_BITS > n_bits:
+                break  # the end (final), or wait for the frame
+            if _popcount32(_word_at(stream, expected - base) ^ asm) <= lock_tol:
+                offsets[n] = expected
+                confirmed[n] = True
+                n += 1
+                last = expected
+                continue
+            after = expected + _CADU_BITS
+            if after + _CADU_BITS > n_bits and not final:
+                break  # wait: is the marker after it in place?
+            if (
+                after + _CADU_BITS <= n_bits
+                and _popcount32(_word_at(stream, after - base) ^ asm) <= lock_tol
+            ):
+                offsets[n] = expected
+                confirmed[n] = True
+                n += 1
+                last = expected
+                continue
+            locked = False
+            state[LOSSES] += 1
+            pos = last + 32
+        found = -1
+        p = pos
+        while p + _CADU_BITS <= n_bits:
+            if _popcount32(_word_at(stream, p - base) ^ asm) <= search_tol:
+                found = p
+                break
+            p += 1
+        state[SEARCHED] += p - pos
+        pos = p
+        if found < 0:
+            break  # nothing more (final), or wait for more bits from p
+        nxt = found + _CADU_BITS
+        if nxt + 32 > n_bits and not final:
+            break  # wait: found again at p, to be confirmed
+        ok = nxt + 32 <= n_bits and _popcount32(_word_at(stream, nxt - base) ^ asm) <= lock_tol
+        offsets[n] = found
+        confirmed[n] = ok
+        n += 1
+        last = found
+        locked = True
+    state[POS], state[LOCKED], state[LAST] = pos, 1 if locked else 0, last
+    return n
+
+
+def find_more(
+    stream: NDArray[np.uint8],
+    base_bit: int,
+    n_bits: int,
+    final: bool,
+    state: NDArray[np.int64],
+    search_tolerance: int = 3,
+    lock_tolerance: int = 8,
+) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+    """The markers found since the last call of a resumable search (``state``:
+    :func:`sync_state`, updated), on ``stream``: bits ``base_bit`` onwards of the whole,
+    ``n_bits`` of which have arrived (module docstring; :func:`_find_more`)."""
+    stream = np.ascontiguousarray(stream, np.uint8)
+    cap = 2 * ((n_bits - int(state[POS])) // _CADU_BITS) + 16
+    offsets, confirmed = [], []
+    while True:  # false markers can be 32 bits apart in noise: more rounds if ever needed
+        o = np.zeros(cap, np.int64)
+        c = np.zeros(cap, np.bool_)
+        n = _find_more(
+            stream,
+            int(base_bit),
+            int(n_bits),
+            bool(final),
+            tf.ASM_WORD,
+            search_tolerance,
+            lock_tolerance,
+            state,
+            o,
+            c,
+        )
+        offsets.append(o[:n])
+        confirmed.append(c[:n])
+        if n < cap:
+            return np.concatenate(offsets), np.concatenate(confirmed)
+
+
+def horizon_bit(state: NDArray[np.int64]) -> int:
+    """The first bit a resumable search may still read (bits before it can be let go):
+    where it searches from, or the marker it is locked on."""
+    return int(state[LAST] + 32) if state[LOCKED] == 1 else int(state[POS])
 
 
 @numba.njit(cache=True, nogil=True)

@@ -58,7 +58,9 @@ __all__ = [
     "STATUS_NAMES",
     "ChannelAccount",
     "DecodedPass",
+    "Found",
     "ReceiverError",
+    "assemble",
     "receive",
 ]
 
@@ -130,6 +132,31 @@ def receive(
         stream, n_bits, search_tolerance, lock_tolerance
     )
     frames, corrected, rs_ok, crc_ok = decode_cadus(stream, offsets)
+    found = Found(offsets, confirmed, frames, corrected, rs_ok, crc_ok)
+    return assemble(found, n_bits, searched, losses)
+
+
+@dataclass(frozen=True, eq=False)
+class Found:
+    """The CADUs found in a stream, in stream order: bit offsets, whether each marker was
+    confirmed, their transfer frames (n, 892), the symbols corrected per codeword (n, 4;
+    −1 where uncorrectable), and whether Reed–Solomon then the CRC checked."""
+
+    offsets: NDArray[np.int64]
+    confirmed: NDArray[np.bool_]
+    frames: NDArray[np.uint8]
+    corrected: NDArray[np.int64]
+    rs_ok: NDArray[np.bool_]
+    crc_ok: NDArray[np.bool_]
+
+
+def assemble(found: Found, n_bits: int, searched: int, losses: int) -> DecodedPass:
+    """The frames found in a stream of ``n_bits`` (``searched`` bits scanned, the lock lost
+    ``losses`` times) accounted, cut into packets and lines (module docstring): what
+    :func:`receive` makes of a recorded pass, and the live front end of a stream so far
+    (:mod:`station.srrs.stream`)."""
+    offsets, confirmed, frames = found.offsets, found.confirmed, found.frames
+    corrected, rs_ok, crc_ok = found.corrected, found.rs_ok, found.crc_ok
     head = np.ascontiguousarray(frames[:, :6])
     word = (head[:, 0].astype(np.int64) << 8) | head[:, 1]
     version, scid, vc = word >> 14, (word >> 6) & 0xFF, word & 0x3F

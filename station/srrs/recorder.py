@@ -73,8 +73,13 @@ def write_l0(
     scenario_name: str = "",
     provenance: dict | None = None,
     scene_cut: dict[str, int] | None = None,
+    live: dict[str, object] | None = None,
 ) -> Path:
     """Write the L0 archive of a pass atomically; returns the path written.
+
+    ``live``: the archive of a pass still arriving (or cut) at a front end
+    (:mod:`station.live.frontend`), what it holds so far: kept as the ``live`` attribute
+    (JSON); a whole pass's archive has none.
 
     ``scene_cut``: how the station cuts the pass into scenes (``scene_lines``,
     ``overlap_lines``), which a reprocessing takes unless told otherwise.
@@ -101,6 +106,8 @@ def write_l0(
         _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
         if scene_cut:
             f.attrs["scene_cut"] = json.dumps(scene_cut, sort_keys=True)
+        if live is not None:
+            f.attrs["live"] = json.dumps(live, sort_keys=True)
     return path
 
 

@@ -1,0 +1,346 @@
+"""The SRRS front end as a server (``station serve``, ``docs/live.md``).
+
+It listens on a TCP port and takes, per channel, the demodulator's stream as it arrives
+(:mod:`station.live.wire`): frame sync, derandomisation, Reed–Solomon and CRC run on each
+piece as it comes (:class:`station.srrs.stream.StreamDecoder`), and the pass's L0 archive
+is written **on the fly**: every ``checkpoint_s`` of a channel's stream the archive of
+what has arrived replaces the last one, whole (a killed server leaves a readable archive
+of everything received, its ``live`` attribute saying where it stopped); at the stream's
+end the archive is the file route's, byte for byte. A connection dropped before its end
+is a stream cut there: the archive says so, nothing is raised. A raw stream that no
+announced pass awaits is kept as it came (``unannounced/``) with what its decoding found:
+nothing received is lost.
+
+Each pass goes into a directory of its own under ``out`` (its name): one archive per
+channel (``<tag>.l0.h5``, as ``station run`` names them) and ``live.json``, what each
+channel brought (bytes, time, rate, frames and their accounting, whether it was cut).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import socket
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from station.errors import StationError
+from station.live.wire import (
+    CHANNEL,
+    PASS,
+    Announcement,
+    ChannelInfo,
+    WireError,
+    read_header,
+    read_piece,
+)
+from station.srrs.errors import ReceiverError
+from station.srrs.receiver import DecodedPass
+from station.srrs.recorder import write_l0
+from station.srrs.stream import StreamDecoder
+
+__all__ = ["FrontEnd", "serve"]
+
+_log = logging.getLogger(__name__)
+
+#: Seconds of a channel's stream between two archives written while it arrives.
+CHECKPOINT_S = 2.0
+#: Bytes read from a raw stream at a time.
+RAW_PIECE_BYTES = 64 << 10
+#: Seconds between two progress lines of a channel (``-v``).
+PROGRESS_S = 1.0
+
+
+@dataclass(eq=False)
+class _Channel:
+    """One channel of a pass at the front end: what it is, where its archive goes, and
+    what has come."""
+
+    info: ChannelInfo
+    path: Path
+    decoder: StreamDecoder = field(default_factory=StreamDecoder)
+    connected: bool = False
+    done: bool = False
+    cut: bool = False
+    started_s: float = 0.0
+    seconds: float = 0.0
+    archives_written: int = 0
+
+
+@dataclass(eq=False)
+class _Pass:
+    announcement: Announcement
+    where: Path
+    channels: dict[str, _Channel]
+
+    @property
+    def done(self) -> bool:
+        return all(c.done for c in self.channels.values())
+
+
+class FrontEnd:
+    """The server's state: the passes announced, the channels connected, what is done."""
+
+    def __init__(self, out: Path, checkpoint_s: float = CHECKPOINT_S) -> None:
+        self.out, self.checkpoint_s = Path(out), checkpoint_s
+        self._lock = threading.Lock()
+        self._passes: list[_Pass] = []
+        self.passes_done: list[Path] = []
+        self._unannounced = 0
+        self.changed = threading.Condition(self._lock)
+
+    # -- connections --------------------------------------------------------------
+    def handle(self, sock: socket.socket, peer: str) -> None:
+        """One connection, whatever it is (module docstring); never raises."""
+        try:
+            with sock:
+                kind, header, first = read_header(sock)
+                if kind == PASS:
+                    self._announce(sock, Announcement.of_json(header or {}))
+                elif kind == CHANNEL:
+                    self._framed(sock, header or {}, peer)
+                else:
+                    self._raw(sock, first, peer)
+        except (WireError, OSError) as exc:
+            _log.warning("%s: %s", peer, exc)
+        except Exception:  # a bug in one connection: said, the server goes on
+            _log.exception("%s: the connection failed", peer)
+
+    def _announce(self, sock: socket.socket, ann: Announcement) -> None:
+        with self._lock:
+            where = self._pass_dir(ann.name)
+            channels = {c.tag: _Channel(c, where / f"{c.tag}.l0.h5") for c in ann.channels}
+            self._passes.append(_Pass(ann, where, channels))
+        _log.info("pass %s announced: %d channel(s), into %s", ann.name, len(channels), where)
+        sock.sendall(b"OK")
+
+    def _pass_dir(self, name: str) -> Path:
+        """A directory of its own for a pass (its name; a second pass of that name gets
+        ``<name>_2`` …)."""
+        where, k = self.out / name, 1
+        taken = {p.where for p in self._passes}
+        while where in taken or where.exists():
+            k += 1
+            where = self.out / f"{name}_{k}"
+        where.mkdir(parents=True)
+        return where
+
+    def _claim(self, pass_name: str | None, tag: str | None) -> tuple[_Pass, _Channel] | None:
+        """The channel a stream is for: named (a framed stream), or the first one not yet
+        connected of the passes announced (a raw stream)."""
+        with self._lock:
+            for p in self._passes:
+                if pass_name is not None and p.announcement.name != pass_name:
+                    continue
+                for c in p.channels.values():
+                    if (tag is None or c.info.tag == tag) and not c.connected and not c.done:
+                        c.connected, c.started_s = True, time.perf_counter()
+                        return p, c
+        return None
+
+    def _framed(self, sock: socket.socket, header: dict, peer: str) -> None:
+        claimed = self._claim(str(header.get("pass")), str(header.get("tag")))
+        if claimed is None:
+            _log.warning(
+                "%s: a stream for channel %s of pass %s, which no announced pass awaits "
+                "(or another stream holds): refused",
+                peer,
+                header.get("tag"),
+                header.get("pass"),
+            )
+            sock.sendall(b"NO")
+            return
+        p, c = claimed
+        n_bits = None
+        last = time.perf_counter()
+        while True:
+            data, n_bits = read_piece(sock)
+            if data is None:
+                break
+            c.decoder.feed(data)
+            last = self._checkpoint(p, c, last)
+        self._finish(p, c, n_bits)
+        with contextlib.suppress(OSError):
+            sock.sendall(b"OK")
+
+    def _raw(self, sock: socket.socket, first: bytes, peer: str) -> None:
+        claimed = self._claim(None, None)
+        if claimed is None:
+            self._unannounced_stream(sock, first, peer)
+            return
+        p, c = claimed
+        last = time.perf_counter()
+        data = first
+        while data:
+            c.decoder.feed(data)
+            last = self._checkpoint(p, c, last)
+            data = sock.recv(RAW_PIECE_BYTES)
+        self._finish(p, c, None, raw=True)
+
+    def _unannounced_stream(self, sock: socket.socket, first: bytes, peer: str) -> None:
+        """A raw stream no pass awaits: kept as it came, with what its decoding found."""
+        with self._lock:
+            self._unannounced += 1
+            where = self.out / "unannounced"
+            where.mkdir(parents=True, exist_ok=True)
+            path = where / f"stream_{self._unannounced:03d}.cadu"
+        decoder = StreamDecoder()
+        with path.open("wb") as f:
+            data = first
+            while data:
+                f.write(data)
+                decoder.feed(data)
+                data = sock.recv(RAW_PIECE_BYTES)
+        found: dict[str, object] = {"peer": peer, **decoder.counts()}
+        try:
+            found["status"] = decoder.finish().status_counts
+        except ReceiverError as exc:
+            found["status"] = str(exc)
+        path.with_suffix(".json").write_text(json.dumps(found, indent=1, sort_keys=True))
+        _log.warning(
+            "%s: a stream no announced pass awaits (%d bytes): kept as %s",
+            peer,
+            decoder.n_bytes,
+            path,
+        )
+
+    # -- the archives -------------------------------------------------------------
+    def _checkpoint(self, p: _Pass, c: _Channel, last: float) -> float:
+        """The archive of what has come, every ``checkpoint_s``; a progress line every
+        second (``-v``). Returns when the last archive was written."""
+        now = time.perf_counter()
+        if now - last < self.checkpoint_s:
+            return last
+        try:
+            decoded = c.decoder.decoded()
+        except ReceiverError:  # no data frame yet: nothing to archive
+            return now
+        self._write(p, c, decoded, {"complete": False, **self._where(c)})
+        counts = c.decoder.counts()
+        rate = 8 * counts["bytes"] / max(now - c.started_s, 1e-9) / 1e6
+        _log.info(
+            "%s: %.1f MB at %.1f Mbit/s, %d frames (%d corrected, %d uncorrectable)",
+            c.info.tag,
+            counts["bytes"] / 1e6,
+            rate,
+            counts["frames"],
+            counts["corrected"],
+            counts["uncorrectable"],
+        )
+        return now
+
+    @staticmethod
+    def _where(c: _Channel) -> dict[str, object]:
+        return {"bytes_received": c.decoder.n_bytes, "frames_found": c.decoder.n_frames}
+
+    def _write(self, p: _Pass, c: _Channel, decoded: DecodedPass, live: dict | None) -> None:
+        ann = p.announcement
+        write_l0(
+            c.path,
+            decoded,
+            c.info.bulletins,
+            c.info.bulletin_epoch_utc,
+            list(c.info.ancillary),
+            scenario_name=ann.name,
+            provenance=dict(ann.provenance),
+            scene_cut=dict(ann.scene_cut) or None,
+            live=live,
+        )
+        c.archives_written += 1
+
+    def _finish(self, p: _Pass, c: _Channel, n_bits: int | None, raw: bool = False) -> None:
+        """A channel's stream has ended (``n_bits`` said by the sender) or was cut (None,
+        on a framed stream): its last archive, and the pass's report when it is done."""
+        c.cut = n_bits is None and not raw
+        c.seconds = time.perf_counter() - c.started_s
+        try:
+            decoded = c.decoder.finish(n_bits)
+        except ReceiverError as exc:
+            _log.warning("%s: %s: no archive", c.info.tag, exc)
+            decoded = None
+        if decoded is not None:
+            live = {"complete": False, "cut": True, **self._where(c)} if c.cut else None
+            self._write(p, c, decoded, live)
+            if c.cut:
+                _log.warning("%s: the stream was cut after %d bytes", c.info.tag, c.decoder.n_bytes)
+        with self._lock:
+            c.done = True
+            if p.done:
+                self._report(p)
+                self.passes_done.append(p.where)
+            self.changed.notify_all()
+
+    def _report(self, p: _Pass) -> None:
+        channels = []
+        for c in p.channels.values():
+            n = c.decoder.n_bytes
+            channels.append(
+                {
+                    "tag": c.info.tag,
+                    "hrv": c.info.hrv,
+                    "archive": c.path.name if c.path.is_file() else None,
+                    "bytes": n,
+                    "seconds": round(c.seconds, 3),
+                    "mbit_per_s": round(8 * n / max(c.seconds, 1e-9) / 1e6, 2),
+                    "line_rate_mbps": c.info.bit_rate_bit_per_s / 1e6,
+                    "cut": c.cut,
+                    "archives_written": c.archives_written,
+                    **c.decoder.counts(),
+                }
+            )
+        report = {"pass": p.announcement.name, "channels": channels}
+        (p.where / "live.json").write_text(json.dumps(report, indent=1, sort_keys=True))
+        _log.info("pass %s received: %s", p.announcement.name, p.where)
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        server.bind((host, port))
+    except OSError as exc:
+        server.close()
+        raise StationError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    server.listen(8)
+    server.settimeout(0.2)
+    return server
+
+
+def serve(
+    out: Path,
+    host: str = "127.0.0.1",
+    port: int = 0,
+    passes: int | None = None,
+    port_file: Path | None = None,
+    checkpoint_s: float = CHECKPOINT_S,
+) -> list[Path]:
+    """Listen on ``host:port`` (0: a free port, written to ``port_file``) and receive
+    passes into ``out`` until ``passes`` of them are done (None: until interrupted);
+    returns the passes' directories."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    front = FrontEnd(out, checkpoint_s)
+    server = _listen(host, port)
+    bound = server.getsockname()[1]
+    if port_file is not None:
+        tmp = Path(port_file).with_suffix(".tmp")
+        tmp.write_text(f"{bound}\n")
+        tmp.replace(port_file)  # whole or not at all: a script reads it once it exists
+    _log.info("station serve: listening on %s:%d, passes into %s", host, bound, out)
+    threads: list[threading.Thread] = []
+    try:
+        while passes is None or len(front.passes_done) < passes:
+            try:
+                sock, addr = server.accept()
+            except TimeoutError:
+                continue
+            sock.settimeout(None)
+            peer = f"{addr[0]}:{addr[1]}"
+            t = threading.Thread(target=front.handle, args=(sock, peer), daemon=True)
+            t.start()
+            threads.append(t)
+    finally:
+        server.close()
+    return list(front.passes_done)

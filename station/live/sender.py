@@ -1,0 +1,161 @@
+"""The emulator's sender (``station transmit``): a pass emulated and sent through its
+downlink and channel as ``station run`` sends it (the same random draws), then replayed
+to a front end over TCP at its line rate, at a multiple of it, or as fast as the link
+takes; or a recorded CADU file replayed as it is (``docs/live.md``)."""
+
+from __future__ import annotations
+
+import logging
+import socket
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from station.errors import StationError
+from station.live.wire import (
+    CHANNEL,
+    Announcement,
+    ChannelInfo,
+    end_of_stream,
+    pack_header,
+    piece,
+    read_exact,
+)
+
+__all__ = ["Stream", "emulated_streams", "transmit"]
+
+_log = logging.getLogger(__name__)
+
+#: Bytes a piece of a channel carries: 21 ms of a 25 Mbit/s channel.
+PIECE_BYTES = 64 << 10
+#: Seconds a connection to the front end may take to open.
+CONNECT_TIMEOUT_S = 10.0
+
+
+@dataclass(frozen=True, eq=False)
+class Stream:
+    """One channel's bytes as the demodulator gives them, its length in bits and its rate."""
+
+    tag: str
+    data: NDArray[np.uint8]
+    n_bits: int
+    bit_rate_bit_per_s: float
+
+
+def emulated_streams(scenario: Path) -> tuple[Announcement, list[Stream]]:
+    """A pass's scenario emulated and sent through its downlink and channel, each HRV on
+    its channel, as ``station run`` does (its tags, its random draws): the announcement of
+    the pass and each channel's stream."""
+    from station.chain.session import ancillary_of, downlink
+    from station.loader import load_scenario
+    from station.spacecraft.emulator import emulate_pass
+
+    scn = load_scenario(scenario)
+    acqs = emulate_pass(scn)
+    n_hrv = len(acqs)
+    channels, streams = [], []
+    for acq in acqs:
+        tag = scn.name if n_hrv == 1 else f"{scn.name}_hrv{acq.hrv.number}"
+        result = downlink(acq)
+        rate = result.transmission.bit_rate_bit_per_s
+        rx = result.reception
+        channels.append(
+            ChannelInfo(
+                tag, acq.hrv.number, rate, acq.bulletins, acq.epoch.t0_utc, tuple(ancillary_of(acq))
+            )
+        )
+        streams.append(Stream(tag, rx.stream[: -(-rx.n_bits // 8)], int(rx.n_bits), rate))
+    cut = {"scene_lines": scn.processing.scene_lines, "overlap_lines": scn.processing.overlap_lines}
+    return Announcement(scn.name, tuple(channels), scn.provenance(), cut), streams
+
+
+def _connect(host: str, port: int) -> socket.socket:
+    try:
+        sock = socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S)
+    except OSError as exc:
+        raise StationError(
+            f"no front end answers at {host}:{port} ({exc.strerror or exc})"
+        ) from None
+    sock.settimeout(None)
+    return sock
+
+
+def _announce(host: str, port: int, announcement: Announcement) -> None:
+    with _connect(host, port) as sock:
+        sock.sendall(announcement.message())
+        if read_exact(sock, 2) != b"OK":
+            raise StationError(f"the front end at {host}:{port} refused the pass announcement")
+
+
+def _send(
+    host: str, port: int, stream: Stream, pass_name: str | None, speed: float | None, said: dict
+) -> None:
+    """One channel's connection: its header (none for a raw replay), its pieces paced at
+    ``speed`` times its line rate (None: as fast as the link takes), its end."""
+    t0 = time.perf_counter()
+    with _connect(host, port) as sock:
+        if pass_name is not None:
+            sock.sendall(pack_header(CHANNEL, {"pass": pass_name, "tag": stream.tag}))
+        data = stream.data.tobytes()
+        rate = None if speed is None else stream.bit_rate_bit_per_s / 8.0 * speed
+        for start in range(0, len(data), PIECE_BYTES):
+            chunk = data[start : start + PIECE_BYTES]
+            sock.sendall(piece(chunk) if pass_name is not None else chunk)
+            if rate is not None:  # paced: the line rate's schedule, not sleeps summed
+                ahead = t0 + (start + len(chunk)) / rate - time.perf_counter()
+                if ahead > 0:
+                    time.sleep(ahead)
+        if pass_name is not None:
+            sock.sendall(end_of_stream(stream.n_bits))
+        sock.shutdown(socket.SHUT_WR)
+        read_exact(sock, 2)  # the front end's "OK" once it has the whole stream
+    said[stream.tag] = {"bytes": len(data), "seconds": time.perf_counter() - t0}
+
+
+def transmit(source: Path, host: str, port: int, speed: float | None = 1.0) -> dict[str, object]:
+    """Send ``source`` (a pass's scenario, or a recorded ``.cadu`` file) to the front end
+    at ``host:port``, every channel at once, at ``speed`` times the line rate (None: as
+    fast as the link takes); returns what was sent and how fast."""
+    if speed is not None and not speed > 0:
+        raise StationError(f"--speed {speed}: a positive multiple of the line rate, or max")
+    source = Path(source)
+    if not source.is_file():
+        raise StationError(f"{source}: no such file")
+    if source.suffix == ".toml":
+        announcement, streams = emulated_streams(source)
+        name: str | None = announcement.name
+        _announce(host, port, announcement)
+    else:  # a recorded stream, replayed as it is (a raw connection)
+        data = np.fromfile(source, np.uint8)
+        streams, name = [Stream(source.stem, data, 8 * data.size, 25e6)], None
+    said: dict[str, dict[str, float]] = {}
+    failures: list[BaseException] = []
+
+    def one(s: Stream) -> None:
+        try:
+            _send(host, port, s, name, speed, said)
+        except BaseException as exc:
+            failures.append(exc)
+
+    threads = [threading.Thread(target=one, args=(s,), daemon=True) for s in streams]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    if failures:
+        exc = failures[0]
+        if isinstance(exc, OSError):
+            raise StationError(f"the link to {host}:{port} broke: {exc}") from None
+        raise exc
+    return {
+        "pass": name or source.name,
+        "speed": "max" if speed is None else speed,
+        "channels": [
+            {"tag": s.tag, **said[s.tag], "line_rate_mbps": s.bit_rate_bit_per_s / 1e6}
+            for s in streams
+        ],
+    }

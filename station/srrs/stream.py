@@ -1,0 +1,121 @@
+"""The receiver on a stream as it arrives: frame sync, derandomisation, Reed–Solomon and CRC
+on each piece of the stream as it comes, the rest of the receiver at any time on the frames
+so far.
+
+:class:`StreamDecoder` takes the demodulator's bytes piece by piece (:meth:`feed`); each
+piece is searched for markers from where the last one left off (the resumable search of
+:func:`station.srrs.frames.find_more`: every decision that needs a bit not yet arrived
+waits for it), and the code blocks found are decoded at once; the bytes behind the
+search's horizon are let go. :meth:`decoded` runs the rest of the receiver (accounting,
+packets, lines, the line clock: :func:`station.srrs.receiver.assemble`) on the frames
+found so far, as a pass's archive written while it goes on says it; :meth:`finish` ends
+the stream (its exact length in bits, when the sender says it) and returns what
+:func:`station.srrs.receiver.receive` makes of the whole stream, array for array.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from station.srrs.frames import (
+    LOSSES,
+    POS,
+    SEARCHED,
+    decode_cadus,
+    find_more,
+    horizon_bit,
+    sync_state,
+)
+from station.srrs.receiver import DecodedPass, Found, assemble
+
+__all__ = ["StreamDecoder"]
+
+
+class StreamDecoder:
+    """One channel's stream, decoded as it arrives (module docstring)."""
+
+    def __init__(self, search_tolerance: int = 3, lock_tolerance: int = 8) -> None:
+        self._tolerances = (search_tolerance, lock_tolerance)
+        self._state = sync_state()
+        self._buffer = np.zeros(0, np.uint8)
+        self._base_bit = 0  # the buffer's first bit in the stream
+        self.n_bytes = 0  # bytes received
+        self._found: list[Found] = []
+        self.ended = False
+
+    @property
+    def n_frames(self) -> int:
+        """CADUs found so far."""
+        return sum(f.offsets.size for f in self._found)
+
+    def counts(self) -> dict[str, int]:
+        """What has come so far: bytes, CADUs found, and how many decoded clean, corrected,
+        or not at all (the progress line's)."""
+        rs_ok = sum(int(f.rs_ok.sum()) for f in self._found)
+        corrected = sum(int(((f.corrected > 0).any(axis=1) & f.rs_ok).sum()) for f in self._found)
+        return {
+            "bytes": self.n_bytes,
+            "frames": self.n_frames,
+            "corrected": corrected,
+            "uncorrectable": self.n_frames - rs_ok,
+        }
+
+    def feed(self, data: bytes | NDArray[np.uint8]) -> int:
+        """A piece of the stream; returns the CADUs it completed."""
+        if self.ended:
+            raise ValueError("the stream has ended")
+        piece = np.frombuffer(data, np.uint8) if isinstance(data, bytes | bytearray) else data
+        self.n_bytes += int(piece.size)
+        self._buffer = np.concatenate([self._buffer, piece])
+        return self._search(8 * self.n_bytes, final=False)
+
+    def _search(self, n_bits: int, final: bool) -> int:
+        offsets, confirmed = find_more(
+            self._buffer, self._base_bit, n_bits, final, self._state, *self._tolerances
+        )
+        if offsets.size:
+            frames, corrected, rs_ok, crc_ok = decode_cadus(self._buffer, offsets - self._base_bit)
+            self._found.append(Found(offsets, confirmed, frames, corrected, rs_ok, crc_ok))
+        keep = (horizon_bit(self._state) >> 3) - (self._base_bit >> 3)
+        if keep > 0:  # the bytes no decision will read again
+            self._buffer = self._buffer[keep:].copy()
+            self._base_bit += 8 * keep
+        return int(offsets.size)
+
+    def _all(self) -> Found:
+        if not self._found:
+            e = np.zeros(0, np.int64)
+            return Found(
+                e, e.astype(bool), np.zeros((0, 892), np.uint8), np.zeros((0, 4), np.int64),
+                e.astype(bool), e.astype(bool),
+            )  # fmt: skip
+        if len(self._found) > 1:  # one array of each, kept so for the next call
+            self._found = [
+                Found(*(np.concatenate([getattr(f, k) for f in self._found]) for k in _FIELDS))
+            ]
+        return self._found[0]
+
+    def decoded(self) -> DecodedPass:
+        """The receiver on the frames found so far, the stream cut where it stands."""
+        s = self._state
+        return assemble(self._all(), 8 * self.n_bytes, int(s[SEARCHED]), int(s[LOSSES]))
+
+    def finish(self, n_bits: int | None = None) -> DecodedPass:
+        """The stream has ended (``n_bits`` of it, default every byte's): the last
+        decisions taken as the batch takes them at its end; the whole stream's pass."""
+        n = 8 * self.n_bytes if n_bits is None else int(n_bits)
+        if not 8 * self.n_bytes - 8 < n <= 8 * self.n_bytes and self.n_bytes:
+            raise ValueError(f"{n} bits said, {self.n_bytes} bytes received")
+        self._search(n, final=True)
+        self.ended = True
+        s = self._state
+        return assemble(self._all(), n, int(s[SEARCHED]), int(s[LOSSES]))
+
+    @property
+    def position_bit(self) -> int:
+        """Where the search stands in the stream (bits)."""
+        return int(self._state[POS])
+
+
+_FIELDS = ("offsets", "confirmed", "frames", "corrected", "rs_ok", "crc_ok")
