@@ -42,7 +42,7 @@ from station.srrs.receiver import DecodedPass
 from station.srrs.recorder import write_l0
 from station.srrs.stream import StreamDecoder
 
-__all__ = ["FrontEnd", "serve"]
+__all__ = ["FrontEnd", "serve", "warm_up"]
 
 _log = logging.getLogger(__name__)
 
@@ -50,8 +50,17 @@ _log = logging.getLogger(__name__)
 CHECKPOINT_S = 2.0
 #: Bytes read from a raw stream at a time.
 RAW_PIECE_BYTES = 64 << 10
-#: Seconds between two progress lines of a channel (``-v``).
-PROGRESS_S = 1.0
+#: The piece of a stream decoded before the server listens (``tools/live_warmup.py``).
+WARM_UP_STREAM = Path(__file__).resolve().parents[1] / "data" / "warmup.cadu"
+
+
+def warm_up() -> None:
+    """Decode :data:`WARM_UP_STREAM` once: the receiver's kernels loaded (numba's cache)
+    before the first pass arrives, not while it does."""
+    decoder = StreamDecoder()
+    decoder.feed(WARM_UP_STREAM.read_bytes())
+    decoder.decoded()
+    decoder.finish()
 
 
 @dataclass(eq=False)
@@ -66,7 +75,10 @@ class _Channel:
     done: bool = False
     cut: bool = False
     started_s: float = 0.0
+    #: From its first byte to its last, to the pass decoded, to its archive written (s).
     seconds: float = 0.0
+    decoded_s: float = 0.0
+    archived_s: float = 0.0
     archives_written: int = 0
 
 
@@ -261,11 +273,13 @@ class FrontEnd:
         except ReceiverError as exc:
             _log.warning("%s: %s: no archive", c.info.tag, exc)
             decoded = None
+        c.decoded_s = time.perf_counter() - c.started_s
         if decoded is not None:
             live = {"complete": False, "cut": True, **self._where(c)} if c.cut else None
             self._write(p, c, decoded, live)
             if c.cut:
                 _log.warning("%s: the stream was cut after %d bytes", c.info.tag, c.decoder.n_bytes)
+        c.archived_s = time.perf_counter() - c.started_s
         with self._lock:
             c.done = True
             if p.done:
@@ -284,7 +298,9 @@ class FrontEnd:
                     "archive": c.path.name if c.path.is_file() else None,
                     "bytes": n,
                     "seconds": round(c.seconds, 3),
-                    "mbit_per_s": round(8 * n / max(c.seconds, 1e-9) / 1e6, 2),
+                    "decoded_s": round(c.decoded_s, 3),
+                    "archived_s": round(c.archived_s, 3),
+                    "mbit_per_s": round(8 * n / max(c.decoded_s, 1e-9) / 1e6, 2),
                     "line_rate_mbps": c.info.bit_rate_bit_per_s / 1e6,
                     "cut": c.cut,
                     "archives_written": c.archives_written,
@@ -323,6 +339,7 @@ def serve(
     out.mkdir(parents=True, exist_ok=True)
     front = FrontEnd(out, checkpoint_s)
     server = _listen(host, port)
+    warm_up()  # ready when the port is said
     bound = server.getsockname()[1]
     if port_file is not None:
         tmp = Path(port_file).with_suffix(".tmp")
