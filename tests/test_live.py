@@ -262,3 +262,15 @@ def test_a_port_in_use_and_bad_addresses_are_one_line(tmp_path: Path, capsys) ->
         assert said in capsys.readouterr().err
     assert main(["transmit", str(NOISY), "--to", "127.0.0.1:1", "--speed", "0"]) == 2
     assert "--speed 0" in capsys.readouterr().err
+
+
+def test_the_warm_up_stream_decodes() -> None:
+    """The piece of a stream the front end decodes before it listens
+    (``station/data/warmup.cadu``) holds fill and data frames that decode clean."""
+    from station.live.frontend import WARM_UP_STREAM
+    from station.srrs.stream import StreamDecoder
+
+    d = StreamDecoder()
+    d.feed(WARM_UP_STREAM.read_bytes())
+    counts = d.finish().status_counts
+    assert counts["ok"] >= 5 and counts["fill"] >= 100 and counts["uncorrectable"] == 0
