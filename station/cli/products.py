@@ -52,13 +52,19 @@ def register(sub: Subparsers) -> None:
         "processing against (the terrain, checkpoints, control points, true orbit and "
         "attitude: docs/benchmark.md).",
     )
-    expo.add_argument("product", help="a level product (.nc or .h5)")
+    expo.add_argument("product", help="a level product (.nc or .h5), or an L0 archive (--packets)")
     fmt = expo.add_mutually_exclusive_group(required=True)
     fmt.add_argument("--geotiff", action="store_true", help="GeoTIFF through GDAL")
     fmt.add_argument(
         "--dimap",
         metavar="DIR",
         help="a 1A as a SPOT DIMAP v1 scene and its truth in DIR (replaced whole)",
+    )
+    fmt.add_argument(
+        "--packets",
+        metavar="DIR",
+        help="an L0 archive's lines and auxiliary records as CCSDS space packets, one file "
+        "per APID with its packet definition (ccsdspy's CSV) in DIR (docs/l0.md)",
     )
     expo.add_argument(
         "--scenario",
@@ -133,6 +139,17 @@ def _export(args: argparse.Namespace) -> int:
     from station.products import export_geotiff
 
     src = Path(args.product)
+    if args.packets:
+        from station.l0_packets import export_packets
+
+        if args.out or args.scenario:
+            raise StationError("--packets names its own directory: no --out, no --scenario")
+        listing = export_packets(src, args.packets)
+        for f in listing["files"]:  # type: ignore[attr-defined]
+            print(
+                f"wrote {Path(args.packets) / f['file']}: APID {f['apid']}, {f['packets']} packets"
+            )
+        return 0
     if args.dimap:
         from station.benchmark_pack import write_pack
 
