@@ -11,6 +11,7 @@ from station.errors import StationError
 
 if TYPE_CHECKING:
     from station.cli._options import Subparsers
+    from station.live.raf import RafConfig
 
 __all__ = ["register"]
 
@@ -40,6 +41,7 @@ def register(sub: Subparsers) -> None:
         metavar="S",
         help="seconds between two archives written while a stream arrives (2)",
     )
+    _add_sle(s)
     add_json(s)
     s.set_defaults(func=_serve, levels=None)
 
@@ -58,6 +60,65 @@ def register(sub: Subparsers) -> None:
     )
     add_json(t)
     t.set_defaults(func=_transmit, levels=None)
+
+
+def _add_sle(s: argparse.ArgumentParser) -> None:
+    """The SLE Return All Frames provider's options (``station.live.raf``)."""
+    g = s.add_argument_group("SLE Return All Frames (CCSDS 911.1 over ISP1)")
+    g.add_argument(
+        "--sle-port", type=int, metavar="Q", help="be a RAF provider on port Q (0: free)"
+    )
+    g.add_argument("--sle-port-file", metavar="F", help="write the SLE port listened on to F")
+    g.add_argument(
+        "--sle-instance",
+        default="sagr=1.spack=1.rsl-fg=1.raf=onlc1",
+        help="the service instance (raf=onlc…: online complete; raf=onlt…: online timely)",
+    )
+    g.add_argument("--sle-provider", default="station", help="the provider's identifier")
+    g.add_argument("--sle-user", default="mcs", help="the user's identifier")
+    g.add_argument(
+        "--sle-auth",
+        metavar="USER_HEX[,PROVIDER_HEX]",
+        help="check the user's ISP1 credentials against this password (hex), and sign the "
+        "returns with the provider's (default: no authentication)",
+    )
+    g.add_argument(
+        "--sle-buffer", type=int, default=100, metavar="N", help="frames per transfer buffer"
+    )
+    g.add_argument(
+        "--sle-latency",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="seconds a frame may wait for its transfer buffer to fill (1)",
+    )
+
+
+def _sle_of(args: argparse.Namespace) -> tuple[RafConfig, int, Path | None] | None:
+    from station.live.raf import RafConfig
+
+    if args.sle_port is None:
+        return None
+    if not 0 <= args.sle_port < 65536:
+        raise StationError(f"--sle-port {args.sle_port}: 0 (a free port) to 65535")
+    if args.sle_buffer < 1 or not args.sle_latency > 0:
+        raise StationError("--sle-buffer at least 1 frame, --sle-latency above 0 s")
+    passwords: list[bytes | None] = [None, None]
+    if args.sle_auth:
+        try:
+            for k, p in enumerate(args.sle_auth.split(",")[:2]):
+                passwords[k] = bytes.fromhex(p)
+        except ValueError:
+            raise StationError(f"--sle-auth {args.sle_auth}: passwords in hex") from None
+    parts = [p.split("=", 1) for p in args.sle_instance.split(".")]
+    if not all(len(p) == 2 and p[0] and p[1] for p in parts):
+        raise StationError(f"--sle-instance {args.sle_instance}: expected a=1.b=2…")
+    config = RafConfig(
+        args.sle_instance, args.sle_provider, args.sle_user, passwords[0], passwords[1],
+        args.sle_buffer, args.sle_latency,
+    )  # fmt: skip
+    where = Path(args.sle_port_file) if args.sle_port_file else None
+    return config, args.sle_port, where
 
 
 def _address(text: str) -> tuple[str, int]:
@@ -93,6 +154,7 @@ def _serve(args: argparse.Namespace) -> int:
         args.passes,
         Path(args.port_file) if args.port_file else None,
         args.checkpoint,
+        _sle_of(args),
     )
     emit(args, {"passes": [str(p) for p in done]}, lambda d: "\n".join(d["passes"]))
     return 0

@@ -41,6 +41,23 @@ def register(sub: Subparsers) -> None:
     insp.add_argument("product", help="a level product (.nc or .h5)")
     add_json(insp)
     insp.set_defaults(func=_inspect)
+    _add_export(sub)
+    tie = sub.add_parser(
+        "tie",
+        help="tie points between two passes' 2A products, written as each pass's tie file",
+        description="Find the same ground in two overlapping 2A (or 2) products of different "
+        "passes (or of a twin) and write the tie points, measured in each raw image, as "
+        "control points of kind 'tie' (docs/gcp.md): <name>.tie.csv for each pass.",
+    )
+    tie.add_argument("a", help="the first pass's 2A product (its map grid is the common one)")
+    tie.add_argument("b", help="the second pass's 2A product")
+    tie.add_argument("--band", help="the band matched (default: the first)")
+    tie.add_argument("--out", required=True, help="directory of the two tie files")
+    add_json(tie)
+    tie.set_defaults(func=_tie)
+
+
+def _add_export(sub: Subparsers) -> None:
     expo = sub.add_parser(
         "export",
         help="export a product as a GeoTIFF, or a 1A as a SPOT DIMAP scene with its truth",
@@ -84,19 +101,6 @@ def register(sub: Subparsers) -> None:
         "with --geotiff: output file or directory (default: the product's name with .tif, "
         "in the current directory)",
     )
-    tie = sub.add_parser(
-        "tie",
-        help="tie points between two passes' 2A products, written as each pass's tie file",
-        description="Find the same ground in two overlapping 2A (or 2) products of different "
-        "passes (or of a twin) and write the tie points, measured in each raw image, as "
-        "control points of kind 'tie' (docs/gcp.md): <name>.tie.csv for each pass.",
-    )
-    tie.add_argument("a", help="the first pass's 2A product (its map grid is the common one)")
-    tie.add_argument("b", help="the second pass's 2A product")
-    tie.add_argument("--band", help="the band matched (default: the first)")
-    tie.add_argument("--out", required=True, help="directory of the two tie files")
-    add_json(tie)
-    tie.set_defaults(func=_tie)
     expo.set_defaults(func=_export)
 
 

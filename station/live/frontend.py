@@ -19,6 +19,7 @@ channel brought (bytes, time, rate, frames and their accounting, whether it was 
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import logging
 import socket
@@ -28,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from station.errors import StationError
+from station.live.raf import RafConfig, RafProvider
 from station.live.wire import (
     CHANNEL,
     PASS,
@@ -96,8 +98,10 @@ class _Pass:
 class FrontEnd:
     """The server's state: the passes announced, the channels connected, what is done."""
 
-    def __init__(self, out: Path, checkpoint_s: float = CHECKPOINT_S) -> None:
-        self.out, self.checkpoint_s = Path(out), checkpoint_s
+    def __init__(
+        self, out: Path, checkpoint_s: float = CHECKPOINT_S, sle: RafProvider | None = None
+    ) -> None:
+        self.out, self.checkpoint_s, self.sle = Path(out), checkpoint_s, sle
         self._lock = threading.Lock()
         self._passes: list[_Pass] = []
         self.passes_done: list[Path] = []
@@ -150,6 +154,8 @@ class FrontEnd:
                 for c in p.channels.values():
                     if (tag is None or c.info.tag == tag) and not c.connected and not c.done:
                         c.connected, c.started_s = True, time.perf_counter()
+                        if self.sle is not None:  # each CADU to the SLE users as it comes
+                            c.decoder.on_frames = functools.partial(self.sle.offer, c.info.tag)
                         return p, c
         return None
 
@@ -280,6 +286,8 @@ class FrontEnd:
             if c.cut:
                 _log.warning("%s: the stream was cut after %d bytes", c.info.tag, c.decoder.n_bytes)
         c.archived_s = time.perf_counter() - c.started_s
+        if self.sle is not None:
+            self.sle.flush()
         with self._lock:
             c.done = True
             if p.done:
@@ -331,22 +339,28 @@ def serve(
     passes: int | None = None,
     port_file: Path | None = None,
     checkpoint_s: float = CHECKPOINT_S,
+    sle: tuple[RafConfig, int, Path | None] | None = None,
 ) -> list[Path]:
     """Listen on ``host:port`` (0: a free port, written to ``port_file``) and receive
     passes into ``out`` until ``passes`` of them are done (None: until interrupted);
-    returns the passes' directories."""
+    with ``sle = (config, port, port_file)``, be an SLE RAF provider on that port too
+    (:mod:`station.live.raf`). Returns the passes' directories."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    front = FrontEnd(out, checkpoint_s)
+    provider = RafProvider(sle[0]) if sle is not None else None
+    front = FrontEnd(out, checkpoint_s, provider)
     server = _listen(host, port)
+    stop = threading.Event()
+    sle_server = _listen(host, sle[1]) if sle is not None else None
     warm_up()  # ready when the port is said
+    if provider is not None and sle_server is not None and sle is not None:
+        threading.Thread(
+            target=provider.serve_forever, args=(sle_server, stop), daemon=True
+        ).start()
+        _port_file(sle[2], sle_server.getsockname()[1])
     bound = server.getsockname()[1]
-    if port_file is not None:
-        tmp = Path(port_file).with_suffix(".tmp")
-        tmp.write_text(f"{bound}\n")
-        tmp.replace(port_file)  # whole or not at all: a script reads it once it exists
+    _port_file(port_file, bound)
     _log.info("station serve: listening on %s:%d, passes into %s", host, bound, out)
-    threads: list[threading.Thread] = []
     try:
         while passes is None or len(front.passes_done) < passes:
             try:
@@ -355,9 +369,23 @@ def serve(
                 continue
             sock.settimeout(None)
             peer = f"{addr[0]}:{addr[1]}"
-            t = threading.Thread(target=front.handle, args=(sock, peer), daemon=True)
-            t.start()
-            threads.append(t)
+            threading.Thread(target=front.handle, args=(sock, peer), daemon=True).start()
+        if provider is not None:
+            provider.linger(LINGER_S)  # the users bound get what was received
     finally:
+        stop.set()
         server.close()
+        if sle_server is not None:
+            sle_server.close()
     return list(front.passes_done)
+
+
+#: Seconds the server waits, its passes done, for an SLE user still bound to unbind.
+LINGER_S = 60.0
+
+
+def _port_file(path: Path | None, port: int) -> None:
+    if path is not None:
+        tmp = Path(path).with_suffix(".tmp")
+        tmp.write_text(f"{port}\n")
+        tmp.replace(path)  # whole or not at all: a script reads it once it exists

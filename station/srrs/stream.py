@@ -15,6 +15,8 @@ the stream (its exact length in bits, when the sender says it) and returns what
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -28,6 +30,7 @@ from station.srrs.frames import (
     sync_state,
 )
 from station.srrs.receiver import DecodedPass, Found, assemble
+from station.telemetry import format as tf
 
 __all__ = ["StreamDecoder"]
 
@@ -35,8 +38,17 @@ __all__ = ["StreamDecoder"]
 class StreamDecoder:
     """One channel's stream, decoded as it arrives (module docstring)."""
 
-    def __init__(self, search_tolerance: int = 3, lock_tolerance: int = 8) -> None:
+    def __init__(
+        self,
+        search_tolerance: int = 3,
+        lock_tolerance: int = 8,
+        on_frames: Callable[[NDArray[np.uint8], Found], None] | None = None,
+    ) -> None:
+        """``on_frames(cadus, found)``: called with each piece's CADUs as received (n,
+        1024: the marker and the randomised code block, from their bit offsets) and what
+        their decoding found (an SLE provider's frames: :mod:`station.live.raf`)."""
         self._tolerances = (search_tolerance, lock_tolerance)
+        self.on_frames = on_frames
         self._state = sync_state()
         self._buffer = np.zeros(0, np.uint8)
         self._base_bit = 0  # the buffer's first bit in the stream
@@ -76,7 +88,10 @@ class StreamDecoder:
         )
         if offsets.size:
             frames, corrected, rs_ok, crc_ok = decode_cadus(self._buffer, offsets - self._base_bit)
-            self._found.append(Found(offsets, confirmed, frames, corrected, rs_ok, crc_ok))
+            found = Found(offsets, confirmed, frames, corrected, rs_ok, crc_ok)
+            self._found.append(found)
+            if self.on_frames is not None:
+                self.on_frames(_cadus_at(self._buffer, offsets - self._base_bit), found)
         keep = (horizon_bit(self._state) >> 3) - (self._base_bit >> 3)
         if keep > 0:  # the bytes no decision will read again
             self._buffer = self._buffer[keep:].copy()
@@ -119,3 +134,12 @@ class StreamDecoder:
 
 
 _FIELDS = ("offsets", "confirmed", "frames", "corrected", "rs_ok", "crc_ok")
+
+
+def _cadus_at(buffer: NDArray[np.uint8], bits: NDArray[np.int64]) -> NDArray[np.uint8]:
+    """The CADUs (n, 1024) of ``buffer`` at bit offsets ``bits``, each byte aligned."""
+    b, s = bits >> 3, (bits & 7).astype(np.uint16)[:, None]
+    idx = b[:, None] + np.arange(tf.CADU_BYTES + 1)[None, :]
+    raw = np.take(buffer, np.minimum(idx, buffer.size - 1), mode="clip").astype(np.uint16)
+    raw[idx >= buffer.size] = 0
+    return (((raw[:, :-1] << s) | (raw[:, 1:] >> (8 - s))) & 0xFF).astype(np.uint8)
