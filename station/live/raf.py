@@ -147,7 +147,10 @@ class _Association:
     bound: bool = False
     active: bool = False
     quality: int = 2  # allFrames
+    #: ``lock`` guards the queue, ``send_lock`` the socket: a user slow to read holds up
+    #: the sending, never the front end that queues frames
     lock: threading.Lock = field(default_factory=threading.Lock)
+    send_lock: threading.Lock = field(default_factory=threading.Lock)
     last_sent: float = field(default_factory=time.monotonic)
     queue: deque = field(default_factory=deque)
     wake: threading.Event = field(default_factory=threading.Event)
@@ -161,7 +164,7 @@ class _Association:
         self._send(struct.pack("!II", _PDU, len(pdu)) + pdu)
 
     def _send(self, message: bytes) -> None:
-        with self.lock:
+        with self.send_lock:
             if self.closed:
                 return
             try:
@@ -301,7 +304,11 @@ class RafProvider:
             return self._bind(a, parts)
         if not a.bound:
             raise ValueError(f"[{number}] before BIND")
-        if not _check_credentials(cred, self.config.user, self.config.password):
+        # authentication at BIND (ISP1's "bind" level): later credentials, when sent,
+        # must hold too
+        if cred.number == 1 and not _check_credentials(
+            cred, self.config.user, self.config.password
+        ):
             self._abort(a, 0)  # accessDenied
             return False
         me = _credentials(self.config.provider, self.config.provider_password)
