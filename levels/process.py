@@ -237,6 +237,9 @@ class ProcessingRequest:
         Levels of the options made already by an earlier step (the block's level 2 before
         level 3 over the pair's DEM): the levels made here are on their model (level 3 on
         level 2's), and they are neither made nor written again.
+    scenes
+        The scenes to make (their cut indices), the others not (None: every one): a pass
+        still arriving makes each scene once its lines are in (``station serve --levels``).
     """
 
     archives: tuple[L0Archive, ...]
@@ -251,6 +254,7 @@ class ProcessingRequest:
     adjustments: tuple[Adjustment | None, ...] = ()
     given: tuple[str, ...] = ()
     references: tuple[ReferenceInput | None, ...] = ()
+    scenes: frozenset[int] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.archives)
@@ -498,7 +502,10 @@ def _plan_archive(
     clock = time.perf_counter
     t0 = clock()
     setup = setup or geo_pass(archive, options)
-    pg, scenes = setup.pg, setup.scenes
+    pg, scenes, skipped = setup.pg, setup.scenes, setup.skipped
+    if request.scenes is not None:  # those asked for alone
+        scenes = [s for s in scenes if s.cut.index in request.scenes]
+        skipped = [s for s in skipped if s.index in request.scenes]
     band_names = list(archive.bands)
     res = options.pixel_size_m or nominal_pixel_size_m(pg.look_angles[band_names[0]])
     taps = (
@@ -551,10 +558,10 @@ def _plan_archive(
         name,
         len(scenes),
         ", ".join(m.name for m in makers),
-        len(setup.skipped),
+        len(skipped),
         t_geo,
     )
-    return PassPlan(ctx, list(scenes), list(setup.skipped), tail, timings, found)
+    return PassPlan(ctx, list(scenes), list(skipped), tail, timings, found)
 
 
 def run_plans(

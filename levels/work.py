@@ -222,6 +222,8 @@ class Request:
         A directory of level 2 products made already (a run's ``block/``, or a lone pass's
         products): level 2's adjustment is taken from them (:func:`taken_adjustment`),
         not solved again, and no control point is needed; None: solved.
+    scenes
+        A lone pass's scenes to make (cut indices), the others not; None: every one.
     """
 
     options: ProcessingOptions
@@ -235,6 +237,7 @@ class Request:
     root: Path | None = None
     ties_dir: Path | None = None
     adjustment_dir: Path | None = None
+    scenes: frozenset[int] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "out_dir", Path(self.out_dir))
@@ -592,6 +595,7 @@ class _Making:
                     dem=req.dem,
                     root=req.root if not req.block else None,
                     adjustments=self.taken(p) if not req.block else (),
+                    scenes=req.scenes if not req.block else None,
                 )
             )
         plans = [pp for r in requests for pp in plan_scenes(r)]

@@ -41,9 +41,14 @@ def register(sub: Subparsers) -> None:
         metavar="S",
         help="seconds between two archives written while a stream arrives (2)",
     )
+    s.add_argument(
+        "--levels",
+        help="comma-separated levels (e.g. 1A,2A) made of each scene as soon as its lines "
+        "are in, while the pass goes on",
+    )
     _add_sle(s)
     add_json(s)
-    s.set_defaults(func=_serve, levels=None)
+    s.set_defaults(func=_serve)
 
     t = sub.add_parser(
         "transmit",
@@ -155,6 +160,7 @@ def _serve(args: argparse.Namespace) -> int:
         Path(args.port_file) if args.port_file else None,
         args.checkpoint,
         _sle_of(args),
+        tuple(v.strip() for v in args.levels.split(",")) if args.levels else (),
     )
     emit(args, {"passes": [str(p) for p in done]}, lambda d: "\n".join(d["passes"]))
     return 0

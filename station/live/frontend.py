@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from station.errors import StationError
+from station.live.nrt import NearRealTime
 from station.live.raf import RafConfig, RafProvider
 from station.live.wire import (
     CHANNEL,
@@ -82,6 +83,8 @@ class _Channel:
     decoded_s: float = 0.0
     archived_s: float = 0.0
     archives_written: int = 0
+    #: The scenes' products made while the pass went on (``--levels``), with latencies.
+    products: list[dict[str, object]] = field(default_factory=list)
 
 
 @dataclass(eq=False)
@@ -99,9 +102,14 @@ class FrontEnd:
     """The server's state: the passes announced, the channels connected, what is done."""
 
     def __init__(
-        self, out: Path, checkpoint_s: float = CHECKPOINT_S, sle: RafProvider | None = None
+        self,
+        out: Path,
+        checkpoint_s: float = CHECKPOINT_S,
+        sle: RafProvider | None = None,
+        levels: tuple[str, ...] = (),
     ) -> None:
         self.out, self.checkpoint_s, self.sle = Path(out), checkpoint_s, sle
+        self.nrt = NearRealTime(levels) if levels else None
         self._lock = threading.Lock()
         self._passes: list[_Pass] = []
         self.passes_done: list[Path] = []
@@ -156,6 +164,9 @@ class FrontEnd:
                         c.connected, c.started_s = True, time.perf_counter()
                         if self.sle is not None:  # each CADU to the SLE users as it comes
                             c.decoder.on_frames = functools.partial(self.sle.offer, c.info.tag)
+                        if self.nrt is not None:
+                            cut = p.announcement.scene_cut
+                            self.nrt.channel(c.info.tag, p.where, cut, c.started_s)
                         return p, c
         return None
 
@@ -237,6 +248,8 @@ class FrontEnd:
         except ReceiverError:  # no data frame yet: nothing to archive
             return now
         self._write(p, c, decoded, {"complete": False, **self._where(c)})
+        if self.nrt is not None:  # the scenes now complete, made meanwhile
+            self.nrt.archived(c.info.tag, c.path, decoded)
         counts = c.decoder.counts()
         rate = 8 * counts["bytes"] / max(now - c.started_s, 1e-9) / 1e6
         _log.info(
@@ -283,6 +296,9 @@ class FrontEnd:
         if decoded is not None:
             live = {"complete": False, "cut": True, **self._where(c)} if c.cut else None
             self._write(p, c, decoded, live)
+            if self.nrt is not None:
+                self.nrt.archived(c.info.tag, c.path, decoded, final=True)
+                c.products = self.nrt.finish(c.info.tag)
             if c.cut:
                 _log.warning("%s: the stream was cut after %d bytes", c.info.tag, c.decoder.n_bytes)
         c.archived_s = time.perf_counter() - c.started_s
@@ -313,6 +329,7 @@ class FrontEnd:
                     "cut": c.cut,
                     "archives_written": c.archives_written,
                     **c.decoder.counts(),
+                    **({"products": c.products} if self.nrt is not None else {}),
                 }
             )
         report = {"pass": p.announcement.name, "channels": channels}
@@ -340,15 +357,21 @@ def serve(
     port_file: Path | None = None,
     checkpoint_s: float = CHECKPOINT_S,
     sle: tuple[RafConfig, int, Path | None] | None = None,
+    levels: tuple[str, ...] = (),
 ) -> list[Path]:
     """Listen on ``host:port`` (0: a free port, written to ``port_file``) and receive
     passes into ``out`` until ``passes`` of them are done (None: until interrupted);
     with ``sle = (config, port, port_file)``, be an SLE RAF provider on that port too
-    (:mod:`station.live.raf`). Returns the passes' directories."""
+    (:mod:`station.live.raf`); with ``levels``, make each scene's products as soon as its
+    lines are in (:mod:`station.live.nrt`). Returns the passes' directories."""
+    if levels:
+        from levels.options import ProcessingOptions
+
+        ProcessingOptions(levels=levels)  # an unknown level refused before listening
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     provider = RafProvider(sle[0]) if sle is not None else None
-    front = FrontEnd(out, checkpoint_s, provider)
+    front = FrontEnd(out, checkpoint_s, provider, levels)
     server = _listen(host, port)
     stop = threading.Event()
     sle_server = _listen(host, sle[1]) if sle is not None else None
@@ -375,6 +398,8 @@ def serve(
     finally:
         stop.set()
         server.close()
+        if front.nrt is not None:
+            front.nrt.close()
         if sle_server is not None:
             sle_server.close()
     return list(front.passes_done)
