@@ -134,7 +134,7 @@ class NearRealTime:
         for row in c.made:
             made = row["made_s"]
             row["before_los"] = c.los_s is not None and isinstance(made, float) and made < c.los_s
-        return sorted(c.made, key=lambda r: (r["scene"], str(r["level"])))  # type: ignore[arg-type]
+        return sorted(c.made, key=lambda r: str(r["file"]))  # scene by scene, then level
 
     def close(self) -> None:
         self._pool.shutdown(wait=True)
