@@ -16,6 +16,7 @@ from levels.geo.level2a import INVERSE_METHODS, level2a_geometry, map_crs
 from station.fixtures import emulated_scene
 from station.scenario import ERRORS_OFF, merge_tables, scenario_from_dict
 from station.spacecraft.emulator import emulate
+from station.truth.optical import Truth, checkpoints_1b, checkpoints_2a
 
 #: The issue's bound on the 2A inverse from the four nearest direct-grid points.
 MAX_INVERSE_PX = 0.05
@@ -87,6 +88,99 @@ def test_2a_four_nearest_inverse_within_a_twentieth_of_a_pixel(case, request) ->
     assert min(errors["poly3"], errors["poly4"], errors["poly5"]) > 2 * MAX_INVERSE_PX
 
 
+def _errors(over: dict):
+    data = merge_tables({"instrument": {"n_detectors": 300}}, over)
+    acq, scene, res = _scene(data)
+    truth = Truth(acq, 0)
+    g1 = level1b_geometry(scene, res)
+    g2 = level2a_geometry(scene, res, map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad))
+    return (
+        checkpoints_1b(truth, scene, g1, 0, 11)["line_of_sight"],
+        checkpoints_2a(truth, scene, g2, 0, 11)["line_of_sight"],
+        res,
+    )
+
+
+@pytest.mark.parametrize("mirror_step", [48, 93])
+def test_chain_is_unbiased_with_errors_off(mirror_step) -> None:
+    e1, e2, res = _errors(
+        merge_tables(ERRORS_OFF, {"instrument": {"mirror_step": mirror_step, "n_detectors": 6000}})
+    )
+    assert e2["max_px"] < UNBIASED_PX
+    # 1B: its mean is unbiased; its spread is its cubics' approximation error, measured
+    # on its own (test above)
+    assert np.hypot(e1["mean_1_m"], e1["mean_2_m"]) / res < UNBIASED_PX
+    assert e1["rms_px"] < 1.0
+
+
+def test_default_errors_are_the_sum_of_their_sources() -> None:
+    """How the size of the default errors is checked: each source alone gives the
+    displacement it implies, and together they add up."""
+    att_only = merge_tables(
+        ERRORS_OFF, {"attitude": {"roll_offset_urad": 150.0, "pitch_offset_urad": -200.0}}
+    )
+    eph_only = merge_tables(ERRORS_OFF, {"bulletins": {"bias_m": [150.0, -100.0, 0.0]}})
+    both = merge_tables(att_only, {"bulletins": eph_only["bulletins"]})
+    _, a, _ = _errors(att_only)
+    _, e, _ = _errors(eph_only)
+    _, b, _ = _errors(both)
+    # attitude: the angle times the 822 km height (flat Earth, nadir)
+    expected_att = 822e3 * np.hypot(150e-6, 200e-6)
+    assert np.hypot(a["mean_1_m"], a["mean_2_m"]) == pytest.approx(expected_att, rel=0.03)
+    # ephemeris: the horizontal bias, carried to the ground (× (R)/(R + H) on a sphere)
+    expected_eph = np.hypot(150.0, 100.0) * 6.371e6 / (6.371e6 + 822e3)
+    assert np.hypot(e["mean_1_m"], e["mean_2_m"]) == pytest.approx(expected_eph, rel=0.03)
+    sum_1, sum_2 = a["mean_1_m"] + e["mean_1_m"], a["mean_2_m"] + e["mean_2_m"]
+    assert np.hypot(b["mean_1_m"] - sum_1, b["mean_2_m"] - sum_2) < 2.0
+
+
+def test_xs_bands_registered_each_through_its_own_geometry() -> None:
+    """XS: the three bands' look angles differ by tenths of a pixel; each gets its own 1B
+    polynomials and 2A grids on the first band's output grid, and every band's checkpoints
+    fall where the unbiased chain puts them."""
+    acq = emulate(
+        scenario_from_dict(
+            merge_tables(ERRORS_OFF, {"instrument": {"mode": "XS", "n_detectors": 1500}})
+        ),
+        render=False,
+    )
+    looks = [b.name for b in acq.hrv.bands]
+    _pg, scene, res = emulated_scene(acq, reference_height_m=H_REF_M)
+    crs = map_crs("utm", scene.centre_lat_rad, scene.centre_lon_rad)
+    first, *others = looks
+    g2 = {first: level2a_geometry(scene, res, crs, band=first)}
+    g1 = {first: level1b_geometry(scene, res, band=first)}
+    for b in others:
+        g2[b] = level2a_geometry(scene, res, crs, band=b, like=g2[first])
+        g1[b] = level1b_geometry(scene, res, band=b, like=g1[first])
+    truth = Truth(acq, 0)
+    shared_first = []
+    for k, b in enumerate(looks):
+        assert (g2[b].map_grid.geotransform, g2[b].map_grid.n_rows, g2[b].map_grid.n_cols) == (
+            g2[first].map_grid.geotransform,
+            g2[first].map_grid.n_rows,
+            g2[first].map_grid.n_cols,
+        )
+        assert (g1[b].i_origin, g1[b].n_cols) == (g1[first].i_origin, g1[first].n_cols)
+        assert g2[b].approximation_error(scene.models[b], H_REF_M)["max_px"] <= MAX_INVERSE_PX
+        own = checkpoints_2a(truth, scene, g2[b], k, 11)["line_of_sight"]
+        assert own["max_px"] < UNBIASED_PX
+        e1 = checkpoints_1b(truth, scene, g1[b], k, 11)["line_of_sight"]
+        assert np.hypot(e1["mean_1_m"], e1["mean_2_m"]) / res < UNBIASED_PX
+        shared_first.append(
+            (
+                own["rms_px"],
+                checkpoints_2a(truth, scene, g2[first], k, 11)["line_of_sight"]["rms_px"],
+            )
+        )
+    # the band registration the shared geometry would miss, and its own geometry does not
+    assert max(s for _o, s in shared_first) > 0.1
+    assert max(o for o, _s in shared_first) < 0.05
+
+
+#: INPE's figure (paper 004_…): each corrected line relates to 6000 · tan 9.0° = 950 raw
+#: lines in P, 9.0° being the azimuth of the inertial track at Cuiabá.
+INPE_TRACK_AZIMUTH_DEG = 9.0
 #: The azimuth measured here is the raw lines' on the UTM grid minus the grid's meridian
 #: convergence; INPE quotes it to a tenth of a degree.
 AZIMUTH_TOL_DEG = 0.1
