@@ -102,10 +102,11 @@ class _Processing:
         return self._truth
 
 
-class ProcessArchives(_Processing):
-    """Recorded archives processed together (``station.reprocess.pass_request``), with
-    their control points found on a reference first when one is given (kept with the
-    products as ``<name>.reference.gcp.csv``)."""
+class _Recorded(_Processing):
+    """What the flows of recorded archives share: the archives, their names, options and
+    files read, the scenarios that made them, their control points (or the reference they
+    are found on), the steps taken from directories, the workers; the checks before work
+    (:func:`check_archives`)."""
 
     def __init__(
         self,
@@ -122,7 +123,8 @@ class ProcessArchives(_Processing):
     ) -> None:
         super().__init__(names, inputs, f"the products of a reprocessing of {', '.join(names)}")
         self.sources, self.options, self.scenarios = list(sources), options, list(scenarios)
-        self.gcps, self.taken, self.reference, self.workers = gcps, taken, reference, workers
+        self.gcps, self.taken, self.workers = gcps, taken, workers
+        self.reference = reference  # a lone pass's control points found on it
         self.found = Checked()
 
     def check(self, out: Path, full: bool = False) -> None:
@@ -132,6 +134,12 @@ class ProcessArchives(_Processing):
         self.found = check_archives(
             self.sources, self.options, out, self.gcps, full, self.workers, self.taken
         )
+
+
+class ProcessArchives(_Recorded):
+    """Recorded archives processed together (``station.reprocess.pass_request``), with
+    their control points found on a reference first when one is given (kept with the
+    products as ``<name>.reference.gcp.csv``)."""
 
     def acquire(self, stage: Path, state: FlowRun) -> Request:
         from station.reprocess import pass_request
@@ -220,33 +228,10 @@ class ProcessScenario(_Processing):
         }
 
 
-class ProcessBlock(_Processing):
+class ProcessBlock(_Recorded):
     """Several passes to a pair's products (``station.reprocess.block_request``): every
     pass's scene levels in ``<out>/<name>/``, the tie points, the block's level 2 and 3 and
     the pair's DEM in ``ties/``, ``block/`` and ``stereo/``."""
-
-    def __init__(
-        self,
-        sources: Sequence[Path],
-        names: Sequence[str],
-        options: ProcessingOptions,
-        inputs: Sequence[Path],
-        *,
-        scenarios: Sequence[Scenario] = (),
-        gcps: Sequence[str | Path] | None = None,
-        taken: Taken = Taken(),
-        workers: int = 0,
-    ) -> None:
-        super().__init__(names, inputs, f"the products of a reprocessing of {', '.join(names)}")
-        self.sources, self.options, self.scenarios = list(sources), options, list(scenarios)
-        self.gcps, self.taken, self.workers = gcps, taken, workers
-        self.found = Checked()
-
-    def check(self, out: Path, full: bool = False) -> None:
-        self.out = out
-        self.found = check_archives(
-            self.sources, self.options, out, self.gcps, full, self.workers, self.taken
-        )
 
     def acquire(self, stage: Path, state: FlowRun) -> Request:
         from station.reprocess import block_request
