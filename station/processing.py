@@ -520,18 +520,15 @@ def archives_flow(
     (:class:`ProcessArchives`)."""
     from levels.process import pair_kinds_of
 
-    if len(sources) > 1 and pair_kinds_of(options):
-        return ProcessBlock(
-            sources,
-            names,
-            options,
-            inputs,
-            scenarios=scenarios,
-            gcps=gcps,
-            taken=taken,
-            workers=workers,
+    block = len(sources) > 1 and bool(pair_kinds_of(options))
+    if block and reference is not None:
+        from station.errors import StationError
+
+        raise StationError(
+            "--reference finds one pass's control points: a pair's passes give theirs"
         )
-    return ProcessArchives(
+    flow = ProcessBlock if block else ProcessArchives
+    return flow(
         sources,
         names,
         options,
