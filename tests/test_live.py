@@ -324,3 +324,32 @@ def test_products_while_the_pass_goes_on(tmp_path: Path) -> None:
         valid = a.bands["P"].valid & b.bands["P"].valid
         diff = np.abs(a.bands["P"].image.astype(int) - b.bands["P"].image.astype(int))[valid]
         assert (diff == 0).mean() >= NRT_SAME_SHARE and diff.max() <= NRT_MAX_COUNTS, k
+
+
+def test_a_stream_cut_mid_frame_is_archived_as_cut(tmp_path: Path) -> None:
+    """A pass announced, its channel's stream closed half way, mid-frame, without its end:
+    the archive of what came is written, its ``live`` attribute saying the stream was cut;
+    the pass is done and the server ends as asked."""
+    import h5py
+
+    from levels.readers.l0 import read_l0
+    from station.live.sender import emulated_streams
+    from station.live.wire import CHANNEL, pack_header, piece
+
+    announcement, (stream,) = emulated_streams(NOISY)
+    half = stream.data[: stream.data.size // 2 + 517].tobytes()  # mid-frame
+    with serving(tmp_path, "--passes", "1") as (proc, port):
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+            s.sendall(announcement.message())
+            assert s.recv(2) == b"OK"
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+            s.sendall(pack_header(CHANNEL, {"pass": announcement.name, "tag": stream.tag}))
+            s.sendall(piece(half))
+        assert proc.wait(PASS_S) == 0
+    archive = tmp_path / "served" / "noisy_channel" / "noisy_channel.l0.h5"
+    with h5py.File(archive) as f:
+        live = json.loads(f.attrs["live"])
+    assert live["cut"] is True and live["bytes_received"] == len(half)
+    assert 0 < read_l0(archive).bands["P"].pixel_valid().mean() < 0.75
+    report = json.loads((archive.parent / "live.json").read_text())
+    assert report["channels"][0]["cut"] is True
