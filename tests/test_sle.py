@@ -206,3 +206,29 @@ def test_a_user_that_stops_reading_loses_nothing_in_complete_mode(expected, tmp_
         user.wait_for_state(SleState.UNBOUND, STEP_S)
     assert stalled and sent_s < 10.0  # the pass was in before the user read again
     assert [f for f, _ in user.frames] == cadus
+
+
+def test_timely_delivery_keeps_the_newest_frames_when_the_user_falls_behind() -> None:
+    """Online timely (``raf=onlt…``): past ``timely_frames`` queued, the oldest go and the
+    newest are kept; online complete keeps every one."""
+    import socket as sockets
+
+    from station.live.raf import RafConfig, RafProvider, _Association
+    from station.srrs.receiver import Found
+
+    n = 25
+    frames = np.zeros((n, 892), np.uint8)
+    found = Found(
+        np.arange(n) * 8192, np.ones(n, bool), frames, np.zeros((n, 4), np.int64),
+        np.ones(n, bool), np.ones(n, bool),
+    )  # fmt: skip
+    cadus = np.repeat(np.arange(n, dtype=np.uint8)[:, None], 1024, axis=1)
+    for instance, kept in (("sagr=1.spack=1.rsl-fg=1.raf=onlt1", 10), (INSTANCE, n)):
+        provider = RafProvider(RafConfig(instance, timely_frames=10))
+        a, b = sockets.socketpair()
+        with a, b:
+            association = _Association(a, "test", bound=True, active=True)
+            provider._association = association
+            provider.offer("ch1", cadus, found)
+            queued = [row[4][0] for row in association.queue]
+        assert queued == list(range(n - kept, n)), instance
