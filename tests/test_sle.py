@@ -10,7 +10,9 @@ stopped by its id (``tests/test_live.py``'s ``serving``)."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import socket
 import sys
 import time
 from collections.abc import Iterator
@@ -24,6 +26,8 @@ sle = pytest.importorskip("sle")
 from sle.constants import SleState  # noqa: E402
 
 INSTANCE = "sagr=1.spack=1.rsl-fg=1.raf=onlc1"
+#: The sockets the closed users' readers wait on (:meth:`_User.close`).
+_QUIET: list[tuple[socket.socket, socket.socket]] = []
 #: How long a user may take to bind, start, stop or unbind, and to receive a pass.
 STEP_S, PASS_S = 15.0, 90.0
 #: Frames per transfer buffer: few messages a pass (the ``sle`` user reads one TML message
@@ -67,10 +71,19 @@ class _User(sle.RafServiceUser):
         _User.made.append(self)
 
     def close(self) -> None:
-        """Its transport's timers stopped (threads that would hold the interpreter up)."""
+        """Its transport's timers stopped (threads that would hold the interpreter up), and
+        its reader given a socket that never has data: once its own is gone, ``sle`` 0.3's
+        reader loops on ``select`` of nothing without waiting, a core's worth of CPU for
+        the rest of the session."""
         transport = self._proxy.transport
         for timer in ("_tms_timer", "_hbt_timer", "_hbr_timer", "_cpa_timer"):
             getattr(transport, timer).stop()
+        if transport._socket is not None:
+            with contextlib.suppress(OSError):
+                transport._socket.close()
+        quiet = socket.socketpair()
+        _QUIET.append(quiet)  # both ends kept open: never readable, never closed
+        transport._socket = quiet[0]
 
     def frame_indication(self, pdu: object) -> None:
         self.frames.append((bytes(pdu["data"]), int(pdu["deliveredFrameQuality"])))  # type: ignore[index]
