@@ -10,6 +10,7 @@ stopped by its id (``tests/test_live.py``'s ``serving``)."""
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import logging
 import socket
@@ -26,8 +27,9 @@ sle = pytest.importorskip("sle")
 from sle.constants import SleState  # noqa: E402
 
 INSTANCE = "sagr=1.spack=1.rsl-fg=1.raf=onlc1"
-#: The sockets the closed users' readers wait on (:meth:`_User.close`).
+#: The sockets the closed users' readers wait on (:meth:`_User.close`), closed on exit.
 _QUIET: list[tuple[socket.socket, socket.socket]] = []
+atexit.register(lambda: [s.close() for pair in _QUIET for s in pair])
 #: How long a user may take to bind, start, stop or unbind, and to receive a pass.
 STEP_S, PASS_S = 15.0, 90.0
 #: Frames per transfer buffer: few messages a pass (the ``sle`` user reads one TML message
