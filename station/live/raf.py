@@ -211,8 +211,6 @@ class RafProvider:
             [bytes(c) for c in cadus[keep]],
             strict=True,
         )
-        if a is None or not a.active:
-            return
         with a.lock:
             a.queue.extend(rows)
             if not self.config.complete:
