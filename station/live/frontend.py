@@ -53,6 +53,8 @@ _log = logging.getLogger(__name__)
 CHECKPOINT_S = 2.0
 #: Bytes read from a raw stream at a time.
 RAW_PIECE_BYTES = 64 << 10
+#: Seconds between two progress lines of a channel (``-v``).
+PROGRESS_S = 1.0
 #: The piece of a stream decoded before the server listens (``tools/live_warmup.py``).
 WARM_UP_STREAM = Path(__file__).resolve().parents[1] / "data" / "warmup.cadu"
 
@@ -78,6 +80,7 @@ class _Channel:
     done: bool = False
     cut: bool = False
     started_s: float = 0.0
+    said_s: float = 0.0  # its last progress line
     #: From its first byte to its last, to the pass decoded, to its archive written (s).
     seconds: float = 0.0
     decoded_s: float = 0.0
@@ -241,6 +244,9 @@ class FrontEnd:
         """The archive of what has come, every ``checkpoint_s``; a progress line every
         second (``-v``). Returns when the last archive was written."""
         now = time.perf_counter()
+        if now - c.said_s >= PROGRESS_S:
+            c.said_s = now
+            self._progress(c, now)
         if now - last < self.checkpoint_s:
             return last
         try:
@@ -250,6 +256,12 @@ class FrontEnd:
         self._write(p, c, decoded, {"complete": False, **self._where(c)})
         if self.nrt is not None:  # the scenes now complete, made meanwhile
             self.nrt.archived(c.info.tag, c.path, decoded)
+        return now
+
+    @staticmethod
+    def _progress(c: _Channel, now: float) -> None:
+        """A channel's progress line: what has come, how fast, the frames and their
+        errors (as ``station run``'s progress says its stages)."""
         counts = c.decoder.counts()
         rate = 8 * counts["bytes"] / max(now - c.started_s, 1e-9) / 1e6
         _log.info(
@@ -261,7 +273,6 @@ class FrontEnd:
             counts["corrected"],
             counts["uncorrectable"],
         )
-        return now
 
     @staticmethod
     def _where(c: _Channel) -> dict[str, object]:
