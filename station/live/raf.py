@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 from station.live import ber
 from station.live.ber import CONTEXT, BerError, Tlv, decode_one, integer, null, octets, sequence
+from station.live.wire import read_exact
 from station.srrs.receiver import Found
 from station.telemetry import format as tf
 
@@ -268,7 +269,7 @@ class RafProvider:
 
     def _context(self, a: _Association) -> None:
         a.sock.settimeout(TMS_S)
-        head = _read_exact(a.sock, 20)
+        head = read_exact(a.sock, 20)
         mtype, length = struct.unpack("!II", head[:8])
         if mtype != _CONTEXT or length != 12 or head[8:12] != b"ISP1":
             raise ValueError("no ISP1 context message: not an SLE user")
@@ -278,7 +279,7 @@ class RafProvider:
 
     def _read(self, a: _Association) -> None:
         while not a.closed:
-            head = _read_exact(a.sock, 8)
+            head = read_exact(a.sock, 8)
             if len(head) < 8:
                 return  # the user closed
             mtype, length = struct.unpack("!II", head)
@@ -286,7 +287,7 @@ class RafProvider:
                 continue
             if mtype != _PDU:
                 raise ValueError(f"a TML message of type {mtype:#x}")
-            pdu, _ = decode_one(_read_exact(a.sock, length))
+            pdu, _ = decode_one(read_exact(a.sock, length))
             if self._invocation(a, pdu) is False:
                 return
 
@@ -462,14 +463,3 @@ def _instance_of(sii: Tlv) -> list[tuple[str, str]]:
             ident, value = element.children()
             out.append((_NAMES.get(ident.oid(), str(ident.oid())), value.text()))
     return out
-
-
-def _read_exact(sock: socket.socket, n: int) -> bytes:
-    chunks, got = [], 0
-    while got < n:
-        b = sock.recv(n - got)
-        if not b:
-            break
-        chunks.append(b)
-        got += len(b)
-    return b"".join(chunks)
