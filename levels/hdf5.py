@@ -26,7 +26,7 @@ import zlib
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import h5py
 import numba as nb
@@ -125,10 +125,23 @@ def _chunk_payload(block: np.ndarray, shuffle: bool, level: int) -> bytes:
     return packed + fletcher32(np.frombuffer(packed, np.uint8)).to_bytes(4, "little")
 
 
+class Rows(Protocol):
+    """What :func:`deflated_dataset` reads a dataset's chunks from: an array, or an array's
+    stand-in that reads the slices asked from elsewhere (a front end's line store)."""
+
+    @property
+    def shape(self) -> tuple[int, ...]: ...
+
+    @property
+    def dtype(self) -> np.dtype: ...
+
+    def __getitem__(self, key: tuple[slice, ...]) -> np.ndarray: ...
+
+
 def deflated_dataset(
     group: h5py.Group,
     name: str,
-    data: np.ndarray,
+    data: Rows,
     chunks: tuple[int, ...],
     shuffle: bool = False,
     level: int = DEFLATE_LEVEL,

@@ -57,7 +57,7 @@ def downlink_report(acq: Acquisition, result: DownlinkResult) -> dict:
     bands = []
     for b, band in enumerate(acq.bands):
         ok = d.pixel_valid(b)
-        got, sent, raw = d.images[b][ok], tx.ground_bands[b][ok], band.counts[ok]
+        got, sent, raw = np.asarray(d.images[b])[ok], tx.ground_bands[b][ok], band.counts[ok]
         err = np.abs(got.astype(np.int64) - raw)
         bands.append(
             {

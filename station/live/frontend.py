@@ -4,12 +4,19 @@ It listens on a TCP port and takes, per channel, the demodulator's stream as it 
 (:mod:`station.live.wire`): frame sync, derandomisation, Reed–Solomon and CRC run on each
 piece as it comes (:class:`station.srrs.stream.StreamDecoder`), and the pass's L0 archive
 is written **on the fly**: every ``checkpoint_s`` of a channel's stream the archive of
-what has arrived replaces the last one, whole (a killed server leaves a readable archive
-of everything received, its ``live`` attribute saying where it stopped); at the stream's
-end the archive is the file route's, byte for byte. A connection dropped before its end
-is a stream cut there: the archive says so, nothing is raised. A raw stream that no
-announced pass awaits is kept as it came (``unannounced/``) with what its decoding found:
-nothing received is lost.
+what has arrived replaces the last one (a killed server leaves a readable archive of
+everything received until then, its ``live`` attribute saying where it stopped); at the
+stream's end the archive is the file route's, byte for byte. The front end's memory does
+not grow with the pass: the frames go, as they are decoded, to an assembler that keeps
+the lines and the image packets in the channel's spool (``<tag>.spool/``, removed once the
+archive is written) and little else (:mod:`station.srrs.assembler`); an archive written
+while the pass goes on is read from there, and the next one waits at least
+:data:`CHECKPOINT_SHARE` times as long as that one took to write, so that rewriting a
+growing archive never takes more than a fifth of the front end's time.
+
+A connection dropped before its end is a stream cut there: the archive says so, nothing is
+raised. A raw stream that no announced pass awaits is kept as it came (``unannounced/``)
+with what its decoding found: nothing received is lost.
 
 Each pass goes into a directory of its own under ``out`` (its name): one archive per
 channel (``<tag>.l0.h5``, as ``station run`` names them) and ``live.json``, what each
@@ -51,6 +58,8 @@ _log = logging.getLogger(__name__)
 
 #: Seconds of a channel's stream between two archives written while it arrives.
 CHECKPOINT_S = 2.0
+#: The wait before the next archive, in multiples of the time the last one took to write.
+CHECKPOINT_SHARE = 4.0
 #: Bytes read from a raw stream at a time.
 RAW_PIECE_BYTES = 64 << 10
 #: Seconds between two progress lines of a channel (``-v``).
@@ -76,6 +85,8 @@ class _Channel:
     info: ChannelInfo
     path: Path
     decoder: StreamDecoder = field(default_factory=StreamDecoder)
+    spool: Path | None = None
+    next_archive_s: float = 0.0  # when the next archive is written while the pass goes on
     connected: bool = False
     done: bool = False
     cut: bool = False
@@ -165,6 +176,10 @@ class FrontEnd:
                 for c in p.channels.values():
                     if (tag is None or c.info.tag == tag) and not c.connected and not c.done:
                         c.connected, c.started_s = True, time.perf_counter()
+                        c.next_archive_s = c.started_s + self.checkpoint_s
+                        c.spool = p.where / f"{c.info.tag}.spool"
+                        c.spool.mkdir(exist_ok=True)
+                        c.decoder = StreamDecoder(spool=c.spool)
                         if self.sle is not None:  # each CADU to the SLE users as it comes
                             c.decoder.on_frames = functools.partial(self.sle.offer, c.info.tag)
                         if self.nrt is not None:
@@ -187,13 +202,12 @@ class FrontEnd:
             return
         p, c = claimed
         n_bits = None
-        last = time.perf_counter()
         while True:
             data, n_bits = read_piece(sock)
             if data is None:
                 break
             c.decoder.feed(data)
-            last = self._checkpoint(p, c, last)
+            self._checkpoint(p, c)
         self._finish(p, c, n_bits)
         with contextlib.suppress(OSError):
             sock.sendall(b"OK")
@@ -204,11 +218,10 @@ class FrontEnd:
             self._unannounced_stream(sock, first, peer)
             return
         p, c = claimed
-        last = time.perf_counter()
         data = first
         while data:
             c.decoder.feed(data)
-            last = self._checkpoint(p, c, last)
+            self._checkpoint(p, c)
             data = sock.recv(RAW_PIECE_BYTES)
         self._finish(p, c, None, raw=True)
 
@@ -219,7 +232,9 @@ class FrontEnd:
             where = self.out / "unannounced"
             where.mkdir(parents=True, exist_ok=True)
             path = where / f"stream_{self._unannounced:03d}.cadu"
-        decoder = StreamDecoder()
+        spool = path.with_suffix(".spool")
+        spool.mkdir()
+        decoder = StreamDecoder(spool=spool)
         with path.open("wb") as f:
             data = first
             while data:
@@ -231,6 +246,8 @@ class FrontEnd:
             found["status"] = decoder.finish().status_counts
         except ReceiverError as exc:
             found["status"] = str(exc)
+        decoder.assembler.close()
+        spool.rmdir()
         path.with_suffix(".json").write_text(json.dumps(found, indent=1, sort_keys=True))
         _log.warning(
             "%s: a stream no announced pass awaits (%d bytes): kept as %s",
@@ -240,23 +257,25 @@ class FrontEnd:
         )
 
     # -- the archives -------------------------------------------------------------
-    def _checkpoint(self, p: _Pass, c: _Channel, last: float) -> float:
-        """The archive of what has come, every ``checkpoint_s``; a progress line every
-        second (``-v``). Returns when the last archive was written."""
+    def _checkpoint(self, p: _Pass, c: _Channel) -> None:
+        """The archive of what has come, every ``checkpoint_s`` at least (module
+        docstring); a progress line every second (``-v``)."""
         now = time.perf_counter()
         if now - c.said_s >= PROGRESS_S:
             c.said_s = now
             self._progress(c, now)
-        if now - last < self.checkpoint_s:
-            return last
+        if now < c.next_archive_s:
+            return
         try:
             decoded = c.decoder.decoded()
         except ReceiverError:  # no data frame yet: nothing to archive
-            return now
+            c.next_archive_s = now + self.checkpoint_s
+            return
         self._write(p, c, decoded, {"complete": False, **self._where(c)})
+        took = time.perf_counter() - now
+        c.next_archive_s = now + max(self.checkpoint_s, CHECKPOINT_SHARE * took)
         if self.nrt is not None:  # the scenes now complete, made meanwhile
             self.nrt.archived(c.info.tag, c.path, decoded)
-        return now
 
     @staticmethod
     def _progress(c: _Channel, now: float) -> None:
@@ -313,6 +332,9 @@ class FrontEnd:
             if c.cut:
                 _log.warning("%s: the stream was cut after %d bytes", c.info.tag, c.decoder.n_bytes)
         c.archived_s = time.perf_counter() - c.started_s
+        c.decoder.assembler.close()  # the spool, once archived
+        if c.spool is not None:
+            c.spool.rmdir()
         if self.sle is not None:
             self.sle.flush()
         with self._lock:

@@ -27,7 +27,9 @@ __all__ = [
     "STATUS_NAMES",
     "UNCORRECTABLE",
     "ChannelAccount",
-    "account",
+    "Ledger",
+    "merge_entries",
+    "status_entries",
     "status_tables",
 ]
 
@@ -65,23 +67,19 @@ class ChannelAccount:
         return dict(self.__dict__)
 
 
-def _unwrap(count: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Unwrap 24-bit counts in arrival order (steps taken as the shortest way round)."""
-    if count.size == 0:
-        return count.copy()
-    step = (np.diff(count) + _HALF) % tf.VC_FRAME_COUNT_MODULUS - _HALF
-    return count[0] + np.concatenate([[0], np.cumsum(step)])
-
-
 def _near(value: int, reference: int) -> int:
     """The unwrapped count ≡ value (mod 2²⁴) nearest to ``reference``."""
     return reference + (value - reference + _HALF) % tf.VC_FRAME_COUNT_MODULUS - _HALF
 
 
-def status_tables(frames: NDArray[np.uint8], rows: NDArray[np.int64]) -> dict[int, dict]:
-    """Session status read from good fill frames: per VC, first count, most sent, closed."""
+def status_entries(
+    frames: NDArray[np.uint8], rows: NDArray[np.int64]
+) -> dict[tuple[int, int], dict]:
+    """Session status read from good fill frames, per (VC, place in the table): first
+    count (of the first frame read), most sent, closed. Entries of successive pieces of a
+    stream merge (:func:`merge_entries`) into those of the whole."""
     z0 = tf.FRAME_HEADER_BYTES
-    out: dict[int, dict] = {}
+    out: dict[tuple[int, int], dict] = {}
     magic = np.frombuffer(tf.STATUS_MAGIC, np.uint8)
     good = rows[np.all(frames[rows, z0 : z0 + 4] == magic, axis=1)]
     if good.size == 0:
@@ -98,7 +96,7 @@ def status_tables(frames: NDArray[np.uint8], rows: NDArray[np.int64]) -> dict[in
         first = tf.from_u24(e["first_count"])
         for v in np.unique(vc):
             sel = vc == v
-            out[int(v)] = {
+            out[(int(v), k)] = {
                 "first": int(first[sel][0]),
                 "sent": int(e["sent"][sel].max()),
                 "closed": bool(closed[sel].any()),
@@ -106,49 +104,106 @@ def status_tables(frames: NDArray[np.uint8], rows: NDArray[np.int64]) -> dict[in
     return out
 
 
-def account(
-    vc: int,
-    rows: NDArray[np.int64],
-    count24: NDArray[np.int64],
-    corrected: NDArray[np.int64],
-    status: NDArray[np.int64],
-    table: dict | None,
-    unwrapped: NDArray[np.int64],
-) -> ChannelAccount:
-    """Classify a channel's good frames in arrival order and account for its frames."""
-    u = _unwrap(count24[rows])
-    unwrapped[rows] = u
-    uniq, first_idx = np.unique(u, return_index=True)
-    is_first = np.zeros(u.size, bool)
-    is_first[first_idx] = True
-    status[rows[~is_first]] = DUPLICATE
-    running_max = np.maximum.accumulate(np.where(is_first, u, np.iinfo(np.int64).min))
-    late = is_first & (u < np.concatenate([[np.iinfo(np.int64).min], running_max[:-1]]))
-    status[rows[late]] = OUT_OF_ORDER
-    n_corr = corrected[rows]
-    delivered = uniq.size
-    head_known = tail_known = False
-    lo, hi = int(uniq[0]), int(uniq[-1])
-    if table is not None:
-        first = _near(table["first"], lo)
-        if first > lo:  # the reported first cannot be after a frame received
-            first -= tf.VC_FRAME_COUNT_MODULUS
-        lo, head_known = first, True
-        hi = max(hi, first + table["sent"] - 1)
-        tail_known = table["closed"]
-    expected = hi - lo + 1
-    inner_gaps = int(np.count_nonzero(np.diff(uniq) > 1))
-    return ChannelAccount(
-        vc=vc,
-        sent=expected,
-        delivered=delivered,
-        lost=expected - delivered,
-        gaps=inner_gaps + int(uniq[0] > lo) + int(uniq[-1] < hi),
-        duplicates=int((~is_first).sum()),
-        out_of_order=int(late.sum()),
-        corrected=int((is_first & (n_corr > 0)).sum()),
-        symbols_corrected=int(n_corr[is_first].sum()),
-        head_known=head_known,
-        tail_known=tail_known,
-        first_count=lo,
-    )
+def merge_entries(into: dict[tuple[int, int], dict], new: dict[tuple[int, int], dict]) -> None:
+    """The entries of a later piece of the stream merged into ``into`` (in place)."""
+    for key, e in new.items():
+        old = into.get(key)
+        if old is None:
+            into[key] = e
+        else:
+            old["sent"] = max(old["sent"], e["sent"])
+            old["closed"] = old["closed"] or e["closed"]
+
+
+def status_tables(entries: dict[tuple[int, int], dict]) -> dict[int, dict]:
+    """Per VC, its status from the entries (:func:`status_entries`): the table's last
+    place holding it, the channels in the order they first appear."""
+    places = sorted(entries, key=lambda vk: (vk[1], vk[0]))
+    order = {v: i for i, (v, _) in reversed(list(enumerate(places)))}
+    last = {v: entries[(v, k)] for v, k in places}
+    return {v: dict(last[v]) for v in sorted(last, key=order.__getitem__)}
+
+
+class Ledger:
+    """One virtual channel's good frames, classified in arrival order piece by piece
+    (counts unwrapped the shortest way round, the first copy of each count delivered,
+    later copies duplicates, a first copy after a later count out of order), and its
+    account (:meth:`account`)."""
+
+    def __init__(self) -> None:
+        self.last24 = -1
+        self.last_u = 0
+        self.base = 0
+        self.seen = np.zeros(0, bool)  # counts delivered, from ``base``
+        self.top = np.iinfo(np.int64).min  # the highest count delivered so far
+        self.duplicates = self.out_of_order = self.corrected = self.symbols = 0
+
+    def _cover(self, lo: int, hi: int) -> None:
+        if self.seen.size == 0:
+            self.base, self.seen = lo, np.zeros(hi - lo + 1, bool)
+            return
+        new_lo, new_hi = min(lo, self.base), max(hi, self.base + self.seen.size - 1)
+        if new_lo < self.base or new_hi >= self.base + self.seen.size:
+            span = new_hi - new_lo + 1
+            grown = np.zeros(max(span, 2 * self.seen.size), bool)
+            grown[self.base - new_lo : self.base - new_lo + self.seen.size] = self.seen
+            self.base, self.seen = new_lo, grown
+
+    def classify(
+        self, count24: NDArray[np.int64], corrected: NDArray[np.int64]
+    ) -> tuple[NDArray[np.int64], NDArray[np.bool_], NDArray[np.bool_]]:
+        """A piece's good frames of the channel (24-bit counts, symbols corrected) in
+        arrival order: their unwrapped counts, which are first copies, which are late."""
+        if count24.size == 0:
+            e = np.zeros(0, np.int64)
+            return e, e.astype(bool), e.astype(bool)
+        prev = count24[0] if self.last24 < 0 else self.last24
+        step = (np.diff(count24, prepend=prev) + _HALF) % tf.VC_FRAME_COUNT_MODULUS - _HALF
+        u = (count24[0] if self.last24 < 0 else self.last_u) + np.cumsum(step)
+        self.last24, self.last_u = int(count24[-1]), int(u[-1])
+        self._cover(int(u.min()), int(u.max()))
+        _, first_idx = np.unique(u, return_index=True)
+        is_first = np.zeros(u.size, bool)
+        is_first[first_idx] = True
+        is_first &= ~self.seen[u - self.base]
+        self.seen[u[is_first] - self.base] = True
+        running = np.maximum.accumulate(
+            np.concatenate([[self.top], np.where(is_first, u, np.iinfo(np.int64).min)])
+        )
+        late = is_first & (u < running[:-1])
+        self.top = int(running[-1])
+        self.duplicates += int((~is_first).sum())
+        self.out_of_order += int(late.sum())
+        self.corrected += int((is_first & (corrected > 0)).sum())
+        self.symbols += int(corrected[is_first].sum())
+        return u, is_first, late
+
+    def account(self, vc: int, table: dict | None) -> ChannelAccount:
+        """The channel's frames accounted from what has been classified (module docstring)."""
+        uniq = np.flatnonzero(self.seen) + self.base
+        delivered = uniq.size
+        head_known = tail_known = False
+        lo, hi = int(uniq[0]), int(uniq[-1])
+        if table is not None:
+            first = _near(table["first"], lo)
+            if first > lo:  # the reported first cannot be after a frame received
+                first -= tf.VC_FRAME_COUNT_MODULUS
+            lo, head_known = first, True
+            hi = max(hi, first + table["sent"] - 1)
+            tail_known = table["closed"]
+        expected = hi - lo + 1
+        inner_gaps = int(np.count_nonzero(np.diff(uniq) > 1))
+        return ChannelAccount(
+            vc=vc,
+            sent=expected,
+            delivered=delivered,
+            lost=expected - delivered,
+            gaps=inner_gaps + int(uniq[0] > lo) + int(uniq[-1] < hi),
+            duplicates=self.duplicates,
+            out_of_order=self.out_of_order,
+            corrected=self.corrected,
+            symbols_corrected=self.symbols,
+            head_known=head_known,
+            tail_known=tail_known,
+            first_count=lo,
+        )

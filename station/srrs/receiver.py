@@ -33,22 +33,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from levels.readers.l0 import pixel_mask
-from station.srrs.accounting import (
-    CORRECTED,
-    DUPLICATE,
-    FALSE_SYNC,
-    FILL,
-    OK,
-    OUT_OF_ORDER,
-    STATUS_NAMES,
-    UNCORRECTABLE,
-    ChannelAccount,
-    account,
-    status_tables,
-)
+from station.srrs.accounting import CORRECTED, OK, OUT_OF_ORDER, STATUS_NAMES, ChannelAccount
+from station.srrs.assembler import Assembler, Found, StoredBand
 from station.srrs.errors import ReceiverError
 from station.srrs.frames import decode_cadus, find_cadus
-from station.srrs.packets import lines_from_packets, packets_of
 from station.telemetry import format as tf
 
 __all__ = [
@@ -83,7 +71,8 @@ class DecodedPass:
     mirror_step: int
     twin: bool
     first_line_counter: int
-    images: tuple[NDArray[np.uint8], ...]  # per band, (lines, detectors)
+    #: per band, (lines, detectors): in memory, or read from a front end's store
+    images: tuple[NDArray[np.uint8] | StoredBand, ...]
     valid: tuple[NDArray[np.bool_], ...]  # per band, (lines, segments)
     segment_first_detector: NDArray[np.int64]
     line_counter: NDArray[np.int64]
@@ -136,71 +125,11 @@ def receive(
     return assemble(found, n_bits, searched, losses)
 
 
-@dataclass(frozen=True, eq=False)
-class Found:
-    """The CADUs found in a stream, in stream order: bit offsets, whether each marker was
-    confirmed, their transfer frames (n, 892), the symbols corrected per codeword (n, 4;
-    −1 where uncorrectable), and whether Reed–Solomon then the CRC checked."""
-
-    offsets: NDArray[np.int64]
-    confirmed: NDArray[np.bool_]
-    frames: NDArray[np.uint8]
-    corrected: NDArray[np.int64]
-    rs_ok: NDArray[np.bool_]
-    crc_ok: NDArray[np.bool_]
-
-
 def assemble(found: Found, n_bits: int, searched: int, losses: int) -> DecodedPass:
     """The frames found in a stream of ``n_bits`` (``searched`` bits scanned, the lock lost
     ``losses`` times) accounted, cut into packets and lines (module docstring): what
-    :func:`receive` makes of a recorded pass, and the live front end of a stream so far
-    (:mod:`station.srrs.stream`)."""
-    offsets, confirmed, frames = found.offsets, found.confirmed, found.frames
-    corrected, rs_ok, crc_ok = found.corrected, found.rs_ok, found.crc_ok
-    head = np.ascontiguousarray(frames[:, :6])
-    word = (head[:, 0].astype(np.int64) << 8) | head[:, 1]
-    version, scid, vc = word >> 14, (word >> 6) & 0xFF, word & 0x3F
-    count24 = tf.from_u24(head[:, 2:5])
-    good = rs_ok & crc_ok & (version == 1) & (scid == tf.SPACECRAFT_ID)
-    n_corr = np.where(corrected < 0, 0, corrected).sum(axis=1)
-    status = np.where(good, np.where(n_corr > 0, CORRECTED, OK), UNCORRECTABLE)
-    status[~good & ~confirmed] = FALSE_SYNC
-    fill = good & (vc == tf.VC_FILL)
-    tables = status_tables(frames, np.flatnonzero(fill))
-    unwrapped = np.full(offsets.size, -1, np.int64)
-    accounts = {}
-    for v in np.unique(vc[good]):  # a few channels
-        rows = np.flatnonzero(good & (vc == v))
-        accounts[int(v)] = account(
-            int(v), rows, count24, n_corr, status, tables.get(int(v)), unwrapped
-        )
-    for v, t in tables.items():  # channels that sent frames none of which arrived
-        if v not in accounts:
-            accounts[v] = ChannelAccount(
-                v, t["sent"], 0, t["sent"], 1, 0, 0, 0, 0, True, t["closed"], t["first"]
-            )
-    status[fill & (status != DUPLICATE)] = FILL
-
-    data_vcs = [v for v in accounts if v != tf.VC_FILL and np.any(good & (vc == v))]
-    if not data_vcs:
-        raise ReceiverError(
-            "no data frame could be decoded in the stream "
-            f"({offsets.size} markers found in {n_bits} bits)"
-        )
-    data_vc = data_vcs[0]
-    rows = np.flatnonzero(good & (vc == data_vc))
-    zone, starts, lengths, dropped = packets_of(frames, rows, unwrapped)
-    decoded = lines_from_packets(zone, starts, lengths)
-    decoded["packets"]["dropped_at_gaps"] = dropped
-    return DecodedPass(
-        frame_bit_offset=offsets,
-        frame_status=status,
-        frame_vc=np.where(good, vc, -1),
-        frame_count=unwrapped,
-        frame_symbols_corrected=n_corr,
-        accounts=accounts,
-        bits_in=n_bits,
-        bits_searched=searched,
-        sync_losses=losses,
-        **decoded,
-    )
+    :func:`receive` makes of a recorded pass, one piece of
+    :class:`station.srrs.assembler.Assembler`'s."""
+    assembler = Assembler()
+    assembler.add(found)
+    return DecodedPass(**assembler.result(n_bits, searched, losses, final=True))

@@ -6,20 +6,23 @@ so far.
 piece is searched for markers from where the last one left off (the resumable search of
 :func:`station.srrs.frames.find_more`: every decision that needs a bit not yet arrived
 waits for it), and the code blocks found are decoded at once; the bytes behind the
-search's horizon are let go. :meth:`decoded` runs the rest of the receiver (accounting,
-packets, lines, the line clock: :func:`station.srrs.receiver.assemble`) on the frames
-found so far, as a pass's archive written while it goes on says it; :meth:`finish` ends
-the stream (its exact length in bits, when the sender says it) and returns what
+search's horizon are let go. The frames found go at once to the rest of the receiver
+(accounting, packets, lines: :class:`station.srrs.assembler.Assembler`, in bounded memory
+when given a spool directory) and are let go too. :meth:`decoded` is the receiver's pass
+of what has arrived (a pass's archive written while it goes on); :meth:`finish` ends the
+stream (its exact length in bits, when the sender says it) and returns what
 :func:`station.srrs.receiver.receive` makes of the whole stream, array for array.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from station.srrs.assembler import REORDER_WINDOW, Assembler, Found
 from station.srrs.frames import (
     LOSSES,
     POS,
@@ -29,7 +32,7 @@ from station.srrs.frames import (
     horizon_bit,
     sync_state,
 )
-from station.srrs.receiver import DecodedPass, Found, assemble
+from station.srrs.receiver import DecodedPass
 from station.telemetry import format as tf
 
 __all__ = ["StreamDecoder"]
@@ -43,34 +46,33 @@ class StreamDecoder:
         search_tolerance: int = 3,
         lock_tolerance: int = 8,
         on_frames: Callable[[NDArray[np.uint8], Found], None] | None = None,
+        spool: Path | None = None,
+        window: int = REORDER_WINDOW,
     ) -> None:
         """``on_frames(cadus, found)``: called with each piece's CADUs as received (n,
         1024: the marker and the randomised code block, from their bit offsets) and what
-        their decoding found (an SLE provider's frames: :mod:`station.live.raf`)."""
+        their decoding found (an SLE provider's frames: :mod:`station.live.raf`).
+        ``spool``: where the assembler keeps the lines and image packets (a directory;
+        None: in memory); ``window``: its reorder window (frames)."""
         self._tolerances = (search_tolerance, lock_tolerance)
         self.on_frames = on_frames
         self._state = sync_state()
         self._buffer = np.zeros(0, np.uint8)
         self._base_bit = 0  # the buffer's first bit in the stream
         self.n_bytes = 0  # bytes received
-        self._found: list[Found] = []
+        self.assembler = Assembler(spool, window)
         self.ended = False
-
-    @property
-    def n_frames(self) -> int:
-        """CADUs found so far."""
-        return sum(f.offsets.size for f in self._found)
+        self.n_frames = 0  # CADUs found so far
+        self._rs_ok = self._corrected = 0
 
     def counts(self) -> dict[str, int]:
         """What has come so far: bytes, CADUs found, and how many decoded clean, corrected,
         or not at all (the progress line's)."""
-        rs_ok = sum(int(f.rs_ok.sum()) for f in self._found)
-        corrected = sum(int(((f.corrected > 0).any(axis=1) & f.rs_ok).sum()) for f in self._found)
         return {
             "bytes": self.n_bytes,
             "frames": self.n_frames,
-            "corrected": corrected,
-            "uncorrectable": self.n_frames - rs_ok,
+            "corrected": self._corrected,
+            "uncorrectable": self.n_frames - self._rs_ok,
         }
 
     def feed(self, data: bytes | NDArray[np.uint8]) -> int:
@@ -89,7 +91,10 @@ class StreamDecoder:
         if offsets.size:
             frames, corrected, rs_ok, crc_ok = decode_cadus(self._buffer, offsets - self._base_bit)
             found = Found(offsets, confirmed, frames, corrected, rs_ok, crc_ok)
-            self._found.append(found)
+            self.n_frames += int(offsets.size)
+            self._rs_ok += int(rs_ok.sum())
+            self._corrected += int(((corrected > 0).any(axis=1) & rs_ok).sum())
+            self.assembler.add(found)
             if self.on_frames is not None:
                 self.on_frames(_cadus_at(self._buffer, offsets - self._base_bit), found)
         keep = (horizon_bit(self._state) >> 3) - (self._base_bit >> 3)
@@ -98,23 +103,11 @@ class StreamDecoder:
             self._base_bit += 8 * keep
         return int(offsets.size)
 
-    def _all(self) -> Found:
-        if not self._found:
-            e = np.zeros(0, np.int64)
-            return Found(
-                e, e.astype(bool), np.zeros((0, 892), np.uint8), np.zeros((0, 4), np.int64),
-                e.astype(bool), e.astype(bool),
-            )  # fmt: skip
-        if len(self._found) > 1:  # one array of each, kept so for the next call
-            self._found = [
-                Found(*(np.concatenate([getattr(f, k) for f in self._found]) for k in _FIELDS))
-            ]
-        return self._found[0]
-
     def decoded(self) -> DecodedPass:
         """The receiver on the frames found so far, the stream cut where it stands."""
         s = self._state
-        return assemble(self._all(), 8 * self.n_bytes, int(s[SEARCHED]), int(s[LOSSES]))
+        fields = self.assembler.result(8 * self.n_bytes, int(s[SEARCHED]), int(s[LOSSES]))
+        return DecodedPass(**fields)
 
     def finish(self, n_bits: int | None = None) -> DecodedPass:
         """The stream has ended (``n_bits`` of it, default every byte's): the last
@@ -125,15 +118,12 @@ class StreamDecoder:
         self._search(n, final=True)
         self.ended = True
         s = self._state
-        return assemble(self._all(), n, int(s[SEARCHED]), int(s[LOSSES]))
+        return DecodedPass(**self.assembler.result(n, int(s[SEARCHED]), int(s[LOSSES]), True))
 
     @property
     def position_bit(self) -> int:
         """Where the search stands in the stream (bits)."""
         return int(self._state[POS])
-
-
-_FIELDS = ("offsets", "confirmed", "frames", "corrected", "rs_ok", "crc_ok")
 
 
 def _cadus_at(buffer: NDArray[np.uint8], bits: NDArray[np.int64]) -> NDArray[np.uint8]:
