@@ -489,6 +489,11 @@ class DownlinkConfig:
     postamble_s: float = option(
         0.2, "postamble_s", "fill frames sent after the last data", 1.0, 0.0, 60.0
     )
+    one_connection: bool = option(
+        False,
+        "one_connection",
+        "the channels of a two-HRV pass multiplexed on one connection to a live front end",
+    )
     first_frame_count: int = option(
         -1,
         "first_frame_count",

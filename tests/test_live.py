@@ -84,9 +84,11 @@ def serving(where: Path, *extra: str) -> Iterator[tuple[subprocess.Popen, int]]:
         log.close()
 
 
-def _transmit(scenario: Path, port: int, speed: str = "max") -> subprocess.CompletedProcess:
+def _transmit(
+    scenario: Path, port: int, speed: str = "max", *more: str
+) -> subprocess.CompletedProcess:
     cmd = [sys.executable, "-m", "station.cli", "transmit", str(scenario)]
-    cmd += ["--to", f"127.0.0.1:{port}", "--speed", speed, "--json"]
+    cmd += ["--to", f"127.0.0.1:{port}", "--speed", speed, "--json", *more]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=PASS_S, check=False)
 
 
@@ -162,18 +164,24 @@ def test_a_served_pass_is_the_runs_archive_byte_for_byte(noisy_run: Path, tmp_pa
 
 
 def test_a_twin_pass_on_its_two_channels(tmp_path: Path) -> None:
-    """Both HRVs of a twin pass, each on its channel at once: both archives are the
-    run's."""
+    """Both HRVs of a twin pass, each on its channel at once, then both multiplexed on one
+    connection (``[downlink] one_connection``): both archives are the run's, each time."""
     scenario = tmp_path / "twin_live.toml"
     scenario.write_text(TWIN)
     run = _run(scenario, tmp_path / "run")
-    with serving(tmp_path, "--passes", "1") as (proc, port):
+    with serving(tmp_path, "--passes", "2") as (proc, port):
         sent = _transmit(scenario, port)
         assert sent.returncode == 0, sent.stderr
+        assert json.loads(sent.stdout)["connections"] == 2
+        together = _transmit(scenario, port, "max", "--one-connection")
+        assert together.returncode == 0, together.stderr
+        assert json.loads(together.stdout)["connections"] == 1
         assert proc.wait(PASS_S) == 0, (tmp_path / "serve.log").read_text()
-    for tag in ("twin_live_hrv1", "twin_live_hrv2"):
-        served = tmp_path / "served" / "twin_live" / f"{tag}.l0.h5"
-        assert served.read_bytes() == (run / f"{tag}.l0.h5").read_bytes(), tag
+    for where in ("twin_live", "twin_live_2"):
+        for tag in ("twin_live_hrv1", "twin_live_hrv2"):
+            served = tmp_path / "served" / where / f"{tag}.l0.h5"
+            assert served.read_bytes() == (run / f"{tag}.l0.h5").read_bytes(), (where, tag)
+        assert not list((tmp_path / "served" / where).glob("*.spool"))  # let go once archived
 
 
 def test_a_server_killed_mid_pass_leaves_a_readable_archive(

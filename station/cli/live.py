@@ -63,6 +63,13 @@ def register(sub: Subparsers) -> None:
     t.add_argument(
         "--speed", default="1", help="a multiple of the line rate (1: real time), or max"
     )
+    t.add_argument(
+        "--one-connection",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="the pass's channels multiplexed on one connection, or each on its own "
+        "(default: as the scenario's [downlink] one_connection says)",
+    )
     add_json(t)
     t.set_defaults(func=_transmit, levels=None)
 
@@ -170,7 +177,7 @@ def _transmit(args: argparse.Namespace) -> int:
     from station.live.sender import transmit
 
     host, port = _address(args.to)
-    said = transmit(Path(args.source), host, port, _speed(args.speed))
+    said = transmit(Path(args.source), host, port, _speed(args.speed), args.one_connection)
     emit(args, said, _transmit_text)
     return 0
 

@@ -40,10 +40,12 @@ from station.live.nrt import NearRealTime
 from station.live.raf import RafConfig, RafProvider
 from station.live.wire import (
     CHANNEL,
+    MULTIPLEX,
     PASS,
     Announcement,
     ChannelInfo,
     WireError,
+    read_channel_piece,
     read_header,
     read_piece,
 )
@@ -140,6 +142,8 @@ class FrontEnd:
                     self._announce(sock, Announcement.of_json(header or {}))
                 elif kind == CHANNEL:
                     self._framed(sock, header or {}, peer)
+                elif kind == MULTIPLEX:
+                    self._multiplexed(sock, header or {}, peer)
                 else:
                     self._raw(sock, first, peer)
         except (WireError, OSError) as exc:
@@ -211,6 +215,48 @@ class FrontEnd:
         self._finish(p, c, n_bits)
         with contextlib.suppress(OSError):
             sock.sendall(b"OK")
+
+    def _multiplexed(self, sock: socket.socket, header: dict, peer: str) -> None:
+        """A pass's channels on one connection (:mod:`station.live.wire`)."""
+        tags = [str(t) for t in header.get("tags", [])]
+        claimed = [self._claim(str(header.get("pass")), t) for t in tags]
+        if not tags or any(got is None for got in claimed):
+            for got in claimed:  # none taken: the connection is refused whole
+                if got is not None:
+                    self._unclaim(got[1])
+            _log.warning(
+                "%s: a connection for channels %s of pass %s, which no announced pass "
+                "awaits (or other streams hold): refused", peer, tags, header.get("pass"),
+            )  # fmt: skip
+            sock.sendall(b"NO")
+            return
+        open_ = dict(enumerate(got for got in claimed if got is not None))
+        try:
+            while open_:
+                index, data, n_bits = read_channel_piece(sock)
+                if index is None:
+                    break
+                if index not in open_:
+                    raise WireError(f"a piece for channel {index} of {len(tags)}, or one ended")
+                p, c = open_[index]
+                if data is not None:
+                    c.decoder.feed(data)
+                    self._checkpoint(p, c)
+                else:
+                    self._finish(p, c, n_bits)
+                    del open_[index]
+        finally:
+            for p, c in open_.values():  # the connection closed before their ends
+                self._finish(p, c, None)
+        with contextlib.suppress(OSError):
+            sock.sendall(b"OK")
+
+    def _unclaim(self, c: _Channel) -> None:
+        with self._lock:
+            c.decoder.assembler.close()
+            if c.spool is not None:
+                c.spool.rmdir()
+            c.connected = False
 
     def _raw(self, sock: socket.socket, first: bytes, peer: str) -> None:
         claimed = self._claim(None, None)

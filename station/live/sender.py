@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from station.errors import StationError
 from station.live.wire import (
     CHANNEL,
+    MULTIPLEX,
     Announcement,
     ChannelInfo,
     end_of_stream,
@@ -46,10 +47,11 @@ class Stream:
     bit_rate_bit_per_s: float
 
 
-def emulated_streams(scenario: Path) -> tuple[Announcement, list[Stream]]:
+def emulated_streams(scenario: Path) -> tuple[Announcement, list[Stream], bool]:
     """A pass's scenario emulated and sent through its downlink and channel, each HRV on
     its channel, as ``station run`` does (its tags, its random draws): the announcement of
-    the pass and each channel's stream."""
+    the pass, each channel's stream, and whether they share one connection
+    (``[downlink] one_connection``)."""
     from station.chain.session import ancillary_of, downlink
     from station.loader import load_scenario
     from station.spacecraft.emulator import emulate_pass
@@ -70,7 +72,8 @@ def emulated_streams(scenario: Path) -> tuple[Announcement, list[Stream]]:
         )
         streams.append(Stream(tag, rx.stream[: -(-rx.n_bits // 8)], int(rx.n_bits), rate))
     cut = {"scene_lines": scn.processing.scene_lines, "overlap_lines": scn.processing.overlap_lines}
-    return Announcement(scn.name, tuple(channels), scn.provenance(), cut), streams
+    ann = Announcement(scn.name, tuple(channels), scn.provenance(), cut)
+    return ann, streams, scn.downlink.one_connection
 
 
 def _connect(host: str, port: int) -> socket.socket:
@@ -116,22 +119,60 @@ def _send(
     said[stream.tag] = {"bytes": len(data), "seconds": time.perf_counter() - t0}
 
 
-def transmit(source: Path, host: str, port: int, speed: float | None = 1.0) -> dict[str, object]:
+def _send_multiplexed(
+    host: str, port: int, streams: list[Stream], pass_name: str, speed: float | None, said: dict
+) -> None:
+    """Every channel on one connection: each channel's pieces in the order their line
+    rates make them (``speed`` times; None: as fast as the link takes), interleaved."""
+    t0 = time.perf_counter()
+    due = []  # (when the piece is whole, channel, start)
+    for k, st in enumerate(streams):
+        per_s = st.bit_rate_bit_per_s / 8.0 * (speed or 1.0)
+        for start in range(0, st.data.size, PIECE_BYTES):
+            due.append((min(start + PIECE_BYTES, st.data.size) / per_s, k, start))
+    due.sort()
+    with _connect(host, port) as sock:
+        sock.sendall(pack_header(MULTIPLEX, {"pass": pass_name, "tags": [s.tag for s in streams]}))
+        ends = [(streams[k].data.size, k) for k in range(len(streams))]
+        for when, k, start in due:
+            if speed is not None and (ahead := t0 + when - time.perf_counter()) > 0:
+                time.sleep(ahead)
+            chunk = streams[k].data[start : start + PIECE_BYTES].tobytes()
+            sock.sendall(bytes([k]) + piece(chunk))
+            if start + PIECE_BYTES >= ends[k][0]:
+                sock.sendall(bytes([k]) + end_of_stream(streams[k].n_bits))
+        sock.shutdown(socket.SHUT_WR)
+        read_exact(sock, 2)  # the front end's "OK" once it has every stream
+    for st in streams:
+        said[st.tag] = {"bytes": int(st.data.size), "seconds": time.perf_counter() - t0}
+
+
+def transmit(
+    source: Path,
+    host: str,
+    port: int,
+    speed: float | None = 1.0,
+    one_connection: bool | None = None,
+) -> dict[str, object]:
     """Send ``source`` (a pass's scenario, or a recorded ``.cadu`` file) to the front end
     at ``host:port``, every channel at once, at ``speed`` times the line rate (None: as
-    fast as the link takes); returns what was sent and how fast."""
+    fast as the link takes), each on its connection or all on one (``one_connection``;
+    None: as the scenario's downlink says); returns what was sent and how fast."""
     if speed is not None and not speed > 0:
         raise StationError(f"--speed {speed}: a positive multiple of the line rate, or max")
     source = Path(source)
     if not source.is_file():
         raise StationError(f"{source}: no such file")
     if source.suffix == ".toml":
-        announcement, streams = emulated_streams(source)
+        announcement, streams, shared = emulated_streams(source)
         name: str | None = announcement.name
+        one_connection = shared if one_connection is None else one_connection
         _announce(host, port, announcement)
     else:  # a recorded stream, replayed as it is (a raw connection)
         data = np.fromfile(source, np.uint8)
         streams, name = [Stream(source.stem, data, 8 * data.size, 25e6)], None
+        if one_connection:
+            raise StationError(f"{source}: a recorded stream is one channel, not several")
     said: dict[str, dict[str, float]] = {}
     failures: list[BaseException] = []
 
@@ -141,7 +182,17 @@ def transmit(source: Path, host: str, port: int, speed: float | None = 1.0) -> d
         except BaseException as exc:
             failures.append(exc)
 
-    threads = [threading.Thread(target=one, args=(s,), daemon=True) for s in streams]
+    def together() -> None:
+        try:
+            _send_multiplexed(host, port, streams, str(name), speed, said)
+        except BaseException as exc:
+            failures.append(exc)
+
+    threads = (
+        [threading.Thread(target=together, daemon=True)]
+        if one_connection
+        else [threading.Thread(target=one, args=(s,), daemon=True) for s in streams]
+    )
     for t in threads:
         t.start()
     for t in threads:
@@ -154,6 +205,7 @@ def transmit(source: Path, host: str, port: int, speed: float | None = 1.0) -> d
     return {
         "pass": name or source.name,
         "speed": "max" if speed is None else speed,
+        "connections": 1 if one_connection else len(streams),
         "channels": [
             {"tag": s.tag, **said[s.tag], "line_rate_mbps": s.bit_rate_bit_per_s / 1e6}
             for s in streams

@@ -13,7 +13,14 @@ and the bytes), ended by a piece of length 0 and the stream's exact length in bi
 bytes: a demodulator's last byte may be part filled). A connection that closes before that
 end is a stream cut where it stopped: a gap in the accounting, not an error.
 
-A connection whose first bytes are neither is a **raw** CADU stream (another tool's, a
+Both channels of a pass may share one connection instead (``[downlink] one_connection``,
+``station transmit --one-connection``): the 8 bytes ``SPOTMUXC``, a length and a JSON
+header (the pass and its channels' tags, in order), then each channel's pieces as they
+come, interleaved, each led by its channel's index (1 byte); a channel ends as it does on
+its own connection (its index, a length 0, its length in bits), the connection when every
+channel has ended. A connection that closes before a channel's end cuts that channel.
+
+A connection whose first bytes are none of these is a **raw** CADU stream (another tool's, a
 recorded ``.cadu`` file replayed): every byte is the stream's, to the connection's close.
 """
 
@@ -35,6 +42,7 @@ from station.srrs.recorder import BandAncillary
 
 __all__ = [
     "CHANNEL",
+    "MULTIPLEX",
     "PASS",
     "Announcement",
     "ChannelInfo",
@@ -44,7 +52,7 @@ __all__ = [
     "read_header",
 ]
 
-PASS, CHANNEL = b"SPOTPASS", b"SPOTCHAN"
+PASS, CHANNEL, MULTIPLEX = b"SPOTPASS", b"SPOTCHAN", b"SPOTMUXC"
 #: A header longer than this is not one (a raw stream that happens to start so).
 MAX_HEADER_BYTES = 64 << 20
 _LENGTH = struct.Struct(">I")
@@ -197,10 +205,10 @@ def read_exact(sock: socket.socket, n: int) -> bytes:
 
 
 def read_header(sock: socket.socket) -> tuple[bytes, dict | None, bytes]:
-    """What a connection starts with: ``(PASS | CHANNEL, its JSON, b"")``, or ``(b"",
+    """What a connection starts with: ``(PASS | CHANNEL | MULTIPLEX, its JSON, b"")``, or ``(b"",
     None, the first bytes)`` for a raw stream."""
     head = read_exact(sock, 8)
-    if head not in (PASS, CHANNEL):
+    if head not in (PASS, CHANNEL, MULTIPLEX):
         return b"", None, head
     raw = read_exact(sock, 4)
     if len(raw) < 4:
@@ -229,3 +237,16 @@ def read_piece(sock: socket.socket) -> tuple[bytes | None, int | None]:
         return (None, _BITS.unpack(bits)[0]) if len(bits) == 8 else (None, None)
     data = read_exact(sock, n)
     return (data, None) if data else (None, None)
+
+
+def read_channel_piece(sock: socket.socket) -> tuple[int | None, bytes | None, int | None]:
+    """The next piece of a multiplexed connection: ``(channel, bytes, None)``; at a
+    channel's end ``(channel, None, n_bits)``; ``(None, None, None)`` when the connection
+    closed (the channels not ended are cut there)."""
+    index = read_exact(sock, 1)
+    if not index:
+        return None, None, None
+    data, n_bits = read_piece(sock)
+    if data is None and n_bits is None:
+        return None, None, None
+    return index[0], data, n_bits

@@ -68,8 +68,9 @@ __all__ = ["REORDER_WINDOW", "Assembler", "FileLines", "Found", "Lines", "Stored
 #: emulator's channel displaces by 1000 at most (``[channel] reorder_distance``) and
 #: replays 50 by default; 7.3 MB of frames.
 REORDER_WINDOW = 8192
-#: Lines a file store reads and writes at a time.
-BLOCK_LINES = 512
+#: Lines a file store reads and writes at a time, and the blocks it keeps (a P block is
+#: 3 MB).
+BLOCK_LINES, CACHED_BLOCKS = 512, 2
 _H0 = tf.FRAME_HEADER_BYTES
 _NO_AUX = np.zeros(0, tf.AUX_DTYPE)
 
@@ -107,35 +108,65 @@ class Lines:
 
 class FileLines(Lines):
     """The strip's image lines in a file (band after band, a sparse file of zeros at
-    first), read and written a block of lines at a time: the memory of a block, whatever
-    the strip's length."""
+    first), placed a block of lines at a time through a cache of the last
+    :data:`CACHED_BLOCKS` blocks (the lines arrive in order): the memory of a few blocks,
+    whatever the strip's length."""
 
     def __init__(self, path: Path, n_bands: int, n_lines: int, n_detectors: int) -> None:
         self.shape = (n_bands, n_lines, n_detectors)
         self.path = Path(path)
         self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644)
         os.ftruncate(self._fd, n_bands * n_lines * n_detectors)
+        self._cache: dict[int, NDArray[np.uint8]] = {}  # block → (bands, lines, detectors)
+        self._dirty: set[int] = set()
 
     def read(self, band: int, a: int, b: int) -> NDArray[np.uint8]:
+        """Lines ``a`` to ``b`` of a band, as the file holds them (:meth:`flush` first)."""
         _, n_lines, n_det = self.shape
         raw = os.pread(self._fd, (b - a) * n_det, (band * n_lines + a) * n_det)
         return np.frombuffer(raw, np.uint8).reshape(b - a, n_det).copy()
 
+    def _block(self, block: int) -> NDArray[np.uint8]:
+        rows = self._cache.pop(block, None)
+        if rows is None:
+            a, b = self._span(block)
+            rows = np.stack([self.read(k, a, b) for k in range(self.shape[0])])
+        self._cache[block] = rows  # the most recent last
+        while len(self._cache) > CACHED_BLOCKS:
+            oldest = next(iter(self._cache))
+            self._write(oldest)
+            del self._cache[oldest]
+        return rows
+
+    def _span(self, block: int) -> tuple[int, int]:
+        return block * BLOCK_LINES, min((block + 1) * BLOCK_LINES, self.shape[1])
+
+    def _write(self, block: int) -> None:
+        if block in self._dirty:
+            _, n_lines, n_det = self.shape
+            a, _ = self._span(block)
+            for k, rows in enumerate(self._cache[block]):
+                os.pwrite(self._fd, rows.tobytes(), (k * n_lines + a) * n_det)
+            self._dirty.discard(block)
+
+    def flush(self) -> None:
+        """Every block placed, in the file."""
+        for block in list(self._dirty):
+            self._write(block)
+
     def place(self, zone: NDArray[np.uint8], seg: Segments) -> None:
-        n_bands, n_lines, n_det = self.shape
-        for block in np.unique(seg.row // BLOCK_LINES):  # a few blocks a piece
-            a, b = int(block) * BLOCK_LINES, min(int(block + 1) * BLOCK_LINES, n_lines)
-            sel = (seg.row >= a) & (seg.row < b)
+        for block in np.unique(seg.row // BLOCK_LINES):  # a block or two a piece
+            a, _ = self._span(int(block))
+            sel = (seg.row >= a) & (seg.row < a + BLOCK_LINES)
             part = Segments(
                 seg.starts[sel], seg.row[sel], seg.band[sel], seg.first_detector[sel],
                 seg.count[sel], seg.encoding[sel], 0,
             )  # fmt: skip
-            rows = np.stack([self.read(k, a, b) for k in range(n_bands)])
-            place_segments(zone, part, rows, a)
-            for k in range(n_bands):
-                os.pwrite(self._fd, rows[k].tobytes(), (k * n_lines + a) * n_det)
+            place_segments(zone, part, self._block(int(block)), a)
+            self._dirty.add(int(block))
 
     def bands(self) -> tuple[NDArray[np.uint8] | StoredBand, ...]:
+        self.flush()
         return tuple(StoredBand(self, k) for k in range(self.shape[0]))
 
     def close(self) -> None:
@@ -166,8 +197,8 @@ class StoredBand:
 
 
 class _Spool:
-    """The image packets as received (zone, starts, lengths, ids), to lay again: in
-    memory (references to each piece's zone), or appended to a file."""
+    """The image packets as received (zone, starts, lengths), to lay again: in memory
+    (references to each piece's zone), or each piece's zone appended to a file."""
 
     def __init__(self, path: Path | None) -> None:
         self.path = path
@@ -183,13 +214,10 @@ class _Spool:
         if self.path is None:
             self._pieces.append((zone, starts, lengths))
             return
-        total = int(lengths.sum())
-        within = np.arange(total) - np.repeat(np.cumsum(lengths) - lengths, lengths)
         self._f.seek(self._size)
-        self._f.write(zone[np.repeat(starts, lengths) + within].tobytes())
-        offsets = self._size + np.cumsum(lengths) - lengths
-        self._index.append(np.stack([offsets, lengths], 1))
-        self._size += total
+        self._f.write(memoryview(np.ascontiguousarray(zone)))  # the piece's zone, whole
+        self._index.append(np.stack([self._size + starts, lengths], 1))
+        self._size += int(zone.size)
 
     def replay(self) -> Iterator[tuple[NDArray[np.uint8], NDArray[np.int64], NDArray[np.int64]]]:
         if self.path is None:
@@ -280,21 +308,34 @@ class Assembler:
 
     def _release(self, final: bool) -> None:
         """The waiting frames no later arrival can precede, to the packet cutter in
-        count order."""
-        if not self._waiting:
+        count order (a piece's frames move whole, but for the piece astride the limit)."""
+        limit = np.iinfo(np.int64).max
+        if not final and self.data_vc is not None:
+            limit = self._ledgers[self.data_vc].top - self.window
+        go_u, go_frames, keep = [], [], []
+        for u, frames in self._waiting:
+            if u.max() <= limit:
+                go_u.append(u)
+                go_frames.append(frames)
+            elif u.min() > limit:
+                keep.append((u, frames))
+            else:
+                go = u <= limit
+                go_u.append(u[go])
+                go_frames.append(frames[go])
+                keep.append((u[~go], frames[~go]))
+        self._waiting = keep
+        if not go_u:
             if final:
                 self._cut(np.zeros(0, np.int64), np.zeros((0, tf.FRAME_BYTES), np.uint8), True)
             return
-        u = np.concatenate([w[0] for w in self._waiting])
-        frames = np.concatenate([w[1] for w in self._waiting])
-        limit = np.iinfo(np.int64).max if final else self._ledgers[self.data_vc].top - self.window  # type: ignore[index]
-        go = u <= limit
-        self._waiting = [(u[~go], frames[~go])] if (~go).any() else []
-        order = np.argsort(u[go], kind="stable")
-        if go.any() or final:
-            if go.any():
-                self._released = max(self._released, int(u[go].max()))
-            self._cut(u[go][order], frames[go][order], final)
+        u = np.concatenate(go_u)
+        frames = np.concatenate(go_frames)
+        self._released = max(self._released, int(u.max()))
+        if np.any(u[1:] < u[:-1]):  # displaced frames put back in their place
+            order = np.argsort(u, kind="stable")
+            u, frames = u[order], frames[order]
+        self._cut(u, frames, final)
 
     def _cut(self, u: NDArray[np.int64], frames: NDArray[np.uint8], final: bool) -> None:
         zone, starts, lengths, dropped, (pos, anchor, f), seq, fr = self._cut_from(u, frames, final)
