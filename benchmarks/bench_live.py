@@ -51,15 +51,16 @@ STATION_RATE_BIT_PER_S = 50e6  # two channels of 25 Mbit/s
 REAL_TIME_TARGET, FILE_ROUTE_SHARE = 1.0, 2 / 3
 PIECE_BYTES = 1 << 20
 #: The long stream: its length in seconds of the pass, its detectors, the sender's speed.
-LONG_S, LONG_DETECTORS, LONG_SPEED = size(600, 12), size(1000, 100), 4.0
+LONG_S = float(os.environ.get("BENCH_LIVE_LONG_S", size(600, 12)))
+LONG_DETECTORS, LONG_SPEED = size(1000, 100), 4.0
 HRV_LINE_PERIOD_S, HRV_DETECTORS = 1.5e-3, 6000
 
 
-def _serve(where: Path) -> tuple[subprocess.Popen, int]:
+def _serve(where: Path, checkpoint_s: str = "3600") -> tuple[subprocess.Popen, int]:
     env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
     cmd = [sys.executable, "-m", "station.cli", "serve", "--port", "0", "--passes", "1"]
     cmd += ["--port-file", str(where / "port"), "--out", str(where / "served"), "-q"]
-    cmd += ["--checkpoint", "3600"]  # the archive at the end: the decoding is timed
+    cmd += ["--checkpoint", checkpoint_s]  # 3600: the archive at the end, the decoding timed
     proc = subprocess.Popen(cmd, env=env, cwd=where)
     deadline = time.monotonic() + 120
     while not (where / "port").is_file():
@@ -121,7 +122,7 @@ def _send(port: int, ann: Announcement, data: bytes, n_bits: int, rate: float | 
             if rate is not None:  # the line rate's schedule
                 time.sleep(max(0.0, t + start / rate - time.perf_counter()))
             s.sendall(piece(data[start : start + PIECE_BYTES]))
-            sent[0] = start + PIECE_BYTES
+            sent[0] = min(start + PIECE_BYTES, len(data))
         s.sendall(end_of_stream(n_bits))
         s.shutdown(socket.SHUT_WR)
         s.settimeout(600)
@@ -139,12 +140,12 @@ def _long_stream() -> None:
     stream_s = len(data) / rate
     with tempfile.TemporaryDirectory(prefix="bench-live-long-") as tmp:
         where = Path(tmp)
-        proc, port = _serve(where)
+        proc, port = _serve(where, "2")  # archives while it goes on, as served by default
         samples: list[tuple[float, float]] = []  # (fraction of the stream sent, RSS MB)
         sent, done = [0], threading.Event()
 
         def sample() -> None:
-            while not done.wait(0.25):
+            while not done.wait(0.1):
                 samples.append((sent[0] / len(data), _peak_rss_mb(proc.pid, "VmRSS")))
 
         sampler = threading.Thread(target=sample, daemon=True)
@@ -162,7 +163,16 @@ def _long_stream() -> None:
                 proc.wait(10)
         report = json.loads((where / "served" / "long" / "live.json").read_text())
     (channel,) = report["channels"]
-    at = [max((m for f, m in samples if f <= k / 10), default=float("nan")) for k in range(1, 11)]
+    during = [(f, m) for f, m in samples if f < 1]
+    at = [
+        max((m for f, m in during if (k - 1) / 10 < f <= k / 10), default=float("nan"))
+        for k in range(1, 11)
+    ]
+    after = max((m for f, m in samples if f >= 1), default=float("nan"))
+    lows = [
+        min((m for f, m in during if (k - 1) / 10 < f <= k / 10), default=float("nan"))
+        for k in range(1, 11)
+    ]
     print(
         f"long stream: {stream_s:.0f} s of a {rate * 8 / 1e6:.0f} Mbit/s session "
         f"({len(data) / 1e6:.0f} MB, {n_lines} lines of {LONG_DETECTORS} detectors) sent at "
@@ -171,10 +181,12 @@ def _long_stream() -> None:
         f"{channel.get('archives_written', 'n/a')}"
     )
     print(
-        "    front end's resident memory at each tenth of the stream (MB): "
-        + " ".join(f"{m:.0f}" for m in at)
-        + f"; before it {base_mb:.0f}, peak {peak_mb:.0f}; growth from the first tenth to "
-        f"the end {at[-1] - at[0]:+.0f} MB for {len(data) * 0.9 / 1e6:.0f} MB more stream"
+        "    front end's resident memory in each tenth of the stream (MB, lowest-highest): "
+        + " ".join(f"{lo:.0f}-{hi:.0f}" for lo, hi in zip(lows, at, strict=True))
+        + f"; before it {base_mb:.0f}; growth from the first tenth to the last "
+        f"{at[-1] - at[0]:+.0f} MB for {len(data) * 0.9 / 1e6:.0f} MB more stream; while the "
+        f"last archive is written {after:.0f}; peak {peak_mb:.0f} (VmHWM, the warm-up's "
+        "compilation included)"
     )
 
 

@@ -18,6 +18,7 @@ whole, checksummed, and read back with any damage turned into one error.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import hashlib
 import itertools
@@ -175,9 +176,16 @@ def deflated_dataset(
             part = block
         return _chunk_payload(part, shuffle, level)
 
-    with ThreadPoolExecutor(thread_count()) as pool:
-        for start, packed in zip(starts, pool.map(payload, starts), strict=True):
-            ds.id.write_direct_chunk(start, packed)
+    threads = thread_count()
+    with ThreadPoolExecutor(threads) as pool:  # a few chunks in flight, not every one
+        flight: collections.deque = collections.deque()
+        for start in starts:
+            flight.append((start, pool.submit(payload, start)))
+            if len(flight) >= 4 * threads:
+                done, packed = flight.popleft()
+                ds.id.write_direct_chunk(done, packed.result())
+        for done, packed in flight:
+            ds.id.write_direct_chunk(done, packed.result())
     return ds
 
 

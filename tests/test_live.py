@@ -344,7 +344,7 @@ def test_a_stream_cut_mid_frame_is_archived_as_cut(tmp_path: Path) -> None:
     from station.live.sender import emulated_streams
     from station.live.wire import CHANNEL, pack_header, piece
 
-    announcement, (stream,) = emulated_streams(NOISY)
+    announcement, (stream,), _ = emulated_streams(NOISY)
     half = stream.data[: stream.data.size // 2 + 517].tobytes()  # mid-frame
     with serving(tmp_path, "--passes", "1") as (proc, port):
         with socket.create_connection(("127.0.0.1", port), timeout=10) as s:

@@ -34,8 +34,9 @@ def lost_data_frames(tx: Transmission, d: DecodedPass) -> NDArray[np.int64]:
     acc = d.accounts.get(tx.data_vc)
     if acc is None:
         return np.arange(tx.sent[tx.data_vc])
-    got = (d.frame_vc == tx.data_vc) & np.isin(d.frame_status, [OK, CORRECTED, OUT_OF_ORDER])
-    delivered = np.unique(d.frame_count[got]) - acc.first_count
+    status, count = np.asarray(d.frame_status), np.asarray(d.frame_count)
+    got = (np.asarray(d.frame_vc) == tx.data_vc) & np.isin(status, [OK, CORRECTED, OUT_OF_ORDER])
+    delivered = np.unique(count[got]) - acc.first_count
     return np.setdiff1d(np.arange(tx.sent[tx.data_vc]), delivered)
 
 

@@ -26,6 +26,8 @@ channel brought (bytes, time, rate, frames and their accounting, whether it was 
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
 import functools
 import json
 import logging
@@ -68,6 +70,18 @@ RAW_PIECE_BYTES = 64 << 10
 PROGRESS_S = 1.0
 #: The piece of a stream decoded before the server listens (``tools/live_warmup.py``).
 WARM_UP_STREAM = Path(__file__).resolve().parents[1] / "data" / "warmup.cadu"
+
+
+def _give_back() -> None:
+    """The heap's free memory returned to the system after an archive is written (glibc
+    keeps what large transient arrays freed, and a front end's resident memory would be
+    its high-water mark); nothing where the C library has no ``malloc_trim``."""
+    trim = getattr(_LIBC, "malloc_trim", None)
+    if trim is not None:
+        trim(0)
+
+
+_LIBC = ctypes.CDLL(ctypes.util.find_library("c") or None)
 
 
 def warm_up() -> None:
@@ -322,6 +336,8 @@ class FrontEnd:
         c.next_archive_s = now + max(self.checkpoint_s, CHECKPOINT_SHARE * took)
         if self.nrt is not None:  # the scenes now complete, made meanwhile
             self.nrt.archived(c.info.tag, c.path, decoded)
+        del decoded
+        _give_back()
 
     @staticmethod
     def _progress(c: _Channel, now: float) -> None:
@@ -379,6 +395,7 @@ class FrontEnd:
                 _log.warning("%s: the stream was cut after %d bytes", c.info.tag, c.decoder.n_bytes)
         c.archived_s = time.perf_counter() - c.started_s
         c.decoder.assembler.close()  # the spool, once archived
+        _give_back()
         if c.spool is not None:
             c.spool.rmdir()
         if self.sle is not None:

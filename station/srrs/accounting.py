@@ -180,10 +180,15 @@ class Ledger:
 
     def account(self, vc: int, table: dict | None) -> ChannelAccount:
         """The channel's frames accounted from what has been classified (module docstring)."""
-        uniq = np.flatnonzero(self.seen) + self.base
-        delivered = uniq.size
+        seen = self.seen  # a byte a count: no array of the counts themselves is made
+        first = int(np.argmax(seen))
+        last = seen.size - 1 - int(np.argmax(seen[::-1]))
+        got_lo, got_hi = first + self.base, last + self.base
+        span = seen[first : last + 1]
+        delivered = int(np.count_nonzero(span))
+        inner_gaps = int(np.count_nonzero(span[:-1] & ~span[1:]))
         head_known = tail_known = False
-        lo, hi = int(uniq[0]), int(uniq[-1])
+        lo, hi = got_lo, got_hi
         if table is not None:
             first = _near(table["first"], lo)
             if first > lo:  # the reported first cannot be after a frame received
@@ -192,13 +197,12 @@ class Ledger:
             hi = max(hi, first + table["sent"] - 1)
             tail_known = table["closed"]
         expected = hi - lo + 1
-        inner_gaps = int(np.count_nonzero(np.diff(uniq) > 1))
         return ChannelAccount(
             vc=vc,
             sent=expected,
             delivered=delivered,
             lost=expected - delivered,
-            gaps=inner_gaps + int(uniq[0] > lo) + int(uniq[-1] < hi),
+            gaps=inner_gaps + int(got_lo > lo) + int(got_hi < hi),
             duplicates=self.duplicates,
             out_of_order=self.out_of_order,
             corrected=self.corrected,

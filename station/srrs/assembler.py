@@ -62,7 +62,15 @@ from station.srrs.packets import (
 )
 from station.telemetry import format as tf
 
-__all__ = ["REORDER_WINDOW", "Assembler", "FileLines", "Found", "Lines", "StoredBand"]
+__all__ = [
+    "REORDER_WINDOW",
+    "Assembler",
+    "FileLines",
+    "Found",
+    "Lines",
+    "SpooledColumn",
+    "StoredBand",
+]
 
 #: Frames a delivered frame waits for displaced or replayed frames before it: the
 #: emulator's channel displaces by 1000 at most (``[channel] reorder_distance``) and
@@ -215,7 +223,7 @@ class _Spool:
             self._pieces.append((zone, starts, lengths))
             return
         self._f.seek(self._size)
-        self._f.write(memoryview(np.ascontiguousarray(zone)))  # the piece's zone, whole
+        self._f.write(np.ascontiguousarray(zone).data)  # the piece's zone, whole
         self._index.append(np.stack([self._size + starts, lengths], 1))
         self._size += int(zone.size)
 
@@ -237,6 +245,71 @@ class _Spool:
             self.path.unlink(missing_ok=True)
 
 
+class SpooledColumn:
+    """One field of a front end's frame log as an array to read blocks from (its first
+    ``n`` values in the file): ``shape``, ``dtype``, slices read when asked, the whole
+    through ``np.asarray``."""
+
+    ndim = 1
+
+    def __init__(self, path: Path, dtype: type, n: int) -> None:
+        self.path, self.dtype, self.size = path, np.dtype(dtype), n
+        self.shape = (n,)
+
+    def __getitem__(self, key: slice) -> NDArray:
+        a, b, step = key.indices(self.size)
+        count = max(b - a, 0) if step == 1 else self.size
+        part = np.fromfile(self.path, self.dtype, count, offset=a * self.dtype.itemsize)
+        return part if step == 1 else part[key]
+
+    def __array__(self, dtype: object = None, copy: object = None) -> NDArray:
+        return self[:]
+
+    def blocks(self, n: int = 1 << 20) -> Iterator[NDArray]:
+        for a in range(0, self.size, n):
+            yield self[a : a + n]
+
+
+class _FrameLog:
+    """Each frame's bit offset, status, channel, unwrapped count and symbols corrected
+    (20 bytes a frame), piece by piece: in memory, or appended to files (one a field)."""
+
+    DTYPES = (np.int64, np.int8, np.int8, np.int64, np.int16)
+
+    def __init__(self, path: Path | None) -> None:
+        self.path = path
+        self._pieces: list[tuple[NDArray, ...]] = []
+        self._files = [] if path is None else [path.with_suffix(f".{k}") for k in range(5)]
+        self._handles = [f.open("wb") for f in self._files]
+        self.n = 0
+
+    def append(self, fields: tuple[NDArray, ...]) -> None:
+        fields = tuple(np.ascontiguousarray(a, d) for a, d in zip(fields, self.DTYPES, strict=True))
+        self.n += int(fields[0].size)
+        if self.path is None:
+            self._pieces.append(fields)
+        else:
+            for f, a in zip(self._handles, fields, strict=True):
+                f.write(a.data)
+
+    def arrays(self) -> list[NDArray] | list[SpooledColumn] | None:
+        """The fields of every frame so far (None before the first): arrays, or columns
+        of the files read a block at a time."""
+        if self.n == 0:
+            return None
+        if self.path is None:
+            return [np.concatenate(x) for x in zip(*self._pieces, strict=True)]
+        for f in self._handles:
+            f.flush()
+        return [SpooledColumn(f, d, self.n) for f, d in zip(self._files, self.DTYPES, strict=True)]
+
+    def close(self) -> None:
+        self._pieces.clear()
+        for f, h in zip(self._files, self._handles, strict=True):
+            h.close()
+            f.unlink(missing_ok=True)
+
+
 class Assembler:
     """A stream's frames assembled piece by piece (module docstring). ``spool``: a
     directory for the lines and the image packets (a front end's); None keeps them in
@@ -244,7 +317,7 @@ class Assembler:
 
     def __init__(self, spool: Path | None = None, window: int = REORDER_WINDOW) -> None:
         self.spool, self.window = spool, window
-        self._log: list[tuple[NDArray, ...]] = []
+        self._log = _FrameLog(None if spool is None else spool / "frames")
         self._ledgers: dict[int, Ledger] = {}
         self._entries: dict[tuple[int, int], dict] = {}
         self.data_vc: int | None = None
@@ -294,10 +367,7 @@ class Assembler:
             if v == self.data_vc:
                 self._wait(u[is_first], frames[rows[is_first]])
         status[fill & (status != DUPLICATE)] = FILL
-        self._log.append(
-            (offsets, status.astype(np.int8), np.where(good, vc, -1).astype(np.int8),
-             unwrapped, n_corr.astype(np.int16))
-        )  # fmt: skip
+        self._log.append((offsets, status, np.where(good, vc, -1), unwrapped, n_corr))
         self._release(final=False)
 
     def _wait(self, u: NDArray[np.int64], frames: NDArray[np.uint8]) -> None:
@@ -438,9 +508,9 @@ class Assembler:
         if final and not self.ended:
             self._release(final=True)
             self.ended = True
-        log = [np.concatenate(x) for x in zip(*self._log, strict=True)] if self._log else None
+        log = self._log.arrays()
         if self.data_vc is None or log is None:
-            n = 0 if log is None else log[0].size
+            n = self._log.n
             raise ReceiverError(
                 f"no data frame could be decoded in the stream ({n} markers found in {n_bits} bits)"
             )
@@ -489,3 +559,4 @@ class Assembler:
         if self._lines is not None:
             self._lines.close()
         self._images.close()
+        self._log.close()

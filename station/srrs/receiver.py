@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 
 from levels.readers.l0 import pixel_mask
 from station.srrs.accounting import CORRECTED, OK, OUT_OF_ORDER, STATUS_NAMES, ChannelAccount
-from station.srrs.assembler import Assembler, Found, StoredBand
+from station.srrs.assembler import Assembler, Found, SpooledColumn, StoredBand
 from station.srrs.errors import ReceiverError
 from station.srrs.frames import decode_cadus, find_cadus
 from station.telemetry import format as tf
@@ -57,11 +57,13 @@ __all__ = [
 class DecodedPass:
     """What the receiver made of a pass: per-frame log, accounting, lines and aux."""
 
-    frame_bit_offset: NDArray[np.int64]
-    frame_status: NDArray[np.int64]
-    frame_vc: NDArray[np.int64]
-    frame_count: NDArray[np.int64]  # unwrapped; −1 where unknown
-    frame_symbols_corrected: NDArray[np.int64]
+    #: per frame found (int64, int8, int8, int64, int16): in memory, or a front end's
+    #: columns read from its spool a block at a time
+    frame_bit_offset: NDArray[np.int64] | SpooledColumn
+    frame_status: NDArray[np.int8] | SpooledColumn
+    frame_vc: NDArray[np.int8] | SpooledColumn
+    frame_count: NDArray[np.int64] | SpooledColumn  # unwrapped; −1 where unknown
+    frame_symbols_corrected: NDArray[np.int16] | SpooledColumn
     accounts: dict[int, ChannelAccount]
     bits_in: int
     bits_searched: int
@@ -100,7 +102,12 @@ class DecodedPass:
 
     @property
     def status_counts(self) -> dict[str, int]:
-        counts = np.bincount(self.frame_status, minlength=len(STATUS_NAMES))
+        st = self.frame_status
+        blocks = st.blocks() if isinstance(st, SpooledColumn) else [st]
+        counts = sum(
+            (np.bincount(b, minlength=len(STATUS_NAMES)) for b in blocks),
+            np.zeros(len(STATUS_NAMES), np.int64),
+        )
         return {name: int(c) for name, c in zip(STATUS_NAMES, counts, strict=True)}
 
 

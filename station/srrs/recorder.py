@@ -23,6 +23,7 @@ from levels.geometry.sensor import LookAngleTable
 from levels.hdf5 import checksummed, deflated_dataset, new_hdf5
 from levels.readers.l0 import L0_BAND_DATASETS, L0_DATASETS, L0_FORMAT, L0_VERSION, L0Field
 from station import __version__
+from station.srrs.assembler import SpooledColumn
 from station.srrs.receiver import STATUS_NAMES, DecodedPass
 
 __all__ = ["BandAncillary", "write_l0"]
@@ -57,10 +58,20 @@ def _field(group: h5py.Group, name: str) -> L0Field:
     return replace(entry, long_name=entry.long_name.format(band=band))
 
 
-def _dataset(group: h5py.Group, name: str, data: np.ndarray, **kwargs: Any) -> h5py.Dataset:
-    """Dataset ``name`` of ``group``, checksummed, described as the L0 format's table says."""
+def _dataset(
+    group: h5py.Group, name: str, data: np.ndarray | SpooledColumn, **kwargs: Any
+) -> h5py.Dataset:
+    """Dataset ``name`` of ``group``, checksummed, described as the L0 format's table says;
+    a front end's spooled column written a block of chunks at a time (the same bytes)."""
     entry = _field(group, name)
-    ds = group.create_dataset(name, data=data, **{**checksummed(data), **kwargs})
+    if isinstance(data, SpooledColumn):
+        opts = {**({"fletcher32": True} if data.size else {}), **kwargs}
+        ds = group.create_dataset(name, shape=data.shape, dtype=data.dtype, **opts)
+        step = (ds.chunks or data.shape)[0] * max(1, (1 << 20) // (ds.chunks or data.shape)[0])
+        for a in range(0, data.size, step):
+            ds[a : a + step] = data[a : a + step]
+    else:
+        ds = group.create_dataset(name, data=data, **{**checksummed(data), **kwargs})
     return _described(ds, entry.units, entry.long_name)
 
 
@@ -200,10 +211,10 @@ def _write_decode(dec: h5py.Group, d: DecodedPass) -> None:
     dec.attrs["status_counts"] = json.dumps(d.status_counts)
     fr = dec.create_group("frames")
     _dataset(fr, "bit_offset", d.frame_bit_offset)
-    _dataset(fr, "status", d.frame_status.astype(np.int8))
-    _dataset(fr, "vc", d.frame_vc.astype(np.int8))
+    _dataset(fr, "status", d.frame_status)
+    _dataset(fr, "vc", d.frame_vc)
     _dataset(fr, "count", d.frame_count)
-    _dataset(fr, "symbols_corrected", d.frame_symbols_corrected.astype(np.int16))
+    _dataset(fr, "symbols_corrected", d.frame_symbols_corrected)
     ch = dec.create_group("channels")
     for vc, acc in sorted(d.accounts.items()):
         g = ch.create_group(f"vc{vc:02d}")
