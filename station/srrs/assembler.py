@@ -265,7 +265,7 @@ class SpooledColumn:
     def __array__(self, dtype: object = None, copy: object = None) -> NDArray:
         return self[:]
 
-    def blocks(self, n: int = 1 << 20) -> Iterator[NDArray]:
+    def blocks(self, n: int = 1 << 16) -> Iterator[NDArray]:
         for a in range(0, self.size, n):
             yield self[a : a + n]
 

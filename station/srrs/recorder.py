@@ -67,7 +67,7 @@ def _dataset(
     if isinstance(data, SpooledColumn):
         opts = {**({"fletcher32": True} if data.size else {}), **kwargs}
         ds = group.create_dataset(name, shape=data.shape, dtype=data.dtype, **opts)
-        step = (ds.chunks or data.shape)[0] * max(1, (1 << 20) // (ds.chunks or data.shape)[0])
+        step = (ds.chunks or data.shape)[0] * max(1, (1 << 16) // (ds.chunks or data.shape)[0])
         for a in range(0, data.size, step):
             ds[a : a + step] = data[a : a + step]
     else:
