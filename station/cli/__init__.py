@@ -29,7 +29,17 @@ from typing import TYPE_CHECKING, Any
 
 from levels.errors import LevelsError
 from station import __version__
-from station.cli import capacity, gcps, live, locate, process, products, run, spacecraft
+from station.cli import (
+    capacity,
+    catalogue,
+    gcps,
+    live,
+    locate,
+    process,
+    products,
+    run,
+    spacecraft,
+)
 from station.errors import StationError
 
 if TYPE_CHECKING:
@@ -47,7 +57,7 @@ __all__ = [
 EXIT_OK, EXIT_DIFFERENT, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 #: Command families, in the order ``station --help`` lists them.
-_FAMILIES = (run, process, products, spacecraft, live, locate, gcps, capacity)
+_FAMILIES = (run, process, products, spacecraft, live, locate, gcps, capacity, catalogue)
 
 
 def _add_verbosity(parser: argparse.ArgumentParser, default: object) -> None:
