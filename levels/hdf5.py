@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import errno
 import hashlib
 import itertools
 import os
@@ -51,6 +52,7 @@ __all__ = [
     "deflated_dataset",
     "hdf5_damage",
     "new_hdf5",
+    "new_hdf5_on_disk",
 ]
 
 #: How every HDF5 file of the project is created: with the object-header format of HDF5
@@ -290,6 +292,35 @@ def new_hdf5(target: str | Path) -> Iterator[h5py.File]:
         f.close()
     with atomic_path(target) as tmp:
         tmp.write_bytes(image)
+
+
+@contextlib.contextmanager
+def new_hdf5_on_disk(target: str | Path, need_bytes: int) -> Iterator[h5py.File]:
+    """A new HDF5 file written straight to disk, for one too large to build in memory
+    (a whole pass's L0 archive: :func:`new_hdf5`'s memory is twice the file). HDF5 itself
+    writes, so the disk's room is checked first: fewer than ``need_bytes`` free (an upper
+    bound of the file) is one clean ``OSError`` before any byte is written. The file is
+    built beside ``target`` and renamed onto it whole (:func:`levels.files.atomic_path`);
+    its bytes are :func:`new_hdf5`'s for the same calls."""
+    import shutil
+
+    from levels.files import atomic_path
+
+    target = Path(target)
+    free = shutil.disk_usage(target.parent).free
+    if free < need_bytes:
+        raise OSError(
+            errno.ENOSPC,
+            f"No space left on device ({need_bytes / 1e6:.0f} MB needed, {free / 1e6:.0f} MB free)",
+            str(target),
+        )
+    with atomic_path(target) as tmp:
+        f = h5py.File(tmp, "w", rdcc_nbytes=0, **HDF5_FILE_OPTIONS)
+        try:
+            yield f
+            f.attrs[ATTRS_DIGEST] = np.frombuffer(attrs_digest(f), dtype=np.uint8)
+        finally:
+            f.close()
 
 
 def hdf5_damage(exc: BaseException) -> str:

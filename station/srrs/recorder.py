@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from levels.geometry.ephemeris import Ephemeris
 from levels.geometry.sensor import LookAngleTable
-from levels.hdf5 import checksummed, deflated_dataset, new_hdf5
+from levels.hdf5 import checksummed, deflated_dataset, new_hdf5_on_disk
 from levels.readers.l0 import L0_BAND_DATASETS, L0_DATASETS, L0_FORMAT, L0_VERSION, L0Field
 from station import __version__
 from station.srrs.assembler import SpooledColumn
@@ -113,7 +113,14 @@ def write_l0(
         )
         / 1e9
     )
-    with new_hdf5(path) as f:
+    # written straight to disk (not built in memory, twice its size, as the products are):
+    # a whole pass's archive is gigabytes; its room checked first, an upper bound of it
+    need = (
+        sum(int(np.prod(img.shape)) for img in decoded.images)
+        + 40 * int(decoded.frame_status.size)
+        + (16 << 20)
+    )
+    with new_hdf5_on_disk(path, need) as f:
         _write(f, decoded, bulletins, shift_s, ancillary, scenario_name, provenance or {})
         if scene_cut:
             f.attrs["scene_cut"] = json.dumps(scene_cut, sort_keys=True)

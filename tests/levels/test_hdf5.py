@@ -130,3 +130,29 @@ def test_a_file_s_bytes_do_not_depend_on_when_its_datasets_are_freed(tmp_path) -
         return path.read_bytes()
 
     assert write(tmp_path / "a.h5", hold=False) == write(tmp_path / "b.h5", hold=True)
+
+
+def test_a_file_written_on_disk_checks_the_room_first(tmp_path, monkeypatch) -> None:
+    """``new_hdf5_on_disk``: too little room is one clean ENOSPC before a byte is
+    written; otherwise the file is whole, digested, and the same for the same writes."""
+    import errno
+    import shutil
+    from collections import namedtuple
+
+    from levels.hdf5 import ATTRS_DIGEST, new_hdf5_on_disk
+
+    def write(path) -> bytes:
+        with new_hdf5_on_disk(path, 1 << 20) as f:
+            f.create_dataset("a", data=np.arange(5000.0), chunks=(1000,), fletcher32=True)
+            f.attrs["x"] = 1
+        return path.read_bytes()
+
+    assert write(tmp_path / "a.h5") == write(tmp_path / "b.h5")
+    with h5py.File(tmp_path / "a.h5") as f:
+        assert ATTRS_DIGEST in f.attrs and f["a"][-1] == 4999.0
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda _p: usage(10, 10, 1000))
+    with pytest.raises(OSError) as raised:
+        write(tmp_path / "c.h5")
+    assert raised.value.errno == errno.ENOSPC and "1 MB needed" in str(raised.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.h5", "b.h5"]  # nothing left
