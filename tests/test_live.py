@@ -161,6 +161,11 @@ def test_a_served_pass_is_the_runs_archive_byte_for_byte(noisy_run: Path, tmp_pa
     said = json.loads(sent.stdout)["channels"][0]
     assert channel["bytes"] == said["bytes"] and not channel["cut"]
     assert channel["frames"] > 0 and channel["uncorrectable"] > 0  # a poor channel
+    from station.archive_catalogue import CATALOGUE_FILE, Catalogue, Query
+
+    with Catalogue(tmp_path / "served" / CATALOGUE_FILE) as cat:  # the pass catalogued
+        assert cat.has("spot-passes", "noisy_channel")
+        assert cat.count(Query(levels=("0",))) >= 1  # and its scenes
 
 
 def test_a_twin_pass_on_its_two_channels(tmp_path: Path) -> None:

@@ -137,8 +137,10 @@ class FrontEnd:
         checkpoint_s: float = CHECKPOINT_S,
         sle: RafProvider | None = None,
         levels: tuple[str, ...] = (),
+        catalogue: bool = True,
     ) -> None:
         self.out, self.checkpoint_s, self.sle = Path(out), checkpoint_s, sle
+        self.catalogue = catalogue
         self.nrt = NearRealTime(levels) if levels else None
         self._lock = threading.Lock()
         self._passes: list[_Pass] = []
@@ -394,6 +396,8 @@ class FrontEnd:
             if c.cut:
                 _log.warning("%s: the stream was cut after %d bytes", c.info.tag, c.decoder.n_bytes)
         c.archived_s = time.perf_counter() - c.started_s
+        if decoded is not None and self.catalogue:
+            self._catalogue(p, c)
         c.decoder.assembler.close()  # the spool, once archived
         _give_back()
         if c.spool is not None:
@@ -406,6 +410,19 @@ class FrontEnd:
                 self._report(p)
                 self.passes_done.append(p.where)
             self.changed.notify_all()
+
+    def _catalogue(self, p: _Pass, c: _Channel) -> None:
+        """The channel's archive (its pass and scenes, one transaction) and the products
+        made while it went on (one each) in the station's catalogue
+        (``<out>/catalogue.sqlite``); a failure is said, not raised."""
+        from station.archive_catalogue import CATALOGUE_FILE, Catalogue, add_archive, add_products
+
+        try:
+            with Catalogue(self.out / CATALOGUE_FILE) as cat:
+                add_archive(cat, c.path)
+                add_products(cat, [p.where / str(m["file"]) for m in c.products])
+        except Exception as exc:  # the archive is written; its entry is what failed
+            _log.warning("%s: not catalogued: %s", c.info.tag, exc)
 
     def _report(self, p: _Pass) -> None:
         channels = []
