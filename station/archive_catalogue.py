@@ -45,6 +45,7 @@ __all__ = [
     "Catalogue",
     "Query",
     "add_archive",
+    "add_paths",
     "add_products",
     "archive_items",
     "product_items",
@@ -482,3 +483,28 @@ def add_archive(catalogue: Catalogue, path: str | Path) -> int:
 def add_products(catalogue: Catalogue, paths: Iterable[str | Path]) -> int:
     """Products catalogued, one transaction each."""
     return sum(catalogue.add(product_items([p], catalogue.path.parent)) for p in paths)
+
+
+def add_paths(catalogue: Catalogue, paths: Iterable[str | Path]) -> dict[str, object]:
+    """L0 archives (``*.l0.h5``), products, or directories of them, catalogued: each
+    archive one transaction (an archive GEO cannot place is listed, not fatal), each
+    product one. What was done."""
+    from levels.products import is_product_file
+
+    archives, products = [], []
+    for given in map(Path, paths):
+        if not given.exists():
+            raise StationError(f"{given}: no such file or directory")
+        files = sorted(given.rglob("*")) if given.is_dir() else [given]
+        archives += [f for f in files if f.name.endswith(".l0.h5")]
+        products += [f for f in files if f.is_file() and is_product_file(f)]
+    n_passes = n_items = 0
+    refused: list[str] = []
+    for f in archives:
+        try:
+            n_items += add_archive(catalogue, f)
+            n_passes += 1
+        except StationError as exc:
+            refused.append(f"{f}: {exc}")
+    n_items += add_products(catalogue, products)
+    return {"passes": n_passes, "items": n_items, "refused": refused, "entries": len(catalogue)}

@@ -64,27 +64,10 @@ def _catalogue(args: argparse.Namespace, create: bool) -> Catalogue:
 
 
 def _add(args: argparse.Namespace) -> int:
-    from levels.products import is_product_file
-    from station.archive_catalogue import add_archive, add_products
+    from station.archive_catalogue import add_paths
 
-    archives, products = [], []
-    for given in map(Path, args.paths):
-        if not given.exists():
-            raise StationError(f"{given}: no such file or directory")
-        files = sorted(given.rglob("*")) if given.is_dir() else [given]
-        archives += [f for f in files if f.name.endswith(".l0.h5")]
-        products += [f for f in files if f.is_file() and is_product_file(f)]
-    n_passes = n_items = 0
-    refused: list[str] = []
     with _catalogue(args, create=True) as cat:
-        for f in archives:  # a pass and its scenes: one transaction
-            try:
-                n_items += add_archive(cat, f)
-                n_passes += 1
-            except StationError as exc:
-                refused.append(f"{f}: {exc}")
-        n_items += add_products(cat, products)  # one transaction a product
-        said = {"passes": n_passes, "items": n_items, "refused": refused, "entries": len(cat)}
+        said = add_paths(cat, [Path(p) for p in args.paths])
     emit(args, said, _add_text)
     return 0
 
