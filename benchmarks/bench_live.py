@@ -51,7 +51,7 @@ STATION_RATE_BIT_PER_S = 50e6  # two channels of 25 Mbit/s
 REAL_TIME_TARGET, FILE_ROUTE_SHARE = 1.0, 2 / 3
 PIECE_BYTES = 1 << 20
 #: The long stream: its length in seconds of the pass, its detectors, the sender's speed.
-LONG_S = float(os.environ.get("BENCH_LIVE_LONG_S", size(600, 12)))
+LONG_S = float(os.environ.get("BENCH_LIVE_LONG_S", size(600, 4)))
 LONG_DETECTORS, LONG_SPEED = size(1000, 100), 4.0
 HRV_LINE_PERIOD_S, HRV_DETECTORS = 1.5e-3, 6000
 

@@ -24,7 +24,16 @@ from levels.compare import (
 )
 from levels.readers.l0 import read_l0
 from station.errors import StationError
-from station.reports import BLOCK_RUN, CAMPAIGN, PROCESS, SAR_RUN, ReportFormat, report_of
+from station.reports import (
+    BLOCK_RUN,
+    CAMPAIGN,
+    LIVE_PASS,
+    PASS_RUN,
+    PROCESS,
+    SAR_RUN,
+    ReportFormat,
+    report_of,
+)
 
 __all__ = [
     "compare_campaigns",
@@ -62,13 +71,16 @@ def compare_inputs(
     """Two products (:func:`levels.compare.compare_paths`), or two directories of the same
     kind (:func:`directory_kind`): runs of a pass (:func:`compare_runs`), of a block (every
     pass's run, the tie points, the block's and the pair's products), of a SAR frame,
-    reprocessings, campaigns (:func:`compare_campaigns`), directories of products. Two
-    directories of different kinds are refused (:class:`CompareError`): there is nothing
-    to compare them by."""
+    reprocessings, campaigns (:func:`compare_campaigns`), directories of products; a pass
+    served live (``station serve``) with another or with the pass's run, by their L0
+    archives. Two directories of other different kinds are refused
+    (:class:`CompareError`): there is nothing to compare them by."""
     pa, pb = Path(a), Path(b)
     if not (pa.is_dir() and pb.is_dir()):
         return compare_paths(pa, pb, tolerances)
     ra, rb = _report(pa), _report(pb)
+    if LIVE_PASS in (ra, rb) and {ra, rb} <= {LIVE_PASS, PASS_RUN}:  # a pass served live:
+        return Comparison(str(pa), str(pb), {"": _compare_l0s(pa, pb)})  # its archives
     if ra != rb:
         raise CompareError(
             f"{pa} is {directory_kind(pa)} and {pb} {directory_kind(pb)}: different kinds of "

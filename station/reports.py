@@ -77,8 +77,9 @@ BLOCK_RUN = ReportFormat("report.json", "spot-station-block-run", 1, "the run of
 SAR_RUN = ReportFormat("report.json", "spot-station-sar-run", 1, "the run of a SAR frame")
 PROCESS = ReportFormat("process.json", "spot-station-process", 1, "a reprocessing", ("names",))
 CAMPAIGN = ReportFormat("campaign.json", "spot-station-campaign", 1, "a campaign", ("format",))
+LIVE_PASS = ReportFormat("live.json", "spot-station-live-pass", 1, "a pass served live", ("pass",))
 #: Every report this version writes.
-REPORTS = (PASS_RUN, BLOCK_RUN, SAR_RUN, PROCESS, CAMPAIGN)
+REPORTS = (PASS_RUN, BLOCK_RUN, SAR_RUN, PROCESS, CAMPAIGN, LIVE_PASS)
 
 
 def report_of(d: Path) -> ReportFormat | None:

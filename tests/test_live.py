@@ -163,6 +163,9 @@ def test_a_served_pass_is_the_runs_archive_byte_for_byte(noisy_run: Path, tmp_pa
     assert channel["frames"] > 0 and channel["uncorrectable"] > 0  # a poor channel
     from station.archive_catalogue import CATALOGUE_FILE, Catalogue, Query
 
+    from station.cli import main
+
+    assert main(["compare", str(noisy_run), str(served), "-q"]) == 0  # by their archives
     with Catalogue(tmp_path / "served" / CATALOGUE_FILE) as cat:  # the pass catalogued
         assert cat.has("spot-passes", "noisy_channel")
         assert cat.count(Query(levels=("0",))) >= 1  # and its scenes

@@ -445,7 +445,9 @@ class FrontEnd:
                     **({"products": c.products} if self.nrt is not None else {}),
                 }
             )
-        report = {"pass": p.announcement.name, "channels": channels}
+        from station.reports import LIVE_PASS
+
+        report = LIVE_PASS.header(**{"pass": p.announcement.name, "channels": channels})
         (p.where / "live.json").write_text(json.dumps(report, indent=1, sort_keys=True))
         _log.info("pass %s received: %s", p.announcement.name, p.where)
 
