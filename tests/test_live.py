@@ -162,7 +162,6 @@ def test_a_served_pass_is_the_runs_archive_byte_for_byte(noisy_run: Path, tmp_pa
     assert channel["bytes"] == said["bytes"] and not channel["cut"]
     assert channel["frames"] > 0 and channel["uncorrectable"] > 0  # a poor channel
     from station.archive_catalogue import CATALOGUE_FILE, Catalogue, Query
-
     from station.cli import main
 
     assert main(["compare", str(noisy_run), str(served), "-q"]) == 0  # by their archives
@@ -237,8 +236,8 @@ def test_a_server_killed_mid_pass_leaves_a_readable_archive(
 def test_bad_streams_are_said_and_kept(tmp_path: Path) -> None:
     """Garbage with no marker, and a stream cut mid-frame, on raw connections no pass
     awaits: each kept as it came with what its decoding found; a stream for a channel no
-    pass announced refused; the server goes on."""
-    from station.live.wire import CHANNEL, pack_header
+    pass announced refused, and so is a connection for several; the server goes on."""
+    from station.live.wire import CHANNEL, MULTIPLEX, pack_header
 
     rng = np.random.default_rng(3)
     with serving(tmp_path) as (proc, port):
@@ -246,6 +245,9 @@ def test_bad_streams_are_said_and_kept(tmp_path: Path) -> None:
             s.sendall(rng.integers(0, 256, 300_000, dtype=np.uint8).tobytes())
         with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
             s.sendall(pack_header(CHANNEL, {"pass": "nobody", "tag": "x"}))
+            assert s.recv(2) == b"NO"
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+            s.sendall(pack_header(MULTIPLEX, {"pass": "nobody", "tags": ["x", "y"]}))
             assert s.recv(2) == b"NO"
         kept = tmp_path / "served" / "unannounced" / "stream_001.json"
         deadline = time.monotonic() + 30
