@@ -245,5 +245,50 @@ def test_timely_delivery_keeps_the_newest_frames_when_the_user_falls_behind() ->
             association = _Association(a, "test", bound=True, active=True)
             provider._association = association
             provider.offer("ch1", cadus, found)
-            queued = [row[4][0] for row in association.queue]
+            pieces = association.queue.take(len(association.queue))
+            queued = [int(c[0]) for f in pieces for c in f.cadus]
         assert queued == list(range(n - kept, n)), instance
+
+
+def test_a_transfer_buffer_is_each_frame_encoded_on_its_own() -> None:
+    """The transfer buffer laid a piece at a time (``station.live.transfer``) is, byte for
+    byte, each annotated frame encoded by itself through the BER module, whatever the
+    continuities' widths (−1, 0, 127, 128, 2¹⁵, 2³¹ …) and the credentials."""
+    from station.live.ber import CONTEXT, integer, null, octets, sequence
+    from station.live.transfer import FrameQueue, Frames, transfer_buffer
+
+    rng = np.random.default_rng(911)
+    cont = np.array([-1, 0, 1, 127, 128, 255, 256, 32767, 32768, 2**23, 2**31, 2**40, -129])
+    cadus = rng.integers(0, 256, (cont.size, 1024), dtype=np.uint8)
+    quality = rng.integers(0, 3, cont.size)
+    pieces = [
+        Frames(b"\x01" * 8, b"hrv1", cont[:5], quality[:5], cadus[:5]),
+        Frames(b"\x02" * 8, b"a-longer-tag", cont[5:], quality[5:], cadus[5:]),
+    ]
+    for me in (null(CONTEXT, 0), sequence(octets(b"x" * 8), integer(7), octets(b"y" * 20))):
+        want = sequence(
+            *(
+                sequence(
+                    me,
+                    octets(f.ert, CONTEXT, 0),
+                    octets(f.tag, CONTEXT, 1),
+                    integer(int(c)),
+                    integer(int(q)),
+                    null(CONTEXT, 0),
+                    octets(bytes(d)),
+                    cls=CONTEXT,
+                    number=0,
+                )
+                for f in pieces
+                for c, q, d in zip(f.continuity, f.quality, f.cadus, strict=True)
+            ),
+            cls=CONTEXT,
+            number=8,
+        )
+        assert transfer_buffer(me, pieces) == want
+    queue = FrameQueue()  # pieces split where a buffer ends, the oldest dropped first
+    for f in pieces:
+        queue.put(f)
+    assert [len(f) for f in queue.take(7)] == [5, 2] and len(queue) == cont.size - 7
+    assert queue.keep_newest(3) == cont.size - 10 and len(queue) == 3
+    assert np.array_equal(queue.take(10)[0].continuity, cont[-3:])

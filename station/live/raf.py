@@ -37,7 +37,6 @@ import socket
 import struct
 import threading
 import time
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,6 +44,7 @@ from numpy.typing import NDArray
 
 from station.live import ber
 from station.live.ber import CONTEXT, BerError, Tlv, decode_one, integer, null, octets, sequence
+from station.live.transfer import FrameQueue, Frames, transfer_buffer
 from station.live.wire import read_exact
 from station.srrs.receiver import Found
 from station.telemetry import format as tf
@@ -153,7 +153,7 @@ class _Association:
     lock: threading.Lock = field(default_factory=threading.Lock)
     send_lock: threading.Lock = field(default_factory=threading.Lock)
     last_sent: float = field(default_factory=time.monotonic)
-    queue: deque = field(default_factory=deque)
+    queue: FrameQueue = field(default_factory=FrameQueue)
     wake: threading.Event = field(default_factory=threading.Event)
     closed: bool = False
     delivered: int = 0
@@ -204,20 +204,13 @@ class RafProvider:
         keep = (
             np.ones(len(cadus), bool) if a.quality == 2 else (quality == GOOD) == (a.quality == 0)
         )
-        rows = zip(
-            [now] * int(keep.sum()),
-            [tag] * int(keep.sum()),
-            continuity[keep].tolist(),
-            quality[keep].tolist(),
-            [bytes(c) for c in cadus[keep]],
-            strict=True,
+        frames = Frames(
+            now, tag.encode()[:16] or b"-", continuity[keep], quality[keep], cadus[keep]
         )
         with a.lock:
-            a.queue.extend(rows)
-            if not self.config.complete:
-                while len(a.queue) > self.config.timely_frames:
-                    a.queue.popleft()  # timely: the oldest go
-                    a.backlog_said = False
+            a.queue.put(frames)
+            if not self.config.complete and a.queue.keep_newest(self.config.timely_frames):
+                a.backlog_said = False  # timely: the oldest went
         a.wake.set()
 
     def _continuity_of(
@@ -420,27 +413,12 @@ class RafProvider:
         me = _credentials(self.config.provider, self.config.provider_password)
         while True:
             with a.lock:
-                rows = [a.queue.popleft() for _ in range(min(self.config.buffer_frames,
-                                                             len(a.queue)))]  # fmt: skip
-            if not rows:
+                pieces = a.queue.take(self.config.buffer_frames)
+            if not pieces:
                 return
-            entries = [
-                sequence(
-                    me,
-                    octets(ert, CONTEXT, 0),
-                    octets(tag.encode()[:16] or b"-", CONTEXT, 1),
-                    integer(continuity),
-                    integer(quality),
-                    null(CONTEXT, 0),
-                    octets(data),
-                    cls=CONTEXT,
-                    number=0,
-                )
-                for ert, tag, continuity, quality, data in rows
-            ]
-            a.send_pdu(sequence(*entries, cls=CONTEXT, number=8))
-            a.delivered += len(rows)
-            a.error_free += sum(1 for r in rows if r[3] == GOOD)
+            a.send_pdu(transfer_buffer(me, pieces))
+            a.delivered += sum(len(f) for f in pieces)
+            a.error_free += sum(int((f.quality == GOOD).sum()) for f in pieces)
 
     def linger(self, timeout_s: float) -> None:
         """Wait (at most ``timeout_s``) for the user bound, if any, to end its association."""
