@@ -77,6 +77,13 @@ def _peak_rss_mb(pid: int, key: str = "VmHWM") -> float:
     return float("nan")
 
 
+def _stop(proc: subprocess.Popen) -> None:
+    """The front end this benchmark started, ended if it has not ended itself."""
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait(10)
+
+
 def _emulated(name: str, instrument: dict) -> tuple:
     """A pass emulated and sent through the channel (BER 1e-6): the acquisition, the
     downlink's result, its scenario, the stream's bytes and the announcement."""
@@ -158,9 +165,7 @@ def _long_stream() -> None:
             peak_mb = _peak_rss_mb(proc.pid)
             proc.wait(60)
         finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait(10)
+            _stop(proc)
         report = json.loads((where / "served" / "long" / "live.json").read_text())
     (channel,) = report["channels"]
     during = [(f, m) for f, m in samples if f < 1]
@@ -216,9 +221,7 @@ def main() -> None:
             peak_mb = _peak_rss_mb(proc.pid)
             proc.wait(60)
         finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait(10)
+            _stop(proc)
         served = where / "served" / "live" / "live.l0.h5"
         report = json.loads((where / "served" / "live" / "live.json").read_text())
         (where / "file").mkdir()
