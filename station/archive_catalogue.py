@@ -257,6 +257,11 @@ class Catalogue:
             is not None
         )
 
+    def ids(self) -> set[str]:
+        """Every entry's id (a pass's, a scene's, a product's: ids are unique across the
+        collections this module writes)."""
+        return {row[0] for row in self._db.execute("SELECT id FROM items")}
+
     def items(self) -> Iterator[dict]:
         for (raw,) in self._db.execute("SELECT item FROM items ORDER BY t, collection, id"):
             yield json.loads(raw)

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 __all__ = [
     "BLOCK_RUN",
     "CAMPAIGN",
+    "DAY",
     "PASS_RUN",
     "PROCESS",
     "REPORTS",
@@ -78,8 +79,9 @@ SAR_RUN = ReportFormat("report.json", "spot-station-sar-run", 1, "the run of a S
 PROCESS = ReportFormat("process.json", "spot-station-process", 1, "a reprocessing", ("names",))
 CAMPAIGN = ReportFormat("campaign.json", "spot-station-campaign", 1, "a campaign", ("format",))
 LIVE_PASS = ReportFormat("live.json", "spot-station-live-pass", 1, "a pass served live", ("pass",))
+DAY = ReportFormat("day.json", "spot-station-day", 1, "a day at the station", ("day",))
 #: Every report this version writes.
-REPORTS = (PASS_RUN, BLOCK_RUN, SAR_RUN, PROCESS, CAMPAIGN, LIVE_PASS)
+REPORTS = (PASS_RUN, BLOCK_RUN, SAR_RUN, PROCESS, CAMPAIGN, LIVE_PASS, DAY)
 
 
 def report_of(d: Path) -> ReportFormat | None:

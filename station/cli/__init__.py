@@ -32,6 +32,7 @@ from station import __version__
 from station.cli import (
     capacity,
     catalogue,
+    day,
     gcps,
     live,
     locate,
@@ -57,7 +58,7 @@ __all__ = [
 EXIT_OK, EXIT_DIFFERENT, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 #: Command families, in the order ``station --help`` lists them.
-_FAMILIES = (run, process, products, spacecraft, live, locate, gcps, capacity, catalogue)
+_FAMILIES = (run, process, products, spacecraft, live, locate, gcps, capacity, catalogue, day)
 
 
 def _add_verbosity(parser: argparse.ArgumentParser, default: object) -> None:

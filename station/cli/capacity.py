@@ -25,7 +25,13 @@ def register(sub: Subparsers) -> None:
         "sweeps; or `station capacity calibrate` to measure this code's service "
         "times on this machine.",
     )
-    cap.add_argument("scenario", help="a capacity scenario (.toml), or 'calibrate'")
+    cap.add_argument("scenario", help="a capacity scenario (.toml), or 'calibrate', or 'validate'")
+    cap.add_argument("day_run", nargs="?", metavar="DAY_RUN",
+                     help="validate: a station day's directory")  # fmt: skip
+    cap.add_argument(
+        "--service", metavar="F",
+        help="validate: the day's service times from F (default: measured now, on this machine)",
+    )  # fmt: skip
     cap.add_argument(
         "--sweep",
         action="append",
@@ -45,6 +51,10 @@ def register(sub: Subparsers) -> None:
 
 
 def _capacity(args: argparse.Namespace) -> int:
+    if args.scenario == "validate":
+        return _validate(args)
+    if args.day_run or args.service:
+        raise StationError("DAY_RUN and --service are validate's: station capacity validate DIR")
     if args.scenario == "calibrate":
         from station.capacity.calibrate import (
             SERVICE_TIMES_FORMAT,
@@ -97,3 +107,16 @@ def _capacity(args: argparse.Namespace) -> int:
     )
     emit(args, summary, lambda s: f"{study_table(s)}\nin {out}/: {files}")
     return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from station.day.validation import validate_day, validation_text
+
+    if not args.day_run:
+        raise StationError("capacity validate DAY_RUN: give a station day's directory")
+    if args.sweep:
+        raise StationError("capacity validate takes no --sweep")
+    result = validate_day(Path(args.day_run), args.service, args.replications,
+                          say=not getattr(args, "quiet", False))  # fmt: skip
+    emit(args, result, validation_text)
+    return 0 if result["all_inside"] else 1

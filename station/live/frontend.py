@@ -112,6 +112,8 @@ class _Channel:
     seconds: float = 0.0
     decoded_s: float = 0.0
     archived_s: float = 0.0
+    catalogued_s: float = 0.0  # its archive's entry (GEO's scenes) in the catalogue
+    started_unix: float = 0.0  # its first byte, on the wall clock (a day's timeline)
     archives_written: int = 0
     #: The scenes' products made while the pass went on (``--levels``), with latencies.
     products: list[dict[str, object]] = field(default_factory=list)
@@ -196,6 +198,7 @@ class FrontEnd:
                 for c in p.channels.values():
                     if (tag is None or c.info.tag == tag) and not c.connected and not c.done:
                         c.connected, c.started_s = True, time.perf_counter()
+                        c.started_unix = time.time()
                         c.next_archive_s = c.started_s + self.checkpoint_s
                         c.spool = p.where / f"{c.info.tag}.spool"
                         c.spool.mkdir(exist_ok=True)
@@ -398,6 +401,7 @@ class FrontEnd:
         c.archived_s = time.perf_counter() - c.started_s
         if decoded is not None and self.catalogue:
             self._catalogue(p, c)
+        c.catalogued_s = time.perf_counter() - c.started_s
         c.decoder.assembler.close()  # the spool, once archived
         _give_back()
         if c.spool is not None:
@@ -437,6 +441,8 @@ class FrontEnd:
                     "seconds": round(c.seconds, 3),
                     "decoded_s": round(c.decoded_s, 3),
                     "archived_s": round(c.archived_s, 3),
+                    "catalogued_s": round(c.catalogued_s, 3),
+                    "started_unix": round(c.started_unix, 6),
                     "mbit_per_s": round(8 * n / max(c.decoded_s, 1e-9) / 1e6, 2),
                     "line_rate_mbps": c.info.bit_rate_bit_per_s / 1e6,
                     "cut": c.cut,

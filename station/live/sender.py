@@ -27,7 +27,7 @@ from station.live.wire import (
     read_exact,
 )
 
-__all__ = ["Stream", "emulated_streams", "transmit"]
+__all__ = ["Stream", "emulated_streams", "send_streams", "transmit"]
 
 _log = logging.getLogger(__name__)
 
@@ -173,6 +173,43 @@ def transmit(
         streams, name = [Stream(source.stem, data, 8 * data.size, 25e6)], None
         if one_connection:
             raise StationError(f"{source}: a recorded stream is one channel, not several")
+    said = _send_all(host, port, streams, name, speed, bool(one_connection))
+    return {
+        "pass": name or source.name,
+        "speed": "max" if speed is None else speed,
+        "connections": 1 if one_connection else len(streams),
+        "channels": [
+            {"tag": s.tag, **said[s.tag], "line_rate_mbps": s.bit_rate_bit_per_s / 1e6}
+            for s in streams
+        ],
+    }
+
+
+def send_streams(
+    announcement: Announcement,
+    streams: list[Stream],
+    host: str,
+    port: int,
+    speed: float | None,
+    one_connection: bool,
+) -> dict[str, dict[str, float]]:
+    """A pass emulated already (:func:`emulated_streams`) announced and sent to the front
+    end at ``host:port`` (a day's passes, emulated before its clock starts): per channel,
+    what was sent and how fast."""
+    _announce(host, port, announcement)
+    return _send_all(host, port, streams, announcement.name, speed, one_connection)
+
+
+def _send_all(
+    host: str,
+    port: int,
+    streams: list[Stream],
+    name: str | None,
+    speed: float | None,
+    one_connection: bool,
+) -> dict[str, dict[str, float]]:
+    """Every stream at once, each on its connection or all on one; per channel, what was
+    sent and how fast."""
     said: dict[str, dict[str, float]] = {}
     failures: list[BaseException] = []
 
@@ -202,12 +239,4 @@ def transmit(
         if isinstance(exc, OSError):
             raise StationError(f"the link to {host}:{port} broke: {exc}") from None
         raise exc
-    return {
-        "pass": name or source.name,
-        "speed": "max" if speed is None else speed,
-        "connections": 1 if one_connection else len(streams),
-        "channels": [
-            {"tag": s.tag, **said[s.tag], "line_rate_mbps": s.bit_rate_bit_per_s / 1e6}
-            for s in streams
-        ],
-    }
+    return said

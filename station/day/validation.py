@@ -1,0 +1,99 @@
+"""``station capacity validate DAY_RUN``: a day's measured figures beside the capacity model's
+prediction of that day (:mod:`station.capacity.validate`), with service times measured now
+on a calibration pass (:mod:`station.day.calibrate`) or read from ``--service``.
+
+Writes ``<DAY_RUN>/validation.json`` (the rows and the service times used) and
+``<DAY_RUN>/service_day.json`` when it measured them.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from station.errors import StationError
+
+__all__ = ["validate_day", "validation_text"]
+
+
+def _read_json(path: Path, what: str) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise StationError(
+            f"{path.parent}: not a station day's directory ({path.name} missing: {what})"
+        ) from None
+    except (OSError, ValueError) as exc:
+        raise StationError(f"{path}: unreadable: {exc}") from None
+
+
+def validate_day(
+    run: Path, service_file: str | None = None, replications: int | None = None, say: bool = True
+) -> dict[str, object]:
+    """The validation of the day in ``run`` (module docstring)."""
+    from levels.files import write_json
+    from station.capacity.plan import read_plan
+    from station.capacity.validate import DayUnits, compare, predict
+    from station.day.calibrate import day_service
+    from station.day.config import load_day, with_workers
+    from station.day.run import DAY_FILE, PLAN_FILE
+
+    report = _read_json(run / "day.json", "the day's report")
+    if report.get("format") != "spot-station-day":
+        raise StationError(f"{run}/day.json: not a day's report ({report.get('format')!r})")
+    plan = read_plan(run / PLAN_FILE)
+    scn = with_workers(load_day(run / DAY_FILE), int(report["workers"]), float(report["clock"]))
+    if service_file:
+        service = _read_json(Path(service_file), "service times")
+    else:
+        if say:
+            print("measuring the day's stages on a calibration pass ...", file=sys.stderr)
+        service = day_service(scn)
+        write_json(run / "service_day.json", service)
+    res = scn.capacity.resources
+    units = DayUnits(res.ingest_workers, res.geo_workers, scn.day.workers, scn.day.clock)
+    n = replications or scn.capacity.simulation.replications
+    if n < 2:
+        raise StationError(f"--replications {n}: an interval needs at least 2")
+    rows = compare(report, predict(plan, units, service, n, scn.capacity.seed))
+    result = {
+        "day": report["day"],
+        "workers": scn.day.workers,
+        "clock": scn.day.clock,
+        "replications": n,
+        "rows": rows,
+        "all_inside": all(r["inside"] for r in rows),
+        "service": service,
+    }
+    write_json(run / "validation.json", result)
+    return result
+
+
+def validation_text(result: dict) -> str:
+    """Measured beside predicted, one figure a line."""
+    lines = [
+        f"day {result['day']}: {result['workers']} workers, clock {result['clock']:g}x; the "
+        f"model's mean and 95 % interval over {result['replications']} replications",
+        f"{'stage/level':12s} {'figure':28s} {'measured':>9s} {'model':>9s}"
+        "   interval            inside",
+    ]
+    for r in result["rows"]:
+        what = r.get("stage", r.get("level"))
+        lo, hi = r["interval"]
+        note = f" ({100 * r['relative_error']:.1f} %)" if "relative_error" in r else ""
+
+        def f(x: float) -> str:
+            return "nan" if not math.isfinite(x) else f"{x:.4f}"
+
+        lines.append(
+            f"{what:12s} {r['figure']:28s} {f(r['measured']):>9s} {f(r['predicted']):>9s}"
+            f"   [{f(lo)}, {f(hi)}]  {'yes' if r['inside'] else 'NO'}{note}"
+        )
+    n_in = sum(r["inside"] for r in result["rows"])
+    lines.append(
+        f"{n_in} of {len(result['rows'])} figures inside "
+        "(utilisation: within 10 % of the model's mean)"
+    )
+    return "\n".join(lines)
