@@ -25,7 +25,9 @@ Service times are drawn from a gamma law of the measured coefficient of variatio
 
 from __future__ import annotations
 
+import heapq
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +36,7 @@ import simpy
 from station.capacity.plan import DayPlan, PlannedOrder, PlannedPass
 from station.capacity.stage import Process, Stage
 from station.day.preflight import SCENE_S
+from station.day.run import TICK_S
 
 __all__ = ["UTILISATION_TOLERANCE", "PlannedSimulation", "compare", "predict"]
 
@@ -61,31 +64,131 @@ class DayUnits:
     clock: float
 
 
+class SharedStage:
+    """A pool of ``units`` on one machine, processor-shared: ``n`` jobs running at once each
+    progress at ``1 / slowdown[n]`` of their speed alone, and slower still by ``load()``
+    when given (another stage's jobs on the same cores); a priority queue before it (urgent
+    first, then in turn). Its measurements as :class:`Stage`'s: utilisation (the
+    time-average of the units held over the units) and waits. A stage whose jobs slow this
+    one's tells it before each change (``listeners``)."""
+
+    def __init__(
+        self,
+        env: simpy.Environment,
+        units: int,
+        slowdown: dict[int, float],
+        load: Callable[[], float] | None = None,
+    ) -> None:
+        self.env, self.units, self.load = env, units, load
+        self.slowdown = {1: 1.0, **slowdown}
+        self.queue: list[tuple[int, int, float, simpy.Event, float]] = []
+        self.running: dict[int, tuple[float, simpy.Event]] = {}
+        self.listeners: list[SharedStage] = []
+        self.waits: list[float] = []
+        self.area_busy = 0.0
+        self._t = 0.0
+        self._seq = 0
+        self._poke = env.event()
+        env.process(self._run())
+
+    def serve(self, work_s: float, priority: int = 0) -> Process:
+        done = self.env.event()
+        self._seq += 1
+        heapq.heappush(self.queue, (priority, self._seq, work_s, done, self.env.now))
+        self.poke()
+        yield done
+
+    def poke(self) -> None:
+        if not self._poke.triggered:
+            self._poke.succeed()
+
+    def _rate(self) -> float:
+        n = len(self.running)
+        top = max(self.slowdown)
+        factor = self.slowdown.get(n, self.slowdown[top] * n / top)  # beyond: shared evenly
+        return 1.0 / (factor * (self.load() if self.load is not None else 1.0))
+
+    def advance(self) -> None:
+        dt = self.env.now - self._t
+        if dt > 0 and self.running:
+            step = dt * self._rate()
+            self.running = {k: (w - step, d) for k, (w, d) in self.running.items()}
+            self.area_busy += len(self.running) * dt
+        self._t = self.env.now
+
+    def _run(self) -> Process:
+        env = self.env
+        while True:
+            self.advance()
+            for other in self.listeners:  # at the old rate up to now
+                other.advance()
+            for k, (w, d) in list(self.running.items()):
+                if w <= 1e-12:
+                    del self.running[k]
+                    d.succeed()
+            while self.queue and len(self.running) < self.units:
+                _, seq, work_s, done, t0 = heapq.heappop(self.queue)
+                self.waits.append(env.now - t0)
+                self.running[seq] = (work_s, done)
+            for other in self.listeners:
+                other.poke()
+            if self._poke.triggered:
+                self._poke = env.event()
+            if self.running:
+                nearest = min(w for w, _ in self.running.values()) / self._rate()
+                yield env.timeout(max(nearest, 0.0)) | self._poke
+            else:
+                yield self._poke
+
+    def figures(self, t_end: float) -> dict[str, float]:
+        self.advance()
+        w = np.asarray(self.waits)
+        return {
+            "utilisation": self.area_busy / (self.units * t_end),
+            "wait_mean_h": float(w.mean()) / 3600.0 if w.size else 0.0,
+        }
+
+
 class PlannedSimulation:
     """One replication of the day's model (module docstring), in wall seconds."""
 
-    def __init__(self, plan: DayPlan, units: DayUnits, service: dict, seed: int) -> None:
-        self.plan, self.units, self.service = plan, units, service
+    def __init__(
+        self, plan: DayPlan, units: DayUnits, service: dict, seed: int, tick_s: float = TICK_S
+    ) -> None:
+        self.plan, self.units, self.service, self.tick_s = plan, units, service, tick_s
         self.rng = np.random.default_rng(seed)
         self.env = env = simpy.Environment()
         self.t_end = plan.hours * 3600.0 / units.clock
-        self.stages = {
-            "ingest": Stage(env, "ingest", units.ingest, 0.0),
-            "geo": Stage(env, "geo", units.geo, 0.0),
-            "cor": Stage(env, "cor", units.cor, 0.0),
-        }
+        self.stages = {"geo": Stage(env, "geo", units.geo, 0.0)}
+        slowdown = {int(k): float(v) for k, v in service.get("cor_contention", {}).items()}
+        self.cor = SharedStage(env, units.cor, slowdown)
+        ing = service["ingest"]
+        busy = float(ing.get("slowdown_workers_busy", 1.0))
+
+        def cores_taken() -> float:  # the workers' jobs slow the front end as measured
+            return 1.0 + (busy - 1.0) * min(1.0, len(self.cor.running) / units.cor)
+
+        channels = {2: float(ing.get("slowdown_two_channels", 1.0))}
+        self.ingest = SharedStage(env, units.ingest, channels, cores_taken)
+        self.cor.listeners.append(self.ingest)
         self.latency: dict[str, list[float]] = {lv: [] for lv in LEVELS}
         self.from_order: dict[str, list[float]] = {lv: [] for lv in LEVELS}
 
     def _draw(self, entry: dict[str, float], times: float = 1.0) -> float:
         return _gamma(self.rng, entry["mean_s"] * times, entry["cv"])
 
+    def _tick(self) -> float:
+        """The day's loop sees an event at its next look (``station.day.run.TICK_S``)."""
+        return float(self.rng.uniform(0.0, self.tick_s))
+
     def segment(self, mode: str, scenes: int) -> Process:
         signal_s = scenes * SCENE_S + 0.2
-        ingest = max(
-            signal_s / self.units.clock, self._draw(self.service["ingest_s_per_signal_s"], signal_s)
-        )
-        yield from self.stages["ingest"].serve(ingest)
+        ing = self.service["ingest"]
+        alone = (ing["fixed_s"] + ing["s_per_signal_s"] * signal_s) / ing.get(
+            "slowdown_two_channels", 1.0
+        )  # the law is measured on two channels at once
+        ingest = max(signal_s / self.units.clock, _gamma(self.rng, alone, ing["cv"]))
+        yield from self.ingest.serve(ingest)
         yield from self.stages["geo"].serve(
             self._draw(self.service["geo_s_per_scene"][mode], scenes)
         )
@@ -93,11 +196,13 @@ class PlannedSimulation:
     def order(self, o: PlannedOrder, p: PlannedPass, mode: str, geo: simpy.Event) -> Process:
         env, c = self.env, self.units.clock
         yield env.timeout(max(0.0, o.order_s / c - env.now))
-        if not geo.triggered:
+        if not geo.triggered:  # the pass archived and catalogued, every channel of it
             yield geo
-        yield from self.stages["cor"].serve(
+        yield env.timeout(self._tick())  # seen by the day's loop
+        yield from self.cor.serve(
             self._draw(self.service["cor_s"][mode][o.level]), priority=0 if o.urgent else 1
         )
+        yield env.timeout(self._tick())  # its end seen by the loop
         if env.now <= self.t_end:
             self.latency[o.level].append(env.now - p.aos_s / c)
             self.from_order[o.level].append(env.now - o.order_s / c)
@@ -109,8 +214,8 @@ class PlannedSimulation:
             by_segment.setdefault((o.pass_name, o.hrv), []).append(o)
         for p in sorted(self.plan.passes, key=lambda p: p.aos_s):
             yield env.timeout(max(0.0, p.aos_s / c - env.now))
+            geo = env.all_of([env.process(self.segment(s.mode, s.scenes)) for s in p.segments])
             for s in p.segments:
-                geo = env.process(self.segment(s.mode, s.scenes))
                 for o in by_segment.get((p.name, s.hrv), []):
                     env.process(self.order(o, p, s.mode, geo))
 
@@ -120,8 +225,10 @@ class PlannedSimulation:
         self.env.run(until=self.t_end)
         c = self.units.clock
         out: dict[str, float] = {}
-        for name, st in self.stages.items():
-            f = st.figures(self.t_end)
+        figures = {name: st.figures(self.t_end) for name, st in self.stages.items()}
+        figures["ingest"] = self.ingest.figures(self.t_end)
+        figures["cor"] = self.cor.figures(self.t_end)
+        for name, f in figures.items():
             out[f"{name}.utilisation"] = f["utilisation"]
             out[f"{name}.wait_mean_h"] = f["wait_mean_h"] * c
         for lv in LEVELS:

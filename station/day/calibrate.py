@@ -1,14 +1,18 @@
 """The service times of a day's stages, measured on this machine on a pass of their own (not
 the day's): what ``station capacity validate`` gives the capacity model.
 
-A calibration pass (both HRVs, one in P and one in XS, :data:`SCENES` scenes each, the
-day's reduced sizes and rate, a seed of its own) is emulated, then sent to a front end
-(``station serve``, in its own process, as in the day) at the day's clock times the line
-rate: per channel, the wall time from its first byte to its archive written, per second of
-signal (**ingest**), and from then to its scenes catalogued, per scene (**GEO**). Then
-each order kind (mode × level) is made :data:`REPEATS` times from its archive by the
-day's kind of worker (a spawned process, warm), one job at a time: the wall time from
-dispatch to the product catalogued (**COR**), its mean and coefficient of variation.
+Two calibration passes (both HRVs, one in P and one in XS, :data:`SCENES` scenes a
+segment, the day's reduced sizes and rate, seeds of their own) are emulated, then each sent
+to a front end (``station serve``, in its own process, as in the day) at the day's clock
+times the line rate. Per channel, the wall time from its first byte to its archive
+written (**ingest**): from the two passes, a channel's fixed cost and its cost per second
+of signal; and from then to its scenes catalogued, per scene, on the second pass (**GEO**,
+warm as in the day after its first pass). Then each order kind (mode × level) is made
+:data:`REPEATS` times from the second pass's archive by the day's kind of worker (a spawned
+process, warm), one job at a time: the wall time from dispatch to the product catalogued
+(**COR**), its mean and coefficient of variation; and k at once for k = 2 … workers: how
+many times slower a job is when k share the machine (``cor_contention``: the cores and
+the memory bandwidth they share).
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from __future__ import annotations
 import json
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 from pathlib import Path
 
@@ -27,10 +31,13 @@ from station.capacity.plan import PlannedPass, PlannedSegment
 from station.day import work
 from station.day.config import DayScenario
 from station.day.preflight import SCENE_S
+from station.errors import StationError
 
 __all__ = ["REPEATS", "SCENES", "day_service"]
 
-SCENES = 2
+#: Scenes a segment of each calibration pass: two passes, a channel's fixed cost and its
+#: cost per second of signal.
+SCENES = (1, 3)
 REPEATS = 3
 LEVELS = ("1A", "1B", "2A")
 #: Added to the day's seed: the calibration pass is not one of the day's.
@@ -46,64 +53,157 @@ def _stats(x: list[float]) -> dict[str, float]:
     }
 
 
+def _send(out: Path, streams: tuple, port: int, scn: DayScenario, name: str) -> dict:
+    """A calibration pass sent to the front end, once it has archived and catalogued it:
+    its ``live.json``."""
+    from station.live.sender import send_streams
+
+    ann, chans, one = streams
+    send_streams(ann, chans, "127.0.0.1", port, scn.day.clock, one)
+    report = out / "archive" / name / "live.json"
+    deadline = time.time() + 120.0
+    while not report.is_file():
+        if time.time() > deadline:
+            raise StationError(f"calibration: the front end did not archive {name}")
+        time.sleep(0.02)
+    time.sleep(0.05)  # written whole (it is replaced at once, but be sure it is closed)
+    return json.loads(report.read_text())
+
+
+def _cor(pool: ProcessPoolExecutor, jobs: list[tuple], at_once: int) -> list[float]:
+    """Wall time of each job from dispatch to return, ``at_once`` dispatched together."""
+    times = []
+    for k in range(0, len(jobs), at_once):
+        t = time.time()
+        futures = [pool.submit(work.make_order, *job) for job in jobs[k : k + at_once]]
+        for f in as_completed(futures):
+            f.result()
+            times.append(time.time() - t)
+    return times
+
+
+#: The calibration passes: their segments' (mode, scenes). Two of both HRVs (a channel's
+#: fixed cost and its cost a second of signal), one channel alone (how much two channels at
+#: once slow each other in the front end's one process), and the second again while every
+#: worker is busy (how much the workers' jobs slow the front end).
+PASSES = (
+    (("P", SCENES[0]), ("XS", SCENES[0])),
+    (("P", SCENES[1]), ("XS", SCENES[1])),
+    (("P", SCENES[1]),),
+    (("P", SCENES[1]), ("XS", SCENES[1])),
+)
+
+
 def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, object]:
     """The day's service times measured (module docstring), as a table."""
     from station.day.run import _start_front_end, _stop
-    from station.live.sender import send_streams
 
     day = scn.day
-    segments = (PlannedSegment(1, "P", SCENES), PlannedSegment(2, "XS", SCENES))
-    p = PlannedPass("calibration", "SPOT 1", 0.0, 600.0, segments)
+    seed = scn.capacity.seed + CALIBRATION_SEED
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         out = Path(tmp)
         (out / "passes").mkdir()
-        toml = out / "passes" / "calibration.toml"
-        toml.write_text(
-            work.pass_scenario(
-                p,
-                scn.capacity.seed + CALIBRATION_SEED,
-                day.start_s,
-                day.p_detectors,
-                day.bit_rate_mbps,
+        planned = []
+        for k, segs in enumerate(PASSES):
+            segments = tuple(PlannedSegment(h + 1, m, n) for h, (m, n) in enumerate(segs))
+            p = PlannedPass(f"calibration{k}", "SPOT 1", 0.0, 600.0, segments)
+            toml = out / "passes" / f"{p.name}.toml"
+            toml.write_text(
+                work.pass_scenario(p, seed + k, day.start_s, day.p_detectors, day.bit_rate_mbps)
             )
-        )
+            planned.append(p)
         ctx = get_context("spawn")
-        with ProcessPoolExecutor(1, mp_context=ctx, initializer=work.warm) as pool:
-            ann, chans, one = pool.submit(work.emulate, str(toml)).result()
-            proc, port = _start_front_end(out, 1)
+        catalogue = str(out / "archive" / CATALOGUE_FILE)
+        with ProcessPoolExecutor(day.workers, mp_context=ctx, initializer=work.warm) as pool:
+            emulated = [
+                pool.submit(work.emulate, str(out / "passes" / f"{p.name}.toml")) for p in planned
+            ]
+            streams = [f.result() for f in emulated]
+            proc, port = _start_front_end(out, len(planned))
             try:
-                send_streams(ann, chans, "127.0.0.1", port, day.clock, one)
+                lives = [_send(out, streams[k], port, scn, planned[k].name) for k in range(3)]
+                l0 = {
+                    m: out / "archive" / "calibration1" / f"calibration1_hrv{h}.l0.h5"
+                    for h, m in ((1, "P"), (2, "XS"))
+                }
+                busy = [
+                    pool.submit(
+                        work.make_order,
+                        str(l0["P"]),
+                        k % SCENES[1],
+                        "2A",
+                        str(out / "products" / f"busy{k}"),
+                        catalogue,
+                    )
+                    for k in range(4 * day.workers)
+                ]
+                time.sleep(0.2)  # every worker on a job
+                lives.append(_send(out, streams[3], port, scn, planned[3].name))
+                busy_after = sum(not f.done() for f in busy)
+                for f in busy:
+                    f.result()
             finally:
                 _stop(proc, 120.0)
-            live = json.loads((out / "archive" / "calibration" / "live.json").read_text())
-            signal_s = SCENES * SCENE_S + 0.2
-            ingest = [c["archived_s"] / signal_s for c in live["channels"]]
-            geo = [(c["catalogued_s"] - c["archived_s"]) / SCENES for c in live["channels"]]
+            ingest = _ingest(lives, busy_after >= day.workers)
+            last = lives[1]["channels"]  # GEO on the second pass: warm, as in the day
+            geo = {
+                mode: {
+                    "mean_s": (c["catalogued_s"] - c["archived_s"]) / SCENES[1],
+                    "cv": 0.0,
+                    "n": 1,
+                }
+                for mode, c in zip(("P", "XS"), last, strict=True)
+            }
             cor: dict[str, dict[str, dict[str, float]]] = {}
-            for s in segments:
-                l0 = out / "archive" / "calibration" / f"{work.channel_tag(p, s.hrv)}.l0.h5"
-                cor[s.mode] = {}
+            together: dict[int, list[float]] = {k: [] for k in range(2, day.workers + 1)}
+            for mode in ("P", "XS"):
+                cor[mode] = {}
                 for level in LEVELS:
-                    times = []
-                    for k in range(REPEATS):
-                        t = time.time()
-                        pool.submit(
-                            work.make_order,
-                            str(l0),
-                            k % SCENES,
+                    jobs = [
+                        (
+                            str(l0[mode]),
+                            k % SCENES[1],
                             level,
-                            str(out / "products"),
-                            str(out / "archive" / CATALOGUE_FILE),
-                        ).result()
-                        times.append(time.time() - t)
-                    cor[s.mode][level] = _stats(times)
+                            str(out / "products" / str(k)),
+                            catalogue,
+                        )
+                        for k in range(max(REPEATS, day.workers))
+                    ]
+                    alone = _cor(pool, jobs[:REPEATS], 1)
+                    cor[mode][level] = _stats(alone)
+                    for k in together:  # k of them at once: how much slower each is
+                        ratio = float(np.mean(_cor(pool, jobs[:k], k)) / np.mean(alone))
+                        together[k].append(ratio)
     return {
         "format": "spot-station-day-service-times",
-        "format_version": 1,
+        "format_version": 2,
         "measured_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "clock": day.clock,
+        "workers": day.workers,
         "p_detectors": day.p_detectors,
-        "ingest_s_per_signal_s": _stats(ingest),
-        "geo_s_per_scene": {s.mode: _stats([g]) for s, g in zip(segments, geo, strict=True)},
+        "ingest": ingest,
+        "geo_s_per_scene": geo,
         "cor_s": cor,
+        "cor_contention": {str(k): float(np.mean(v)) for k, v in together.items()},
+    }
+
+
+def _ingest(lives: list[dict], busy_held: bool) -> dict[str, float]:
+    """The front end's law (module docstring) from the four calibration passes."""
+    signal = [n * SCENE_S + 0.2 for n in SCENES]
+    t = [float(np.mean([c["archived_s"] for c in live["channels"]])) for live in lives]
+    per_s = (t[1] - t[0]) / (signal[1] - signal[0])
+    fixed = max(0.0, t[0] - per_s * signal[0])
+    spread = [
+        c["archived_s"] / np.mean([x["archived_s"] for x in lv["channels"]])
+        for lv in lives[:2]
+        for c in lv["channels"]
+    ]
+    return {
+        "fixed_s": fixed,
+        "s_per_signal_s": per_s,
+        "cv": float(np.std(spread)),
+        "slowdown_two_channels": max(1.0, t[1] / t[2]),
+        # measured only if the workers were still busy when the pass was in
+        "slowdown_workers_busy": max(1.0, t[3] / t[1]) if busy_held else 1.0,
     }

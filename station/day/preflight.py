@@ -87,7 +87,10 @@ def check_room(scn: DayScenario, plan: DayPlan, out: Path) -> dict[str, float]:
             f"{FRONT_END_MB:.0f}, {scn.day.workers} workers, the passes' streams) and "
             f"{avail:.0f} MB are available: fewer workers, or smaller [day] p_detectors"
         )
-    free = shutil.disk_usage(out if out.exists() else out.parent).free / 1e6
+    where = out.resolve()
+    while not where.exists():
+        where = where.parent
+    free = shutil.disk_usage(where).free / 1e6
     if need["disk_mb"] > free:
         raise StationError(
             f"the day writes about {need['disk_mb']:.0f} MB (archives and products) and "

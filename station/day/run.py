@@ -138,23 +138,28 @@ class Clock:
 def prepare(scn: DayScenario, out: Path, resume: bool) -> DayPlan:
     """The output directory and the day's plan (drawn, or the one a killed day drew)."""
     plan_path = out / PLAN_FILE
+    from station.day.preflight import check_room
+
     if resume:
         if not plan_path.is_file():
             raise StationError(f"--resume: {out} holds no day ({PLAN_FILE} missing)")
-        return read_plan(plan_path)
+        plan = read_plan(plan_path)
+        check_room(scn, plan, out)
+        return plan
     if plan_path.exists():
         raise StationError(
             f"{out} holds a day already: --resume to go on with it, or another --out"
         )
-    out.mkdir(parents=True, exist_ok=True)
-    if scn.source:
-        shutil.copyfile(scn.source, out / DAY_FILE)  # what validate reads back
     plan = draw_plan(scn.capacity, scn.day.start_s, scn.day.hours)
     if not plan.passes:
         raise StationError(
             f"no pass images in the window ({scn.day.hours} h from day {scn.day.start_day}, "
             f"{scn.day.start_h} h UTC): move [day] start_day or start_h"
         )
+    check_room(scn, plan, out)  # before anything is written
+    out.mkdir(parents=True, exist_ok=True)
+    if scn.source:
+        shutil.copyfile(scn.source, out / DAY_FILE)  # what validate reads back
     (out / "passes").mkdir(exist_ok=True)
     for k, p in enumerate(plan.passes):
         text = work.pass_scenario(
@@ -435,12 +440,10 @@ class Day:
 def run_day(scn: DayScenario, out: Path, resume: bool = False, say: bool = True) -> dict:
     """Run the day into ``out`` (module docstring); its report
     (:func:`station.day.report.day_report`), also written to ``<out>/day.json``."""
-    from station.day.preflight import check_room
     from station.day.report import day_report, write_report
 
     out = Path(out)
     plan = prepare(scn, out, resume)
-    check_room(scn, plan, out)
     day = Day(scn, out, plan, resume, say)
     day.run()
     report = day_report(scn, plan, read_events(out / EVENTS_FILE), day.failures)

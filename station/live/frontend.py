@@ -93,6 +93,19 @@ def warm_up() -> None:
     decoder.finish()
 
 
+def _warm_geo() -> None:
+    """GEO's placing of a pass's scenes (what the catalogue's entry of an archive needs) run
+    once on the warm-up archive: its modules and kernels loaded before the first pass, not
+    while its entry is written."""
+    from levels.warmup import WARM_UP_ARCHIVE
+    from station.archive_catalogue import archive_items
+
+    try:
+        archive_items(WARM_UP_ARCHIVE, WARM_UP_ARCHIVE.parent)
+    except Exception as exc:  # a warm-up, never a reason not to serve
+        _log.warning("GEO's warm-up failed: %s", exc)
+
+
 @dataclass(eq=False)
 class _Channel:
     """One channel of a pass at the front end: what it is, where its archive goes, and
@@ -497,6 +510,8 @@ def serve(
     stop = threading.Event()
     sle_server = _listen(host, sle[1]) if sle is not None else None
     warm_up()  # ready when the port is said
+    if front.catalogue:  # meanwhile: a pass's entry is written seconds after it begins
+        threading.Thread(target=_warm_geo, daemon=True, name="warm-geo").start()
     if provider is not None and sle_server is not None and sle is not None:
         threading.Thread(
             target=provider.serve_forever, args=(sle_server, stop), daemon=True
