@@ -198,6 +198,19 @@ def test_an_outage_not_cleared_by_the_horizon_is_censored(cuiaba) -> None:
     assert "not cleared by the end of the horizon in" in study_table(summary)
 
 
+def test_a_load_is_said_inside_or_outside_what_the_day_checked() -> None:
+    from station.capacity.study import checked
+
+    def run(busy: float, workers: int) -> dict:
+        return {"stages": {"cor": {"utilisation": {"mean": busy}, "units": {"mean": workers}}}}
+
+    assert checked(run(0.2, 2)).startswith("inside the load checked against a day")
+    assert checked(run(0.9, 2)).startswith("outside the load") and "COR 90 % busy" in checked(
+        run(0.9, 2)
+    )
+    assert checked(run(0.2, 8)).startswith("outside the load")
+
+
 def test_two_sweeps_make_a_grid_with_a_verdict_and_a_figure_each(cuiaba, tmp_path) -> None:
     """--sweep twice: every combination, each with its verdict and its titled queue figure;
     a key swept twice refused (a second --sweep silently replaced the first)."""
@@ -211,6 +224,10 @@ def test_two_sweeps_make_a_grid_with_a_verdict_and_a_figure_each(cuiaba, tmp_pat
     assert not any(v.startswith("saturated") for v in verdicts[2:]), verdicts
     assert all((tmp_path / f"queues_{k}.png").stat().st_size > 0 for k in range(4))
     assert "verdict: saturated" in study_table(summary)
+    # the year's COR is near saturation, outside the load the model was checked at
+    checks = [r["checked"] for r in summary["runs"]]
+    assert all(c.startswith("outside the load the model was checked") for c in checks[:2])
+    assert "checked: " in study_table(summary)
     with pytest.raises(ScenarioError, match="given twice"):
         parse_sweeps(["resources.cor_workers=1,2", "resources.cor_workers=3"])
 

@@ -133,7 +133,7 @@ def test_the_prediction_interval_holds_the_models_own_days() -> None:
     plan = draw_plan(scn.capacity, scn.day.start_s, scn.day.hours)
     units = DayUnits(2, 2, 2, 60.0)
     service = _service(3.0, cv=0.3)
-    predicted = predict(plan, units, service, 100, seed=1)
+    predicted = predict(plan, units, service, 40, seed=1)
     one = {k: v[0] for k, v in predict(plan, units, service, 1, seed=500).items()}
     day = {
         "stages": {

@@ -175,6 +175,7 @@ def run_study(
     ]
     for run in runs:
         run["verdict"] = verdict(run)
+        run["checked"] = checked(run)
     first = reps[0, 0]
     summary = {
         "format": "spot-station-capacity",
@@ -353,6 +354,32 @@ def verdict(run: dict[str, Any]) -> str:
     )
 
 
+#: The loads at which the model has been checked against the station it models (``station
+#: day`` then ``station capacity validate``, ``tools/day_workers.py``: docs/day.md): COR
+#: utilisation and workers of the days run.
+CHECKED_COR_UTILISATION = (0.10, 0.35)
+CHECKED_COR_WORKERS = (1, 3)
+
+
+def checked(run: dict[str, Any]) -> str:
+    """Whether a run's load lies where the model was checked against a day at the station
+    (:data:`CHECKED_COR_UTILISATION`, :data:`CHECKED_COR_WORKERS`), in one line."""
+    busy = run["stages"]["cor"]["utilisation"]["mean"]
+    workers = int(run["stages"]["cor"]["units"]["mean"])
+    lo, hi = CHECKED_COR_UTILISATION
+    w_lo, w_hi = CHECKED_COR_WORKERS
+    where = (
+        f"checked against a day at the station at COR {100 * lo:.0f}–{100 * hi:.0f} % "
+        f"busy on {w_lo}–{w_hi} workers (docs/day.md)"
+    )
+    if lo <= busy <= hi and w_lo <= workers <= w_hi:
+        return f"inside the load {where}"
+    return (
+        f"outside the load the model was {where}: COR {100 * busy:.0f} % busy on "
+        f"{workers} workers here, a prediction not checked"
+    )
+
+
 def study_table(summary: dict[str, Any]) -> str:
     """The human summary of a study: per sweep value, the station, its stages, its levels."""
     n = summary["replications"]
@@ -417,4 +444,5 @@ def study_table(summary: dict[str, Any]) -> str:
                 + f" {f({k: 100 * x for k, x in v['within_service_level'].items()}, '.1f'):>19} %"
             )
         lines.append(f"verdict: {run['verdict']}")
+        lines.append(f"checked: {run['checked']}")
     return "\n".join(lines)

@@ -120,18 +120,21 @@ class SharedStage:
         env = self.env
         while True:
             self.advance()
-            for other in self.listeners:  # at the old rate up to now
-                other.advance()
-            for k, (w, d) in list(self.running.items()):
-                if w <= 1e-12:
-                    del self.running[k]
-                    d.succeed()
+            ended = [k for k, (w, _) in self.running.items() if w <= 1e-12]
+            starting = self.queue and len(self.running) - len(ended) < self.units
+            changed = bool(ended or starting)
+            if changed:
+                for other in self.listeners:  # at the old rate up to now
+                    other.advance()
+            for k in ended:
+                self.running.pop(k)[1].succeed()
             while self.queue and len(self.running) < self.units:
                 _, seq, work_s, done, t0 = heapq.heappop(self.queue)
                 self.waits.append(env.now - t0)
                 self.running[seq] = (work_s, done)
-            for other in self.listeners:
-                other.poke()
+            if changed:
+                for other in self.listeners:  # at the new rate from now
+                    other.poke()
             if self._poke.triggered:
                 self._poke = env.event()
             if self.running:
@@ -161,7 +164,12 @@ class PlannedSimulation:
         self.t_end = plan.hours * 3600.0 / units.clock
         self.stages = {"geo": Stage(env, "geo", units.geo, 0.0)}
         slowdown = {int(k): float(v) for k, v in service.get("cor_contention", {}).items()}
-        self.cor = SharedStage(env, units.cor, slowdown)
+        ingesting = float(service.get("cor_slowdown_ingesting", 1.0))
+
+        def front_end_busy() -> float:  # the front end decoding slows the workers' jobs
+            return ingesting if self.ingest.running else 1.0
+
+        self.cor = SharedStage(env, units.cor, slowdown, front_end_busy)
         ing = service["ingest"]
         busy = float(ing.get("slowdown_workers_busy", 1.0))
 
@@ -171,19 +179,33 @@ class PlannedSimulation:
         channels = {2: float(ing.get("slowdown_two_channels", 1.0))}
         self.ingest = SharedStage(env, units.ingest, channels, cores_taken)
         self.cor.listeners.append(self.ingest)
+        self.ingest.listeners.append(self.cor)
+        # this replication's means: the calibration's samples resampled (the uncertainty of
+        # means measured on a few jobs belongs in the interval)
+        self.cor_means = {
+            mode: {lv: self._resampled(e) for lv, e in levels.items()}
+            for mode, levels in service["cor_s"].items()
+        }
         self.latency: dict[str, list[float]] = {lv: [] for lv in LEVELS}
         self.from_order: dict[str, list[float]] = {lv: [] for lv in LEVELS}
 
     def _draw(self, entry: dict[str, float], times: float = 1.0) -> float:
         return _gamma(self.rng, entry["mean_s"] * times, entry["cv"])
 
+    def _resampled(self, entry: dict) -> dict[str, float]:
+        samples = np.asarray(entry.get("samples_s", [entry["mean_s"]]), float)
+        mean = float(self.rng.choice(samples, samples.size).mean())
+        return {"mean_s": mean, "cv": float(entry["cv"])}
+
     def _tick(self) -> float:
         """The day's loop sees an event at its next look (``station.day.run.TICK_S``)."""
         return float(self.rng.uniform(0.0, self.tick_s))
 
-    def segment(self, mode: str, scenes: int) -> Process:
-        signal_s = scenes * SCENE_S + 0.2
+    def segment(self, mode: str, scenes: int, pass_scenes: int) -> Process:
+        """A channel: its pass's signal (both channels of a pass are as long as its longest
+        segment), then GEO of its own scenes."""
         ing = self.service["ingest"]
+        signal_s = pass_scenes * SCENE_S + float(ing.get("lead_s", 0.2))
         alone = (ing["fixed_s"] + ing["s_per_signal_s"] * signal_s) / ing.get(
             "slowdown_two_channels", 1.0
         )  # the law is measured on two channels at once
@@ -200,7 +222,7 @@ class PlannedSimulation:
             yield geo
         yield env.timeout(self._tick())  # seen by the day's loop
         yield from self.cor.serve(
-            self._draw(self.service["cor_s"][mode][o.level]), priority=0 if o.urgent else 1
+            self._draw(self.cor_means[mode][o.level]), priority=0 if o.urgent else 1
         )
         yield env.timeout(self._tick())  # its end seen by the loop
         if env.now <= self.t_end:
@@ -214,7 +236,10 @@ class PlannedSimulation:
             by_segment.setdefault((o.pass_name, o.hrv), []).append(o)
         for p in sorted(self.plan.passes, key=lambda p: p.aos_s):
             yield env.timeout(max(0.0, p.aos_s / c - env.now))
-            geo = env.all_of([env.process(self.segment(s.mode, s.scenes)) for s in p.segments])
+            longest = max(s.scenes for s in p.segments)
+            geo = env.all_of(
+                [env.process(self.segment(s.mode, s.scenes, longest)) for s in p.segments]
+            )
             for s in p.segments:
                 for o in by_segment.get((p.name, s.hrv), []):
                     env.process(self.order(o, p, s.mode, geo))
@@ -245,8 +270,14 @@ class PlannedSimulation:
 def predict(
     plan: DayPlan, units: DayUnits, service: dict, replications: int, seed: int
 ) -> dict[str, np.ndarray]:
-    """Every figure over ``replications`` runs of the day's model."""
-    runs = [PlannedSimulation(plan, units, service, seed + k).run() for k in range(replications)]
+    """Every figure over ``replications`` runs of the day's model. A service table of
+    several calibration sessions (``sessions``) gives each its share of the replications:
+    the machine's variability from one session to the next is in the interval too."""
+    tables = service.get("sessions", [service])
+    runs = [
+        PlannedSimulation(plan, units, tables[k % len(tables)], seed + k).run()
+        for k in range(replications)
+    ]
     return {key: np.array([r[key] for r in runs]) for key in runs[0]}
 
 

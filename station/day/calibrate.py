@@ -38,18 +38,19 @@ __all__ = ["REPEATS", "SCENES", "day_service"]
 #: Scenes a segment of each calibration pass: two passes, a channel's fixed cost and its
 #: cost per second of signal.
 SCENES = (1, 3)
-REPEATS = 3
+REPEATS = 4
 LEVELS = ("1A", "1B", "2A")
 #: Added to the day's seed: the calibration pass is not one of the day's.
 CALIBRATION_SEED = 424242
 
 
-def _stats(x: list[float]) -> dict[str, float]:
+def _stats(x: list[float]) -> dict[str, object]:
     a = np.asarray(x, float)
     return {
         "mean_s": float(a.mean()),
         "cv": float(a.std(ddof=1) / a.mean()) if a.size > 1 else 0.0,
         "n": int(a.size),
+        "samples_s": [float(v) for v in a],  # the model's replications resample them
     }
 
 
@@ -135,16 +136,16 @@ def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, obje
                         str(out / "products" / f"busy{k}"),
                         catalogue,
                     )
-                    for k in range(4 * day.workers)
+                    for k in range(6 * day.workers)
                 ]
                 time.sleep(0.2)  # every worker on a job
                 lives.append(_send(out, streams[3], port, scn, planned[3].name))
                 busy_after = sum(not f.done() for f in busy)
-                for f in busy:
-                    f.result()
+                busy_runs = [f.result() for f in busy]
             finally:
                 _stop(proc, 120.0)
             ingest = _ingest(lives, busy_after >= day.workers)
+            cor_ingesting = _cor_while_ingesting(busy_runs, lives[3])
             last = lives[1]["channels"]  # GEO on the second pass: warm, as in the day
             geo = {
                 mode: {
@@ -154,7 +155,7 @@ def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, obje
                 }
                 for mode, c in zip(("P", "XS"), last, strict=True)
             }
-            cor: dict[str, dict[str, dict[str, float]]] = {}
+            cor: dict[str, dict[str, dict[str, object]]] = {}
             together: dict[int, list[float]] = {k: [] for k in range(2, day.workers + 1)}
             for mode in ("P", "XS"):
                 cor[mode] = {}
@@ -185,12 +186,20 @@ def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, obje
         "geo_s_per_scene": geo,
         "cor_s": cor,
         "cor_contention": {str(k): float(np.mean(v)) for k, v in together.items()},
+        "cor_slowdown_ingesting": cor_ingesting,
     }
+
+
+def _signal_s(live: dict) -> float:
+    """A pass's channels' seconds of signal, from their bytes at their line rate."""
+    return float(
+        np.mean([8.0 * c["bytes"] / (c["line_rate_mbps"] * 1e6) for c in live["channels"]])
+    )
 
 
 def _ingest(lives: list[dict], busy_held: bool) -> dict[str, float]:
     """The front end's law (module docstring) from the four calibration passes."""
-    signal = [n * SCENE_S + 0.2 for n in SCENES]
+    signal = [_signal_s(live) for live in lives[:2]]
     t = [float(np.mean([c["archived_s"] for c in live["channels"]])) for live in lives]
     per_s = (t[1] - t[0]) / (signal[1] - signal[0])
     fixed = max(0.0, t[0] - per_s * signal[0])
@@ -202,8 +211,25 @@ def _ingest(lives: list[dict], busy_held: bool) -> dict[str, float]:
     return {
         "fixed_s": fixed,
         "s_per_signal_s": per_s,
+        # a channel's signal beyond its scenes' (the sender's lead-in and the last lines)
+        "lead_s": signal[0] - SCENES[0] * SCENE_S,
         "cv": float(np.std(spread)),
         "slowdown_two_channels": max(1.0, t[1] / t[2]),
         # measured only if the workers were still busy when the pass was in
         "slowdown_workers_busy": max(1.0, t[3] / t[1]) if busy_held else 1.0,
     }
+
+
+def _cor_while_ingesting(busy: list[dict], live: dict) -> float:
+    """How many times slower a job is while the front end ingests a pass: each busy job's
+    time against the share of it the ingest overlapped, ``t = t0 (1 + (f - 1) share)``,
+    with ``t0`` the jobs it did not overlap (1.0 when none did, or all did)."""
+    c0 = min(c["started_unix"] for c in live["channels"])
+    c1 = max(c["started_unix"] + c["archived_s"] for c in live["channels"])
+    t = np.array([r["made_unix"] - r["started_unix"] for r in busy])
+    a = np.array([r["started_unix"] for r in busy])
+    share = np.clip(np.minimum(a + t, c1) - np.maximum(a, c0), 0.0, None) / t
+    alone, over = t[share == 0.0], share > 0.25
+    if not alone.size or not over.any():
+        return 1.0
+    return max(1.0, 1.0 + float(np.mean((t[over] / alone.mean() - 1.0) / share[over])))
