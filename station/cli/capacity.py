@@ -26,12 +26,21 @@ def register(sub: Subparsers) -> None:
         "times on this machine.",
     )
     cap.add_argument("scenario", help="a capacity scenario (.toml), or 'calibrate', or 'validate'")
-    cap.add_argument("day_run", nargs="?", metavar="DAY_RUN",
-                     help="validate: a station day's directory")  # fmt: skip
     cap.add_argument(
-        "--service", metavar="F",
+        "day_run", nargs="?", metavar="DAY_RUN", help="validate: a station day's directory"
+    )
+    cap.add_argument(
+        "--service",
+        metavar="F",
         help="validate: the day's service times from F (default: measured now, on this machine)",
-    )  # fmt: skip
+    )
+    cap.add_argument(
+        "--sessions",
+        type=int,
+        default=None,
+        metavar="K",
+        help="validate: calibration sessions measured (default 2; their spread is in the interval)",
+    )
     cap.add_argument(
         "--sweep",
         action="append",
@@ -53,7 +62,7 @@ def register(sub: Subparsers) -> None:
 def _capacity(args: argparse.Namespace) -> int:
     if args.scenario == "validate":
         return _validate(args)
-    if args.day_run or args.service:
+    if args.day_run or args.service or args.sessions:
         raise StationError("DAY_RUN and --service are validate's: station capacity validate DIR")
     if args.scenario == "calibrate":
         from station.capacity.calibrate import (
@@ -116,7 +125,12 @@ def _validate(args: argparse.Namespace) -> int:
         raise StationError("capacity validate DAY_RUN: give a station day's directory")
     if args.sweep:
         raise StationError("capacity validate takes no --sweep")
-    result = validate_day(Path(args.day_run), args.service, args.replications,
-                          say=not getattr(args, "quiet", False))  # fmt: skip
+    result = validate_day(
+        Path(args.day_run),
+        args.service,
+        args.replications,
+        say=not getattr(args, "quiet", False),
+        sessions=args.sessions,
+    )
     emit(args, result, validation_text)
     return 0 if result["all_inside"] else 1

@@ -252,6 +252,12 @@ class Day:
                 if d.is_dir() and d.name in self.passes and d.name not in self.state.archived:
                     shutil.rmtree(d)
         to_send = [p for p in self.plan.passes if p.name not in self.state.archived]
+        end_s = self.plan.hours * 3600.0
+        left = [o for o in self.plan.orders if o.order_s < end_s and o.name not in self.state.made]
+        if not to_send and not left:  # a whole day resumed: nothing to start
+            self.clock = Clock(day.clock, self.state.station_s)
+            self.events.close()
+            return
         ctx = get_context("spawn")
         with ProcessPoolExecutor(day.workers, mp_context=ctx, initializer=work.warm) as pool:
             streams = self._emulate(pool, to_send)

@@ -34,7 +34,11 @@ def _read_json(path: Path, what: str) -> dict:
 
 
 def validate_day(
-    run: Path, service_file: str | None = None, replications: int | None = None, say: bool = True
+    run: Path,
+    service_file: str | None = None,
+    replications: int | None = None,
+    say: bool = True,
+    sessions: int | None = None,
 ) -> dict[str, object]:
     """The validation of the day in ``run`` (module docstring)."""
     from levels.files import write_json
@@ -54,8 +58,13 @@ def validate_day(
     else:
         if say:
             print("measuring the day's stages on a calibration pass ...", file=sys.stderr)
-        sessions = [day_service(scn) for _ in range(SESSIONS)]
-        service = {"format": "spot-station-day-service-times", "sessions": sessions}
+        k = SESSIONS if sessions is None else sessions
+        if not 1 <= k <= 10:
+            raise StationError(f"--sessions {k}: expected 1 to 10")
+        service = {
+            "format": "spot-station-day-service-times",
+            "sessions": [day_service(scn) for _ in range(k)],
+        }
         write_json(run / "service_day.json", service)
     res = scn.capacity.resources
     units = DayUnits(res.ingest_workers, res.geo_workers, scn.day.workers, scn.day.clock)
