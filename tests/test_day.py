@@ -291,7 +291,6 @@ def test_bad_days_are_refused_in_one_line(tmp_path: Path, capsys, monkeypatch) -
     """More than the machine holds is refused before any work, with the estimate; a day
     directory is not overwritten; validate wants a day's directory."""
     import station.day.preflight as preflight
-    import station.day.run as day_run
 
     path = _tiny(tmp_path)
     monkeypatch.setattr(preflight, "_available_mb", lambda: 500.0)
@@ -299,7 +298,7 @@ def test_bad_days_are_refused_in_one_line(tmp_path: Path, capsys, monkeypatch) -
     err = capsys.readouterr().err
     assert "MB of memory" in err and "500 MB are available" in err
     monkeypatch.undo()
-    monkeypatch.setattr(day_run, "cores", lambda: 2)
+    monkeypatch.setattr(preflight, "cores", lambda: 2)
     assert main(["day", str(path), "--out", str(tmp_path / "c"), "--workers", "5"]) == 2
     assert "5 workers on 2 core(s)" in capsys.readouterr().err
     assert not (tmp_path / "b" / "events.jsonl").exists()  # refused before work

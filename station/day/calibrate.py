@@ -155,26 +155,7 @@ def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, obje
                 }
                 for mode, c in zip(("P", "XS"), last, strict=True)
             }
-            cor: dict[str, dict[str, dict[str, object]]] = {}
-            together: dict[int, list[float]] = {k: [] for k in range(2, day.workers + 1)}
-            for mode in ("P", "XS"):
-                cor[mode] = {}
-                for level in LEVELS:
-                    jobs = [
-                        (
-                            str(l0[mode]),
-                            k % SCENES[1],
-                            level,
-                            str(out / "products" / str(k)),
-                            catalogue,
-                        )
-                        for k in range(max(REPEATS, day.workers))
-                    ]
-                    alone = _cor(pool, jobs[:REPEATS], 1)
-                    cor[mode][level] = _stats(alone)
-                    for k in together:  # k of them at once: how much slower each is
-                        ratio = float(np.mean(_cor(pool, jobs[:k], k)) / np.mean(alone))
-                        together[k].append(ratio)
+            cor, together = _cor_table(pool, l0, out, catalogue, day.workers)
     return {
         "format": "spot-station-day-service-times",
         "format_version": 2,
@@ -188,6 +169,34 @@ def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, obje
         "cor_contention": {str(k): float(np.mean(v)) for k, v in together.items()},
         "cor_slowdown_ingesting": cor_ingesting,
     }
+
+
+def _cor_table(
+    pool: ProcessPoolExecutor, l0: dict[str, Path], out: Path, catalogue: str, workers: int
+) -> tuple[dict[str, dict[str, dict[str, object]]], dict[int, list[float]]]:
+    """Each order kind made :data:`REPEATS` times alone, and k at once for k = 2 … workers:
+    its times, and how many times slower each is k at once."""
+    cor: dict[str, dict[str, dict[str, object]]] = {}
+    together: dict[int, list[float]] = {k: [] for k in range(2, workers + 1)}
+    for mode in ("P", "XS"):
+        cor[mode] = {}
+        for level in LEVELS:
+            jobs = [
+                (
+                    str(l0[mode]),
+                    k % SCENES[1],
+                    level,
+                    str(out / "products" / str(k)),
+                    catalogue,
+                )
+                for k in range(max(REPEATS, workers))
+            ]
+            alone = _cor(pool, jobs[:REPEATS], 1)
+            cor[mode][level] = _stats(alone)
+            for k in together:  # k of them at once: how much slower each is
+                ratio = float(np.mean(_cor(pool, jobs[:k], k)) / np.mean(alone))
+                together[k].append(ratio)
+    return cor, together
 
 
 def _signal_s(live: dict) -> float:

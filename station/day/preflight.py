@@ -24,7 +24,7 @@ from station.capacity.plan import DayPlan
 from station.day.config import DayScenario
 from station.errors import StationError
 
-__all__ = ["check_room", "estimate"]
+__all__ = ["check_room", "cores", "estimate"]
 
 FRONT_END_MB = 300.0
 WORKER_BASE_MB = 400.0
@@ -68,10 +68,16 @@ def estimate(scn: DayScenario, plan: DayPlan) -> dict[str, float]:
     }
 
 
+def cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
 def check_room(scn: DayScenario, plan: DayPlan, out: Path) -> dict[str, float]:
     """The estimate, or :class:`StationError` naming what the machine lacks."""
-    from station.day.run import cores
-
     need = estimate(scn, plan)
     have_cores = cores()
     if scn.day.workers > MAX_WORKERS_PER_CORE * have_cores:

@@ -79,24 +79,21 @@ def _queue(up: list[float], down: list[float], end_s: float) -> dict[str, object
     }
 
 
-def measure(scn: DayScenario, plan: DayPlan, events: list[dict]) -> dict[str, object]:
-    """The day's measured figures (module docstring)."""
-    at = _Timeline(events)
-    end_s = plan.hours * 3600.0
-    aos = {p.name: p.aos_s for p in plan.passes}
-    ingest, geo = [], []
-    for e in events:
-        if e["event"] == "archived":
-            for c in e["channels"]:
-                t0 = c["started_unix"]
-                ingest.append((at(t0), at(t0 + c["archived_s"])))
-                geo.append((at(t0 + c["archived_s"]), at(t0 + c["catalogued_s"])))
-    orders = {o.name: o for o in plan.orders}
+def _last_events(events: list[dict]) -> dict[str, dict[str, dict]]:
+    """Each order's last event of each kind."""
     last: dict[str, dict[str, dict]] = {}
     for e in events:
         if "order" in e:
             last.setdefault(e["order"], {})[e["event"]] = e
-    made_events = [e for e in events if e["event"] == "made"]
+    return last
+
+
+def _orders(plan: DayPlan, last: dict[str, dict[str, dict]], at: _Timeline) -> tuple:
+    """The orders made: each's unit held (dispatch to return), its wait, its queue's
+    arrivals and departures, and the latencies per level of those made in the window."""
+    end_s = plan.hours * 3600.0
+    aos = {p.name: p.aos_s for p in plan.passes}
+    orders = {o.name: o for o in plan.orders}
     cor, waits, ready_t, dispatch_t = [], [], [], []
     lat_acq: dict[str, list[float]] = {lv: [] for lv in LEVELS}
     lat_order: dict[str, list[float]] = {lv: [] for lv in LEVELS}
@@ -115,6 +112,23 @@ def measure(scn: DayScenario, plan: DayPlan, events: list[dict]) -> dict[str, ob
         if r <= end_s:
             lat_acq[o.level].append(r - aos[o.pass_name])
             lat_order[o.level].append(r - o.order_s)
+    return cor, waits, ready_t, dispatch_t, lat_acq, lat_order
+
+
+def measure(scn: DayScenario, plan: DayPlan, events: list[dict]) -> dict[str, object]:
+    """The day's measured figures (module docstring)."""
+    at = _Timeline(events)
+    end_s = plan.hours * 3600.0
+    ingest, geo = [], []
+    for e in events:
+        if e["event"] == "archived":
+            for c in e["channels"]:
+                t0 = c["started_unix"]
+                ingest.append((at(t0), at(t0 + c["archived_s"])))
+                geo.append((at(t0 + c["archived_s"]), at(t0 + c["catalogued_s"])))
+    last = _last_events(events)
+    made_events = [e for e in events if e["event"] == "made"]
+    cor, waits, ready_t, dispatch_t, lat_acq, lat_order = _orders(plan, last, at)
     units = {
         "ingest": scn.capacity.resources.ingest_workers,
         "geo": scn.capacity.resources.geo_workers,

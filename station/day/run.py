@@ -25,7 +25,6 @@ from __future__ import annotations
 import heapq
 import json
 import logging
-import os
 import shutil
 import subprocess
 import sys
@@ -455,11 +454,3 @@ def run_day(scn: DayScenario, out: Path, resume: bool = False, say: bool = True)
     report = day_report(scn, plan, read_events(out / EVENTS_FILE), day.failures)
     write_report(out, report)
     return report
-
-
-def cores() -> int:
-    """Cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
