@@ -1,4 +1,5 @@
-"""The benchmarks' smoke runs (``BENCH_SMOKE=1``), started in the background as soon as the
+"""Work the suite runs beside its own tests: a second pytest process for the :data:`PART`
+files, and the benchmarks' smoke runs (``BENCH_SMOKE=1``), started in the background as soon as the
 suite is collected (``conftest.pytest_collection_modifyitems``) and run one at a time while
 the rest of the suite runs on the other core; ``tests/test_benchmarks.py`` runs last and
 reads what each printed. Each is a process of its own, as its users run it
@@ -23,7 +24,22 @@ SMOKE_TIMEOUT_S = 300
 #: Smoke runs at once, in the background: one, the suite's own tests have the other core.
 AT_ONCE = 1
 
+#: Test files run by a second pytest process beside the suite's own when the whole suite
+#: runs (``conftest``): each starts its own servers and subprocesses and shares no fixture
+#: with the rest, and the suite alone keeps about one of the 2 cores busy.
+PART = (
+    "test_day.py",
+    "test_live.py",
+    "test_sle.py",
+    "test_fuzz_files.py",
+    "test_distributed.py",
+    "test_hostile.py",
+)
+#: The second process's bound (s): about 4 minutes beside the suite; a hang fails.
+PART_TIMEOUT_S = 1200
+
 _runs: dict[str, Future[subprocess.CompletedProcess[str]]] = {}
+_part: Future[subprocess.CompletedProcess[str]] | None = None
 _pool: ThreadPoolExecutor | None = None
 _root: Path | None = None
 
@@ -56,6 +72,48 @@ def start() -> None:
         _runs[p.name] = _pool.submit(_smoke, p, where)
 
 
+def _run_part(files: list[str], base: Path) -> subprocess.CompletedProcess[str]:
+    env = os.environ | {"SPOT_TESTS_PART": "1"}
+    cmd = [
+        sys.executable,
+        "-m",
+        "pytest",
+        "-q",
+        "-p",
+        "no:cacheprovider",
+        "--basetemp",
+        str(base / "tmp"),
+        *files,
+    ]
+    log = base / "part.log"
+    try:
+        with log.open("w") as out:
+            rc = subprocess.run(
+                cmd, cwd=ROOT, env=env, stdout=out, stderr=subprocess.STDOUT, timeout=PART_TIMEOUT_S
+            ).returncode
+    except subprocess.TimeoutExpired:
+        rc = -9
+    return subprocess.CompletedProcess(cmd, rc, log.read_text(), "")
+
+
+def start_part(files: list[str]) -> None:
+    """The :data:`PART` files' tests started in a pytest process of their own (once)."""
+    global _part
+    if _part is not None:
+        return
+    base = Path(tempfile.mkdtemp(prefix="pytest-part-"))
+    _part = ThreadPoolExecutor(1, thread_name_prefix="pytest-part").submit(_run_part, files, base)
+    _cleanup.append(base)
+
+
+def part_result() -> subprocess.CompletedProcess[str] | None:
+    """The second process's run, waited for (None: the files ran in this session)."""
+    return None if _part is None else _part.result()
+
+
+_cleanup: list[Path] = []
+
+
 def result(name: str) -> subprocess.CompletedProcess[str]:
     """A benchmark's smoke run, waited for (started now if the suite did not)."""
     start()
@@ -70,3 +128,7 @@ def stop() -> None:
         _pool = None
     if _root is not None:
         shutil.rmtree(_root, ignore_errors=True)
+    if _part is not None:
+        _part.result()
+    for base in _cleanup:
+        shutil.rmtree(base, ignore_errors=True)

@@ -17,16 +17,23 @@ REFDATA = Path(
 def pytest_collection_modifyitems(
     session: pytest.Session, config: pytest.Config, items: list
 ) -> None:
-    """The benchmarks' smoke runs started in the background as soon as the suite is
-    collected (``tests/_smokes.py``), their tests moved last: their minutes overlap the
-    rest of the suite's instead of adding to it."""
+    """When the whole suite runs: the :data:`_smokes.PART` files handed to a second pytest
+    process, and the benchmarks' smoke runs started, both in the background as soon as the
+    suite is collected (``tests/_smokes.py``); the tests that read them moved last. Their
+    minutes overlap the rest of the suite's instead of adding to it."""
     bench = [i for i in items if i.path.name == "test_benchmarks.py"]
-    if not bench:
+    if not bench or config.option.collectonly:
         return
-    ids = {id(i) for i in bench}
-    items[:] = [i for i in items if id(i) not in ids] + bench
     import _smokes
 
+    if os.environ.get("SPOT_TESTS_PART") is None:
+        part = [i for i in items if i.path.name in _smokes.PART]
+        if part:
+            config.hook.pytest_deselected(items=part)
+            items[:] = [i for i in items if i.path.name not in _smokes.PART]
+            _smokes.start_part(sorted({str(i.path) for i in part}))
+    last = {id(i) for i in items if i.path.name in ("test_benchmarks.py", "test_part.py")}
+    items[:] = [i for i in items if id(i) not in last] + [i for i in items if id(i) in last]
     _smokes.start()
 
 
