@@ -34,8 +34,10 @@ PART = (
     "test_fuzz_files.py",
     "test_distributed.py",
     "test_hostile.py",
+    "test_scenarios.py",
+    "test_scene1a.py",
 )
-#: The second process's bound (s): about 4 minutes beside the suite; a hang fails.
+#: The second process's bound (s): about 9 minutes beside the suite; a hang fails.
 PART_TIMEOUT_S = 1200
 
 _runs: dict[str, Future[subprocess.CompletedProcess[str]]] = {}
