@@ -48,6 +48,7 @@ __all__ = [
     "Shift",
     "Stage",
     "StationSimulation",
+    "gamma_time",
     "pass_pattern",
     "pass_patterns",
     "simulate",
@@ -98,7 +99,9 @@ class Replication:
     series: dict[str, tuple[list[float], list[int]]] = field(repr=False, default_factory=dict)
 
 
-def _gamma(rng: np.random.Generator, mean: float, cv: float) -> float:
+def gamma_time(rng: np.random.Generator, mean: float, cv: float) -> float:
+    """A service time of mean ``mean`` and coefficient of variation ``cv`` (gamma law;
+    ``cv`` 0: the mean itself)."""
     if cv <= 0 or mean <= 0:
         return mean
     k = 1.0 / (cv * cv)
@@ -218,7 +221,7 @@ class StationSimulation:
 
     def _draw(self, mean_s: float, scale: float) -> float:
         """A service time: the calibrated mean times the scenario's factor, gamma law."""
-        return _gamma(self.rng_service, mean_s * scale, self.scn.service.cv)
+        return gamma_time(self.rng_service, mean_s * scale, self.scn.service.cv)
 
     def order(self, mode: str, t_acq: float, geo_done: simpy.Event) -> Process:
         """An order of one scene: its delay, its scene's GEO, COR (urgent first), archive."""
@@ -237,10 +240,10 @@ class StationSimulation:
         if level == Level.L2A:  # the north-up rotation's window of raw lines (INPE's 950 / 475)
             cor_s += self.extra_2a_s[mode]
         yield from stages["cor"].serve(
-            _gamma(self.rng_service, cor_s, sv.cv), priority=0 if urgent else 1
+            gamma_time(self.rng_service, cor_s, sv.cv), priority=0 if urgent else 1
         )
         if film:
-            yield from stages["film"].serve(_gamma(self.rng_service, sv.film_s, sv.cv))
+            yield from stages["film"].serve(gamma_time(self.rng_service, sv.film_s, sv.cv))
         else:
             yield from stages["archive"].serve(
                 self._draw(self.service.archive_s[mode][level], sv.scale_archive)
@@ -358,7 +361,7 @@ class StationSimulation:
         counted when done (``sar_frames``; ``sar_frames_recorded`` when its pass ends)."""
         sv = self.scn.service
         mean_s = self.service.sar_gtc_s_per_frame * sv.scale_cor
-        yield from self.stages["cor"].serve(_gamma(self.rng_ers, mean_s, sv.cv), priority=1)
+        yield from self.stages["cor"].serve(gamma_time(self.rng_ers, mean_s, sv.cv), priority=1)
         self.counts["sar_frames"] += counted
 
     def tm_jobs(self) -> Process:
@@ -372,7 +375,7 @@ class StationSimulation:
     def tm_job(self) -> Process:
         ls, sv = self.scn.landsat, self.scn.service
         counted = self.env.now >= self.warmup
-        yield from self.stages["cor"].serve(_gamma(self.rng_tm, ls.tm_job_s, sv.cv), priority=1)
+        yield from self.stages["cor"].serve(gamma_time(self.rng_tm, ls.tm_job_s, sv.cv), priority=1)
         self.counts["tm_jobs"] += counted
 
     def run(self) -> Replication:

@@ -30,6 +30,7 @@ import csv
 import itertools
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -361,7 +362,7 @@ CHECKED_COR_UTILISATION = (0.10, 0.35)
 CHECKED_COR_WORKERS = (1, 3)
 
 
-def checked(run: dict[str, Any]) -> str:
+def checked(run: Mapping[str, Any]) -> str:
     """Whether a run's load lies where the model was checked against a day at the station
     (:data:`CHECKED_COR_UTILISATION`, :data:`CHECKED_COR_WORKERS`), in one line."""
     busy = run["stages"]["cor"]["utilisation"]["mean"]

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import simpy
 
+from station.capacity.model import gamma_time
 from station.capacity.plan import DayPlan, PlannedOrder, PlannedPass
 from station.capacity.stage import Process, Stage
 from station.day.preflight import SCENE_S
@@ -45,13 +46,6 @@ UTILISATION_TOLERANCE = 0.10
 #: The prediction interval's coverage.
 COVERAGE = 0.95
 LEVELS = ("1A", "1B", "2A")
-
-
-def _gamma(rng: np.random.Generator, mean: float, cv: float) -> float:
-    if cv <= 0 or mean <= 0:
-        return mean
-    k = 1.0 / (cv * cv)
-    return float(rng.gamma(k, mean / k))
 
 
 @dataclass(frozen=True)
@@ -190,7 +184,7 @@ class PlannedSimulation:
         self.from_order: dict[str, list[float]] = {lv: [] for lv in LEVELS}
 
     def _draw(self, entry: dict[str, float], times: float = 1.0) -> float:
-        return _gamma(self.rng, entry["mean_s"] * times, entry["cv"])
+        return gamma_time(self.rng, entry["mean_s"] * times, entry["cv"])
 
     def _resampled(self, entry: dict) -> dict[str, float]:
         samples = np.asarray(entry.get("samples_s", [entry["mean_s"]]), float)
@@ -209,7 +203,7 @@ class PlannedSimulation:
         alone = (ing["fixed_s"] + ing["s_per_signal_s"] * signal_s) / ing.get(
             "slowdown_two_channels", 1.0
         )  # the law is measured on two channels at once
-        ingest = max(signal_s / self.units.clock, _gamma(self.rng, alone, ing["cv"]))
+        ingest = max(signal_s / self.units.clock, gamma_time(self.rng, alone, ing["cv"]))
         yield from self.ingest.serve(ingest)
         yield from self.stages["geo"].serve(
             self._draw(self.service["geo_s_per_scene"][mode], scenes)
