@@ -88,7 +88,7 @@ def _service(cor_s: float, cv: float = 0.0) -> dict:
     e = {"mean_s": cor_s, "cv": cv}
     return {
         "ingest": {"fixed_s": 0.0, "s_per_signal_s": 0.0, "cv": 0.0},
-        "geo_s_per_scene": {"P": {"mean_s": 0.0, "cv": 0.0}, "XS": {"mean_s": 0.0, "cv": 0.0}},
+        "geo": {m: {"fixed_s": 0.0, "s_per_scene": 0.0, "cv": 0.0} for m in ("P", "XS")},
         "cor_s": {m: {lv: e for lv in ("1A", "1B", "2A")} for m in ("P", "XS")},
     }
 
@@ -229,7 +229,7 @@ def test_capacity_validate_puts_the_model_beside_the_day(tiny_day, capsys) -> No
     for r in rows:
         lo, hi = r["interval"]
         assert lo <= r["predicted"] <= hi and np.isfinite(r["measured"])
-    assert (out / "validation.json").is_file() and (out / "service_day.json").is_file()
+    assert (out / "validation.json").is_file() and (out / "service_validate.json").is_file()
     # the measured service times again, from the file: the same prediction
     rc2 = main(
         [
@@ -241,7 +241,7 @@ def test_capacity_validate_puts_the_model_beside_the_day(tiny_day, capsys) -> No
             "--json",
             "-q",
             "--service",
-            str(out / "service_day.json"),
+            str(out / "service_validate.json"),
         ]
     )
     again = json.loads(capsys.readouterr().out)

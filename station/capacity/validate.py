@@ -8,14 +8,19 @@ measured on this machine on a calibration pass of their own
 every figure, the model's mean and its 95 % prediction interval (the 2.5th and 97.5th
 percentiles over the replications: where one day's figure should fall), and the measured
 figure is said inside or not; a stage's utilisation is checked within
-:data:`UTILISATION_TOLERANCE` of the model's mean.
+:data:`UTILISATION_TOLERANCE` of the model's mean, or inside its interval where that is
+wider: a stage of few short jobs (GEO: a dozen channels of 50 ms, spread 30 %) cannot be
+measured on one day within 10 % of anything, its own mean included.
 
 The model of the day (:class:`PlannedSimulation`) is :class:`~station.capacity.model.
 StationSimulation`'s stages with the plan's arrivals, in wall seconds:
 
 - **ingest** of a segment: at least its signal's time on the clock (its seconds of signal
-  over the clock: the sender's pace), else the measured time per second of signal;
-- **GEO**: the measured time per scene, times the segment's scenes;
+  over the clock: the sender's pace), else the measured law: a fixed cost, a cost a second
+  of its pass's signal, less what the fill after its own scenes saves;
+- **GEO**: a channel's measured fixed cost and its cost a scene, times its scenes; ingest
+  and GEO are the front end's one process, processor-shared (:class:`SharedStage`'s
+  companions), and slowed by the workers' jobs on the same cores;
 - **COR**: each order, at its time, once its segment's GEO is done, on a worker (urgent
   first), for its mode and level's measured time: reading the archive, GEO's set-up of
   the pass again, the level and its product written and catalogued.
@@ -35,7 +40,7 @@ import simpy
 
 from station.capacity.model import gamma_time
 from station.capacity.plan import DayPlan, PlannedOrder, PlannedPass
-from station.capacity.stage import Process, Stage
+from station.capacity.stage import Process
 from station.day.preflight import SCENE_S
 from station.day.run import TICK_S
 
@@ -63,8 +68,9 @@ class SharedStage:
     progress at ``1 / slowdown[n]`` of their speed alone, and slower still by ``load()``
     when given (another stage's jobs on the same cores); a priority queue before it (urgent
     first, then in turn). Its measurements as :class:`Stage`'s: utilisation (the
-    time-average of the units held over the units) and waits. A stage whose jobs slow this
-    one's tells it before each change (``listeners``)."""
+    time-average of the units held over the units) and waits. The jobs of ``companions``
+    (stages in the same process: the front end's ingest and GEO) count in ``n``. A stage
+    whose jobs slow this one's tells it before each change (``listeners``)."""
 
     def __init__(
         self,
@@ -78,6 +84,7 @@ class SharedStage:
         self.queue: list[tuple[int, int, float, simpy.Event, float]] = []
         self.running: dict[int, tuple[float, simpy.Event]] = {}
         self.listeners: list[SharedStage] = []
+        self.companions: list[SharedStage] = []
         self.waits: list[float] = []
         self.area_busy = 0.0
         self._t = 0.0
@@ -97,7 +104,7 @@ class SharedStage:
             self._poke.succeed()
 
     def _rate(self) -> float:
-        n = len(self.running)
+        n = len(self.running) + sum(len(c.running) for c in self.companions)
         top = max(self.slowdown)
         factor = self.slowdown.get(n, self.slowdown[top] * n / top)  # beyond: shared evenly
         return 1.0 / (factor * (self.load() if self.load is not None else 1.0))
@@ -156,12 +163,11 @@ class PlannedSimulation:
         self.rng = np.random.default_rng(seed)
         self.env = env = simpy.Environment()
         self.t_end = plan.hours * 3600.0 / units.clock
-        self.stages = {"geo": Stage(env, "geo", units.geo, 0.0)}
         slowdown = {int(k): float(v) for k, v in service.get("cor_contention", {}).items()}
         ingesting = float(service.get("cor_slowdown_ingesting", 1.0))
 
         def front_end_busy() -> float:  # the front end decoding slows the workers' jobs
-            return ingesting if self.ingest.running else 1.0
+            return ingesting if self.ingest.running or self.geo.running else 1.0
 
         self.cor = SharedStage(env, units.cor, slowdown, front_end_busy)
         ing = service["ingest"]
@@ -172,8 +178,12 @@ class PlannedSimulation:
 
         channels = {2: float(ing.get("slowdown_two_channels", 1.0))}
         self.ingest = SharedStage(env, units.ingest, channels, cores_taken)
-        self.cor.listeners.append(self.ingest)
-        self.ingest.listeners.append(self.cor)
+        self.geo = SharedStage(env, units.geo, channels, cores_taken)  # the same process
+        self.ingest.companions.append(self.geo)
+        self.geo.companions.append(self.ingest)
+        self.cor.listeners += [self.ingest, self.geo]
+        self.ingest.listeners += [self.cor, self.geo]
+        self.geo.listeners += [self.cor, self.ingest]
         # this replication's means: the calibration's samples resampled (the uncertainty of
         # means measured on a few jobs belongs in the interval)
         self.cor_means = {
@@ -197,17 +207,19 @@ class PlannedSimulation:
 
     def segment(self, mode: str, scenes: int, pass_scenes: int) -> Process:
         """A channel: its pass's signal (both channels of a pass are as long as its longest
-        segment), then GEO of its own scenes."""
+        segment, the shorter's end is fill), then GEO of its own scenes."""
         ing = self.service["ingest"]
         signal_s = pass_scenes * SCENE_S + float(ing.get("lead_s", 0.2))
-        alone = (ing["fixed_s"] + ing["s_per_signal_s"] * signal_s) / ing.get(
-            "slowdown_two_channels", 1.0
-        )  # the law is measured on two channels at once
+        fill_s = (pass_scenes - scenes) * SCENE_S
+        beside = (
+            ing["fixed_s"] + ing["s_per_signal_s"] * signal_s - ing.get("fill_saving", 0.0) * fill_s
+        )
+        alone = beside / ing.get("slowdown_two_channels", 1.0)  # measured two at once
         ingest = max(signal_s / self.units.clock, gamma_time(self.rng, alone, ing["cv"]))
         yield from self.ingest.serve(ingest)
-        yield from self.stages["geo"].serve(
-            self._draw(self.service["geo_s_per_scene"][mode], scenes)
-        )
+        geo = self.service["geo"][mode]  # a channel's fixed cost and its cost a scene
+        t = geo["fixed_s"] + geo["s_per_scene"] * scenes
+        yield from self.geo.serve(gamma_time(self.rng, t, geo["cv"]))
 
     def order(self, o: PlannedOrder, p: PlannedPass, mode: str, geo: simpy.Event) -> Process:
         env, c = self.env, self.units.clock
@@ -244,9 +256,10 @@ class PlannedSimulation:
         self.env.run(until=self.t_end)
         c = self.units.clock
         out: dict[str, float] = {}
-        figures = {name: st.figures(self.t_end) for name, st in self.stages.items()}
-        figures["ingest"] = self.ingest.figures(self.t_end)
-        figures["cor"] = self.cor.figures(self.t_end)
+        figures = {
+            name: st.figures(self.t_end)
+            for name, st in (("ingest", self.ingest), ("geo", self.geo), ("cor", self.cor))
+        }
         for name, f in figures.items():
             out[f"{name}.utilisation"] = f["utilisation"]
             out[f"{name}.wait_mean_h"] = f["wait_mean_h"] * c
@@ -310,9 +323,9 @@ def compare(day: dict, predicted: dict[str, np.ndarray]) -> list[dict[str, objec
             "interval": [lo, hi],
             "inside": bool(lo <= m <= hi),
         }
-        if figure == "utilisation":
+        if figure == "utilisation":  # within 10 %, or its interval where that is wider
             rel = abs(m - mean) / mean if mean > 0 else math.inf
             row["relative_error"] = rel
-            row["inside"] = bool(rel <= UTILISATION_TOLERANCE)
+            row["inside"] = bool(rel <= UTILISATION_TOLERANCE or lo <= m <= hi)
         rows.append(row)
     return rows

@@ -32,14 +32,15 @@ def register(sub: Subparsers) -> None:
     cap.add_argument(
         "--service",
         metavar="F",
-        help="validate: the day's service times from F (default: measured now, on this machine)",
+        help="validate: the day's service times from F (default: the day's own, else measured now)",
     )
     cap.add_argument(
         "--sessions",
         type=int,
         default=None,
         metavar="K",
-        help="validate: calibration sessions measured (default 2; their spread is in the interval)",
+        help="validate: measure K calibration sessions now (default: the day's own, measured "
+        "before its clock and after it; else 2), their spread in the interval",
     )
     cap.add_argument(
         "--sweep",

@@ -36,6 +36,12 @@ def register(sub: Subparsers) -> None:
         action="store_true",
         help="go on with a killed day in OUT: nothing archived or made is done again",
     )
+    d.add_argument(
+        "--no-calibrate",
+        action="store_true",
+        help="do not measure the service times before the clock and after it (OUT/"
+        "service_day.json); station capacity validate then measures them itself",
+    )
     add_json(d, "the report as JSON")
     d.set_defaults(func=_day)
 
@@ -46,7 +52,13 @@ def _day(args: argparse.Namespace) -> int:
 
     scn = with_workers(load_day(args.day), args.workers, args.clock)
     out = Path(args.out) if args.out else Path("runs") / scn.name
-    report = run_day(scn, out, resume=args.resume, say=not getattr(args, "quiet", False))
+    report = run_day(
+        scn,
+        out,
+        resume=args.resume,
+        say=not getattr(args, "quiet", False),
+        calibrate=not args.no_calibrate,
+    )
     emit(args, report, lambda r: day_text(r, out))
     counts = report["counts"]
     if counts["made"] == 0 and counts["orders_in_window"] > 0:

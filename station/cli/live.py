@@ -46,6 +46,12 @@ def register(sub: Subparsers) -> None:
         help="comma-separated levels (e.g. 1A,2A) made of each scene as soon as its lines "
         "are in, while the pass goes on",
     )
+    s.add_argument(
+        "--warm-first",
+        action="store_true",
+        help="warm GEO (the catalogue's placing of scenes) before the port is said, not "
+        "beside the first pass (a day's front end, whose first pass may come at once)",
+    )
     _add_sle(s)
     add_json(s)
     s.set_defaults(func=_serve)
@@ -168,6 +174,7 @@ def _serve(args: argparse.Namespace) -> int:
         args.checkpoint,
         _sle_of(args),
         tuple(v.strip() for v in args.levels.split(",")) if args.levels else (),
+        args.warm_first,
     )
     emit(args, {"passes": [str(p) for p in done]}, lambda d: "\n".join(d["passes"]))
     return 0

@@ -1,23 +1,30 @@
-"""The service times of a day's stages, measured on this machine on a pass of their own (not
+"""The service times of a day's stages, measured on this machine on passes of their own (not
 the day's): what ``station capacity validate`` gives the capacity model.
 
-Two calibration passes (both HRVs, one in P and one in XS, :data:`SCENES` scenes a
-segment, the day's reduced sizes and rate, seeds of their own) are emulated, then each sent
-to a front end (``station serve``, in its own process, as in the day) at the day's clock
-times the line rate. Per channel, the wall time from its first byte to its archive
-written (**ingest**): from the two passes, a channel's fixed cost and its cost per second
-of signal; and from then to its scenes catalogued, per scene, on the second pass (**GEO**,
-warm as in the day after its first pass). Then each order kind (mode × level) is made
-:data:`REPEATS` times from the second pass's archive by the day's kind of worker (a spawned
-process, warm), one job at a time: the wall time from dispatch to the product catalogued
-(**COR**), its mean and coefficient of variation; and k at once for k = 2 … workers: how
-many times slower a job is when k share the machine (``cor_contention``: the cores and
-the memory bandwidth they share).
+The calibration passes (:data:`PASSES`: both HRVs or one, :data:`SCENES` scenes a segment,
+the day's reduced sizes and rate, seeds of their own) are emulated on the workers while a
+front end (``station serve --warm-first``, in its own process, as in the day) starts and
+warms, then each is sent at the day's clock times the line rate:
+
+- **ingest**, a channel's wall time from its first byte to its archive written: its
+  fixed cost and its cost a second of its pass's signal (``short`` and ``long``), what a
+  second of fill saves against a second of image (``fill``), how much two channels at once
+  slow each other (``alone``) and how much busy workers slow them (``busy``);
+- **GEO**, a channel's archive catalogued as GEO places its scenes, timed here alone on the
+  ``short`` and ``long`` archives: a fixed cost and a cost a scene (the model shares the
+  front end's process between GEO and the ingest beside it);
+- **COR**, each order kind (mode × level) made :data:`REPEATS` times from the ``long``
+  pass's archive by the day's kind of worker (a spawned process, warm), one job at a time:
+  the wall time from dispatch to the product catalogued, its mean and coefficient of
+  variation; and k at once for k = 2 … workers: how many times slower a job is when k
+  share the machine (``cor_contention``: the cores and the memory bandwidth they share);
+  and how much slower a job is while the front end ingests (``busy``).
 """
 
 from __future__ import annotations
 
 import json
+import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -33,7 +40,7 @@ from station.day.config import DayScenario
 from station.day.preflight import SCENE_S
 from station.errors import StationError
 
-__all__ = ["REPEATS", "SCENES", "day_service"]
+__all__ = ["REPEATS", "SCENES", "SERVICE_FILE", "bracket", "day_service", "read_service"]
 
 #: Scenes a segment of each calibration pass: two passes, a channel's fixed cost and its
 #: cost per second of signal.
@@ -83,50 +90,70 @@ def _cor(pool: ProcessPoolExecutor, jobs: list[tuple], at_once: int) -> list[flo
     return times
 
 
-#: The calibration passes: their segments' (mode, scenes). Two of both HRVs (a channel's
-#: fixed cost and its cost a second of signal), one channel alone (how much two channels at
-#: once slow each other in the front end's one process), and the second again while every
-#: worker is busy (how much the workers' jobs slow the front end).
-PASSES = (
-    (("P", SCENES[0]), ("XS", SCENES[0])),
-    (("P", SCENES[1]), ("XS", SCENES[1])),
-    (("P", SCENES[1]),),
-    (("P", SCENES[1]), ("XS", SCENES[1])),
-)
+#: A day's service times, measured before its clock and after (:func:`bracket`), or by
+#: ``station capacity validate``.
+SERVICE_FILE = "service_day.json"
+SERVICE_FORMAT = "spot-station-day-service-times"
+
+#: The calibration passes by name: their segments' (mode, scenes), in the order sent.
+#: ``short`` and ``long`` (both HRVs): a channel's fixed cost and its cost a second of
+#: signal; ``fill``: the P channel of one scene beside an XS of three, its last two scenes'
+#: time fill (what a channel's fill saves against image); ``alone``: one channel (how much
+#: two channels at once slow each other in the front end's one process); ``busy``: the long
+#: pass again while every worker is busy (how much the workers' jobs slow the front end).
+PASSES = {
+    "short": (("P", SCENES[0]), ("XS", SCENES[0])),
+    "long": (("P", SCENES[1]), ("XS", SCENES[1])),
+    "fill": (("P", SCENES[0]), ("XS", SCENES[1])),
+    "alone": (("P", SCENES[1]),),
+    "busy": (("P", SCENES[1]), ("XS", SCENES[1])),
+}
+#: GEO of each calibration archive timed this many times in this process (after one
+#: untimed call that loads its modules); the median is taken.
+GEO_REPEATS = 3
+
+
+def _emulated(out: Path, scn: DayScenario, pool: ProcessPoolExecutor) -> dict[str, tuple]:
+    """The calibration passes emulated on the workers: their streams, by name."""
+    day = scn.day
+    seed = scn.capacity.seed + CALIBRATION_SEED
+    futures = {}
+    for k, (name, segs) in enumerate(PASSES.items()):
+        segments = tuple(PlannedSegment(h + 1, m, n) for h, (m, n) in enumerate(segs))
+        p = PlannedPass(name, "SPOT 1", 0.0, 600.0, segments)
+        toml = out / "passes" / f"{name}.toml"
+        toml.write_text(
+            work.pass_scenario(p, seed + k, day.start_s, day.p_detectors, day.bit_rate_mbps)
+        )
+        futures[name] = pool.submit(work.emulate, str(toml))
+    return {name: f.result() for name, f in futures.items()}
+
+
+def _l0(out: Path, name: str) -> dict[str, Path]:
+    return {m: out / "archive" / name / f"{name}_hrv{h}.l0.h5" for h, m in ((1, "P"), (2, "XS"))}
 
 
 def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, object]:
     """The day's service times measured (module docstring), as a table."""
-    from station.day.run import _start_front_end, _stop
+    from station.day.run import _launch_front_end, _port_of, _stop
 
     day = scn.day
-    seed = scn.capacity.seed + CALIBRATION_SEED
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         out = Path(tmp)
         (out / "passes").mkdir()
-        planned = []
-        for k, segs in enumerate(PASSES):
-            segments = tuple(PlannedSegment(h + 1, m, n) for h, (m, n) in enumerate(segs))
-            p = PlannedPass(f"calibration{k}", "SPOT 1", 0.0, 600.0, segments)
-            toml = out / "passes" / f"{p.name}.toml"
-            toml.write_text(
-                work.pass_scenario(p, seed + k, day.start_s, day.p_detectors, day.bit_rate_mbps)
-            )
-            planned.append(p)
         ctx = get_context("spawn")
         catalogue = str(out / "archive" / CATALOGUE_FILE)
         with ProcessPoolExecutor(day.workers, mp_context=ctx, initializer=work.warm) as pool:
-            emulated = [
-                pool.submit(work.emulate, str(out / "passes" / f"{p.name}.toml")) for p in planned
-            ]
-            streams = [f.result() for f in emulated]
-            proc, port = _start_front_end(out, len(planned))
+            proc = _launch_front_end(out, len(PASSES))  # warm before its port, as a day's
             try:
-                lives = [_send(out, streams[k], port, scn, planned[k].name) for k in range(3)]
-                l0 = {
-                    m: out / "archive" / "calibration1" / f"calibration1_hrv{h}.l0.h5"
-                    for h, m in ((1, "P"), (2, "XS"))
+                streams = _emulated(out, scn, pool)
+                port = _port_of(proc, out)
+                lives = {
+                    name: _send(out, streams[name], port, scn, name)
+                    for name in PASSES
+                    if name != "busy"
                 }
+                l0 = _l0(out, "long")
                 busy = [
                     pool.submit(
                         work.make_order,
@@ -139,35 +166,34 @@ def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, obje
                     for k in range(6 * day.workers)
                 ]
                 time.sleep(0.2)  # every worker on a job
-                lives.append(_send(out, streams[3], port, scn, planned[3].name))
+                lives["busy"] = _send(out, streams["busy"], port, scn, "busy")
                 busy_after = sum(not f.done() for f in busy)
                 busy_runs = [f.result() for f in busy]
             finally:
                 _stop(proc, 120.0)
             ingest = _ingest(lives, busy_after >= day.workers)
-            cor_ingesting = _cor_while_ingesting(busy_runs, lives[3])
-            last = lives[1]["channels"]  # GEO on the second pass: warm, as in the day
-            geo = {
-                mode: {
-                    "mean_s": (c["catalogued_s"] - c["archived_s"]) / SCENES[1],
-                    "cv": 0.0,
-                    "n": 1,
-                }
-                for mode, c in zip(("P", "XS"), last, strict=True)
-            }
+            cor_ingesting = _cor_while_ingesting(busy_runs, lives["busy"])
+            geo = _geo(out, catalogue, lives, ingest)
             cor, together = _cor_table(pool, l0, out, catalogue, day.workers)
     return {
-        "format": "spot-station-day-service-times",
-        "format_version": 2,
+        "format": SERVICE_FORMAT,
+        "format_version": 3,
         "measured_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "clock": day.clock,
         "workers": day.workers,
         "p_detectors": day.p_detectors,
         "ingest": ingest,
-        "geo_s_per_scene": geo,
+        "geo": geo,
         "cor_s": cor,
         "cor_contention": {str(k): float(np.mean(v)) for k, v in together.items()},
         "cor_slowdown_ingesting": cor_ingesting,
+        "channels": {  # what the ingest law is drawn from: each calibration pass's channels
+            name: [
+                {"mode": m, "scenes": n, **{k: c[k] for k in ("archived_s", "catalogued_s")}}
+                for (m, n), c in zip(PASSES[name], live["channels"], strict=True)
+            ]
+            for name, live in lives.items()
+        },
     }
 
 
@@ -199,6 +225,49 @@ def _cor_table(
     return cor, together
 
 
+def _geo(
+    out: Path, catalogue: str, lives: dict[str, dict], ingest: dict[str, float]
+) -> dict[str, dict[str, float]]:
+    """GEO's law per mode, alone: a channel's fixed cost (its catalogue opened, its archive
+    read, the pass's GEO set up, the transaction) and its cost a scene, by least squares on
+    the ``short`` and ``long`` passes' archives, each catalogued :data:`GEO_REPEATS` times
+    here as the front end's channel does (``FrontEnd._catalogue``), the median taken.
+    Alone: in the model GEO shares the front end's process with the ingest beside it. Its
+    ``cv``: the spread of the front end's own GEO of the calibration passes' channels about
+    the law, times the front end's slowdowns as the model applies them (two channels, whose
+    GEO overlap; the workers busy)."""
+    from station.archive_catalogue import Catalogue, add_archive
+
+    def once(path: Path) -> float:
+        t = time.perf_counter()
+        with Catalogue(Path(catalogue)) as cat:
+            add_archive(cat, path)
+        return time.perf_counter() - t
+
+    once(_l0(out, "short")["P"])  # its modules loaded, untimed
+    law = {}
+    for mode in ("P", "XS"):
+        t = [
+            float(np.median([once(_l0(out, name)[mode]) for _ in range(GEO_REPEATS)]))
+            for name in ("short", "long")
+        ]
+        per = max(0.0, (t[1] - t[0]) / (SCENES[1] - SCENES[0]))
+        law[mode] = {"fixed_s": max(0.0, t[0] - per * SCENES[0]), "s_per_scene": per}
+
+    def slowed(name: str) -> float:
+        two = ingest["slowdown_two_channels"] if len(PASSES[name]) > 1 else 1.0
+        return two * (ingest["slowdown_workers_busy"] if name == "busy" else 1.0)
+
+    ratios = [
+        (c["catalogued_s"] - c["archived_s"])
+        / ((law[m]["fixed_s"] + law[m]["s_per_scene"] * n) * slowed(name))
+        for name, live in lives.items()
+        for (m, n), c in zip(PASSES[name], live["channels"], strict=True)
+    ]
+    cv = float(np.std(ratios, ddof=1) / np.mean(ratios))
+    return {m: {**v, "cv": cv, "n": len(ratios)} for m, v in law.items()}
+
+
 def _signal_s(live: dict) -> float:
     """A pass's channels' seconds of signal, from their bytes at their line rate."""
     return float(
@@ -206,26 +275,34 @@ def _signal_s(live: dict) -> float:
     )
 
 
-def _ingest(lives: list[dict], busy_held: bool) -> dict[str, float]:
-    """The front end's law (module docstring) from the four calibration passes."""
-    signal = [_signal_s(live) for live in lives[:2]]
-    t = [float(np.mean([c["archived_s"] for c in live["channels"]])) for live in lives]
+def _mean_archived(live: dict) -> float:
+    return float(np.mean([c["archived_s"] for c in live["channels"]]))
+
+
+def _ingest(lives: dict[str, dict], busy_held: bool) -> dict[str, float]:
+    """The front end's law (module docstring) from the calibration passes, for a channel
+    beside another: ``fixed_s + s_per_signal_s * signal - fill_saving * fill``, with
+    ``signal`` its pass's seconds of signal and ``fill`` those its own scenes do not fill."""
+    short, long_ = lives["short"], lives["long"]
+    signal = [_signal_s(short), _signal_s(long_)]
+    t = [_mean_archived(short), _mean_archived(long_)]
     per_s = (t[1] - t[0]) / (signal[1] - signal[0])
     fixed = max(0.0, t[0] - per_s * signal[0])
-    spread = [
-        c["archived_s"] / np.mean([x["archived_s"] for x in lv["channels"]])
-        for lv in lives[:2]
-        for c in lv["channels"]
-    ]
+    fill_s = (SCENES[1] - SCENES[0]) * SCENE_S  # the fill pass's P channel
+    saved = long_["channels"][0]["archived_s"] - lives["fill"]["channels"][0]["archived_s"]
+    spread = [c["archived_s"] / _mean_archived(lv) for lv in (short, long_) for c in lv["channels"]]
     return {
         "fixed_s": fixed,
         "s_per_signal_s": per_s,
+        "fill_saving": min(per_s, max(0.0, saved / fill_s)),
         # a channel's signal beyond its scenes' (the sender's lead-in and the last lines)
         "lead_s": signal[0] - SCENES[0] * SCENE_S,
         "cv": float(np.std(spread)),
-        "slowdown_two_channels": max(1.0, t[1] / t[2]),
+        "slowdown_two_channels": max(1.0, t[1] / _mean_archived(lives["alone"])),
         # measured only if the workers were still busy when the pass was in
-        "slowdown_workers_busy": max(1.0, t[3] / t[1]) if busy_held else 1.0,
+        "slowdown_workers_busy": max(1.0, _mean_archived(lives["busy"]) / t[1])
+        if busy_held
+        else 1.0,
     }
 
 
@@ -242,3 +319,43 @@ def _cor_while_ingesting(busy: list[dict], live: dict) -> float:
     if not alone.size or not over.any():
         return 1.0
     return max(1.0, 1.0 + float(np.mean((t[over] / alone.mean() - 1.0) / share[over])))
+
+
+def read_service(path: Path) -> dict:
+    """A service table (:func:`day_service`'s, or sessions of them) read back."""
+    try:
+        table = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise StationError(f"{path}: unreadable service times: {exc}") from None
+    if not isinstance(table, dict) or table.get("format") != SERVICE_FORMAT:
+        raise StationError(f"{path}: not a day's service times")
+    for session in table.get("sessions", [table]):
+        if session.get("format_version", 0) < 3:
+            raise StationError(
+                f"{path}: service times of an older calibration (no GEO law, no fill): "
+                "measure them again (station capacity validate DAY_RUN --sessions 2)"
+            )
+    return table
+
+
+def bracket(scn: DayScenario, out: Path, when: str, say: bool = True) -> None:
+    """A calibration session measured at the day's time (``when``: ``"before"`` its clock,
+    ``"after"`` it), added to ``<out>/``:data:`SERVICE_FILE`; one already there is kept (a
+    resumed day). The machine of the day's minutes, not of the validation's."""
+    from levels.files import write_json
+
+    path = out / SERVICE_FILE
+    table = read_service(path) if path.is_file() else {"format": SERVICE_FORMAT, "sessions": []}
+    if any(s.get("when") == when for s in table["sessions"]):
+        return
+    t = time.time()
+    session = {**day_service(scn, out), "when": when}
+    table["sessions"].append(session)
+    write_json(path, table)
+    if say:
+        print(
+            f"station day: service times measured {when} the clock, on calibration passes of "
+            f"their own, in {time.time() - t:.0f} s",
+            file=sys.stderr,
+            flush=True,
+        )

@@ -17,7 +17,9 @@ The day's processes, all started and ended by it:
 What happened is kept in ``<out>/events.jsonl`` (one line per event, flushed): a killed day
 goes on with ``--resume`` from the catalogue and these events, without sending a pass
 archived or making a product catalogued again; the report (:mod:`station.day.report`) is
-written at the end.
+written at the end. Before the clock and after it, the station's service times are measured
+on calibration passes of their own (``service_day.json``): the model is checked with the
+machine of the day's own minutes.
 """
 
 from __future__ import annotations
@@ -173,8 +175,9 @@ def prepare(scn: DayScenario, out: Path, resume: bool) -> DayPlan:
     return plan
 
 
-def _start_front_end(out: Path, passes: int) -> tuple[subprocess.Popen, int]:
-    archive = out / "archive"
+def _launch_front_end(out: Path, passes: int) -> subprocess.Popen:
+    """The day's front end started (``station serve --warm-first``): it warms while the
+    passes are emulated, and says its port once warm (:func:`_port_of`)."""
     port_file = out / "serve.port"
     port_file.unlink(missing_ok=True)
     log = (out / "serve.log").open("a")
@@ -184,16 +187,23 @@ def _start_front_end(out: Path, passes: int) -> tuple[subprocess.Popen, int]:
         "station.cli",
         "serve",
         "--out",
-        str(archive),
+        str(out / "archive"),
         "--port",
         "0",
         "--port-file",
         str(port_file),
         "--passes",
         str(passes),
+        "--warm-first",
     ]
     proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     log.close()
+    return proc
+
+
+def _port_of(proc: subprocess.Popen, out: Path) -> int:
+    """The port the front end :func:`_launch_front_end` started listens on, once said."""
+    port_file = out / "serve.port"
     deadline = time.time() + FRONT_END_START_S
     while not port_file.is_file():
         if proc.poll() is not None:
@@ -203,7 +213,7 @@ def _start_front_end(out: Path, passes: int) -> tuple[subprocess.Popen, int]:
             proc.wait()
             raise StationError(f"the front end said no port in {FRONT_END_START_S:.0f} s")
         time.sleep(0.05)
-    return proc, int(port_file.read_text())
+    return int(port_file.read_text())
 
 
 def _stop(proc: subprocess.Popen | None, timeout_s: float = 30.0) -> None:
@@ -259,11 +269,12 @@ class Day:
             return
         ctx = get_context("spawn")
         with ProcessPoolExecutor(day.workers, mp_context=ctx, initializer=work.warm) as pool:
-            streams = self._emulate(pool, to_send)
-            proc, port = (None, 0)
-            if to_send:
-                proc, port = _start_front_end(self.out, len(to_send))
+            proc = _launch_front_end(self.out, len(to_send)) if to_send else None
+            sent = False  # until the clock runs, the front end has no pass to wait for
             try:
+                streams = self._emulate(pool, to_send)
+                port = _port_of(proc, self.out) if proc is not None else 0
+                sent = True
                 self.clock = Clock(day.clock, self.state.station_s)
                 self.events(
                     "start",
@@ -274,7 +285,7 @@ class Day:
                 )
                 self._loop(pool, streams, port)
             finally:
-                _stop(proc)
+                _stop(proc, 30.0 if sent else 0.0)
         self.events("end", station_s=self.clock.now())
         self.events.close()
 
@@ -442,15 +453,25 @@ class Day:
         return len(done)
 
 
-def run_day(scn: DayScenario, out: Path, resume: bool = False, say: bool = True) -> dict:
+def run_day(
+    scn: DayScenario, out: Path, resume: bool = False, say: bool = True, calibrate: bool = True
+) -> dict:
     """Run the day into ``out`` (module docstring); its report
-    (:func:`station.day.report.day_report`), also written to ``<out>/day.json``."""
+    (:func:`station.day.report.day_report`), also written to ``<out>/day.json``. With
+    ``calibrate``, the station's service times are measured on calibration passes of their
+    own just before the clock and just after it (:func:`station.day.calibrate.bracket`):
+    what ``station capacity validate`` gives the model."""
+    from station.day.calibrate import bracket
     from station.day.report import day_report, write_report
 
     out = Path(out)
     plan = prepare(scn, out, resume)
+    if calibrate:
+        bracket(scn, out, "before", say)
     day = Day(scn, out, plan, resume, say)
     day.run()
+    if calibrate:
+        bracket(scn, out, "after", say)
     report = day_report(scn, plan, read_events(out / EVENTS_FILE), day.failures)
     write_report(out, report)
     return report

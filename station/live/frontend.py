@@ -100,10 +100,13 @@ def _warm_geo() -> None:
     from levels.warmup import WARM_UP_ARCHIVE
     from station.archive_catalogue import archive_items
 
+    t = time.perf_counter()
     try:
         archive_items(WARM_UP_ARCHIVE, WARM_UP_ARCHIVE.parent)
     except Exception as exc:  # a warm-up, never a reason not to serve
         _log.warning("GEO's warm-up failed: %s", exc)
+    else:
+        _log.info("GEO warm in %.2f s", time.perf_counter() - t)
 
 
 @dataclass(eq=False)
@@ -492,12 +495,14 @@ def serve(
     checkpoint_s: float = CHECKPOINT_S,
     sle: tuple[RafConfig, int, Path | None] | None = None,
     levels: tuple[str, ...] = (),
+    warm_first: bool = False,
 ) -> list[Path]:
     """Listen on ``host:port`` (0: a free port, written to ``port_file``) and receive
     passes into ``out`` until ``passes`` of them are done (None: until interrupted);
     with ``sle = (config, port, port_file)``, be an SLE RAF provider on that port too
     (:mod:`station.live.raf`); with ``levels``, make each scene's products as soon as its
-    lines are in (:mod:`station.live.nrt`). Returns the passes' directories."""
+    lines are in (:mod:`station.live.nrt`); with ``warm_first``, GEO is warmed before the
+    port is said (else beside the first pass). Returns the passes' directories."""
     if levels:
         from levels.options import ProcessingOptions
 
@@ -510,7 +515,9 @@ def serve(
     stop = threading.Event()
     sle_server = _listen(host, sle[1]) if sle is not None else None
     warm_up()  # ready when the port is said
-    if front.catalogue:  # meanwhile: a pass's entry is written seconds after it begins
+    if front.catalogue and warm_first:
+        _warm_geo()
+    elif front.catalogue:  # meanwhile: a pass's entry is written seconds after it begins
         threading.Thread(target=_warm_geo, daemon=True, name="warm-geo").start()
     if provider is not None and sle_server is not None and sle is not None:
         threading.Thread(
