@@ -294,3 +294,32 @@ def test_capacity_sweeps_on_the_cluster_are_those_in_process(cluster, tmp_path, 
     assert (tmp_path / "a" / "summary.json").read_bytes() == (
         tmp_path / "b" / "summary.json"
     ).read_bytes()
+
+
+def test_a_day_runs_its_orders_on_the_clusters_workers(cluster, tmp_path, monkeypatch, capsys):
+    """``station day --scheduler``: the reduced day's passes emulated and its orders made by
+    the cluster's two workers (their process ids), each product
+    catalogued; a scheduler that does not answer is refused in one line, before any work."""
+    from _tiny_day import tiny_day_file
+    from distributed import Client
+
+    import station.day.pool
+    from station.day.run import read_events
+
+    path = tiny_day_file(tmp_path)
+    out = tmp_path / "day"
+    argv = ["day", str(path), "--no-calibrate", "-q", "--json"]
+    assert main([*argv, "--scheduler", cluster, "--out", str(out)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    c = report["counts"]
+    assert c["made"] == c["orders_in_window"] > 0 and c["failed"] == c["made_twice"] == 0
+    assert report["workers"] == 2  # the cluster's threads
+    with Client(cluster, timeout=30) as client:
+        workers = set(client.run(os.getpid).values())
+    made_by = {e["pid"] for e in read_events(out / "events.jsonl") if e["event"] == "made"}
+    assert made_by and made_by <= workers  # no local pool: every product the cluster's
+    monkeypatch.setattr(station.day.pool, "CONNECT_TIMEOUT_S", 1.0)
+    nobody = "tcp://127.0.0.1:9"  # the discard port: nothing listens there
+    assert main([*argv, "--scheduler", nobody, "--out", str(tmp_path / "no")]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and nobody in err and not (tmp_path / "no").exists()

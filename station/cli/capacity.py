@@ -134,4 +134,4 @@ def _validate(args: argparse.Namespace) -> int:
         sessions=args.sessions,
     )
     emit(args, result, validation_text)
-    return 0 if result["all_inside"] else 1
+    return 0 if result["consistent"] else 1

@@ -29,7 +29,14 @@ def register(sub: Subparsers) -> None:
     )
     d.add_argument("day", help="a day file (.toml)")
     d.add_argument("--clock", type=float, metavar="C", help="times faster than real (the file's)")
-    d.add_argument("--workers", type=int, metavar="N", help="processing workers (the file's)")
+    g = d.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, metavar="N", help="local processing workers (the file's)")
+    g.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="the processing workers are those of the Dask cluster at ADDRESS (e.g. "
+        "tcp://127.0.0.1:8786), as many as its threads; they must see OUT at the same path",
+    )
     d.add_argument("--out", help="output directory (default runs/<name>/)")
     d.add_argument(
         "--resume",
@@ -58,6 +65,7 @@ def _day(args: argparse.Namespace) -> int:
         resume=args.resume,
         say=not getattr(args, "quiet", False),
         calibrate=not args.no_calibrate,
+        scheduler=args.scheduler,
     )
     emit(args, report, lambda r: day_text(r, out))
     counts = report["counts"]

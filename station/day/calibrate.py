@@ -13,7 +13,7 @@ warms, then each is sent at the day's clock times the line rate:
 - **GEO**, a channel's archive catalogued as GEO places its scenes, timed here alone on the
   ``short`` and ``long`` archives: a fixed cost and a cost a scene (the model shares the
   front end's process between GEO and the ingest beside it);
-- **COR**, each order kind (mode × level) made :data:`REPEATS` times from the ``long``
+- **COR**, each order kind (mode × level) made ``calibration_repeats`` times from the ``long``
   pass's archive by the day's kind of worker (a spawned process, warm), one job at a time:
   the wall time from dispatch to the product catalogued, its mean and coefficient of
   variation; and k at once for k = 2 … workers: how many times slower a job is when k
@@ -23,12 +23,11 @@ warms, then each is sent at the day's clock times the line rate:
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -36,16 +35,16 @@ import numpy as np
 from station.archive_catalogue import CATALOGUE_FILE
 from station.capacity.plan import PlannedPass, PlannedSegment
 from station.day import work
-from station.day.config import DayScenario
+from station.day.config import DayConfig, DayScenario
+from station.day.pool import DayPool, day_pool, finish_times
 from station.day.preflight import SCENE_S
 from station.errors import StationError
 
-__all__ = ["REPEATS", "SCENES", "SERVICE_FILE", "bracket", "day_service", "read_service"]
+__all__ = ["SCENES", "SERVICE_FILE", "bracket", "day_service", "read_service"]
 
 #: Scenes a segment of each calibration pass: two passes, a channel's fixed cost and its
 #: cost per second of signal.
 SCENES = (1, 3)
-REPEATS = 4
 LEVELS = ("1A", "1B", "2A")
 #: Added to the day's seed: the calibration pass is not one of the day's.
 CALIBRATION_SEED = 424242
@@ -78,15 +77,13 @@ def _send(out: Path, streams: tuple, port: int, scn: DayScenario, name: str) -> 
     return json.loads(report.read_text())
 
 
-def _cor(pool: ProcessPoolExecutor, jobs: list[tuple], at_once: int) -> list[float]:
+def _cor(pool: DayPool, jobs: list[tuple], at_once: int) -> list[float]:
     """Wall time of each job from dispatch to return, ``at_once`` dispatched together."""
     times = []
     for k in range(0, len(jobs), at_once):
         t = time.time()
         futures = [pool.submit(work.make_order, *job) for job in jobs[k : k + at_once]]
-        for f in as_completed(futures):
-            f.result()
-            times.append(time.time() - t)
+        times += [end - t for end in finish_times(futures)]
     return times
 
 
@@ -113,7 +110,7 @@ PASSES = {
 GEO_REPEATS = 3
 
 
-def _emulated(out: Path, scn: DayScenario, pool: ProcessPoolExecutor) -> dict[str, tuple]:
+def _emulated(out: Path, scn: DayScenario, pool: DayPool) -> dict[str, tuple]:
     """The calibration passes emulated on the workers: their streams, by name."""
     day = scn.day
     seed = scn.capacity.seed + CALIBRATION_SEED
@@ -133,48 +130,52 @@ def _l0(out: Path, name: str) -> dict[str, Path]:
     return {m: out / "archive" / name / f"{name}_hrv{h}.l0.h5" for h, m in ((1, "P"), (2, "XS"))}
 
 
-def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, object]:
-    """The day's service times measured (module docstring), as a table."""
+def day_service(
+    scn: DayScenario, workdir: Path | None = None, pool: DayPool | None = None
+) -> dict[str, object]:
+    """The day's service times measured (module docstring), as a table: on ``pool``, the
+    day's workers, or on local ones of its own (``[day] workers``)."""
+    if pool is None:
+        with day_pool(scn.day.workers) as local:
+            return day_service(scn, workdir, local)
     from station.day.run import _launch_front_end, _port_of, _stop
 
-    day = scn.day
+    day = dataclasses.replace(scn.day, workers=pool.workers)
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         out = Path(tmp)
         (out / "passes").mkdir()
-        ctx = get_context("spawn")
         catalogue = str(out / "archive" / CATALOGUE_FILE)
-        with ProcessPoolExecutor(day.workers, mp_context=ctx, initializer=work.warm) as pool:
-            proc = _launch_front_end(out, len(PASSES))  # warm before its port, as a day's
-            try:
-                streams = _emulated(out, scn, pool)
-                port = _port_of(proc, out)
-                lives = {
-                    name: _send(out, streams[name], port, scn, name)
-                    for name in PASSES
-                    if name != "busy"
-                }
-                l0 = _l0(out, "long")
-                busy = [
-                    pool.submit(
-                        work.make_order,
-                        str(l0["P"]),
-                        k % SCENES[1],
-                        "2A",
-                        str(out / "products" / f"busy{k}"),
-                        catalogue,
-                    )
-                    for k in range(6 * day.workers)
-                ]
-                time.sleep(0.2)  # every worker on a job
-                lives["busy"] = _send(out, streams["busy"], port, scn, "busy")
-                busy_after = sum(not f.done() for f in busy)
-                busy_runs = [f.result() for f in busy]
-            finally:
-                _stop(proc, 120.0)
-            ingest = _ingest(lives, busy_after >= day.workers)
-            cor_ingesting = _cor_while_ingesting(busy_runs, lives["busy"])
-            geo = _geo(out, catalogue, lives, ingest)
-            cor, together = _cor_table(pool, l0, out, catalogue, day.workers)
+        proc = _launch_front_end(out, len(PASSES))  # warm before its port, as a day's
+        try:
+            streams = _emulated(out, scn, pool)
+            port = _port_of(proc, out)
+            lives = {
+                name: _send(out, streams[name], port, scn, name)
+                for name in PASSES
+                if name != "busy"
+            }
+            l0 = _l0(out, "long")
+            busy = [
+                pool.submit(
+                    work.make_order,
+                    str(l0["P"]),
+                    k % SCENES[1],
+                    "2A",
+                    str(out / "products" / f"busy{k}"),
+                    catalogue,
+                )
+                for k in range(6 * day.workers)
+            ]
+            time.sleep(0.2)  # every worker on a job
+            lives["busy"] = _send(out, streams["busy"], port, scn, "busy")
+            busy_after = sum(not f.done() for f in busy)
+            busy_runs = [f.result() for f in busy]
+        finally:
+            _stop(proc, 120.0)
+        ingest = _ingest(lives, busy_after >= day.workers)
+        cor_ingesting = _cor_while_ingesting(busy_runs, lives["busy"])
+        geo = _geo(out, catalogue, lives, ingest)
+        cor, together = _cor_table(pool, out, catalogue, day)
     return {
         "format": SERVICE_FORMAT,
         "format_version": 3,
@@ -198,29 +199,43 @@ def day_service(scn: DayScenario, workdir: Path | None = None) -> dict[str, obje
 
 
 def _cor_table(
-    pool: ProcessPoolExecutor, l0: dict[str, Path], out: Path, catalogue: str, workers: int
+    pool: DayPool, out: Path, catalogue: str, day: DayConfig
 ) -> tuple[dict[str, dict[str, dict[str, object]]], dict[int, list[float]]]:
-    """Each order kind made :data:`REPEATS` times alone, and k at once for k = 2 … workers:
-    its times, and how many times slower each is k at once."""
+    """Each order kind made ``calibration_repeats`` times alone from the ``long`` pass's
+    archive (the second of :data:`SCENES`), half as many times from the ``short`` one's
+    (what a scene more in the archive costs: the job reads its archive whole and sets up
+    GEO for its pass), and k at once for k = 2 … workers: its times, its cost an archive
+    scene (``s_per_archive_scene``) and how many times slower each is k at once."""
     cor: dict[str, dict[str, dict[str, object]]] = {}
-    together: dict[int, list[float]] = {k: [] for k in range(2, workers + 1)}
+    together: dict[int, list[float]] = {k: [] for k in range(2, day.workers + 1)}
+    repeats = day.calibration_repeats
+    archives = {name: _l0(out, name) for name in ("short", "long")}
+
+    def jobs(name: str, mode: str, level: str, n: int) -> list[tuple]:
+        return [
+            (
+                str(archives[name][mode]),
+                k % SCENES[name == "long"],
+                level,
+                str(out / "products" / str(k)),
+                catalogue,
+            )
+            for k in range(n)
+        ]
+
     for mode in ("P", "XS"):
         cor[mode] = {}
         for level in LEVELS:
-            jobs = [
-                (
-                    str(l0[mode]),
-                    k % SCENES[1],
-                    level,
-                    str(out / "products" / str(k)),
-                    catalogue,
-                )
-                for k in range(max(REPEATS, workers))
-            ]
-            alone = _cor(pool, jobs[:REPEATS], 1)
-            cor[mode][level] = _stats(alone)
+            alone = _cor(pool, jobs("long", mode, level, repeats), 1)
+            short = _cor(pool, jobs("short", mode, level, max(1, repeats // 2)), 1)
+            per = (np.mean(alone) - np.mean(short)) / (SCENES[1] - SCENES[0])
+            cor[mode][level] = {
+                **_stats(alone),
+                "archive_scenes": SCENES[1],
+                "s_per_archive_scene": max(0.0, float(per)),
+            }
             for k in together:  # k of them at once: how much slower each is
-                ratio = float(np.mean(_cor(pool, jobs[:k], k)) / np.mean(alone))
+                ratio = float(np.mean(_cor(pool, jobs("long", mode, level, k), k)) / np.mean(alone))
                 together[k].append(ratio)
     return cor, together
 
@@ -338,20 +353,19 @@ def read_service(path: Path) -> dict:
     return table
 
 
-def bracket(scn: DayScenario, out: Path, when: str, say: bool = True) -> None:
+def bracket(scn: DayScenario, out: Path, when: str, pool: DayPool, say: bool = True) -> None:
     """A calibration session measured at the day's time (``when``: ``"before"`` its clock,
     ``"after"`` it), added to ``<out>/``:data:`SERVICE_FILE`; one already there is kept (a
     resumed day). The machine of the day's minutes, not of the validation's."""
     from levels.files import write_json
 
     path = out / SERVICE_FILE
-    table = read_service(path) if path.is_file() else {"format": SERVICE_FORMAT, "sessions": []}
-    if any(s.get("when") == when for s in table["sessions"]):
+    sessions: list[dict] = read_service(path).get("sessions", []) if path.is_file() else []
+    if any(s.get("when") == when for s in sessions):
         return
     t = time.time()
-    session = {**day_service(scn, out), "when": when}
-    table["sessions"].append(session)
-    write_json(path, table)
+    sessions.append({**day_service(scn, out, pool), "when": when, "pool": pool.where})
+    write_json(path, {"format": SERVICE_FORMAT, "sessions": sessions})
     if say:
         print(
             f"station day: service times measured {when} the clock, on calibration passes of "

@@ -12,7 +12,10 @@ clock, how fast, on how many workers, and how each pass is emulated (reduced sce
 - ``p_detectors``: detectors of a P scene as emulated (XS: half as many, as ``station
   capacity calibrate`` reduces them); a scene is as many lines as detectors;
 - ``bit_rate_mbps``: each channel's rate as emulated (a share of 25 Mbit/s like the
-  detectors).
+  detectors);
+- ``calibration_repeats``: how many times each order kind (mode × level) is made alone
+  when the service times are measured (:mod:`station.day.calibrate`; half as many on the
+  one-scene archive).
 """
 
 from __future__ import annotations
@@ -49,6 +52,9 @@ class DayConfig:
     )
     seed: int = option(
         0, "seed", "added to the scenario's seed for the emulated passes", lo=0, hi=2**31
+    )
+    calibration_repeats: int = option(
+        4, "calibration_repeats", "times each order kind is made to calibrate COR", lo=2, hi=50
     )
 
     @property

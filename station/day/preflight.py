@@ -44,8 +44,9 @@ def _available_mb() -> float:
     return float("inf")  # not Linux: not checked
 
 
-def estimate(scn: DayScenario, plan: DayPlan) -> dict[str, float]:
-    """The day's needs (module docstring): memory and disk in MB, cores."""
+def estimate(scn: DayScenario, plan: DayPlan, local_workers: bool = True) -> dict[str, float]:
+    """The day's needs (module docstring): memory and disk in MB, cores (the workers'
+    memory and cores left out when they are a cluster's)."""
     day = scn.day
     bands = {"P": 1, "XS": 3}
     stream_mb = 0.0
@@ -62,9 +63,9 @@ def estimate(scn: DayScenario, plan: DayPlan) -> dict[str, float]:
         product_mb += n * n * bands[seg.mode] * 2.0 / 1e6
     worker_mb = WORKER_BASE_MB + largest_px * BYTES_PER_PIXEL / 1e6
     return {
-        "memory_mb": FRONT_END_MB + day.workers * worker_mb + stream_mb,
+        "memory_mb": FRONT_END_MB + day.workers * worker_mb * local_workers + stream_mb,
         "disk_mb": 1.1 * stream_mb + product_mb,
-        "cores": float(day.workers),
+        "cores": float(day.workers * local_workers),
     }
 
 
@@ -76,11 +77,14 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-def check_room(scn: DayScenario, plan: DayPlan, out: Path) -> dict[str, float]:
-    """The estimate, or :class:`StationError` naming what the machine lacks."""
-    need = estimate(scn, plan)
+def check_room(
+    scn: DayScenario, plan: DayPlan, out: Path, local_workers: bool = True
+) -> dict[str, float]:
+    """The estimate, or :class:`StationError` naming what the machine lacks (without
+    ``local_workers``, a cluster's workers: their cores and memory are not this machine's)."""
+    need = estimate(scn, plan, local_workers)
     have_cores = cores()
-    if scn.day.workers > MAX_WORKERS_PER_CORE * have_cores:
+    if local_workers and scn.day.workers > MAX_WORKERS_PER_CORE * have_cores:
         raise StationError(
             f"{scn.day.workers} workers on {have_cores} core(s): more than "
             f"{MAX_WORKERS_PER_CORE} a core only shares them; give --workers "

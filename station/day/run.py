@@ -32,16 +32,16 @@ import subprocess
 import sys
 import threading
 import time
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import Future
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from station.archive_catalogue import CATALOGUE_FILE, Catalogue
 from station.capacity.plan import DayPlan, PlannedOrder, PlannedPass, draw_plan, read_plan
 from station.day import work
-from station.day.config import DayScenario
+from station.day.config import DayScenario, with_workers
+from station.day.pool import DayPool, day_pool
 from station.errors import StationError
 
 if TYPE_CHECKING:
@@ -136,8 +136,9 @@ class Clock:
         return self.wall0 + (station_s - self.station0) / self.rate
 
 
-def prepare(scn: DayScenario, out: Path, resume: bool) -> DayPlan:
-    """The output directory and the day's plan (drawn, or the one a killed day drew)."""
+def prepare(scn: DayScenario, out: Path, resume: bool, local_workers: bool = True) -> DayPlan:
+    """The output directory and the day's plan (drawn, or the one a killed day drew); the
+    machine's room checked first (the workers' too when they are local)."""
     plan_path = out / PLAN_FILE
     from station.day.preflight import check_room
 
@@ -145,7 +146,7 @@ def prepare(scn: DayScenario, out: Path, resume: bool) -> DayPlan:
         if not plan_path.is_file():
             raise StationError(f"--resume: {out} holds no day ({PLAN_FILE} missing)")
         plan = read_plan(plan_path)
-        check_room(scn, plan, out)
+        check_room(scn, plan, out, local_workers)
         return plan
     if plan_path.exists():
         raise StationError(
@@ -157,7 +158,7 @@ def prepare(scn: DayScenario, out: Path, resume: bool) -> DayPlan:
             f"no pass images in the window ({scn.day.hours} h from day {scn.day.start_day}, "
             f"{scn.day.start_h} h UTC): move [day] start_day or start_h"
         )
-    check_room(scn, plan, out)  # before anything is written
+    check_room(scn, plan, out, local_workers)  # before anything is written
     out.mkdir(parents=True, exist_ok=True)
     if scn.source:
         shutil.copyfile(scn.source, out / DAY_FILE)  # what validate reads back
@@ -254,7 +255,7 @@ class Day:
         if self.say:
             print(f"[{self.clock.now() / 3600.0:6.2f} h] {text}", file=sys.stderr, flush=True)
 
-    def run(self) -> None:
+    def run(self, pool: DayPool) -> None:
         day = self.scn.day
         if self.out.joinpath("archive").is_dir():  # a pass cut by a kill is sent again
             for d in (self.out / "archive").iterdir():
@@ -267,29 +268,27 @@ class Day:
             self.clock = Clock(day.clock, self.state.station_s)
             self.events.close()
             return
-        ctx = get_context("spawn")
-        with ProcessPoolExecutor(day.workers, mp_context=ctx, initializer=work.warm) as pool:
-            proc = _launch_front_end(self.out, len(to_send)) if to_send else None
-            sent = False  # until the clock runs, the front end has no pass to wait for
-            try:
-                streams = self._emulate(pool, to_send)
-                port = _port_of(proc, self.out) if proc is not None else 0
-                sent = True
-                self.clock = Clock(day.clock, self.state.station_s)
-                self.events(
-                    "start",
-                    station_s=self.state.station_s,
-                    resumed=bool(self.state.sent),
-                    workers=day.workers,
-                    clock=day.clock,
-                )
-                self._loop(pool, streams, port)
-            finally:
-                _stop(proc, 30.0 if sent else 0.0)
+        proc = _launch_front_end(self.out, len(to_send)) if to_send else None
+        sent = False  # until the clock runs, the front end has no pass to wait for
+        try:
+            streams = self._emulate(pool, to_send)
+            port = _port_of(proc, self.out) if proc is not None else 0
+            sent = True
+            self.clock = Clock(day.clock, self.state.station_s)
+            self.events(
+                "start",
+                station_s=self.state.station_s,
+                resumed=bool(self.state.sent),
+                workers=day.workers,
+                clock=day.clock,
+            )
+            self._loop(pool, streams, port)
+        finally:
+            _stop(proc, 30.0 if sent else 0.0)
         self.events("end", station_s=self.clock.now())
         self.events.close()
 
-    def _emulate(self, pool: ProcessPoolExecutor, passes: list[PlannedPass]) -> dict:
+    def _emulate(self, pool: DayPool, passes: list[PlannedPass]) -> dict:
         """Each pass to send emulated on the workers, before the clock starts (and every
         worker started and warm)."""
         t0 = time.time()
@@ -309,7 +308,7 @@ class Day:
             )
         return streams
 
-    def _loop(self, pool: ProcessPoolExecutor, streams: dict, port: int) -> None:
+    def _loop(self, pool: DayPool, streams: dict, port: int) -> None:
         end_s = self.plan.hours * 3600.0
         senders: list[threading.Thread] = []
         pending = [p for p in self.plan.passes if p.name not in self.state.archived]
@@ -407,7 +406,7 @@ class Day:
                 self._ready, (0 if o.order.urgent else 1, o.ready_unix, self.orders.index(o), o)
             )
 
-    def _submit(self, pool: ProcessPoolExecutor, o: _Order) -> None:
+    def _submit(self, pool: DayPool, o: _Order) -> None:
         o.state = "running"
         p = self.passes[o.order.pass_name]
         out = self.out / "products" / p.name
@@ -454,24 +453,35 @@ class Day:
 
 
 def run_day(
-    scn: DayScenario, out: Path, resume: bool = False, say: bool = True, calibrate: bool = True
+    scn: DayScenario,
+    out: Path,
+    resume: bool = False,
+    say: bool = True,
+    calibrate: bool = True,
+    scheduler: str | None = None,
 ) -> dict:
     """Run the day into ``out`` (module docstring); its report
     (:func:`station.day.report.day_report`), also written to ``<out>/day.json``. With
     ``calibrate``, the station's service times are measured on calibration passes of their
     own just before the clock and just after it (:func:`station.day.calibrate.bracket`):
-    what ``station capacity validate`` gives the model."""
+    what ``station capacity validate`` gives the model. With ``scheduler``, the workers are
+    those of the Dask cluster there (:mod:`station.day.pool`), as many as its threads."""
     from station.day.calibrate import bracket
     from station.day.report import day_report, write_report
 
     out = Path(out)
-    plan = prepare(scn, out, resume)
-    if calibrate:
-        bracket(scn, out, "before", say)
-    day = Day(scn, out, plan, resume, say)
-    day.run()
-    if calibrate:
-        bracket(scn, out, "after", say)
+    with day_pool(scn.day.workers, scheduler) as pool:
+        if scheduler is not None:  # the cluster's workers, checked for room by it
+            scn = with_workers(scn, pool.workers, None)
+        plan = prepare(scn, out, resume, local_workers=scheduler is None)
+        if say:
+            print(f"station day: the workers are {pool.where}", file=sys.stderr, flush=True)
+        if calibrate:
+            bracket(scn, out, "before", pool, say)
+        day = Day(scn, out, plan, resume, say)
+        day.run(pool)
+        if calibrate:
+            bracket(scn, out, "after", pool, say)
     report = day_report(scn, plan, read_events(out / EVENTS_FILE), day.failures)
     write_report(out, report)
     return report

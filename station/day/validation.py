@@ -15,6 +15,8 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from station.errors import StationError
 
 __all__ = ["SESSIONS", "validate_day", "validation_text"]
@@ -22,6 +24,8 @@ __all__ = ["SESSIONS", "validate_day", "validation_text"]
 #: Calibration sessions measured one after the other: the spread between them (this
 #: machine's from one minute to the next, 10-25 % on a shared VM) is in the interval.
 SESSIONS = 2
+#: The model's own days (replications of seeds of their own) scored as the day is.
+OWN_DAYS = 200
 #: The service times measured by the validation itself (the day's own are kept).
 MEASURED_FILE = "service_validate.json"
 
@@ -47,7 +51,7 @@ def validate_day(
     """The validation of the day in ``run`` (module docstring)."""
     from levels.files import write_json
     from station.capacity.plan import read_plan
-    from station.capacity.validate import DayUnits, compare, predict
+    from station.capacity.validate import DayUnits, compare, own_days, predict
     from station.day.calibrate import SERVICE_FILE, SERVICE_FORMAT, day_service, read_service
     from station.day.config import load_day, with_workers
     from station.day.run import DAY_FILE, PLAN_FILE
@@ -77,7 +81,10 @@ def validate_day(
     n = replications or scn.capacity.simulation.replications
     if n < 2:
         raise StationError(f"--replications {n}: an interval needs at least 2")
-    rows = compare(report, predict(plan, units, service, n, scn.capacity.seed))
+    predicted = predict(plan, units, service, n, scn.capacity.seed)
+    rows = compare(report, predicted)
+    own = own_days(predicted, predict(plan, units, service, OWN_DAYS, scn.capacity.seed + n))
+    inside = sum(bool(r["inside"]) for r in rows)
     result = {
         "day": report["day"],
         "workers": scn.day.workers,
@@ -85,6 +92,16 @@ def validate_day(
         "replications": n,
         "rows": rows,
         "all_inside": all(r["inside"] for r in rows),
+        "inside": inside,
+        # what the model's own days score: the day is consistent with the model when it
+        # scores as well as all but the worst 5 % of them
+        "own_days": {
+            "days": OWN_DAYS,
+            "inside_mean": float(own.mean()),
+            "inside_p5": float(np.percentile(own, 5)),
+            "all_inside_share": float(np.mean(own == len(rows))),
+        },
+        "consistent": bool(inside >= np.percentile(own, 5)),
         "service": service,
     }
     write_json(run / "validation.json", result)
@@ -111,9 +128,16 @@ def validation_text(result: dict) -> str:
             f"{what:12s} {r['figure']:28s} {f(r['measured']):>9s} {f(r['predicted']):>9s}"
             f"   [{f(lo)}, {f(hi)}]  {'yes' if r['inside'] else 'NO'}{note}"
         )
-    n_in = sum(r["inside"] for r in result["rows"])
-    lines.append(
-        f"{n_in} of {len(result['rows'])} figures inside "
-        "(utilisation: within 10 % of the model's mean, or inside its interval where wider)"
-    )
+    n_in, n = sum(r["inside"] for r in result["rows"]), len(result["rows"])
+    own = result["own_days"]
+    lines += [
+        f"{n_in} of {n} figures inside "
+        "(utilisation: within 10 % of the model's mean, or inside its interval where wider)",
+        f"the model's own {own['days']} days, scored the same way: {own['inside_mean']:.1f} of "
+        f"{n} inside on average, {own['inside_p5']:.0f} or more in 95 % of them, all {n} in "
+        f"{100 * own['all_inside_share']:.0f} %",
+        "the day is "
+        + ("consistent" if result["consistent"] else "NOT consistent")
+        + " with the model (as many figures inside as 95 % of the model's own days, or more)",
+    ]
     return "\n".join(lines)
