@@ -15,7 +15,7 @@ TINY = {
     "scenes_per_segment = 3.0": "scenes_per_segment = 1.0",
     "delay_mean_h = 1.0": "delay_mean_h = 0.1",
     'name = "cuiaba_day"': 'name = "tiny_day"',
-    "bit_rate_mbps = 4.0": "bit_rate_mbps = 4.0\ncalibration_repeats = 2",
+    "calibration_repeats = 8": "calibration_repeats = 2",
 }
 
 

@@ -3,9 +3,10 @@ level's latency beside the measured change (issue 60's what-if check).
 
     python tools/day_workers.py [scenarios/day/cuiaba_day.toml] [--out runs/day_workers]
 
-Runs ``station day`` with ``--workers 1`` and ``--workers 3`` (each about two and a half
-minutes at the shipped day's clock), validates each (``station capacity validate``: its own
-service times measured on this machine, never the day's), then predicts the change of the
+Runs ``station day`` with ``--workers 1`` and ``--workers 3`` (each about three and a half
+minutes at the shipped day's clock, with its service times measured on calibration passes of
+their own before its clock and after it, never the day's), validates each (``station
+capacity validate``), then predicts the change of the
 2A p95 latency from acquisition (and the others) from the two models' replications with the
 same seeds (common random numbers: the difference's interval is not drowned in the two
 runs' noise) and says whether the measured change lies inside the 95 % interval of the
@@ -40,7 +41,7 @@ def _day(day: Path, out: Path, workers: int) -> Path:
              "--workers", str(workers), "-q"],
             check=True,
         )  # fmt: skip
-    if not (where / "service_day.json").is_file():
+    if not (where / "validation.json").is_file():
         subprocess.run(
             [sys.executable, "-m", "station.cli", "capacity", "validate", str(where), "-q"],
             check=False,  # a figure outside is said in the table, not fatal here

@@ -205,7 +205,10 @@ def _cor_table(
     archive (the second of :data:`SCENES`), half as many times from the ``short`` one's
     (what a scene more in the archive costs: the job reads its archive whole and sets up
     GEO for its pass), and k at once for k = 2 … workers: its times, its cost an archive
-    scene (``s_per_archive_scene``) and how many times slower each is k at once."""
+    scene (``s_per_archive_scene``) and how many times slower each is k at once. The kinds
+    take turns, one job each a round: this machine's speed drifts from one minute to the
+    next (10-30 % on a shared VM), and a kind's times taken together would each catch one
+    moment of it."""
     cor: dict[str, dict[str, dict[str, object]]] = {}
     together: dict[int, list[float]] = {k: [] for k in range(2, day.workers + 1)}
     repeats = day.calibration_repeats
@@ -223,20 +226,28 @@ def _cor_table(
             for k in range(n)
         ]
 
-    for mode in ("P", "XS"):
-        cor[mode] = {}
-        for level in LEVELS:
-            alone = _cor(pool, jobs("long", mode, level, repeats), 1)
-            short = _cor(pool, jobs("short", mode, level, max(1, repeats // 2)), 1)
-            per = (np.mean(alone) - np.mean(short)) / (SCENES[1] - SCENES[0])
-            cor[mode][level] = {
-                **_stats(alone),
-                "archive_scenes": SCENES[1],
-                "s_per_archive_scene": max(0.0, float(per)),
-            }
-            for k in together:  # k of them at once: how much slower each is
-                ratio = float(np.mean(_cor(pool, jobs("long", mode, level, k), k)) / np.mean(alone))
-                together[k].append(ratio)
+    kinds = [(mode, level) for mode in ("P", "XS") for level in LEVELS]
+    alone: dict[tuple[str, str], list[float]] = {kind: [] for kind in kinds}
+    short: dict[tuple[str, str], list[float]] = {kind: [] for kind in kinds}
+    at_once: dict[tuple[int, str, str], list[float]] = {}
+    for r in range(repeats):  # round by round: each kind's times spread over the session
+        for mode, level in kinds:
+            alone[mode, level] += _cor(pool, jobs("long", mode, level, 1), 1)
+            if r < max(1, repeats // 2):
+                short[mode, level] += _cor(pool, jobs("short", mode, level, 1), 1)
+            for k in together:  # k of them at once, once a kind, midway
+                if r == repeats // 2:
+                    at_once[k, mode, level] = _cor(pool, jobs("long", mode, level, k), k)
+    for mode, level in kinds:
+        t = alone[mode, level]
+        per = (np.mean(t) - np.mean(short[mode, level])) / (SCENES[1] - SCENES[0])
+        cor.setdefault(mode, {})[level] = {
+            **_stats(t),
+            "archive_scenes": SCENES[1],
+            "s_per_archive_scene": max(0.0, float(per)),
+        }
+        for k in together:  # how much slower each is
+            together[k].append(float(np.mean(at_once[k, mode, level]) / np.mean(t)))
     return cor, together
 
 

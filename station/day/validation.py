@@ -19,7 +19,7 @@ import numpy as np
 
 from station.errors import StationError
 
-__all__ = ["SESSIONS", "validate_day", "validation_text"]
+__all__ = ["SESSIONS", "machine_speed", "validate_day", "validation_text"]
 
 #: Calibration sessions measured one after the other: the spread between them (this
 #: machine's from one minute to the next, 10-25 % on a shared VM) is in the interval.
@@ -102,6 +102,7 @@ def validate_day(
             "all_inside_share": float(np.mean(own == len(rows))),
         },
         "consistent": bool(inside >= np.percentile(own, 5)),
+        "machine_speed": machine_speed(run, service),
         "service": service,
     }
     write_json(run / "validation.json", result)
@@ -140,4 +141,59 @@ def validation_text(result: dict) -> str:
         + ("consistent" if result["consistent"] else "NOT consistent")
         + " with the model (as many figures inside as 95 % of the model's own days, or more)",
     ]
+    speed = result.get("machine_speed", {})
+    if speed.get("jobs"):
+        lines.append(
+            f"the day's {speed['jobs']} jobs that shared the machine with nothing took "
+            f"{speed['ratio_mean']:.2f} ± {speed['ratio_sem']:.2f} times their calibrated time "
+            "(1: the machine ran the day as fast as it was calibrated)"
+        )
     return "\n".join(lines)
+
+
+def machine_speed(run: Path, service: dict) -> dict[str, float]:
+    """How fast the machine ran the day against its calibration, from the jobs that shared
+    it with nothing: each made while no other job ran and the front end neither ingested
+    nor catalogued, its wall time (dispatch to return) over its kind's calibrated time on
+    an archive of its segment's scenes (the mean over the sessions). A diagnostic, never an
+    input of the model: 1.0 says the day ran at the calibrated speed; where the model
+    misses and this is well above 1, the machine itself was slower during the day than
+    minutes before and after it (a shared VM's neighbours), which no calibration taken
+    outside the day can see."""
+    from station.capacity.plan import read_plan
+    from station.day.run import EVENTS_FILE, PLAN_FILE, read_events
+
+    plan = read_plan(run / PLAN_FILE)
+    events = read_events(run / EVENTS_FILE)
+    seg = {(p.name, s.hrv): s for p in plan.passes for s in p.segments}
+    orders = {o.name: o for o in plan.orders}
+    front = [
+        (c["started_unix"], c["started_unix"] + c["catalogued_s"])
+        for e in events
+        if e["event"] == "archived"
+        for c in e["channels"]
+    ]
+    jobs = [(e["dispatched_unix"], e["returned_unix"], e["order"]) for e in events
+            if e["event"] == "made"]  # fmt: skip
+    sessions = service.get("sessions", [service])
+    ratios = []
+    for a, b, name in jobs:
+        busy = front + [(x, y) for x, y, other in jobs if other != name]
+        if any(min(b, y) > max(a, x) for x, y in busy):
+            continue
+        o = orders[name]
+        s = seg[o.pass_name, o.hrv]
+        calibrated = np.mean(
+            [
+                e["mean_s"] + e.get("s_per_archive_scene", 0.0)
+                * (s.scenes - e.get("archive_scenes", s.scenes))
+                for e in (t["cor_s"][s.mode][o.level] for t in sessions)
+            ]
+        )  # fmt: skip
+        ratios.append((b - a) / calibrated)
+    r = np.asarray(ratios)
+    return {
+        "jobs": int(r.size),
+        "ratio_mean": float(r.mean()) if r.size else math.nan,
+        "ratio_sem": float(r.std(ddof=1) / np.sqrt(r.size)) if r.size > 1 else math.nan,
+    }
