@@ -85,6 +85,7 @@ def _run_part(files: list[str], base: Path) -> subprocess.CompletedProcess[str]:
         "no:cacheprovider",
         "--basetemp",
         str(base / "tmp"),
+        "--durations=8",
         *files,
     ]
     log = base / "part.log"

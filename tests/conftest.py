@@ -37,6 +37,21 @@ def pytest_collection_modifyitems(
     _smokes.start()
 
 
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """The second part's slowest tests and its count and time, after the suite's own."""
+    import sys
+
+    smokes = sys.modules.get("_smokes")
+    run = smokes.part_result() if smokes is not None else None
+    if run is None:
+        return
+    lines = run.stdout.splitlines()
+    start = next((k for k, ln in enumerate(lines) if "slowest" in ln), len(lines) - 1)
+    terminalreporter.write_sep("=", "the second part (tests/_smokes.PART)")
+    for ln in [*lines[start + 1 : start + 9], lines[-1]] if lines else []:
+        terminalreporter.write_line(ln)
+
+
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     import sys
 

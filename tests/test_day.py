@@ -287,3 +287,18 @@ def test_bad_days_are_refused_in_one_line(tmp_path: Path, capsys, monkeypatch) -
     assert "holds no day" in capsys.readouterr().err
     assert main(["capacity", "validate", str(tmp_path)]) == 2
     assert "not a station day" in capsys.readouterr().err
+
+
+def test_the_days_front_end_lives_until_its_input_closes(tmp_path: Path) -> None:
+    """``station serve --until-stdin-closes``, as a day starts it: listening until the
+    pipe from its starter is closed, then gone by itself (exit 0), no pass needed."""
+    from station.day.front import launch_front_end, port_of, stop_front_end
+
+    proc = launch_front_end(tmp_path)
+    try:
+        assert port_of(proc, tmp_path) > 0
+        time.sleep(0.5)
+        assert proc.poll() is None  # still listening: no --passes to count down
+    finally:
+        stop_front_end(proc, 20.0)
+    assert proc.returncode == 0, (tmp_path / "serve.log").read_text()[-2000:]

@@ -52,6 +52,12 @@ def register(sub: Subparsers) -> None:
         help="warm GEO (the catalogue's placing of scenes) before the port is said, not "
         "beside the first pass (a day's front end, whose first pass may come at once)",
     )
+    s.add_argument(
+        "--until-stdin-closes",
+        action="store_true",
+        help="also stop when standard input ends (a front end that lives as long as the "
+        "process that started it, as a station day's does)",
+    )
     _add_sle(s)
     add_json(s)
     s.set_defaults(func=_serve)
@@ -175,6 +181,7 @@ def _serve(args: argparse.Namespace) -> int:
         _sle_of(args),
         tuple(v.strip() for v in args.levels.split(",")) if args.levels else (),
         args.warm_first,
+        args.until_stdin_closes,
     )
     emit(args, {"passes": [str(p) for p in done]}, lambda d: "\n".join(d["passes"]))
     return 0

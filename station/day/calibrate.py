@@ -36,6 +36,7 @@ from station.archive_catalogue import CATALOGUE_FILE
 from station.capacity.plan import PlannedPass, PlannedSegment
 from station.day import work
 from station.day.config import DayConfig, DayScenario
+from station.day.front import launch_front_end, port_of, stop_front_end
 from station.day.pool import DayPool, day_pool, finish_times
 from station.day.preflight import SCENE_S
 from station.errors import StationError
@@ -138,17 +139,15 @@ def day_service(
     if pool is None:
         with day_pool(scn.day.workers) as local:
             return day_service(scn, workdir, local)
-    from station.day.run import _launch_front_end, _port_of, _stop
-
     day = dataclasses.replace(scn.day, workers=pool.workers)
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         out = Path(tmp)
         (out / "passes").mkdir()
         catalogue = str(out / "archive" / CATALOGUE_FILE)
-        proc = _launch_front_end(out, len(PASSES))  # warm before its port, as a day's
+        proc = launch_front_end(out)  # warm before its port, as a day's
         try:
             streams = _emulated(out, scn, pool)
-            port = _port_of(proc, out)
+            port = port_of(proc, out)
             lives = {
                 name: _send(out, streams[name], port, scn, name)
                 for name in PASSES
@@ -171,7 +170,7 @@ def day_service(
             busy_after = sum(not f.done() for f in busy)
             busy_runs = [f.result() for f in busy]
         finally:
-            _stop(proc, 120.0)
+            stop_front_end(proc, 120.0)
         ingest = _ingest(lives, busy_after >= day.workers)
         cor_ingesting = _cor_while_ingesting(busy_runs, lives["busy"])
         geo = _geo(out, catalogue, lives, ingest)

@@ -28,7 +28,6 @@ import heapq
 import json
 import logging
 import shutil
-import subprocess
 import sys
 import threading
 import time
@@ -41,6 +40,7 @@ from station.archive_catalogue import CATALOGUE_FILE, Catalogue
 from station.capacity.plan import DayPlan, PlannedOrder, PlannedPass, draw_plan, read_plan
 from station.day import work
 from station.day.config import DayScenario, with_workers
+from station.day.front import launch_front_end, port_of, stop_front_end
 from station.day.pool import DayPool, day_pool
 from station.errors import StationError
 
@@ -56,8 +56,6 @@ DAY_FILE = "day.toml"
 EVENTS_FILE = "events.jsonl"
 #: How often the clock looks at what happened (wall s).
 TICK_S = 0.02
-#: Wall seconds the front end has to say its port.
-FRONT_END_START_S = 120.0
 
 
 @dataclass
@@ -176,62 +174,6 @@ def prepare(scn: DayScenario, out: Path, resume: bool, local_workers: bool = Tru
     return plan
 
 
-def _launch_front_end(out: Path, passes: int) -> subprocess.Popen:
-    """The day's front end started (``station serve --warm-first``): it warms while the
-    passes are emulated, and says its port once warm (:func:`_port_of`)."""
-    port_file = out / "serve.port"
-    port_file.unlink(missing_ok=True)
-    log = (out / "serve.log").open("a")
-    cmd = [
-        sys.executable,
-        "-m",
-        "station.cli",
-        "serve",
-        "--out",
-        str(out / "archive"),
-        "--port",
-        "0",
-        "--port-file",
-        str(port_file),
-        "--passes",
-        str(passes),
-        "--warm-first",
-    ]
-    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-    log.close()
-    return proc
-
-
-def _port_of(proc: subprocess.Popen, out: Path) -> int:
-    """The port the front end :func:`_launch_front_end` started listens on, once said."""
-    port_file = out / "serve.port"
-    deadline = time.time() + FRONT_END_START_S
-    while not port_file.is_file():
-        if proc.poll() is not None:
-            raise StationError(f"the front end exited ({proc.returncode}); see {out}/serve.log")
-        if time.time() > deadline:
-            proc.kill()
-            proc.wait()
-            raise StationError(f"the front end said no port in {FRONT_END_START_S:.0f} s")
-        time.sleep(0.05)
-    return int(port_file.read_text())
-
-
-def _stop(proc: subprocess.Popen | None, timeout_s: float = 30.0) -> None:
-    """The front end this day started, ended: it exits once its passes are in."""
-    if proc is None:
-        return
-    try:
-        proc.wait(timeout_s)
-    except subprocess.TimeoutExpired:
-        proc.terminate()
-        try:
-            proc.wait(10.0)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
 class Day:
     """One day on the clock (module docstring)."""
 
@@ -268,11 +210,11 @@ class Day:
             self.clock = Clock(day.clock, self.state.station_s)
             self.events.close()
             return
-        proc = _launch_front_end(self.out, len(to_send)) if to_send else None
+        proc = launch_front_end(self.out) if to_send else None
         sent = False  # until the clock runs, the front end has no pass to wait for
         try:
             streams = self._emulate(pool, to_send)
-            port = _port_of(proc, self.out) if proc is not None else 0
+            port = port_of(proc, self.out) if proc is not None else 0
             sent = True
             self.clock = Clock(day.clock, self.state.station_s)
             self.events(
@@ -284,7 +226,7 @@ class Day:
             )
             self._loop(pool, streams, port)
         finally:
-            _stop(proc, 30.0 if sent else 0.0)
+            stop_front_end(proc, 30.0 if sent else 0.0)
         self.events("end", station_s=self.clock.now())
         self.events.close()
 

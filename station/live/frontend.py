@@ -32,6 +32,7 @@ import functools
 import json
 import logging
 import socket
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -474,6 +475,14 @@ class FrontEnd:
         _log.info("pass %s received: %s", p.announcement.name, p.where)
 
 
+def _stop_at_eof(stop: threading.Event) -> None:
+    """``stop`` set once standard input ends (whatever it carries is ignored)."""
+    with contextlib.suppress(OSError, ValueError):
+        while sys.stdin.buffer.read(4096):
+            pass
+    stop.set()
+
+
 def _listen(host: str, port: int) -> socket.socket:
     server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     try:
@@ -496,13 +505,16 @@ def serve(
     sle: tuple[RafConfig, int, Path | None] | None = None,
     levels: tuple[str, ...] = (),
     warm_first: bool = False,
+    until_stdin_closes: bool = False,
 ) -> list[Path]:
     """Listen on ``host:port`` (0: a free port, written to ``port_file``) and receive
     passes into ``out`` until ``passes`` of them are done (None: until interrupted);
     with ``sle = (config, port, port_file)``, be an SLE RAF provider on that port too
     (:mod:`station.live.raf`); with ``levels``, make each scene's products as soon as its
     lines are in (:mod:`station.live.nrt`); with ``warm_first``, GEO is warmed before the
-    port is said (else beside the first pass). Returns the passes' directories."""
+    port is said (else beside the first pass); with ``until_stdin_closes``, it also stops
+    when its standard input ends (the process that started it has closed the pipe, or
+    died: a day's front end lives as long as its day). Returns the passes' directories."""
     if levels:
         from levels.options import ProcessingOptions
 
@@ -528,7 +540,9 @@ def serve(
     _port_file(port_file, bound)
     _log.info("station serve: listening on %s:%d, passes into %s", host, bound, out)
     try:
-        while passes is None or len(front.passes_done) < passes:
+        if until_stdin_closes:
+            threading.Thread(target=_stop_at_eof, args=(stop,), daemon=True).start()
+        while (passes is None or len(front.passes_done) < passes) and not stop.is_set():
             try:
                 sock, addr = server.accept()
             except TimeoutError:
