@@ -8,7 +8,8 @@ start), in hours in the report. A stage's unit is busy:
 - **ingest**: a channel, from its stream's first byte at the front end to its archive
   written (``live.json``: ``archived_s``);
 - **geo**: from then to its scenes catalogued as GEO places them (``catalogued_s``);
-- **cor**: a worker, from an order's dispatch to its product made and catalogued.
+- **cor**: a worker, from an order's dispatch to its product made and catalogued (the
+  job's end as its worker ends it, not as the day's loop sees it a tick later).
 
 A stage's utilisation is its units' busy time within the window over units × window; a
 wait is from an order's scene being ready (ordered, and its pass catalogued) to its
@@ -103,7 +104,7 @@ def _orders(plan: DayPlan, last: dict[str, dict[str, dict]], at: _Timeline) -> t
         m = ev["made"]
         o = orders[name]
         d, r = at(m["dispatched_unix"]), at(m["returned_unix"])
-        cor.append((d, r))
+        cor.append((d, at(m.get("finished_unix", m["returned_unix"]))))  # the worker held
         if "ready" in ev:
             ready = ev["ready"]["station_s"]
             waits.append(max(0.0, d - ready))

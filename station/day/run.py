@@ -187,7 +187,7 @@ class Day:
         self.passes = {p.name: p for p in plan.passes}
         self.orders = [_Order(o) for o in plan.orders]
         self._ready: list[tuple[int, float, int, _Order]] = []
-        self._done: list[tuple[_Order, float, Future]] = []
+        self._done: list[tuple[_Order, float, Future, float]] = []
         self._lock = threading.Lock()
         self.failures: list[str] = []
         self.unsent: set[str] = set()  # passes the sender could not send
@@ -360,14 +360,14 @@ class Day:
         f.add_done_callback(lambda fut: self._finished(o, t, fut))
 
     def _finished(self, o: _Order, dispatched: float, fut: Future) -> None:
-        with self._lock:
-            self._done.append((o, dispatched, fut))
+        with self._lock:  # when the worker's job ended (the loop sees it at its next look)
+            self._done.append((o, dispatched, fut, time.time()))
 
     def _collect(self) -> int:
         """Finished jobs recorded; how many."""
         with self._lock:
             done, self._done = self._done, []
-        for o, dispatched, fut in done:
+        for o, dispatched, fut, finished in done:
             now = self.clock.now()
             try:
                 r = fut.result()
@@ -384,7 +384,8 @@ class Day:
                 order=o.order.name,
                 station_s=now,
                 dispatched_unix=dispatched,
-                returned_unix=time.time(),
+                finished_unix=finished,  # the worker free again
+                returned_unix=time.time(),  # seen by the loop: the product's latency
                 **r,
             )
             self.tell(

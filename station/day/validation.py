@@ -154,7 +154,7 @@ def validation_text(result: dict) -> str:
 def machine_speed(run: Path, service: dict) -> dict[str, float]:
     """How fast the machine ran the day against its calibration, from the jobs that shared
     it with nothing: each made while no other job ran and the front end neither ingested
-    nor catalogued, its wall time (dispatch to return) over its kind's calibrated time on
+    nor catalogued, its wall time (dispatch to its end) over its kind's calibrated time on
     an archive of its segment's scenes (the mean over the sessions). A diagnostic, never an
     input of the model: 1.0 says the day ran at the calibrated speed; where the model
     misses and this is well above 1, the machine itself was slower during the day than
@@ -173,8 +173,8 @@ def machine_speed(run: Path, service: dict) -> dict[str, float]:
         if e["event"] == "archived"
         for c in e["channels"]
     ]
-    jobs = [(e["dispatched_unix"], e["returned_unix"], e["order"]) for e in events
-            if e["event"] == "made"]  # fmt: skip
+    jobs = [(e["dispatched_unix"], e.get("finished_unix", e["returned_unix"]), e["order"])
+            for e in events if e["event"] == "made"]  # fmt: skip
     sessions = service.get("sessions", [service])
     ratios = []
     for a, b, name in jobs:
