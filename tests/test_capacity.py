@@ -201,14 +201,9 @@ def test_an_outage_not_cleared_by_the_horizon_is_censored(cuiaba) -> None:
 def test_a_load_is_said_inside_or_outside_what_the_day_checked() -> None:
     from station.capacity.study import checked
 
-    def run(busy: float, workers: int) -> dict:
-        return {"stages": {"cor": {"utilisation": {"mean": busy}, "units": {"mean": workers}}}}
-
-    assert checked(run(0.2, 2)).startswith("inside the load checked against a day")
-    assert checked(run(0.9, 2)).startswith("outside the load") and "COR 90 % busy" in checked(
-        run(0.9, 2)
-    )
-    assert checked(run(0.2, 8)).startswith("outside the load")
+    assert checked(0.2, 2).startswith("inside the load checked against a day")
+    assert checked(0.9, 2).startswith("outside the load") and "COR 90 % busy" in checked(0.9, 2)
+    assert checked(0.2, 8).startswith("outside the load")
 
 
 def test_two_sweeps_make_a_grid_with_a_verdict_and_a_figure_each(cuiaba, tmp_path) -> None:

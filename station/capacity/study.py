@@ -30,7 +30,6 @@ import csv
 import itertools
 import json
 import math
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -176,7 +175,9 @@ def run_study(
     ]
     for run in runs:
         run["verdict"] = verdict(run)
-        run["checked"] = checked(run)
+        stages: Any = run["stages"]  # the aggregate's nested figures
+        cor = stages["cor"]
+        run["checked"] = checked(cor["utilisation"]["mean"], int(cor["units"]["mean"]))
     first = reps[0, 0]
     summary = {
         "format": "spot-station-capacity",
@@ -362,11 +363,10 @@ CHECKED_COR_UTILISATION = (0.10, 0.35)
 CHECKED_COR_WORKERS = (1, 3)
 
 
-def checked(run: Mapping[str, Any]) -> str:
-    """Whether a run's load lies where the model was checked against a day at the station
-    (:data:`CHECKED_COR_UTILISATION`, :data:`CHECKED_COR_WORKERS`), in one line."""
-    busy = run["stages"]["cor"]["utilisation"]["mean"]
-    workers = int(run["stages"]["cor"]["units"]["mean"])
+def checked(busy: float, workers: int) -> str:
+    """Whether a run's load (its COR utilisation ``busy`` on ``workers``) lies where the
+    model was checked against a day at the station (:data:`CHECKED_COR_UTILISATION`,
+    :data:`CHECKED_COR_WORKERS`), in one line."""
     lo, hi = CHECKED_COR_UTILISATION
     w_lo, w_hi = CHECKED_COR_WORKERS
     where = (

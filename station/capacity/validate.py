@@ -50,6 +50,7 @@ __all__ = [
     "PlannedSimulation",
     "as_day",
     "compare",
+    "cor_mean_s",
     "own_days",
     "predict",
 ]
@@ -69,6 +70,13 @@ class DayUnits:
     geo: int
     cor: int
     clock: float
+
+
+def cor_mean_s(entry: Mapping[str, float], scenes: int) -> float:
+    """An order kind's calibrated mean time (``cor_s``'s entry) on an archive of ``scenes``
+    scenes: its time on the calibration's archive and its cost an archive scene."""
+    per = float(entry.get("s_per_archive_scene", 0.0))
+    return max(0.0, float(entry["mean_s"]) + per * (scenes - entry.get("archive_scenes", scenes)))
 
 
 class SharedStage:
@@ -215,8 +223,7 @@ class PlannedSimulation:
         """A job's time: its kind's, on an archive of the segment's ``scenes`` (the job
         reads its archive whole and sets GEO up for its pass)."""
         e = self.cor_means[mode][level]
-        mean = e["mean_s"] + e["s_per_archive_scene"] * (scenes - e["archive_scenes"])
-        return gamma_time(self.rng, max(mean, 0.0), e["cv"])
+        return gamma_time(self.rng, cor_mean_s(e, scenes), e["cv"])
 
     def _tick(self) -> float:
         """The day's loop sees an event at its next look (``station.day.run.TICK_S``)."""

@@ -164,6 +164,7 @@ def machine_speed(run: Path, service: dict) -> dict[str, float]:
     minutes before and after it (a shared VM's neighbours), which no calibration taken
     outside the day can see."""
     from station.capacity.plan import read_plan
+    from station.capacity.validate import cor_mean_s
     from station.day.run import EVENTS_FILE, PLAN_FILE, read_events
 
     plan = read_plan(run / PLAN_FILE)
@@ -186,13 +187,7 @@ def machine_speed(run: Path, service: dict) -> dict[str, float]:
             continue
         o = orders[name]
         s = seg[o.pass_name, o.hrv]
-        calibrated = np.mean(
-            [
-                e["mean_s"] + e.get("s_per_archive_scene", 0.0)
-                * (s.scenes - e.get("archive_scenes", s.scenes))
-                for e in (t["cor_s"][s.mode][o.level] for t in sessions)
-            ]
-        )  # fmt: skip
+        calibrated = np.mean([cor_mean_s(t["cor_s"][s.mode][o.level], s.scenes) for t in sessions])
         ratios.append((b - a) / calibrated)
     r = np.asarray(ratios)
     return {
